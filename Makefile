@@ -1,0 +1,33 @@
+# Two commands do all the set-up on a fresh clone:
+#   make demo   - virtual environment, install, then the main job on a small default
+#   make test   - the same set-up, then the test suite
+PYTHON ?= python3
+VENV   ?= .venv
+BIN    := $(VENV)/bin
+# The CPU build of torch; an unpinned torch pulls a CUDA build of several GB.
+TORCH  ?= torch==2.13.0
+
+.PHONY: demo test install bench clean
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --upgrade pip
+
+$(VENV)/.installed: pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install "$(TORCH)"
+	$(BIN)/python -m pip install -e ".[dev]"
+	touch $@
+
+install: $(VENV)/.installed
+
+demo: install
+	$(BIN)/hybrid-dyn demo
+
+test: install
+	$(BIN)/python -m pytest -q
+
+bench: install
+	$(BIN)/python benchmarks/analytic_speed.py
+
+clean:
+	rm -rf $(VENV)

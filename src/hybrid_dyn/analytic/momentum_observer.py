@@ -1,0 +1,110 @@
+"""Generalized-momentum observer (De Luca & Mattone 2005).
+
+With p = M(q) qd the generalized momentum, the dynamics
+M qdd + C qd + g = tau + tau_ext give p' = tau + tau_ext + C^T qd - g.
+The observer residual
+
+    r(t) = K [ p(t) - p(0) - integral_0^t (tau + C^T qd - g + r) ds ]
+
+obeys r' = K (tau_ext - r): a first-order filter of the external joint torque
+with bandwidth K [1/s], needing no joint acceleration. The tip force follows
+from r = J_v^T F by damped least squares.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+import pinocchio as pin
+
+from .robot import InputError, Robot, as_batch
+from .tip_force import MAX_DAMPING, SINGULAR_REGION, damped_force_from_joint_torques
+
+
+class MomentumObserver:
+    """Streaming momentum observer on a :class:`Robot`.
+
+    gain: K [1/s], scalar or per joint. dt: sample time [s].
+    friction: optional callable qd -> friction torque [Nm] consumed in the
+    joints; when given, the observer is fed motor torques and subtracts it.
+    The integral uses the trapezoidal rule.
+    """
+
+    def __init__(self, robot: Robot, gain=50.0, dt: float = 1e-3,
+                 friction: Callable[[np.ndarray], np.ndarray] | None = None):
+        if dt <= 0:
+            raise ValueError(f"dt must be positive, got {dt}")
+        self.robot = robot
+        self.gain = np.broadcast_to(np.asarray(gain, dtype=float), (robot.nv,)).copy()
+        if (self.gain <= 0).any():
+            raise ValueError("gain must be positive")
+        self.dt = float(dt)
+        self.friction = friction
+        self._data = robot.model.createData()
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the history; the next step re-initialises p(0)."""
+        self._p0 = None
+        self._integral = np.zeros(self.robot.nv)
+        self._last_integrand = None
+        self.residual = np.zeros(self.robot.nv)
+
+    def _beta_and_p(self, q, qd):
+        model, data = self.robot.model, self._data
+        M = pin.crba(model, data, q)
+        M = np.triu(M) + np.triu(M, 1).T
+        C = pin.computeCoriolisMatrix(model, data, q, qd)
+        g = pin.computeGeneralizedGravity(model, data, q)
+        return C.T @ qd - g, M @ qd
+
+    def step(self, q, qd, tau) -> np.ndarray:
+        """Advance one sample; returns the external joint torque estimate r [Nm] (nv,)."""
+        nv = self.robot.nv
+        q = np.asarray(q, float)
+        qd = np.asarray(qd, float)
+        tau = np.asarray(tau, float)
+        for name, x in (("q", q), ("qd", qd), ("tau", tau)):
+            if x.shape != (nv,):
+                raise InputError(f"{name} must have shape ({nv},), got {x.shape}")
+            if not np.isfinite(x).all():
+                raise InputError(f"{name} holds NaN or inf")
+        if self.friction is not None:
+            tau = tau - self.friction(qd)
+        beta, p = self._beta_and_p(q, qd)
+        if self._p0 is None:
+            self._p0 = p
+            self._last_integrand = tau + beta
+            return self.residual.copy()
+        integrand = tau + beta
+        # Trapezoid on the model terms; the residual term uses the last estimate.
+        self._integral += 0.5 * (integrand + self._last_integrand) * self.dt + self.residual * self.dt
+        self._last_integrand = integrand
+        self.residual = self.gain * (p - self._p0 - self._integral)
+        return self.residual.copy()
+
+    def force(self, q, residual: np.ndarray | None = None) -> np.ndarray:
+        """Tip force [N] (3,) explaining the residual through J_v^T."""
+        r = self.residual if residual is None else residual
+        jv = self.robot._tip_jacobians(np.asarray(q, float)[None, :])[:, :3, :]
+        return damped_force_from_joint_torques(jv, r[None, :], SINGULAR_REGION, MAX_DAMPING)[0]
+
+    def step_force(self, q, qd, tau) -> np.ndarray:
+        """One step, returning the tip force estimate [N] (3,)."""
+        r = self.step(q, qd, tau)
+        return self.force(q, r)
+
+    def run(self, q, qd, tau) -> tuple[np.ndarray, np.ndarray]:
+        """Run over a trajectory sampled every ``dt``: (tip forces (N, 3) [N], residuals (N, nv) [Nm]).
+
+        Starts from a reset, so r(0) = 0 and the first 5/K seconds are transient.
+        """
+        q, _ = as_batch(q, "q", self.robot.nv)
+        qd, _ = as_batch(qd, "qd", self.robot.nv)
+        tau, _ = as_batch(tau, "tau", self.robot.nv)
+        if not (len(q) == len(qd) == len(tau)):
+            raise InputError("q, qd, tau have different lengths")
+        self.reset()
+        res = np.stack([self.step(q[i], qd[i], tau[i]) for i in range(len(q))])
+        jv = self.robot._tip_jacobians(q)[:, :3, :]
+        return damped_force_from_joint_torques(jv, res, SINGULAR_REGION, MAX_DAMPING), res

@@ -1,0 +1,1 @@
+"""Simulation: the DART plant and the dataset generator."""
