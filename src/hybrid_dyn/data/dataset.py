@@ -1,0 +1,261 @@
+"""The toolkit's dataset format: a directory of HDF5 instances and a manifest.
+
+Layout::
+
+    DIR/manifest.json          config, seed, versions, fields, instances, splits
+    DIR/instances/<name>.h5    one file per instance (a run of 5-50 trajectories)
+
+Each instance file holds one dataset per field at its root (``t``, ``q``, ``qd``,
+``qdd``, ``tau_m``, ``tau_J``, ``base_wrench``, ``tip_force``; shape (T, k),
+``t`` shape (T,)) and, for simulated data, the noise-free copies under ``truth/``.
+
+Why HDF5: it is a standard, self-describing binary format that opens from any
+language without this toolkit (h5py, MATLAB ``h5read``, HDFView), stores float64
+arrays exactly, compresses losslessly, and writes byte-identical files when
+timestamps are off, which makes checksums and the determinism guarantee of the
+generator meaningful. Nothing in it can execute code on load (unlike pickle).
+
+Units (SI): t [s]; q [rad]; qd [rad/s]; qdd [rad/s^2]; tau_m, tau_J [Nm];
+base_wrench [N, N, N, Nm, Nm, Nm]; tip_force [N].
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+FORMAT = "hybrid_dyn.dataset"
+FORMAT_VERSION = 1
+SPLITS = ("train", "val", "test")
+
+FIELD_UNITS = {
+    "t": "s",
+    "q": "rad",
+    "qd": "rad/s",
+    "qdd": "rad/s^2",
+    "tau_m": "Nm (commanded motor torque, friction included)",
+    "tau_J": "Nm (link-side joint torque)",
+    "base_wrench": "N, Nm (ground reaction on the robot in the base-sensor frame, [fx fy fz mx my mz])",
+    "tip_force": "N (force of the environment on the robot at the tool point, base frame)",
+}
+
+
+class DatasetError(ValueError):
+    """A dataset directory, manifest or instance file is missing, corrupt or partial."""
+
+
+def sha256_file(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def write_instance(path: Path, fields: dict, truth: dict | None = None, attrs: dict | None = None) -> str:
+    """Write one instance atomically (temp file, then rename); returns its sha256.
+
+    Byte-identical output for identical input: HDF5 timestamps are off.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(path.suffix + ".partial")
+    with h5py.File(tmp, "w", libver=("earliest", "v110"), track_order=False) as f:
+        for k, v in (attrs or {}).items():
+            f.attrs[k] = v
+        _write_group(f, fields)
+        if truth:
+            _write_group(f.create_group("truth", track_order=False), truth)
+    os.replace(tmp, path)
+    return sha256_file(path)
+
+
+def _write_group(group, fields: dict) -> None:
+    lengths = {k: len(v) for k, v in fields.items()}
+    if len(set(lengths.values())) > 1:
+        raise DatasetError(f"fields have different lengths: {lengths}")
+    for name in sorted(fields):
+        arr = np.ascontiguousarray(fields[name], dtype=np.float64)
+        group.create_dataset(name, data=arr, track_times=False, compression="gzip", compression_opts=4,
+                             shuffle=True, chunks=True if arr.size > 0 else None)
+
+
+class Instance:
+    """One recorded run. Fields are numpy arrays, loaded from disk on first use.
+
+    ``inst.q`` or ``inst["q"]``: (T, nv); ``inst.truth["q"]``: the noise-free copy.
+    """
+
+    def __init__(self, name: str, path: Path, fields: list[str], n_samples: int):
+        self.name = name
+        self.path = Path(path)
+        self.fields = list(fields)
+        self.n_samples = n_samples
+        self._data: dict | None = None
+        self._truth: dict | None = None
+
+    def _load(self) -> None:
+        try:
+            with h5py.File(self.path, "r") as f:
+                missing = [k for k in self.fields if k not in f]
+                if missing:
+                    raise DatasetError(f"instance {self.name} ({self.path}) lacks fields {missing}")
+                self._data = {k: f[k][()] for k in self.fields}
+                self._truth = {k: f["truth"][k][()] for k in f["truth"]} if "truth" in f else {}
+        except OSError as err:
+            raise DatasetError(f"instance {self.name}: cannot read {self.path}: {err}") from err
+        n = {k: len(v) for k, v in self._data.items()}
+        if set(n.values()) != {self.n_samples}:
+            raise DatasetError(f"instance {self.name}: expected {self.n_samples} samples, file has {n}")
+
+    def __getitem__(self, key: str) -> np.ndarray:
+        if self._data is None:
+            self._load()
+        try:
+            return self._data[key]
+        except KeyError:
+            raise KeyError(f"instance {self.name} has no field {key!r}; fields: {self.fields}") from None
+
+    def __getattr__(self, key: str) -> np.ndarray:
+        if key.startswith("_") or key in ("name", "path", "fields", "n_samples"):
+            raise AttributeError(key)
+        try:
+            return self[key]
+        except KeyError as err:
+            raise AttributeError(str(err)) from None
+
+    @property
+    def truth(self) -> dict:
+        if self._data is None:
+            self._load()
+        return self._truth
+
+    def __len__(self) -> int:
+        return self.n_samples
+
+    def __repr__(self) -> str:
+        return f"Instance({self.name!r}, n_samples={self.n_samples})"
+
+
+@dataclass
+class Dataset:
+    """A loaded dataset: ``.meta`` (the manifest) and ``.split(name)``."""
+
+    path: Path
+    meta: dict
+    instances: dict = field(default_factory=dict)  # name -> Instance
+
+    def split(self, name: str) -> list[Instance]:
+        if name not in SPLITS:
+            raise ValueError(f"split must be one of {SPLITS}, got {name!r}")
+        return [self.instances[n] for n in self.meta["splits"][name]]
+
+    @property
+    def fields(self) -> list[str]:
+        return list(self.meta["fields"])
+
+    @property
+    def checksum(self) -> str:
+        """A digest of the manifest's instance checksums: identifies the data a model saw."""
+        h = hashlib.sha256()
+        for inst in self.meta["instances"]:
+            h.update(f"{inst['name']}:{inst['sha256']};".encode())
+        return h.hexdigest()
+
+    def windows(self, split: str, length: int, inputs: list[str], targets: list[str], extra: dict | None = None):
+        """Sliding windows over one split; see :class:`WindowedSplit`."""
+        from .windows import WindowedSplit
+
+        return WindowedSplit(self.split(split), length, inputs, targets, extra=extra)
+
+
+def read_manifest(path: Path) -> dict:
+    path = Path(path)
+    mpath = path / "manifest.json"
+    if not path.is_dir():
+        raise DatasetError(f"no dataset at {path}: not a directory")
+    if not mpath.is_file():
+        raise DatasetError(f"{path} has no manifest.json: not a dataset, or its generation never finished")
+    try:
+        meta = json.loads(mpath.read_text())
+    except json.JSONDecodeError as err:
+        raise DatasetError(f"{mpath} is corrupt: {err}") from err
+    if meta.get("format") != FORMAT:
+        raise DatasetError(f"{mpath} is not a {FORMAT} manifest")
+    if meta.get("format_version", 0) > FORMAT_VERSION:
+        raise DatasetError(f"{mpath} has format version {meta['format_version']}; this toolkit reads <= {FORMAT_VERSION}")
+    for key in ("instances", "splits", "fields"):
+        if key not in meta:
+            raise DatasetError(f"{mpath} lacks {key!r}")
+    return meta
+
+
+def load_dataset(path, verify: bool = True) -> Dataset:
+    """Open a dataset directory. With ``verify``, every instance file must exist
+    and match the checksum in the manifest; a missing, partial or corrupt one is
+    reported by name."""
+    path = Path(path)
+    meta = read_manifest(path)
+    instances = {}
+    problems = []
+    for rec in meta["instances"]:
+        ipath = path / rec["file"]
+        if not ipath.is_file():
+            problems.append(f"{rec['name']}: file {rec['file']} is missing")
+        elif verify and sha256_file(ipath) != rec["sha256"]:
+            problems.append(f"{rec['name']}: file {rec['file']} does not match its checksum (corrupt or partial)")
+        instances[rec["name"]] = Instance(rec["name"], ipath, meta["fields"], int(rec["n_samples"]))
+    if problems:
+        raise DatasetError(f"dataset {path}: " + "; ".join(problems))
+    for split, names in meta["splits"].items():
+        unknown = [n for n in names if n not in instances]
+        if unknown:
+            raise DatasetError(f"dataset {path}: split {split!r} names unknown instances {unknown[:5]}")
+    return Dataset(path, meta, instances)
+
+
+def split_by_instance(names: list[str], seed: int, test_frac: float = 0.2, val_frac: float = 0.2) -> dict:
+    """The seed's split (PROTOCOL 3): 20 % test, then 20 % of the rest validation.
+
+    Seeded, and independent of instance order or worker count. Every split gets
+    at least one instance when there are three or more.
+    """
+    names = sorted(names)
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 0x5B117]))
+    order = [names[i] for i in rng.permutation(len(names))]
+    n = len(order)
+    n_test = max(1, round(test_frac * n)) if n >= 3 else 0
+    n_val = max(1, round(val_frac * (n - n_test))) if n >= 3 else 0
+    test, val, train = order[:n_test], order[n_test:n_test + n_val], order[n_test + n_val:]
+    return {"train": sorted(train), "val": sorted(val), "test": sorted(test)}
+
+
+def write_manifest(path: Path, meta: dict) -> None:
+    """Write manifest.json atomically; required keys are checked."""
+    meta = dict(meta)
+    meta.setdefault("format", FORMAT)
+    meta.setdefault("format_version", FORMAT_VERSION)
+    for key in ("instances", "splits", "fields"):
+        if key not in meta:
+            raise DatasetError(f"manifest lacks {key!r}")
+    path = Path(path)
+    tmp = path / "manifest.json.partial"
+    tmp.write_text(json.dumps(meta, indent=1, sort_keys=True))
+    os.replace(tmp, path / "manifest.json")
+
+
+def package_versions(names=("hybrid-dyn", "numpy", "pin", "dartpy", "torch", "h5py", "casadi", "ruckig")) -> dict:
+    import importlib.metadata as md
+
+    out = {}
+    for n in names:
+        try:
+            out[n] = md.version(n)
+        except md.PackageNotFoundError:
+            pass
+    return out
