@@ -107,3 +107,32 @@ def test_torques_method_is_damped_at_a_singularity(panda):
     tau = panda.inverse_dynamics(q, np.zeros(7), np.zeros(7)) + 1e-3  # tiny torque noise
     f = tip_force_from_torques(panda, q, np.zeros(7), np.zeros(7), tau)
     assert np.all(np.isfinite(f)) and np.linalg.norm(f) < 1.0
+
+
+def test_single_sample_fast_path_equals_batch_path():
+    """The control-loop path (one sample) and the batch path agree, tilted sensor included."""
+    robot = hd.load_robot("panda", sensor_mount=hd.SensorMount((0.001, 0.0, 0.0), (np.deg2rad(1.0), 0.0, 0.0)))
+    q, qd, qdd = random_states(robot, 20, seed=9)
+    f = np.random.default_rng(1).normal(0, 10, (20, 3))
+    w = robot.base_wrench(q, qd, qdd, tip_force=f)
+    batch, res_b = tip_force_from_base_wrench(robot, q, qd, qdd, w, return_residual=True)
+    for i in range(20):
+        single, res_s = tip_force_from_base_wrench(robot, q[i], qd[i], qdd[i], w[i], return_residual=True)
+        np.testing.assert_allclose(single, batch[i], atol=1e-10)
+        np.testing.assert_allclose(res_s, res_b[i], atol=1e-10)
+        np.testing.assert_allclose(robot.base_wrench(q[i], qd[i], qdd[i]), robot.base_wrench(q, qd, qdd)[i], atol=1e-10)
+    np.testing.assert_allclose(batch, f, atol=1e-9)
+
+
+def test_single_sample_damped_solve_equals_lapack(panda):
+    """The closed-form 3x3 path (control loops) against numpy's eigvalsh/solve, inside and outside
+    the singular region."""
+    from hybrid_dyn.analytic.tip_force import damped_force_from_joint_torques, damped_force_single
+    q, _, _ = random_states(panda, 300, seed=12)
+    jv = panda.tip_jacobian(q)[:, :3]
+    tau = np.random.default_rng(2).normal(0, 5, (300, 7))
+    batch = damped_force_from_joint_torques(jv, tau)
+    sigma = np.linalg.svd(jv, compute_uv=False)[:, -1]
+    assert (sigma < SINGULAR_REGION).any() and (sigma > SINGULAR_REGION).any()
+    single = np.stack([damped_force_single(jv[i], tau[i]) for i in range(300)])
+    np.testing.assert_allclose(single, batch, rtol=1e-8, atol=1e-8)

@@ -18,7 +18,7 @@ import numpy as np
 import pinocchio as pin
 
 from .robot import InputError, Robot, as_batch
-from .tip_force import MAX_DAMPING, SINGULAR_REGION, damped_force_from_joint_torques
+from .tip_force import MAX_DAMPING, SINGULAR_REGION, damped_force_from_joint_torques, damped_force_single
 
 
 class MomentumObserver:
@@ -41,6 +41,7 @@ class MomentumObserver:
         self.dt = float(dt)
         self.friction = friction
         self._data = robot.model.createData()
+        self._zero = np.zeros(robot.nv)
         self.reset()
 
     def reset(self) -> None:
@@ -51,24 +52,19 @@ class MomentumObserver:
         self.residual = np.zeros(self.robot.nv)
 
     def _beta_and_p(self, q, qd):
+        """(C^T qd - g, p = M qd). M qd comes from RNEA with v = 0, a = qd (minus g),
+        which avoids forming and symmetrising M."""
         model, data = self.robot.model, self._data
-        M = pin.crba(model, data, q)
-        M = np.triu(M) + np.triu(M, 1).T
+        g = pin.computeGeneralizedGravity(model, data, q).copy()
+        p = pin.rnea(model, data, q, self._zero, qd) - g
         C = pin.computeCoriolisMatrix(model, data, q, qd)
-        g = pin.computeGeneralizedGravity(model, data, q)
-        return C.T @ qd - g, M @ qd
+        return C.T @ qd - g, p
 
     def step(self, q, qd, tau) -> np.ndarray:
         """Advance one sample; returns the external joint torque estimate r [Nm] (nv,)."""
-        nv = self.robot.nv
-        q = np.asarray(q, float)
-        qd = np.asarray(qd, float)
-        tau = np.asarray(tau, float)
-        for name, x in (("q", q), ("qd", qd), ("tau", tau)):
-            if x.shape != (nv,):
-                raise InputError(f"{name} must have shape ({nv},), got {x.shape}")
-            if not np.isfinite(x).all():
-                raise InputError(f"{name} holds NaN or inf")
+        q = self.robot._single(q, "q")
+        qd = self.robot._single(qd, "qd")
+        tau = self.robot._single(tau, "tau")
         if self.friction is not None:
             tau = tau - self.friction(qd)
         beta, p = self._beta_and_p(q, qd)
@@ -86,8 +82,9 @@ class MomentumObserver:
     def force(self, q, residual: np.ndarray | None = None) -> np.ndarray:
         """Tip force [N] (3,) explaining the residual through J_v^T."""
         r = self.residual if residual is None else residual
-        jv = self.robot._tip_jacobians(np.asarray(q, float)[None, :])[:, :3, :]
-        return damped_force_from_joint_torques(jv, r[None, :], SINGULAR_REGION, MAX_DAMPING)[0]
+        robot = self.robot
+        jv = pin.computeFrameJacobian(robot.model, self._data, q, robot.tool_frame_id, pin.LOCAL_WORLD_ALIGNED)[:3]
+        return damped_force_single(jv, r, SINGULAR_REGION, MAX_DAMPING)
 
     def step_force(self, q, qd, tau) -> np.ndarray:
         """One step, returning the tip force estimate [N] (3,)."""
