@@ -1,0 +1,118 @@
+"""Velocities and accelerations from logged joint positions or velocities.
+
+Real robot logs seldom carry joint accelerations, and some carry no velocities.
+Offline, the whole trajectory is known, so the derivative can be taken with a
+*zero-phase* filter: a symmetric (non-causal) stencil that delays nothing. Three
+are offered; each works on one contiguous segment sampled at (nearly) uniform
+steps, shape (T, n):
+
+``savgol`` (default)
+    Savitzky-Golay derivative: a least-squares polynomial of degree
+    ``polyorder`` is fitted over a centred window of ``window_s`` seconds and
+    differentiated analytically (``scipy.signal.savgol_filter(..., deriv=k)``).
+    Smooths and differentiates in one pass; exact for polynomials up to
+    ``polyorder``; near the ends the window's fit is used unshifted
+    (``mode="interp"``), so the first and last ``window // 2`` samples are a
+    one-sided fit. Uses the median sample time of the segment.
+``central``
+    The plain central difference ``(x[k+1] - x[k-1]) / (t[k+1] - t[k-1])``
+    (``numpy.gradient``, second-order one-sided at the ends), no smoothing.
+    Accepts non-uniform time. When the log holds the *next* sample of the
+    signal (the KUKA and Baxter logs carry qd(t+1) in every row), the last row
+    also gets a true central difference.
+``butter``
+    A Butterworth low-pass of order ``order`` at ``cutoff_hz``, run forwards and
+    backwards (``scipy.signal.filtfilt``: zero phase, squared magnitude), then the
+    central difference above.
+
+Units: positions [rad], velocities [rad/s], accelerations [rad/s^2], time [s].
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import signal
+
+METHODS = ("savgol", "central", "butter")
+
+
+@dataclass
+class DerivativeFilter:
+    """How derivatives are estimated (see the module docstring).
+
+    ``window_s`` [s] and ``polyorder`` for ``savgol``; ``cutoff_hz`` [Hz] and
+    ``order`` for ``butter``.
+    """
+
+    method: str = "savgol"
+    window_s: float = 0.11
+    polyorder: int = 3
+    cutoff_hz: float = 10.0
+    order: int = 4
+
+    def __post_init__(self):
+        if self.method not in METHODS:
+            raise ValueError(f"derivative method must be one of {METHODS}, got {self.method!r}")
+        if self.window_s <= 0 or self.cutoff_hz <= 0 or self.polyorder < 2 or self.order < 1:
+            raise ValueError(f"derivative filter parameters out of range: {self}")
+
+    def window_samples(self, dt: float) -> int:
+        """The Savitzky-Golay window in samples at step ``dt`` [s]: odd, > polyorder."""
+        n = int(round(self.window_s / dt))
+        n = max(n, self.polyorder + 2)
+        return n + 1 if n % 2 == 0 else n
+
+    def min_samples(self, dt: float) -> int:
+        """The shortest segment this filter can differentiate twice."""
+        if self.method == "savgol":
+            return self.window_samples(dt)
+        if self.method == "butter":
+            return 3 * (self.order + 1) + 1  # filtfilt's default pad length + 1
+        return 3
+
+    def to_dict(self) -> dict:
+        return {"method": self.method, "window_s": self.window_s, "polyorder": self.polyorder,
+                "cutoff_hz": self.cutoff_hz, "order": self.order}
+
+
+def differentiate(x: np.ndarray, t: np.ndarray, flt: DerivativeFilter, deriv: int = 1,
+                  x_next: np.ndarray | None = None) -> np.ndarray:
+    """The ``deriv``-th (1 or 2) time derivative of ``x`` (T, n) sampled at times ``t`` (T,) [s].
+
+    ``x_next`` (n,): the sample after the last one, if the log has it (``central`` uses it).
+    """
+    x = np.asarray(x, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64)
+    if x.ndim != 2 or t.shape != (len(x),):
+        raise ValueError(f"differentiate needs x (T, n) and t (T,), got {x.shape} and {t.shape}")
+    if deriv not in (1, 2):
+        raise ValueError(f"deriv must be 1 or 2, got {deriv}")
+    if len(x) < flt.min_samples(_step(t)):
+        raise ValueError(f"segment of {len(x)} samples is too short for the {flt.method} filter "
+                         f"(needs {flt.min_samples(_step(t))})")
+    dt = _step(t)
+    if flt.method == "savgol":
+        window = flt.window_samples(dt)
+        return signal.savgol_filter(x, window, flt.polyorder, deriv=deriv, delta=dt, axis=0, mode="interp")
+    if flt.method == "butter":
+        nyquist = 0.5 / dt
+        if flt.cutoff_hz >= nyquist:
+            raise ValueError(f"butter cutoff {flt.cutoff_hz} Hz is not below the Nyquist frequency {nyquist:.1f} Hz")
+        b, a = signal.butter(flt.order, flt.cutoff_hz / nyquist)
+        x = signal.filtfilt(b, a, x, axis=0)
+        x_next = None  # the filtered signal has no known next sample
+    out = _central(x, t, x_next)
+    return _central(out, t, None) if deriv == 2 else out
+
+
+def _central(x: np.ndarray, t: np.ndarray, x_next: np.ndarray | None) -> np.ndarray:
+    if x_next is not None:
+        # One more sample at the end, one median step later: the last row gets a central difference.
+        t_ext = np.append(t, t[-1] + _step(t))
+        return np.gradient(np.vstack([x, x_next[None, :]]), t_ext, axis=0, edge_order=2)[:-1]
+    return np.gradient(x, t, axis=0, edge_order=2)
+
+
+def _step(t: np.ndarray) -> float:
+    return float(np.median(np.diff(t))) if len(t) > 1 else 1.0
