@@ -97,7 +97,8 @@ def test_bad_q_raises_input_error_naming_the_problem(panda, bad, message):
 
 def test_mismatched_lengths(panda):
     with pytest.raises(InputError, match="different lengths"):
-        panda.inverse_dynamics(np.zeros((3, 7)), np.zeros((2, 7)), np.zeros((3, 7)))
+        q = np.tile(panda.spec.home, (3, 1))
+        panda.inverse_dynamics(q, np.zeros((2, 7)), q)
 
 
 def test_q_outside_limits_warns_but_computes(panda):

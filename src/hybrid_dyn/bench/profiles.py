@@ -1,0 +1,117 @@
+"""Benchmark profiles: which scenarios, which rows, how long to train.
+
+quick    every family on one small scenario (``make demo``), minutes on 2 cores
+default  every row on paper-noext, paper-ext and mismatch-ext
+paper    the study's scale (1000 instances per scenario)
+real     the joint-torque models that need no URDF on the three real-robot logs
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from ..data import DatasetError, load_dataset
+
+SEED_TIP_NETS = tuple(f"seed-tip-{i}" for i in range(1, 12))
+SEED_TAU_NETS = ("seed-tau-mlp", "seed-tau-conv", "seed-tau-lstm", "seed-tau-lstm-opt")
+RESIDUAL_TIP = ("residual-basewrench", "residual-momentum")
+RESIDUAL_TAU = ("residual-rnea", "residual-rnea-bw")
+DELAN = ("delan", "delan-friction", "delan-residual")
+ANALYTIC = ("torques-pinv", "base-wrench", "momentum-observer", "rnea", "rnea-bw")
+
+# The fields each analytic row reads (beyond a URDF for the dataset's robot).
+ANALYTIC_NEEDS = {
+    "torques-pinv": ("q", "qd", "qdd", "tau_J", "tip_force"),
+    "base-wrench": ("q", "qd", "qdd", "base_wrench", "tip_force"),
+    "momentum-observer": ("q", "qd", "tau_J", "tip_force"),
+    "rnea": ("q", "qd", "qdd", "tau_m"),
+    "rnea-bw": ("q", "qd", "qdd", "base_wrench", "tau_m"),
+}
+
+
+@dataclass(frozen=True)
+class BenchProfile:
+    name: str
+    scenarios: tuple
+    generator_profile: str = "quick"
+    analytic_rows: tuple = ANALYTIC
+    tip_models: tuple = SEED_TIP_NETS + RESIDUAL_TIP
+    torque_models: tuple = SEED_TAU_NETS + RESIDUAL_TAU + DELAN
+    identified: bool = True
+    train: dict = field(default_factory=dict)  # TrainConfig fields
+    generator_overrides: dict = field(default_factory=dict)
+    workers: int = 2
+    seed: int = 0
+
+    def train_config(self):
+        from ..learn import TrainConfig
+
+        return TrainConfig(**{"seed": self.seed, **self.train})
+
+    def extra_rows(self) -> list:
+        """Identified-model rows (issue 7), when that module is present."""
+        if not self.identified:
+            return []
+        try:
+            from .identified_rows import identified_row_specs
+        except ImportError:
+            return []
+        return identified_row_specs(self)
+
+    def applies(self, spec, ds) -> bool:
+        """Whether a row can run on a dataset: its fields exist, and a URDF where it needs one."""
+        fields = set(ds.fields)
+        if spec.family in ("analytic", "identified"):
+            needs = ANALYTIC_NEEDS.get(spec.model, ("q", "qd", "qdd", "tau_m"))
+            return set(needs) <= fields and _has_robot(ds)
+        from ..learn.presets import get_preset
+
+        preset = get_preset(spec.model)
+        if not set(preset.inputs) | set(preset.targets) <= fields:
+            return False
+        return preset.prior is None or _has_robot(ds)
+
+    def dataset(self, scenario: str, data_root: Path, log=print):
+        """The scenario's dataset, generated once and cached by its config hash."""
+        from ..sim.scenarios import scenario_config
+        from ..sim.generator import generate_dataset
+
+        cfg = scenario_config(scenario, self.generator_profile, seed=self.seed, **self.generator_overrides)
+        path = Path(data_root) / f"{scenario}-{self.generator_profile}-{cfg.config_hash()}"
+        try:
+            return load_dataset(path)
+        except DatasetError:
+            log(f"[bench] generating {scenario} ({self.generator_profile}) into {path}")
+            generate_dataset(cfg, path, workers=self.workers)
+            return load_dataset(path)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def _has_robot(ds) -> bool:
+    from ..description import available_robots
+
+    return ds.meta.get("robot") in available_robots()
+
+
+PROFILES = {
+    "quick": BenchProfile(
+        name="quick", scenarios=("mismatch-ext",), generator_profile="quick",
+        train=dict(max_epochs=8, batch_size=256, patience=5),
+    ),
+    "default": BenchProfile(
+        name="default", scenarios=("paper-noext", "paper-ext", "mismatch-ext"), generator_profile="default",
+        train=dict(max_epochs=40, batch_size=256, patience=5),
+    ),
+    "paper": BenchProfile(
+        name="paper", scenarios=("paper-noext", "paper-ext", "mismatch-ext"), generator_profile="paper",
+        train=dict(max_epochs=200, batch_size=256, patience=5),
+    ),
+}
+
+
+def get_profile(name: str) -> BenchProfile:
+    if name not in PROFILES:
+        raise ValueError(f"unknown bench profile {name!r}; known: {', '.join(PROFILES)}")
+    return PROFILES[name]

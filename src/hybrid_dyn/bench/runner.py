@@ -1,0 +1,317 @@
+"""The benchmark harness: every model family on the same data, one results table.
+
+For each scenario of a profile: make (or reuse) the dataset, then for each
+model row build a predictor (analytic rows: nothing to train; learned rows:
+train or reuse), predict every sample of the validation and test splits, and
+score all rows with the same metrics (``metrics.py``) against the same logged
+targets. A row that fails is written with its error, not dropped.
+
+Targets: tip force -> the logged ``tip_force``; joint torque -> the logged
+commanded motor torque ``tau_m`` (friction included), as PROTOCOL 4 says.
+Losses are MSE on targets standardised with the train split's statistics, for
+analytic and learned rows alike. Sequence models are scored on every sample:
+their first L-1 windows of each instance are edge-padded (``data/windows.py``),
+exactly as a streaming estimator starts up.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import os
+import time
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from ..analytic.momentum_observer import MomentumObserver
+from ..analytic.robot import Robot, load_robot
+from ..analytic.tip_force import tip_force_from_base_wrench, tip_force_from_torques
+from ..data import Dataset
+from .metrics import ErrorReport, standardized_mse
+from .profiles import BenchProfile
+
+TASK_TARGET = {"tip_force": "tip_force", "joint_torque": "tau_m"}
+
+COLUMNS = [
+    "task", "scenario", "model", "family", "inputs", "status",
+    "val_loss", "test_loss", "rmse", "nmse", "rmse_contact", "rmse_free", "max_error",
+    "rmse_1", "rmse_2", "rmse_3", "rmse_4", "rmse_5", "rmse_6", "rmse_7",
+    "train_seconds", "infer_us_per_sample", "infer_us_per_call", "n_params", "n_test_samples", "error",
+]
+
+# Bandwidth of the momentum observer at the 100 Hz record rate: K dt = 0.2.
+MOMENTUM_GAIN = 20.0
+
+
+@dataclass
+class Predictor:
+    """What the harness needs from any model: batch predictions per instance and one timed single call."""
+
+    predict: Callable[[list], list]  # instances -> list of (T, C) arrays in physical units
+    single_call: Callable[[object, int], np.ndarray] | None = None  # (instance, k) -> (C,)
+    train_seconds: float = 0.0
+    n_params: int = 0
+    inputs: str = ""
+
+
+@dataclass
+class RowSpec:
+    task: str
+    model: str
+    family: str  # analytic | identified | seed-net | residual | delan
+    build: Callable[[Dataset, "BenchContext"], Predictor]
+
+
+@dataclass
+class BenchContext:
+    profile: BenchProfile
+    scenario: str
+    dataset: Dataset
+    robot: Robot  # the nominal model every analytic part uses
+    work_dir: Path
+    log: Callable[[str], None] = print
+    cache: dict = field(default_factory=dict)
+
+
+# ---------------------------------------------------------------- analytic rows
+def _analytic(task: str, name: str, inputs: str, batch_fn, single_fn=None) -> RowSpec:
+    def build(ds, ctx):
+        robot = ctx.robot
+        return Predictor(
+            predict=lambda insts: [batch_fn(robot, i, ds) for i in insts],
+            single_call=(lambda inst, k: single_fn(robot, inst, k, ds)) if single_fn else None,
+            inputs=inputs,
+        )
+
+    return RowSpec(task, name, "analytic", build)
+
+
+def _jv_t_times(robot, q, f):
+    return np.einsum("nij,ni->nj", robot.tip_jacobian(q)[:, :3], f)
+
+
+def _momentum(robot, inst, ds):
+    obs = MomentumObserver(robot, gain=MOMENTUM_GAIN, dt=1.0 / ds.meta["record_hz"])
+    return obs.run(inst.q, inst.qd, inst.tau_J)[0]
+
+
+def _momentum_single(robot, inst, k, ds):
+    obs = _momentum_single.cache.get(id(robot))
+    if obs is None:
+        obs = _momentum_single.cache[id(robot)] = MomentumObserver(robot, MOMENTUM_GAIN, 1.0 / ds.meta["record_hz"])
+        obs.step(inst.q[0], inst.qd[0], inst.tau_J[0])
+    return obs.step_force(inst.q[k], inst.qd[k], inst.tau_J[k])
+
+
+_momentum_single.cache = {}
+
+
+ANALYTIC_ROWS = {
+    "torques-pinv": _analytic(
+        "tip_force", "torques-pinv", "q, qd, qdd, tau_J",
+        lambda r, i, ds: tip_force_from_torques(r, i.q, i.qd, i.qdd, i.tau_J),
+        lambda r, i, k, ds: tip_force_from_torques(r, i.q[k], i.qd[k], i.qdd[k], i.tau_J[k])),
+    "base-wrench": _analytic(
+        "tip_force", "base-wrench", "q, qd, qdd, base_wrench",
+        lambda r, i, ds: tip_force_from_base_wrench(r, i.q, i.qd, i.qdd, i.base_wrench),
+        lambda r, i, k, ds: tip_force_from_base_wrench(r, i.q[k], i.qd[k], i.qdd[k], i.base_wrench[k])),
+    "momentum-observer": _analytic(
+        "tip_force", "momentum-observer", "q, qd, tau_J", _momentum, _momentum_single),
+    "rnea": _analytic(
+        "joint_torque", "rnea", "q, qd, qdd",
+        lambda r, i, ds: r.inverse_dynamics(i.q, i.qd, i.qdd),
+        lambda r, i, k, ds: r.inverse_dynamics(i.q[k], i.qd[k], i.qdd[k])),
+    # Physics may use the base sensor too (PROTOCOL 4): tau = ID - J_v^T F_hat.
+    "rnea-bw": _analytic(
+        "joint_torque", "rnea-bw", "q, qd, qdd, base_wrench",
+        lambda r, i, ds: r.inverse_dynamics(i.q, i.qd, i.qdd)
+        - _jv_t_times(r, i.q, tip_force_from_base_wrench(r, i.q, i.qd, i.qdd, i.base_wrench))),
+}
+
+
+# ----------------------------------------------------------------- learned rows
+def _learned(task: str, preset: str, family: str) -> RowSpec:
+    def build(ds, ctx):
+        from ..learn import train_model
+
+        out = ctx.work_dir / "models" / preset
+        t0 = time.perf_counter()
+        model = train_model(ds, preset, out, config=ctx.profile.train_config())
+        train_seconds = getattr(model, "train_seconds", None) or (time.perf_counter() - t0)
+        return Predictor(
+            predict=model.predict,
+            single_call=_learned_single_call(model),
+            train_seconds=float(train_seconds),
+            n_params=int(model.n_params),
+            inputs=", ".join(model.config.get("inputs", [])),
+        )
+
+    return RowSpec(task, preset, family, build)
+
+
+def _learned_single_call(model):
+    """A per-call predictor for timing, through the model's streaming fast path."""
+    fast = getattr(model, "single_call", None)
+    if fast is None:
+        return None
+    return lambda inst, k: fast(inst, k)
+
+
+def learned_family(preset: str) -> str:
+    if preset.startswith("seed-"):
+        return "seed-net"
+    if preset.startswith("residual"):
+        return "residual"
+    if preset.startswith("delan"):
+        return "delan" if preset in ("delan", "delan-friction") else "residual"
+    return "learned"
+
+
+def row_specs(profile: BenchProfile) -> list[RowSpec]:
+    rows = []
+    for name in profile.analytic_rows:
+        rows.append(ANALYTIC_ROWS[name])
+    for preset in profile.tip_models:
+        rows.append(_learned("tip_force", preset, learned_family(preset)))
+    for preset in profile.torque_models:
+        rows.append(_learned("joint_torque", preset, learned_family(preset)))
+    for spec in profile.extra_rows():
+        rows.append(spec)
+    return rows
+
+
+# ---------------------------------------------------------------------- scoring
+def _median_call_us(fn, inst, n_calls: int = 200) -> float:
+    n = len(inst)
+    ks = np.linspace(0, n - 1, min(n, n_calls)).astype(int)
+    fn(inst, int(ks[0]))  # warm-up (lazy allocations, first-call costs)
+    times = []
+    for k in ks:
+        t0 = time.perf_counter()
+        fn(inst, int(k))
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times) * 1e6)
+
+
+def score_row(spec: RowSpec, ctx: BenchContext, norm: dict) -> dict:
+    ds = ctx.dataset
+    target = TASK_TARGET[spec.task]
+    row = {"task": spec.task, "scenario": ctx.scenario, "model": spec.model, "family": spec.family}
+    if target not in ds.fields:
+        raise ValueError(f"the dataset has no {target!r} field")
+    pred_obj = spec.build(ds, ctx)
+    row.update(inputs=pred_obj.inputs, train_seconds=pred_obj.train_seconds, n_params=pred_obj.n_params)
+    mean, std = norm[target]
+    losses = {}
+    for split in ("val", "test"):
+        insts = ds.split(split)
+        tgt = np.concatenate([i[target] for i in insts])  # also loads the files: I/O stays out of the timing
+        t0 = time.perf_counter()
+        preds = pred_obj.predict(insts)
+        elapsed = time.perf_counter() - t0
+        pred = np.concatenate(preds)
+        losses[split] = standardized_mse(pred, tgt, mean, std)
+        if split == "test":
+            f_truth = (np.concatenate([i.truth.get("tip_force", i["tip_force"]) for i in insts])
+                       if "tip_force" in ds.fields else None)
+            report = ErrorReport.compute(pred, tgt, f_truth)
+            row["infer_us_per_sample"] = elapsed / len(pred) * 1e6
+            ctx.cache[(spec.task, spec.model)] = preds
+    row.update(val_loss=losses["val"], test_loss=losses["test"], rmse=report.rmse, nmse=report.nmse,
+               rmse_contact=report.rmse_contact, rmse_free=report.rmse_free, max_error=report.max_error,
+               n_test_samples=report.n_samples)
+    for j, v in enumerate(report.per_component):
+        row[f"rmse_{j + 1}"] = float(v)
+    if pred_obj.single_call is not None:
+        row["infer_us_per_call"] = _median_call_us(pred_obj.single_call, ds.split("test")[0])
+    row["status"] = "ok"
+    return row
+
+
+def train_split_stats(ds: Dataset) -> dict:
+    """Per-component mean and std of each target over the train split (std floored)."""
+    out = {}
+    for target in TASK_TARGET.values():
+        if target in ds.fields:
+            y = np.concatenate([i[target] for i in ds.split("train")])
+            out[target] = (y.mean(0), np.maximum(y.std(0), 1e-6))
+    return out
+
+
+# ------------------------------------------------------------------ the results
+def write_results(path: Path, rows: list[dict]) -> None:
+    """results.csv with the stable column set, written atomically."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".csv.partial")
+    with open(tmp, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=COLUMNS, extrasaction="ignore")
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: _fmt(r.get(k, "")) for k in COLUMNS})
+    os.replace(tmp, path)
+
+
+def read_results(path: Path) -> list[dict]:
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def _fmt(v):
+    if isinstance(v, float):
+        return "" if np.isnan(v) else f"{v:.6g}"
+    return v
+
+
+def run_bench(profile: BenchProfile, out_dir, data_root=None, work_root=None, dataset_provider=None,
+              log: Callable[[str], None] = print) -> list[dict]:
+    """Run every row of ``profile`` on every scenario; write ``out_dir/results.csv`` and the report.
+
+    dataset_provider(scenario, profile) -> Dataset; default: generate with the
+    DART generator, cached by config hash under ``data_root``.
+    Models and datasets are reused on rerun (same config and data checksum),
+    so an interrupted bench resumes where it stopped.
+    """
+    from .report import write_report
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    data_root = Path(data_root or os.environ.get("HYBRID_DYN_DATA", "data"))
+    work_root = Path(work_root or os.environ.get("HYBRID_DYN_RUNS", "runs")) / profile.name
+    provider = dataset_provider or (lambda scenario, prof: prof.dataset(scenario, data_root, log=log))
+    rows: list[dict] = []
+    datasets = {}
+    contexts = {}
+    t_start = time.perf_counter()
+    for scenario in profile.scenarios:
+        log(f"[bench] scenario {scenario}: dataset")
+        ds = provider(scenario, profile)
+        datasets[scenario] = ds
+        robot = load_robot(ds.meta.get("robot", "panda"))
+        ctx = BenchContext(profile, scenario, ds, robot, work_root / scenario / ds.checksum[:12], log=log)
+        contexts[scenario] = ctx
+        norm = train_split_stats(ds)
+        specs = [s for s in row_specs(profile) if TASK_TARGET[s.task] in ds.fields and profile.applies(s, ds)]
+        for spec in tqdm(specs, desc=f"bench {scenario}", unit="model"):
+            t0 = time.perf_counter()
+            try:
+                row = score_row(spec, ctx, norm)
+            except Exception as err:  # a failed model is a row, not a crash
+                row = {"task": spec.task, "scenario": scenario, "model": spec.model, "family": spec.family,
+                       "status": "failed", "error": f"{type(err).__name__}: {err}"}
+                log(f"[bench] {spec.model} FAILED: {err}\n{traceback.format_exc(limit=3)}")
+            rows.append(row)
+            write_results(out_dir / "results.csv", rows)
+            log(f"[bench] {scenario} {spec.task:12s} {spec.model:22s} rmse={row.get('rmse', float('nan')):.4g} "
+                f"({time.perf_counter() - t0:.1f} s)" if row["status"] == "ok" else
+                f"[bench] {scenario} {spec.model} failed")
+    meta = {"profile": profile.to_dict(), "wall_seconds": time.perf_counter() - t_start,
+            "datasets": {s: {"path": str(d.path), "checksum": d.checksum, "seed": d.meta.get("seed"),
+                             "config_hash": d.meta.get("config_hash")} for s, d in datasets.items()}}
+    (out_dir / "run.json").write_text(json.dumps(meta, indent=1, default=str))
+    write_report(out_dir, rows, meta, contexts)
+    return rows
