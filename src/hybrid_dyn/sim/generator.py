@@ -1,0 +1,428 @@
+"""The dataset generator: a torque-controlled arm in DART, with sensors.
+
+One instance (PROTOCOL 3) is simulated at ``1/dt`` (1 kHz):
+
+1. reference: standstill, then 5-50 random trajectories (``trajectories.py``);
+2. controller, every step: computed torque on the NOMINAL model plus PD, one
+   RNEA call ``tau_m = RNEA_nom(q_m, qd_m, qdd_ref + Kp e + Kd e_dot)`` on the
+   measured (noisy) state; friction is not compensated;
+3. plant, every step: DART, with joint force ``tau_m - tau_f(qd)`` (the Gaz
+   friction law at the true velocity) and, in ``*-ext`` scenarios, the bell
+   pulses at the tool point;
+4. sensors at ``record_hz``: see :func:`simulate_reference`.
+
+Every recorded sample k is the state *before* integration step k together with
+what DART computed in that step: its acceleration and the ground reaction on
+the base. So ``truth`` is one consistent rigid-body state per sample, which the
+tests check against the analytic model.
+
+Parallelism and restarts: each instance is a job for an executor; it writes
+``instances/<name>.h5`` atomically and then a small ``<name>.json`` completion
+record. A restart skips instances whose record and checksum agree and
+regenerates (and names) missing, partial or corrupt ones; the manifest comes
+last. Per-instance seeds derive from (seed, index) alone, so the bytes do not
+depend on the worker count or on the order in which jobs finish.
+"""
+from __future__ import annotations
+
+import functools
+import json
+import os
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from ..analytic.robot import InputError
+from ..data.dataset import (
+    FIELD_UNITS, DatasetError, package_versions, read_manifest, sha256_file, split_by_instance, write_instance,
+    write_manifest,
+)
+from .collision import collision_checker
+from .executors import make_executor
+from .plant import DartPlant
+from .pulses import BellPulses, sample_pulses
+from .scenarios import GENERATOR_VERSION, GeneratorConfig
+from .sensors import causal_acceleration
+from .trajectories import random_reference
+
+FIELDS = ("t", "q", "qd", "qdd", "tau_m", "tau_J", "base_wrench", "tip_force")
+
+
+@dataclass
+class SimulatedRun:
+    """One simulated run: measured ``fields``, noise-free ``truth`` (same names), ``attrs``."""
+
+    fields: dict
+    truth: dict
+    attrs: dict
+
+    @property
+    def n_samples(self) -> int:
+        return len(self.fields["t"])
+
+
+class _FastGaz:
+    """The Gaz law rewritten with tanh for the 1 kHz loop (a few ufuncs, no temporaries kept).
+
+    phi1 sigmoid(x) = phi1/2 (1 + tanh(x/2)), so
+    tau_f = phi1/2 tanh(phi2/2 (qd + phi3)) + phi1/2 - phi1 sigmoid(phi2 phi3).
+    """
+
+    def __init__(self, law):
+        self.half_phi1 = 0.5 * law.phi1
+        self.half_phi2 = 0.5 * law.phi2
+        self.phi3 = law.phi3
+        self.offset = self.half_phi1 - law.phi1 / (1.0 + np.exp(-law.phi2 * law.phi3))
+
+    def __call__(self, qd):
+        return self.half_phi1 * np.tanh(self.half_phi2 * (qd + self.phi3)) + self.offset
+
+
+class Simulator:
+    """Plant, controller and sensors of a :class:`GeneratorConfig`; reusable across runs."""
+
+    def __init__(self, config: GeneratorConfig):
+        self.config = config
+        self.nominal = config.nominal_robot()
+        self.plant_robot = config.plant_robot()
+        if self.plant_robot.joint_names != self.nominal.joint_names:
+            raise ValueError("plant and nominal robot have different joints")
+        self.nv = self.nominal.nv
+        law = self.plant_robot.spec.friction(config.friction) if config.friction else None
+        if config.friction and law is None:
+            raise ValueError(f"robot {config.robot!r} has no friction law {config.friction!r}")
+        self.friction_law = law
+        self._friction = _FastGaz(law) if law is not None else None
+        self.checker = collision_checker(self.nominal, config.collision_check)
+
+    # ----------------------------------------------------------------- plant
+    def _make_plant(self) -> DartPlant:
+        """A fresh DART world per run: no solver state carries over between instances."""
+        plant = DartPlant(self.plant_robot, self.config.dt)
+        cfg = self.config
+        for i, name in enumerate(self.plant_robot.joint_names):
+            dof = plant.skel.getDof(name)
+            if cfg.dart_coulomb is not None:
+                dof.setCoulombFriction(float(cfg.dart_coulomb[i]))
+            if cfg.dart_viscous is not None:
+                dof.setDampingCoefficient(float(cfg.dart_viscous[i]))
+        return plant
+
+    # -------------------------------------------------------------- the loop
+    def run(self, q_ref, qd_ref, qdd_ref, tip_force=None, rng: np.random.Generator | None = None) -> SimulatedRun:
+        """Track a reference sampled every ``dt``; see :func:`simulate_reference`."""
+        cfg, nv = self.config, self.nv
+        q_ref, _ = _check(q_ref, "q_ref", nv)
+        qd_ref, _ = _check(qd_ref, "qd_ref", nv)
+        qdd_ref, _ = _check(qdd_ref, "qdd_ref", nv)
+        T = len(q_ref)
+        if not (len(qd_ref) == len(qdd_ref) == T) or T < 2:
+            raise InputError(f"q_ref, qd_ref, qdd_ref need the same length >= 2, got {len(q_ref)}, {len(qd_ref)}, {len(qdd_ref)}")
+        if tip_force is not None:
+            tip_force, _ = _check(tip_force, "tip_force", 3)
+            if len(tip_force) != T:
+                raise InputError(f"tip_force has {len(tip_force)} samples, the reference {T}")
+        rng = rng if rng is not None else np.random.default_rng(0)
+        noise = cfg.noise
+        # q and qd noise at the control rate: the controller sees it too.
+        n_q = noise.q * rng.standard_normal((T, nv))
+        n_qd = noise.qd * rng.standard_normal((T, nv))
+
+        plant = self._make_plant()
+        skel, world, tool = plant.skel, plant.world, plant.tool
+        perm = plant.dof_index
+        identity = bool(np.array_equal(perm, np.arange(nv)))
+        inv = np.argsort(perm)
+        plant.set_state(q_ref[0], qd_ref[0])
+        skel.clearExternalForces()
+
+        dec = cfg.decimation
+        rec = np.arange(0, T, dec)
+        Q, QD = np.empty((T, nv)), np.empty((T, nv))
+        TAU, TF = np.empty((T, nv)), np.zeros((T, nv))
+        QDD_rec, W_rec = np.empty((len(rec), nv)), np.empty((len(rec), 6))
+        model, data, rnea = self.nominal.model, self.nominal.data, pin.rnea
+        kp, kd = cfg.kp, cfg.kd
+        # a = qdd_ref + kp (q_ref - q_m) + kd (qd_ref - qd_m) with q_m = q + n_q: the
+        # reference and noise parts are known in advance.
+        a_pre = qdd_ref + kp * (q_ref - n_q) + kd * (qd_ref - n_qd)
+        friction = self._friction
+        zero3 = np.zeros(3)
+        r = 0
+        for k in range(T):
+            q = skel.getPositions()
+            qd = skel.getVelocities()
+            if not identity:
+                q, qd = q[perm], qd[perm]
+            Q[k] = q
+            QD[k] = qd
+            tau = rnea(model, data, q + n_q[k], qd + n_qd[k], a_pre[k] - kp * q - kd * qd)
+            TAU[k] = tau
+            if friction is not None:
+                tf = friction(qd)
+                TF[k] = tf
+                tau = tau - tf
+            if tip_force is not None:
+                tool.addExtForce(tip_force[k], zero3, False, True)
+            skel.setForces(tau if identity else tau[inv])
+            world.step()  # forward dynamics at (q, qd), then semi-implicit Euler
+            if k % dec == 0:
+                acc = skel.getAccelerations()
+                QDD_rec[r] = acc if identity else acc[perm]
+                W_rec[r] = plant.base_wrench()
+                r += 1
+        return self._sensors(rec, q_ref, Q, QD, TAU, TF, QDD_rec, W_rec, tip_force, n_q, n_qd, rng)
+
+    def _sensors(self, rec, q_ref, Q, QD, TAU, TF, QDD_rec, W_rec, tip_force, n_q, n_qd, rng) -> SimulatedRun:
+        cfg, noise, nv = self.config, self.config.noise, self.nv
+        R = len(rec)
+        f_tip = tip_force[rec] if tip_force is not None else np.zeros((R, 3))
+        if cfg.dart_coulomb is None and cfg.dart_viscous is None:
+            tau_J = TAU[rec] - TF[rec]  # exactly the joint force DART received
+        else:
+            # DART's own stiction/damping acts inside the joints and is not reported
+            # per step; the link-side torque is then what the motion required.
+            jv = self.plant_robot.tip_jacobian(Q[rec])[:, :3]
+            tau_J = self.plant_robot.inverse_dynamics(Q[rec], QD[rec], QDD_rec) - np.einsum("nij,ni->nj", jv, f_tip)
+        truth = {
+            "t": rec * cfg.dt, "q": Q[rec], "qd": QD[rec], "qdd": QDD_rec, "tau_m": TAU[rec],
+            "tau_J": tau_J, "base_wrench": W_rec, "tip_force": f_tip,
+        }
+        qd_meas_fast = QD + n_qd
+        bias = np.concatenate([rng.uniform(-1, 1, 3) * noise.force_bias, rng.uniform(-1, 1, 3) * noise.torque_bias])
+        w_std = np.array([noise.force] * 3 + [noise.torque] * 3)
+        fields = {
+            "t": truth["t"],
+            "q": Q[rec] + n_q[rec],
+            "qd": qd_meas_fast[rec],
+            "qdd": causal_acceleration(qd_meas_fast, cfg.dt, cfg.qdd_cutoff_hz)[rec],
+            "tau_m": TAU[rec],
+            "tau_J": tau_J + noise.tau_J * rng.standard_normal((R, nv)),
+            "base_wrench": W_rec + bias + w_std * rng.standard_normal((R, 6)),
+            "tip_force": f_tip,
+        }
+        err = q_ref - Q
+        attrs = {
+            "tracking_rms": np.sqrt(np.mean(err**2, axis=0)),  # rad, per joint, at the control rate
+            "tracking_max": np.max(np.abs(err), axis=0),      # rad
+            "base_wrench_bias": bias,
+            "duration_s": float(len(Q) * cfg.dt),
+        }
+        return SimulatedRun(fields, truth, attrs)
+
+
+def _check(x, name, width):
+    from ..analytic.robot import as_batch
+
+    return as_batch(x, name, width)
+
+
+def simulate_reference(config: GeneratorConfig, t, q_ref, qd_ref, qdd_ref, seed: int = 0, tip_force=None,
+                       simulator: Simulator | None = None) -> SimulatedRun:
+    """Run the plant, controller and sensors of ``config`` on a given reference.
+
+    t [s] (T,) must be uniform at the simulation period ``config.dt``; q_ref
+    [rad], qd_ref [rad/s], qdd_ref [rad/s^2] are (T, nv); tip_force [N] (T, 3)
+    optional, in the base frame at the tool point. The arm starts on the
+    reference at rest. Returns fields at ``config.record_hz``:
+
+    - ``q``, ``qd``: true state plus white noise (``config.noise``);
+    - ``qdd``: causal estimate from the measured qd (``sensors.py``), never DART's;
+    - ``tau_m``: the commanded motor torque (friction included, noise-free: it is
+      what the controller sent); ``tau_J = tau_m - tau_f`` link side, plus noise;
+    - ``base_wrench``: ground reaction in the plant's (possibly tilted) sensor
+      frame plus a per-instance bias and white noise;
+    - ``tip_force``: the applied force (ground truth);
+
+    and ``truth`` the noise-free copies (qdd: DART's acceleration).
+    """
+    sim = simulator or Simulator(config)
+    t = np.asarray(t, float)
+    if t.ndim != 1 or len(t) < 2 or not np.allclose(np.diff(t), config.dt, rtol=0, atol=1e-9):
+        raise InputError(f"t must be uniformly sampled every config.dt = {config.dt} s")
+    run = sim.run(q_ref, qd_ref, qdd_ref, tip_force, np.random.default_rng(np.random.SeedSequence([seed, 0x7E5])))
+    run.fields["t"] = run.truth["t"] = run.truth["t"] + t[0]
+    return run
+
+
+# ------------------------------------------------------------------ instances
+def instance_name(index: int) -> str:
+    return f"inst_{index:05d}"
+
+
+def instance_rngs(seed: int, index: int):
+    """Independent generators for (trajectories, pulses, noise) of one instance."""
+    return [np.random.default_rng(s) for s in np.random.SeedSequence([seed, index]).spawn(3)]
+
+
+def simulate_instance(sim: Simulator, index: int) -> tuple[SimulatedRun, dict]:
+    """Instance ``index`` of a config: random reference, pulses, simulation."""
+    cfg = sim.config
+    rng_traj, rng_pulse, rng_noise = instance_rngs(cfg.seed, index)
+    n_traj = int(rng_traj.integers(cfg.trajectories[0], cfg.trajectories[1] + 1))
+    ref = random_reference(sim.nominal, rng_traj, n_traj, dt=cfg.dt, speed_scale=cfg.speed_scale,
+                           margin=cfg.joint_margin, standstill=cfg.standstill, is_valid=sim.checker)
+    pulses: BellPulses | None = sample_pulses(rng_pulse, cfg.pulses) if cfg.pulses is not None else None
+    force = pulses.force(ref.t) if pulses is not None else None
+    run = sim.run(ref.q, ref.qd, ref.qdd, force, rng_noise)
+    duration = len(ref) * cfg.dt
+    info = {
+        "n_trajectories": n_traj,
+        "pulses": pulses.to_dict() if pulses is not None else None,
+        "n_pulses_in_instance": int(np.sum(pulses.centre < duration)) if pulses is not None else 0,
+    }
+    return run, info
+
+
+@functools.lru_cache(maxsize=2)
+def _simulator_for(config_json: str) -> Simulator:
+    """One Simulator per config and process (robots and collision model load once)."""
+    return Simulator(GeneratorConfig.from_dict(json.loads(config_json)))
+
+
+def _instance_job(config_json: str, index: int, inst_dir: str) -> dict:
+    """Executor job: simulate one instance, write it atomically, then its completion record."""
+    sim = _simulator_for(config_json)
+    cfg = sim.config
+    run, info = simulate_instance(sim, index)
+    name = instance_name(index)
+    attrs = {
+        "name": name, "index": index, "scenario": cfg.scenario, "config_hash": cfg.config_hash(),
+        "n_trajectories": info["n_trajectories"], "n_pulses_in_instance": info["n_pulses_in_instance"],
+        "pulses": json.dumps(info["pulses"]), **run.attrs,
+    }
+    path = Path(inst_dir) / f"{name}.h5"
+    sha = write_instance(path, run.fields, run.truth, attrs)
+    record = {
+        "name": name, "index": index, "file": f"instances/{name}.h5", "sha256": sha, "n_samples": run.n_samples,
+        "config_hash": cfg.config_hash(), "n_trajectories": info["n_trajectories"],
+        "n_pulses_in_instance": info["n_pulses_in_instance"], "duration_s": run.attrs["duration_s"],
+        "tracking_rms": [round(float(x), 9) for x in run.attrs["tracking_rms"]],
+        "tracking_max": [round(float(x), 9) for x in run.attrs["tracking_max"]],
+    }
+    _write_json_atomic(path.with_suffix(".json"), record)
+    return record
+
+
+def _write_json_atomic(path: Path, doc: dict) -> None:
+    tmp = path.with_suffix(path.suffix + ".partial")
+    tmp.write_text(json.dumps(doc, indent=1, sort_keys=True))
+    os.replace(tmp, path)
+
+
+def _finished_record(inst_dir: Path, name: str, config_hash: str) -> tuple[dict | None, str | None]:
+    """(record, None) for a verified finished instance, else (None, why it must be regenerated or None if never started)."""
+    h5, rec_path = inst_dir / f"{name}.h5", inst_dir / f"{name}.json"
+    if not rec_path.exists():
+        return None, ("file present without a completion record (interrupted or partial)" if h5.exists() else None)
+    try:
+        rec = json.loads(rec_path.read_text())
+    except (json.JSONDecodeError, OSError):
+        return None, "completion record is corrupt"
+    if rec.get("config_hash") != config_hash:
+        return None, "made with another configuration"
+    if not h5.exists():
+        return None, "file is missing"
+    if sha256_file(h5) != rec.get("sha256"):
+        return None, "file does not match its checksum (corrupt or partial)"
+    return rec, None
+
+
+def _tracking_summary(records: list[dict]) -> dict:
+    rms = np.array([r["tracking_rms"] for r in records])
+    mx = np.array([r["tracking_max"] for r in records])
+    return {
+        "unit": "rad (reference minus true joint position, at the control rate)",
+        "rms_mean_per_joint": [round(float(x), 9) for x in rms.mean(0)],
+        "rms_worst_per_joint": [round(float(x), 9) for x in rms.max(0)],
+        "max_per_joint": [round(float(x), 9) for x in mx.max(0)],
+    }
+
+
+def _stderr(msg: str) -> None:
+    print(msg, file=sys.stderr)
+
+
+def generate_dataset(config: GeneratorConfig, out_dir, workers: int = 1, progress: bool = True,
+                     executor=None, log=_stderr) -> Path:
+    """Generate (or resume) the dataset of ``config`` in ``out_dir``; returns its path.
+
+    Finished instances already in ``out_dir`` are verified and kept; missing,
+    partial or corrupt ones are (re)generated and named through ``log``. The
+    manifest is written last, so a directory with a manifest is complete.
+    ``executor``: anything with ``map_unordered(fn, jobs)``; default local
+    processes (``workers``).
+    """
+    from tqdm import tqdm
+
+    out = Path(out_dir)
+    inst_dir = out / "instances"
+    inst_dir.mkdir(parents=True, exist_ok=True)
+    chash = config.config_hash()
+    config_json = json.dumps(config.to_dict(), sort_keys=True)
+
+    # One directory holds one configuration: refuse to mix.
+    marker = out / "generator.json"
+    if marker.exists():
+        try:
+            old = json.loads(marker.read_text()).get("config_hash")
+        except json.JSONDecodeError:
+            old = None
+        if old != chash:
+            raise DatasetError(f"{out} holds a dataset of another configuration (hash {old}, this one {chash}); "
+                               "choose another --out or delete it")
+    else:
+        _write_json_atomic(marker, {"config_hash": chash, "config": config.to_dict()})
+
+    for stale in sorted(inst_dir.glob("*.partial")):
+        log(f"removing {stale.name}: an unfinished write from an interrupted run")
+        stale.unlink()
+
+    names = [instance_name(i) for i in range(config.n_instances)]
+    records: dict[int, dict] = {}
+    todo = []
+    for i, name in enumerate(names):
+        rec, why = _finished_record(inst_dir, name, chash)
+        if rec is not None:
+            records[i] = rec
+        else:
+            todo.append(i)
+            if why:
+                log(f"regenerating {name}: {why}")
+    if todo and (out / "manifest.json").exists():
+        (out / "manifest.json").unlink()  # no longer describes complete data
+
+    ex = executor or make_executor(workers)
+    bar = tqdm(total=config.n_instances, initial=len(records), desc=f"generate {config.scenario}/{config.profile}",
+               unit="inst", disable=not progress)
+    try:
+        for rec in ex.map_unordered(_instance_job, [(config_json, i, str(inst_dir)) for i in todo]):
+            records[rec["index"]] = rec
+            bar.update(1)
+    finally:
+        bar.close()
+
+    ordered = [records[i] for i in range(config.n_instances)]
+    write_manifest(out, {
+        "robot": config.robot, "scenario": config.scenario, "profile": config.profile, "seed": config.seed,
+        "record_hz": config.record_hz, "dt": config.dt, "generator_version": GENERATOR_VERSION,
+        "config": config.to_dict(), "config_hash": chash,
+        "fields": {k: FIELD_UNITS[k] for k in FIELDS},
+        "packages": package_versions(),
+        "n_samples": int(sum(r["n_samples"] for r in ordered)),
+        "instances": ordered,
+        "splits": split_by_instance(names, config.seed),
+        "tracking_error": _tracking_summary(ordered),
+    })
+    return out
+
+
+def verify_dataset_config(out_dir, config: GeneratorConfig) -> bool:
+    """True when ``out_dir`` holds a finished dataset of exactly ``config``."""
+    try:
+        return read_manifest(Path(out_dir)).get("config_hash") == config.config_hash()
+    except DatasetError:
+        return False

@@ -1,0 +1,212 @@
+"""Generator configurations: the named scenarios of PROTOCOL 2 at three sizes.
+
+A :class:`GeneratorConfig` fixes everything that decides the bytes of a
+dataset: the plant (which may differ from the nominal model), the trajectories,
+the controller, friction, external pulses, sensor noise, rates and the seed.
+Its :meth:`~GeneratorConfig.config_hash` is a stable digest of all of that (the
+benchmark harness caches datasets by it).
+
+Scenarios (PROTOCOL 2):
+
+=============== ======================================================== ==============
+name            plant                                                    external force
+=============== ======================================================== ==============
+``paper-noext`` URDF inertials (Gaz 2019) + Gaz sigmoid friction         none
+``paper-ext``   same                                                     bell pulses
+``mismatch-ext``manufacturer inertials + 0.5 kg tool + Gaz friction,     bell pulses
+                base sensor mounted 1 mm / 1 deg off its nominal pose
+=============== ======================================================== ==============
+
+The controller always uses the nominal model (``load_robot(robot)``), so in
+``mismatch-ext`` it is wrong and tracking errors grow: they are reported.
+
+Profiles: ``quick`` (6 short instances, under a minute on 2 cores), ``default``
+(60 instances, about 0.4 million samples at 100 Hz) and ``paper`` (the seed's
+1000 instances of 5-50 trajectories).
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..analytic.robot import Robot, SensorMount, load_robot
+
+# Bump when the generator's algorithm changes what a config produces.
+GENERATOR_VERSION = 1
+
+SCENARIOS = ("paper-noext", "paper-ext", "mismatch-ext")
+PROFILES = ("quick", "default", "paper")
+
+
+class ConfigError(ValueError):
+    """A generator configuration is inconsistent or names an unknown scenario/profile."""
+
+
+@dataclass(frozen=True)
+class NoiseConfig:
+    """Sensor noise: white, zero-mean Gaussian standard deviations, plus a
+    per-instance base-sensor bias drawn uniformly in [-bias, bias] per axis.
+
+    Noise on q and qd is drawn at the simulation rate (the controller sees it
+    too); the others at the recording rate. Levels are those of a Panda's
+    encoders and joint torque sensors and of a mid-range 6-axis F/T sensor.
+    """
+
+    q: float = 1e-4             # rad
+    qd: float = 2e-3            # rad/s
+    tau_J: float = 0.05         # Nm, link-side joint torque sensors
+    force: float = 0.2          # N, base sensor forces
+    torque: float = 0.01        # Nm, base sensor moments
+    force_bias: float = 2.0     # N, per-instance offset bound
+    torque_bias: float = 0.1    # Nm, per-instance offset bound
+
+    @classmethod
+    def off(cls) -> "NoiseConfig":
+        return cls(**{f.name: 0.0 for f in dataclasses.fields(cls)})
+
+
+@dataclass(frozen=True)
+class PulseConfig:
+    """The seed's bell pulses (PROTOCOL 3): ranges of the uniform draws."""
+
+    count: tuple = (5, 15)          # integers, inclusive
+    amplitude: tuple = (5.0, 20.0)  # N, with a random sign
+    gap: tuple = (5.0, 10.0)        # s between bell centres (the first from t = 0)
+    sigma: tuple = (0.5, 1.5)       # s, bell width
+
+
+@dataclass(frozen=True)
+class GeneratorConfig:
+    """Everything that determines a simulated dataset. Units SI unless noted."""
+
+    scenario: str = "paper-ext"
+    profile: str = "quick"
+    robot: str = "panda"
+    # Plant (the simulated robot); the controller always uses load_robot(robot).
+    plant_params: str | None = None          # parameter set name or JSON path; None: nominal
+    payload: tuple | None = None             # (mass kg, (dx, dy, dz) m in tool axes), unmodelled
+    sensor_translation: tuple = (0.0, 0.0, 0.0)  # m, true sensor pose vs nominal
+    sensor_rotation: tuple = (0.0, 0.0, 0.0)     # rad, rotation vector
+    # Trajectories.
+    n_instances: int = 6
+    trajectories: tuple = (5, 5)             # per instance, uniform integers, inclusive
+    speed_scale: tuple = (0.2, 0.6)          # fraction of the published vel/acc/jerk limits, per trajectory
+    joint_margin: float = 0.1                # rad kept from each joint limit for goals
+    standstill: float = 1.0                  # s at rest before, between and after trajectories
+    collision_check: bool = True             # self-collision + floor checked RRT-Connect where a model exists
+    # Simulation, control and recording.
+    dt: float = 1e-3                         # s, simulation and control period
+    record_hz: float = 100.0
+    kp: float = 4900.0                       # 1/s^2, computed-torque position gain (omega_n = 70 rad/s)
+    kd: float = 140.0                        # 1/s, velocity gain (critically damped)
+    friction: str | None = "gaz2019"         # friction law applied in the plant; None: frictionless
+    dart_coulomb: tuple | None = None        # Nm per joint: DART's own Coulomb stiction (extra)
+    dart_viscous: tuple | None = None        # Nm s/rad per joint: DART's own viscous damping (extra)
+    pulses: PulseConfig | None = field(default_factory=PulseConfig)  # None: no external force
+    noise: NoiseConfig = field(default_factory=NoiseConfig)
+    qdd_cutoff_hz: float = 20.0              # low-pass of the causal acceleration estimate
+    seed: int = 0
+
+    def __post_init__(self):
+        if self.record_hz <= 0 or self.dt <= 0:
+            raise ConfigError("dt and record_hz must be positive")
+        ratio = 1.0 / (self.dt * self.record_hz)
+        if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+            raise ConfigError(f"record_hz={self.record_hz} must divide the simulation rate {1 / self.dt:g} Hz")
+        lo, hi = self.trajectories
+        if not (1 <= lo <= hi):
+            raise ConfigError(f"trajectories per instance must be 1 <= lo <= hi, got {self.trajectories}")
+        if self.n_instances < 1:
+            raise ConfigError("n_instances must be >= 1")
+        if not (0 < self.speed_scale[0] <= self.speed_scale[1] <= 1):
+            raise ConfigError(f"speed_scale must lie in (0, 1], got {self.speed_scale}")
+        if self.qdd_cutoff_hz >= 0.5 / self.dt:
+            raise ConfigError("qdd_cutoff_hz must be below the Nyquist frequency of the simulation")
+
+    @property
+    def decimation(self) -> int:
+        """Simulation steps per recorded sample."""
+        return int(round(1.0 / (self.dt * self.record_hz)))
+
+    # ------------------------------------------------------------- robots
+    def nominal_robot(self) -> Robot:
+        """The model the controller and every analytic baseline use."""
+        return load_robot(self.robot, num_threads=1)
+
+    def plant_robot(self) -> Robot:
+        """The simulated robot, possibly different from the nominal model."""
+        return load_robot(self.robot, params=self.plant_params, payload=self.payload,
+                          sensor_mount=SensorMount(tuple(self.sensor_translation), tuple(self.sensor_rotation)),
+                          num_threads=1)
+
+    # -------------------------------------------------------- (de)serialise
+    def to_dict(self) -> dict:
+        return _jsonable(dataclasses.asdict(self))
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "GeneratorConfig":
+        d = dict(d)
+        if d.get("pulses") is not None:
+            d["pulses"] = PulseConfig(**{k: tuple(v) for k, v in d["pulses"].items()})
+        if "noise" in d:
+            d["noise"] = NoiseConfig(**d["noise"])
+        for k in ("trajectories", "speed_scale", "sensor_translation", "sensor_rotation", "dart_coulomb", "dart_viscous"):
+            if d.get(k) is not None:
+                d[k] = tuple(d[k])
+        if d.get("payload") is not None:
+            d["payload"] = (float(d["payload"][0]), tuple(d["payload"][1]))
+        return cls(**d)
+
+    def config_hash(self) -> str:
+        """A stable digest of everything that decides the generated bytes."""
+        doc = json.dumps({"generator_version": GENERATOR_VERSION, "config": self.to_dict()}, sort_keys=True)
+        return hashlib.sha256(doc.encode()).hexdigest()[:16]
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {k: _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.generic):
+        return x.item()
+    return x
+
+
+# The profiles' sizes: instances and trajectories per instance.
+_PROFILE_SIZES = {
+    "quick": dict(n_instances=6, trajectories=(5, 5)),
+    "default": dict(n_instances=60, trajectories=(5, 20)),
+    "paper": dict(n_instances=1000, trajectories=(5, 50)),
+}
+
+# mismatch-ext: the unmodelled tool and the misaligned sensor.
+MISMATCH_PAYLOAD = (0.5, (0.01, 0.0, -0.04))  # kg; m from panda_hand_tcp, between the fingers and the flange
+MISMATCH_SENSOR_TRANSLATION = (0.001, 0.0, 0.0)  # 1 mm
+MISMATCH_SENSOR_ROTATION = tuple(float(v) for v in np.deg2rad(1.0) * np.array([1.0, 1.0, 0.0]) / np.sqrt(2.0))  # 1 deg tilt
+
+
+def scenario_config(name: str, profile: str = "quick", seed: int = 0, **overrides) -> GeneratorConfig:
+    """The configuration of a named scenario (PROTOCOL 2) at a profile size.
+
+    ``overrides`` replace any field, e.g. ``noise=NoiseConfig.off()``.
+    """
+    if name not in SCENARIOS:
+        raise ConfigError(f"unknown scenario {name!r}; known: {', '.join(SCENARIOS)}")
+    if profile not in PROFILES:
+        raise ConfigError(f"unknown profile {profile!r}; known: {', '.join(PROFILES)}")
+    kw = dict(scenario=name, profile=profile, seed=int(seed), **_PROFILE_SIZES[profile])
+    if name == "paper-noext":
+        kw["pulses"] = None
+    if name == "mismatch-ext":
+        kw.update(plant_params="franka_official", payload=MISMATCH_PAYLOAD,
+                  sensor_translation=MISMATCH_SENSOR_TRANSLATION, sensor_rotation=MISMATCH_SENSOR_ROTATION)
+    kw.update(overrides)
+    try:
+        return GeneratorConfig(**kw)
+    except TypeError as err:
+        raise ConfigError(f"bad generator override: {err}") from err
