@@ -1,0 +1,52 @@
+"""Benchmark metrics on hand-computed cases, and the results file's contract."""
+import numpy as np
+import pytest
+
+from hybrid_dyn.bench.metrics import ErrorReport, nmse, rmse, rmse_per_component, standardized_mse
+from hybrid_dyn.bench.runner import COLUMNS, read_results, write_results
+
+
+def test_rmse_hand_computed():
+    pred = np.array([[1.0, 2.0], [3.0, 4.0]])
+    target = np.array([[0.0, 2.0], [3.0, 2.0]])
+    # errors 1, 0, 0, 2 -> mean square 5/4
+    assert rmse(pred, target) == pytest.approx(np.sqrt(5 / 4))
+    np.testing.assert_allclose(rmse_per_component(pred, target), [np.sqrt(1 / 2), np.sqrt(4 / 2)])
+
+
+def test_nmse_is_mse_over_variance():
+    target = np.array([[0.0], [2.0], [4.0]])  # variance 8/3
+    pred = target + np.array([[1.0], [-1.0], [1.0]])  # MSE 1
+    assert nmse(pred, target) == pytest.approx(3 / 8)
+    assert nmse(np.full_like(target, target.mean()), target) == pytest.approx(1.0)  # predicting the mean
+
+
+def test_standardized_mse():
+    assert standardized_mse(np.array([[2.0]]), np.array([[0.0]]), np.array([5.0]), np.array([2.0])) == pytest.approx(1.0)
+
+
+def test_contact_and_free_split_at_one_newton():
+    f_true = np.array([[0.0, 0.0, 0.5], [0.0, 3.0, 0.0], [0.0, 0.0, 0.0], [2.0, 0.0, 0.0]])
+    target = f_true
+    pred = f_true + np.array([[1.0, 0, 0], [0, 0, 2.0], [1.0, 0, 0], [0, 0, 2.0]])
+    rep = ErrorReport.compute(pred, target, f_true)
+    assert rep.rmse_free == pytest.approx(np.sqrt(2 / 6))  # samples 0 and 2: one 1.0 error each
+    assert rep.rmse_contact == pytest.approx(np.sqrt(8 / 6))  # samples 1 and 3: one 2.0 error each
+    assert rep.max_error == pytest.approx(2.0)
+
+
+def test_non_finite_predictions_are_an_error_not_a_number():
+    with pytest.raises(ValueError, match="NaN or inf"):
+        ErrorReport.compute(np.array([[np.nan]]), np.array([[0.0]]))
+
+
+def test_results_csv_has_the_stable_columns(tmp_path):
+    rows = [{"task": "tip_force", "scenario": "s", "model": "base-wrench", "status": "ok", "rmse": 0.1234567891},
+            {"task": "joint_torque", "scenario": "s", "model": "delan", "status": "failed", "error": "boom"}]
+    write_results(tmp_path / "results.csv", rows)
+    back = read_results(tmp_path / "results.csv")
+    assert list(back[0]) == COLUMNS
+    for col in ("task", "scenario", "model", "inputs", "val_loss", "test_loss", "rmse", "nmse", "rmse_contact",
+                "rmse_free", "max_error", "train_seconds", "infer_us_per_sample", "infer_us_per_call", "n_params"):
+        assert col in COLUMNS
+    assert back[0]["rmse"] == "0.123457" and back[1]["error"] == "boom"
