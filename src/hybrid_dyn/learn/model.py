@@ -1,0 +1,332 @@
+"""A trained model: the network, its standardization, its analytic part, its files.
+
+Every model, whatever its family, computes
+
+    y = y_mean + y_std * net(x_std)              plain networks (the seed's)
+    y = prior  + y_std * net(x_std)              residual (hybrid) networks
+    y = DeLaN(q, qd, qdd) [+ friction(qd)] [+ y_std * net(x_std)]
+
+with x_std = (x - x_mean) / x_std the standardized input window and x, y in
+physical units. The statistics come from the training split only and live in
+the model file. A residual net's output is scaled by the target's standard
+deviation (not the residual's) so that "the net adds nothing" means its output
+is small compared with the signal, and an untrained net is not already tiny.
+
+On disk (``model_dir``): ``config.json`` (preset, robot, fields, widths,
+normalization, dataset checksum, training history) and ``model.safetensors``
+(every tensor, with the sha256 of the canonical config JSON in its metadata).
+Loading refuses a config that does not match that digest, an unknown robot, or
+a robot other than the one asked for. Nothing is unpickled.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import torch
+from safetensors import safe_open
+from safetensors.torch import save_file
+from torch import nn
+
+from ..data.windows import concat_fields, window_index
+from .delan import DeepLagrangianNetwork, LearnedGazFriction
+from .nets import build_net
+from .presets import Preset
+from .priors import AnalyticPrior
+
+MODEL_FORMAT = "hybrid_dyn.model"
+MODEL_FORMAT_VERSION = 1
+
+
+class ModelError(ValueError):
+    """A model directory is missing, tampered with, or does not fit the robot or data."""
+
+
+def canonical_json(obj) -> str:
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"))
+
+
+def config_digest(config: dict) -> str:
+    return hashlib.sha256(canonical_json(config).encode()).hexdigest()
+
+
+class HybridModel(nn.Module):
+    """The torch module of any preset: standardization, network(s), DeLaN, prior sum.
+
+    widths: field name -> columns (q: nv, base_wrench: 6, tip_force: 3, ...).
+    """
+
+    def __init__(self, preset: Preset, widths: dict):
+        super().__init__()
+        self.preset = preset
+        self.widths = dict(widths)
+        n_in = sum(widths[f] for f in preset.inputs)
+        n_out = sum(widths[f] for f in preset.targets)
+        self.n_in, self.n_out = n_in, n_out
+        for name, n in (("x_mean", n_in), ("x_std", n_in), ("y_mean", n_out), ("y_std", n_out)):
+            self.register_buffer(name, torch.zeros(n) if "mean" in name else torch.ones(n))
+        self.delan = self.friction = self.net = None
+        if preset.kind == "delan":
+            nv = widths["q"]
+            if list(preset.inputs[:3]) != ["q", "qd", "qdd"] or n_out != nv:
+                raise ValueError(f"preset {preset.name!r}: DeLaN needs inputs q, qd, qdd first and joint-torque targets")
+            self.delan = DeepLagrangianNetwork(nv, preset.delan_hidden, preset.delan_eps)
+            self.friction = LearnedGazFriction(nv) if preset.friction else None
+            if preset.residual_kind:
+                self.net = build_net(preset.residual_kind, n_in, n_out, preset.window, preset.front_units,
+                                     preset.fc_layers, preset.fc_units, "relu", preset.conv_kernel)
+        else:
+            self.net = build_net(preset.kind, n_in, n_out, preset.window, preset.front_units,
+                                 preset.fc_layers, preset.fc_units, preset.activation, preset.conv_kernel)
+
+    def set_normalization(self, x_mean, x_std, y_mean, y_std) -> None:
+        for name, v in (("x_mean", x_mean), ("x_std", x_std), ("y_mean", y_mean), ("y_std", y_std)):
+            getattr(self, name).copy_(torch.as_tensor(np.asarray(v), dtype=torch.float32))
+        if self.delan is not None:
+            nv = self.widths["q"]
+            self.delan.q_mean.copy_(self.x_mean[:nv])
+            self.delan.q_std.copy_(self.x_std[:nv])
+            self.delan.torque_scale.fill_(float(self.y_std.mean()))
+
+    def forward(self, x: torch.Tensor, prior: torch.Tensor | None = None) -> torch.Tensor:
+        """x: raw window (B, L, n_in); prior: (B, n_out) for residual presets. Returns y (B, n_out)."""
+        xs = (x - self.x_mean) / self.x_std
+        if self.delan is not None:
+            nv = self.widths["q"]
+            last = x[:, -1]
+            q, qd, qdd = last[:, :nv], last[:, nv:2 * nv], last[:, 2 * nv:3 * nv]
+            y = self.delan(q, qd, qdd)
+            if self.friction is not None:
+                y = y + self.friction(qd)
+            if self.net is not None:
+                y = y + self.y_std * self.net(xs)
+            return y
+        if self.preset.prior is not None:
+            if prior is None:
+                raise ValueError(f"preset {self.preset.name!r} needs its analytic prior")
+            return prior + self.y_std * self.net(xs)
+        return self.y_mean + self.y_std * self.net(xs)
+
+    def standardized_loss(self, y_pred: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
+        """MSE on standardized targets (the seed's loss; comparable across presets)."""
+        return torch.mean(((y_pred - y) / self.y_std) ** 2)
+
+
+class TrainedModel:
+    """A trained model with the uniform API the bench harness and the streaming estimator use.
+
+    ``predict(instances)``: one (T, n_out) array per instance, physical units, every
+    sample (sequence models edge-padded, see ``hybrid_dyn.data.windows``).
+    ``predict_window(x, prior=None)``: one raw window (L, n_in) -> (n_out,).
+    ``config``: the dict stored in config.json. ``n_params``, ``train_seconds``,
+    ``history`` (per-epoch train/val loss), ``val_loss`` (standardized MSE).
+    """
+
+    def __init__(self, module: HybridModel, config: dict, robot=None, path: Path | None = None):
+        self.module = module.eval()
+        self.config = config
+        self.preset = Preset.from_dict(config["preset"])
+        self.path = path
+        self._robot = robot
+        self._prior = None
+        self._fast = None
+
+    # ---------------------------------------------------------------- facts
+    @property
+    def n_params(self) -> int:
+        return sum(p.numel() for p in self.module.parameters())
+
+    @property
+    def train_seconds(self) -> float:
+        return float(self.config.get("train_seconds", 0.0))
+
+    @property
+    def history(self) -> list:
+        return self.config.get("history", [])
+
+    @property
+    def val_loss(self) -> float:
+        return float(self.config.get("val_loss", float("nan")))
+
+    @property
+    def inputs(self) -> list:
+        return list(self.preset.inputs)
+
+    @property
+    def targets(self) -> list:
+        return list(self.preset.targets)
+
+    @property
+    def window(self) -> int:
+        return self.preset.window
+
+    @property
+    def robot(self):
+        if self._robot is None:
+            from ..analytic.robot import load_robot
+
+            self._robot = load_robot(self.config["robot"], params=self.config.get("analytic_params"))
+        return self._robot
+
+    @property
+    def prior(self) -> AnalyticPrior | None:
+        if self.preset.prior is None:
+            return None
+        if self._prior is None:
+            self._prior = AnalyticPrior(self.preset.prior, self.robot, self.config.get("record_hz"),
+                                        self.config.get("observer_gain", 20.0))
+        return self._prior
+
+    # ----------------------------------------------------------- prediction
+    def _check_instances(self, instances) -> None:
+        need = set(self.inputs) | (set(self.prior.fields) if self.prior else set())
+        for inst in instances:
+            missing = sorted(need - set(inst.fields))
+            if missing:
+                raise ModelError(f"instance {inst.name} lacks fields {missing} that model {self.preset.name!r} needs")
+            for f in need:
+                w = np.asarray(inst[f]).reshape(len(inst), -1).shape[1]
+                if f in self.config["widths"] and w != self.config["widths"][f]:
+                    raise ModelError(f"instance {inst.name}: field {f} has {w} columns, the model was trained on "
+                                     f"{self.config['widths'][f]} (another robot?)")
+
+    def predict(self, instances, batch_size: int = 4096, priors: list | None = None) -> list[np.ndarray]:
+        """Predictions [physical units] (T, n_out) float64 for each instance, every sample.
+
+        priors: the analytic part per instance when already computed (else computed here).
+        """
+        instances = list(instances)
+        self._check_instances(instances)
+        if not instances:
+            return []
+        x_all = concat_fields(instances, self.inputs)
+        lengths = [len(i) for i in instances]
+        index = window_index(lengths, self.window)
+        prior_all = None
+        if self.prior is not None:
+            if priors is None:
+                priors = self.prior.compute_instances(instances)
+            prior_all = np.concatenate([np.asarray(p, np.float32).reshape(len(p), -1) for p in priors])
+        device = next(self.module.buffers()).device
+        out = np.empty((len(index), self.module.n_out))
+        with torch.no_grad():  # not inference_mode: DeLaN differentiates inside its forward
+            for s in range(0, len(index), batch_size):
+                x = torch.from_numpy(x_all[index[s:s + batch_size]]).to(device)
+                p = None if prior_all is None else torch.from_numpy(prior_all[s:s + batch_size]).to(device)
+                out[s:s + batch_size] = self.module(x, p).double().cpu().numpy()
+        return np.split(out, np.cumsum(lengths)[:-1])
+
+    def evaluate(self, instances, **kw) -> dict:
+        """Losses and errors on instances: standardized MSE (the seed's loss) and RMSE [physical units]."""
+        instances = list(instances)
+        pred = np.concatenate(self.predict(instances, **kw))
+        y = concat_fields(instances, self.targets).astype(np.float64)
+        err = pred - y
+        y_std = self.module.y_std.double().cpu().numpy()
+        return {"loss": float(np.mean((err / y_std) ** 2)), "rmse": float(np.sqrt(np.mean(err ** 2))),
+                "rmse_per_component": np.sqrt(np.mean(err ** 2, axis=0)).tolist(),
+                "max_abs_error": float(np.abs(err).max()), "n_samples": len(y)}
+
+    def predict_window(self, x, prior=None) -> np.ndarray:
+        """One prediction [physical units] (n_out,) from one raw window x (L, n_in).
+
+        x holds the model's input fields side by side (``model.inputs``, widths in
+        ``model.config["widths"]``), oldest sample first, in physical units; pad
+        the start of a run with its first sample, as training did.
+        prior: the analytic part (n_out,) at the window's last sample. Optional for
+        the per-sample priors (computed here from the last row, which holds every
+        field they need); required for ``momentum`` (a filter with state: pass
+        ``MomentumObserver.step_force(q, qd, tau_J)``).
+        DeLaN presets run through PyTorch; the others through :mod:`fastpath`.
+        """
+        x = np.asarray(x, dtype=np.float64)
+        if x.shape != (self.window, self.module.n_in):
+            raise ModelError(f"window must have shape ({self.window}, {self.module.n_in}) for {self.inputs}, got {x.shape}")
+        if not np.isfinite(x).all():
+            raise ModelError("window holds NaN or inf")
+        if self.preset.prior is not None and prior is None:
+            prior = self.prior.single(self._split_row(x[-1]))
+        if self.module.delan is not None:
+            with torch.no_grad():
+                return self.module(torch.from_numpy(x[None]).float()).double().numpy()[0]
+        if self._fast is None:
+            from .fastpath import FastNet
+
+            m = self.module
+            self._fast = (FastNet(m.net), m.x_mean.double().numpy(), m.x_std.double().numpy(),
+                          m.y_mean.double().numpy(), m.y_std.double().numpy())
+        net, x_mean, x_std, y_mean, y_std = self._fast
+        y = y_std * net((x - x_mean) / x_std)
+        return y + (np.asarray(prior, float) if self.preset.prior is not None else y_mean)
+
+    def _split_row(self, row: np.ndarray) -> dict:
+        out, i = {}, 0
+        for f in self.inputs:
+            w = self.config["widths"][f]
+            out[f] = row[i:i + w]
+            i += w
+        return out
+
+    # ------------------------------------------------------------------ I/O
+    def save(self, model_dir) -> None:
+        save_model(self.module, self.config, model_dir)
+
+
+def save_model(module: HybridModel, config: dict, model_dir) -> None:
+    """Write config.json and model.safetensors (config digest in its metadata), each atomically."""
+    model_dir = Path(model_dir)
+    model_dir.mkdir(parents=True, exist_ok=True)
+    tensors = {k: v.detach().cpu().contiguous() for k, v in module.state_dict().items()}
+    tmp = model_dir / "model.safetensors.partial"
+    save_file(tensors, str(tmp), metadata={"format": MODEL_FORMAT, "config_sha256": config_digest(config)})
+    ctmp = model_dir / "config.json.partial"
+    ctmp.write_text(json.dumps(config, indent=1, sort_keys=True))
+    # Weights first, config last: a model dir with config.json is complete.
+    os.replace(tmp, model_dir / "model.safetensors")
+    os.replace(ctmp, model_dir / "config.json")
+
+
+def load_model(model_dir, robot=None, device: str = "cpu") -> TrainedModel:
+    """Open a model directory. robot: a Robot or robot name the model must be for (optional).
+
+    Refuses: a missing or partial directory, a config.json that is not the one
+    written with the weights, a robot this toolkit does not know, another robot.
+    """
+    model_dir = Path(model_dir)
+    cpath, wpath = model_dir / "config.json", model_dir / "model.safetensors"
+    if not cpath.is_file() or not wpath.is_file():
+        raise ModelError(f"{model_dir} is not a finished model (needs config.json and model.safetensors)")
+    try:
+        config = json.loads(cpath.read_text())
+    except json.JSONDecodeError as err:
+        raise ModelError(f"{cpath} is corrupt: {err}") from err
+    try:
+        with safe_open(str(wpath), framework="pt") as f:
+            meta = f.metadata() or {}
+            tensors = {k: f.get_tensor(k) for k in f.keys()}
+    except Exception as err:  # safetensors raises its own error types
+        raise ModelError(f"{wpath} is corrupt: {err}") from err
+    if meta.get("config_sha256") != config_digest(config):
+        raise ModelError(f"{cpath} does not match the weights it was saved with (edited or tampered); refusing to load")
+    if config.get("format") != MODEL_FORMAT or config.get("format_version", 0) > MODEL_FORMAT_VERSION:
+        raise ModelError(f"{cpath}: not a {MODEL_FORMAT} v<={MODEL_FORMAT_VERSION} model")
+    from ..description import available_robots
+
+    if config["robot"] not in available_robots():
+        raise ModelError(f"model {model_dir} is for robot {config['robot']!r}, which this toolkit does not know "
+                         f"(known: {', '.join(available_robots())})")
+    if robot is not None:
+        name = robot if isinstance(robot, str) else robot.name
+        if name != config["robot"]:
+            raise ModelError(f"model {model_dir} was trained for robot {config['robot']!r}, not {name!r}")
+    preset = Preset.from_dict(config["preset"])
+    module = HybridModel(preset, config["widths"])
+    try:
+        module.load_state_dict(tensors, strict=True)
+    except RuntimeError as err:
+        raise ModelError(f"{wpath} does not fit the architecture in config.json: {err}") from err
+    module.to(device)
+    return TrainedModel(module, config, robot=None if robot is None or isinstance(robot, str) else robot, path=model_dir)

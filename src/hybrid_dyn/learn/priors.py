@@ -1,0 +1,174 @@
+"""The analytic part of a residual (hybrid) model: computed, cached, never trained.
+
+A residual model predicts ``prior + network``; the prior is one of the
+toolkit's analytic models on the *nominal* robot (or another parameter set, e.g.
+an identified one):
+
+- ``rnea``            tau = RNEA(q, qd, qdd)                         [Nm] (nv)
+- ``rnea-basewrench`` tau = RNEA(q, qd, qdd) - J_v^T F_bw            [Nm] (nv)
+  with F_bw the base-wrench tip-force estimate: physics-informed torque models
+  may use the base sensor (PROTOCOL 4), which sees the external force.
+- ``basewrench``      F = tip_force_from_base_wrench(q, qd, qdd, w)  [N] (3)
+- ``momentum``        F = MomentumObserver(q, qd, tau_J), dt = 1 / record_hz [N] (3)
+
+The momentum observer is a filter with state, so its value at a sample depends
+on the whole instance before it; the others are per sample.
+
+Priors are computed once per dataset and cached in an HDF5 file (one array per
+instance) whose name holds a digest of the dataset checksum, the prior, the
+robot and its parameter set: a changed dataset or robot never reads a stale cache.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pinocchio as pin
+
+from ..analytic.momentum_observer import MomentumObserver
+from ..analytic.tip_force import tip_force_from_base_wrench
+
+PRIOR_FIELDS = {
+    "rnea": ("q", "qd", "qdd"),
+    "rnea-basewrench": ("q", "qd", "qdd", "base_wrench"),
+    "basewrench": ("q", "qd", "qdd", "base_wrench"),
+    "momentum": ("q", "qd", "tau_J"),
+}
+
+
+class AnalyticPrior:
+    """One analytic model, evaluated on instances or on a single sample.
+
+    kind: a key of :data:`PRIOR_FIELDS`. robot: the nominal :class:`Robot`.
+    record_hz: the dataset's sample rate (the momentum observer's dt is 1/record_hz).
+    observer_gain: the momentum observer's bandwidth K [1/s].
+    """
+
+    def __init__(self, kind: str, robot, record_hz: float | None = None, observer_gain: float = 20.0):
+        if kind not in PRIOR_FIELDS:
+            raise ValueError(f"unknown analytic prior {kind!r}; known: {sorted(PRIOR_FIELDS)}")
+        if kind == "momentum" and not record_hz:
+            raise ValueError("the momentum prior needs the dataset's record_hz")
+        self.kind = kind
+        self.robot = robot
+        self.record_hz = record_hz
+        self.observer_gain = float(observer_gain)
+        self.fields = PRIOR_FIELDS[kind]
+        self._single = None
+
+    def describe(self) -> dict:
+        """What identifies this prior's values (part of the cache key and the model config)."""
+        return {"kind": self.kind, "robot": self.robot.name, "params": self.robot.params_name,
+                "payload": repr(self.robot.payload), "sensor_mount": repr(self.robot.sensor_mount),
+                "record_hz": self.record_hz, "observer_gain": self.observer_gain}
+
+    # ------------------------------------------------------------ evaluation
+    def compute(self, fields: dict) -> np.ndarray:
+        """The prior over one instance: fields name -> (T, k) arrays; returns (T, n_out)."""
+        r = self.robot
+        q, qd = fields["q"], fields["qd"]
+        if self.kind == "momentum":
+            obs = MomentumObserver(r, gain=self.observer_gain, dt=1.0 / self.record_hz)
+            return obs.run(q, qd, fields["tau_J"])[0]
+        qdd = fields["qdd"]
+        if self.kind == "rnea":
+            return np.atleast_2d(r.inverse_dynamics(q, qd, qdd))
+        f_bw = np.atleast_2d(tip_force_from_base_wrench(r, q, qd, qdd, fields["base_wrench"]))
+        if self.kind == "basewrench":
+            return f_bw
+        jv = r.tip_jacobian(np.atleast_2d(q))[:, :3, :]
+        return np.atleast_2d(r.inverse_dynamics(q, qd, qdd)) - np.einsum("nij,ni->nj", jv, f_bw)
+
+    def single(self, sample: dict) -> np.ndarray:
+        """The prior at one sample (fields -> 1-D arrays); not for the stateful momentum observer.
+
+        A direct Pinocchio path for a control loop (no batching or validation
+        overhead); it computes exactly what :meth:`compute` does (tested).
+        """
+        if self.kind == "momentum":
+            raise ValueError("the momentum prior is a filter with state: pass its current estimate "
+                             "(MomentumObserver.step_force) as `prior`")
+        if self._single is None:
+            self._single = _SingleSample(self.robot)
+        s = self._single
+        q, qd, qdd = (np.asarray(sample[k], float) for k in ("q", "qd", "qdd"))
+        if self.kind == "rnea":
+            return pin.rnea(s.model, s.data, q, qd, qdd).copy()
+        f_bw = s.basewrench_force(q, qd, qdd, np.asarray(sample["base_wrench"], float))
+        if self.kind == "basewrench":
+            return f_bw
+        jv = pin.computeFrameJacobian(s.model, s.data, q, s.tool, pin.LOCAL_WORLD_ALIGNED)[:3]
+        return pin.rnea(s.model, s.data, q, qd, qdd) - jv.T @ f_bw
+
+    def compute_instances(self, instances, cache_dir=None, dataset_checksum: str | None = None) -> list[np.ndarray]:
+        """The prior for every instance; cached under ``cache_dir`` when a dataset checksum is given."""
+        cache = None
+        if cache_dir is not None and dataset_checksum:
+            key = hashlib.sha256(json.dumps({"dataset": dataset_checksum, **self.describe()},
+                                            sort_keys=True).encode()).hexdigest()[:20]
+            cache = Path(cache_dir) / f"prior-{self.kind}-{key}.h5"
+        names = [inst.name for inst in instances]
+        if cache is not None and cache.is_file():
+            try:
+                with h5py.File(cache, "r") as f:
+                    if all(n in f for n in names):
+                        return [f[n][()] for n in names]
+            except OSError:
+                pass  # an unreadable cache is recomputed and replaced
+        out = [self.compute({k: inst[k] for k in self.fields}) for inst in instances]
+        if cache is not None:
+            _write_cache(cache, dict(zip(names, out)))
+        return out
+
+
+class _SingleSample:
+    """Per-sample Pinocchio evaluation with the robot's constant transforms precomputed."""
+
+    def __init__(self, robot):
+        self.model, self.data = robot.model, robot.model.createData()
+        self.model_ff, self.data_ff = robot.model_ff, robot.model_ff.createData()
+        self.tool = robot.tool_frame_id
+        self.root_from_sensor = np.linalg.inv(robot._sensor_from_root)
+        self.q_ff = np.concatenate([robot._q_ff_base, np.zeros(robot.nv)])
+        self.v_ff = np.zeros(6 + robot.nv)
+        self.a_ff = np.zeros(6 + robot.nv)
+
+    def basewrench_force(self, q, qd, qdd, w_sensor) -> np.ndarray:
+        """The base-wrench method at one sample, as ``tip_force_from_base_wrench``."""
+        self.q_ff[7:], self.v_ff[6:], self.a_ff[6:] = q, qd, qdd
+        w_model_root = pin.rnea(self.model_ff, self.data_ff, self.q_ff, self.v_ff, self.a_ff)[:6]
+        dw_root = self.root_from_sensor @ w_sensor - w_model_root
+        pin.forwardKinematics(self.model, self.data, q)
+        p = pin.updateFramePlacement(self.model, self.data, self.tool).translation
+        # force_from_external_wrench's closed form on one sample, in scalars:
+        # numpy's per-call overhead on 3-vectors would dominate a control cycle.
+        px, py, pz = p
+        f0, f1, f2, m0, m1, m2 = dw_root
+        b0 = -(f0 - (py * m2 - pz * m1))
+        b1 = -(f1 - (pz * m0 - px * m2))
+        b2 = -(f2 - (px * m1 - py * m0))
+        pb = px * b0 + py * b1 + pz * b2
+        scale = 1.0 / (1.0 + px * px + py * py + pz * pz)
+        return np.array([(b0 + px * pb) * scale, (b1 + py * pb) * scale, (b2 + pz * pb) * scale])
+
+
+def _write_cache(path: Path, arrays: dict) -> None:
+    """Merge ``arrays`` into the cache file atomically (temp file, then rename)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    merged = {}
+    if path.is_file():
+        try:
+            with h5py.File(path, "r") as f:
+                merged = {k: f[k][()] for k in f}
+        except OSError:
+            merged = {}
+    merged.update(arrays)
+    tmp = path.with_suffix(".h5.partial")
+    with h5py.File(tmp, "w") as f:
+        for k in sorted(merged):
+            f.create_dataset(k, data=np.asarray(merged[k], np.float64), track_times=False)
+    os.replace(tmp, path)
