@@ -12,6 +12,8 @@ import sys
 # Modules that contribute subcommands; each has register(subparsers).
 SUBCOMMAND_MODULES = [
     "hybrid_dyn.analytic.cli",
+    "hybrid_dyn.sim.cli",
+    "hybrid_dyn.data.import_cli",
 ]
 
 

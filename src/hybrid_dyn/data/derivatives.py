@@ -21,9 +21,12 @@ steps, shape (T, n):
     signal (the KUKA and Baxter logs carry qd(t+1) in every row), the last row
     also gets a true central difference.
 ``butter``
-    A Butterworth low-pass of order ``order`` at ``cutoff_hz``, run forwards and
-    backwards (``scipy.signal.filtfilt``: zero phase, squared magnitude), then the
-    central difference above.
+    The central difference above, then a Butterworth low-pass of order ``order``
+    at ``cutoff_hz`` run forwards and backwards (``scipy.signal.filtfilt``: zero
+    phase, squared magnitude; the ends are padded by an odd extension two cutoff
+    periods long). Filtering the difference quotient equals differentiating the
+    filtered signal (both are linear and shift-invariant) but behaves better at
+    the ends.
 
 Units: positions [rad], velocities [rad/s], accelerations [rad/s^2], time [s].
 """
@@ -95,15 +98,19 @@ def differentiate(x: np.ndarray, t: np.ndarray, flt: DerivativeFilter, deriv: in
     if flt.method == "savgol":
         window = flt.window_samples(dt)
         return signal.savgol_filter(x, window, flt.polyorder, deriv=deriv, delta=dt, axis=0, mode="interp")
+    out = _central(x, t, x_next)
+    if deriv == 2:
+        out = _central(out, t, None)
     if flt.method == "butter":
         nyquist = 0.5 / dt
         if flt.cutoff_hz >= nyquist:
             raise ValueError(f"butter cutoff {flt.cutoff_hz} Hz is not below the Nyquist frequency {nyquist:.1f} Hz")
         b, a = signal.butter(flt.order, flt.cutoff_hz / nyquist)
-        x = signal.filtfilt(b, a, x, axis=0)
-        x_next = None  # the filtered signal has no known next sample
-    out = _central(x, t, x_next)
-    return _central(out, t, None) if deriv == 2 else out
+        # Filter the difference quotient, not the signal: the filter commutes with d/dt, and the
+        # odd-extension padding then keeps the derivative's own value and slope at the ends.
+        padlen = min(len(out) - 1, int(round(2.0 / (flt.cutoff_hz * dt))))
+        out = signal.filtfilt(b, a, out, axis=0, padtype="odd", padlen=padlen)
+    return out
 
 
 def _central(x: np.ndarray, t: np.ndarray, x_next: np.ndarray | None) -> np.ndarray:

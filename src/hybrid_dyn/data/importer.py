@@ -31,7 +31,6 @@ import json
 import os
 import re
 import shutil
-import tomllib
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -194,6 +193,8 @@ def read_spec(path) -> LogSpec:
     """Read a TOML import spec. Relative file paths are relative to the spec file;
     ``${VAR}`` expands from the environment, else from the spec's ``[env_defaults]``
     (whose relative paths are also relative to the spec file)."""
+    import tomllib  # Python >= 3.11
+
     path = Path(path)
     try:
         doc = tomllib.loads(path.read_text())
@@ -271,7 +272,7 @@ class RowIssue:
     n_rows: int = 1
 
     def text(self) -> str:
-        at = f"line {self.line}" if self.line is not None else f"row {self.row}"
+        at = f"row {self.row}" + (f" (line {self.line})" if self.line is not None else "")
         return f"{Path(self.source).name}:{self.table} {at}: {self.kind}: {self.detail} -> {self.action}"
 
 

@@ -1,0 +1,27 @@
+"""CLI: ``hybrid-dyn import --spec spec.toml --out DIR`` (real robot logs)."""
+from __future__ import annotations
+
+import json
+
+
+def register(sub) -> None:
+    p = sub.add_parser("import", help="import a robot log (CSV, npz, .mat, Parquet) described by a TOML spec")
+    p.add_argument("--spec", required=True, help="the import spec (TOML; see docs/bring_your_own_log.md)")
+    p.add_argument("--out", required=True, help="the dataset directory to write")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing dataset at --out")
+    p.add_argument("--strict", action="store_true", help="fail on any row problem instead of dropping the row")
+    p.add_argument("--report", action="store_true", help="print every row problem, not the first few per kind")
+    p.add_argument("--json", action="store_true", help="print the report summary as JSON")
+    p.set_defaults(func=cmd_import)
+
+
+def cmd_import(args) -> int:
+    from .importer import import_log
+
+    report = import_log(args.spec, args.out, overwrite=args.overwrite, strict=args.strict)
+    if args.json:
+        print(json.dumps({"path": str(report.path), **report.summary()}, indent=1))
+    else:
+        print(report.text(max_per_kind=10**9 if args.report else 5))
+        print(f"dataset written to {report.path} (full report: {report.path}/import_report.txt)")
+    return 0

@@ -1,0 +1,77 @@
+"""The three shipped real-robot logs (KUKA LWR, Baxter, SARCOS) as toolkit datasets.
+
+Their import specs live in ``benchmarks/real/*.toml`` of the repository (or in
+the folder named by ``HYBRID_DYN_REAL_SPECS``); the logs themselves in the
+project's shared data folder (``HYBRID_DYN_SHARED``, default ``../shared`` beside
+the repository). :func:`real_dataset` imports a set once and caches it under a
+key made of the spec, the importer version and the log files' checksums, so a
+changed spec or log is re-imported and an unchanged one is not.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .dataset import DatasetError, load_dataset
+from .importer import import_log, read_spec, spec_checksum
+
+REAL_SETS = {"real-kuka": "kuka.toml", "real-baxter": "baxter.toml", "real-sarcos": "sarcos.toml"}
+
+
+def real_specs_dir() -> Path:
+    """Where the import specs of the real sets are: ``$HYBRID_DYN_REAL_SPECS`` or the repository's ``benchmarks/real``."""
+    env = os.environ.get("HYBRID_DYN_REAL_SPECS")
+    return Path(env) if env else Path(__file__).resolve().parents[3] / "benchmarks" / "real"
+
+
+def real_spec_path(name: str) -> Path:
+    if name not in REAL_SETS:
+        raise DatasetError(f"unknown real dataset {name!r}; known: {sorted(REAL_SETS)}")
+    path = real_specs_dir() / REAL_SETS[name]
+    if not path.is_file():
+        raise DatasetError(f"import spec for {name} not found at {path}; set HYBRID_DYN_REAL_SPECS to the folder "
+                           f"holding {REAL_SETS[name]}")
+    return path
+
+
+def real_dataset(name: str, cache_dir, log=None) -> Path:
+    """The dataset directory of the real set ``name`` ("real-kuka", "real-baxter",
+    "real-sarcos"), imported into ``cache_dir`` on first use and reused after."""
+    spec = read_spec(real_spec_path(name))
+    missing = [str(f) for f in spec.files if not Path(f).is_file()]
+    if missing:
+        raise DatasetError(f"{name}: log file(s) {missing} not found; set HYBRID_DYN_SHARED to the shared folder "
+                           f"that holds data/real/")
+    path = Path(cache_dir) / f"{name}-{spec_checksum(spec)[:16]}"
+    if (path / "manifest.json").is_file():
+        try:
+            load_dataset(path, verify=True)
+            return path
+        except DatasetError as err:  # corrupt or partial cache: import again
+            if log:
+                log(f"{name}: cached import unusable ({err}); importing again")
+    report = import_log(spec, path, overwrite=True)
+    if log:
+        log(report.text(3))
+    return path
+
+
+def target_statistics(dataset, field: str = "tau_m", split: str = "test") -> dict:
+    """Per-joint mean, standard deviation and variance of a target over a split.
+
+    nMSE = MSE / variance (per joint) is the figure SARCOS results are quoted in;
+    the variance of the *test* targets is the usual normaliser. Units: those of
+    the field (Nm, Nm^2 for torques).
+    """
+    y = np.concatenate([np.asarray(inst[field], np.float64) for inst in dataset.split(split)])
+    return {"split": split, "field": field, "n_samples": len(y), "mean": y.mean(axis=0).tolist(),
+            "std": y.std(axis=0).tolist(), "variance": y.var(axis=0).tolist()}
+
+
+def nmse_per_joint(pred: np.ndarray, target: np.ndarray, variance=None) -> np.ndarray:
+    """MSE / variance per column; ``variance`` defaults to that of ``target``."""
+    target = np.asarray(target, np.float64)
+    var = target.var(axis=0) if variance is None else np.asarray(variance, np.float64)
+    return np.mean((np.asarray(pred, np.float64) - target) ** 2, axis=0) / var
