@@ -41,7 +41,10 @@ class MomentumObserver:
         self.dt = float(dt)
         self.friction = friction
         self._data = robot.model.createData()
+        self._data_g = robot.model.createData()
+        self._data_c = robot.model.createData()
         self._zero = np.zeros(robot.nv)
+        self._half_dt = 0.5 * self.dt
         self.reset()
 
     def reset(self) -> None:
@@ -54,17 +57,22 @@ class MomentumObserver:
     def _beta_and_p(self, q, qd):
         """(C^T qd - g, p = M qd). M qd comes from RNEA with v = 0, a = qd (minus g),
         which avoids forming and symmetrising M."""
-        model, data = self.robot.model, self._data
-        g = pin.computeGeneralizedGravity(model, data, q).copy()
-        p = pin.rnea(model, data, q, self._zero, qd) - g
-        C = pin.computeCoriolisMatrix(model, data, q, qd)
-        return C.T @ qd - g, p
+        model = self.robot.model
+        # One Data per quantity: each function returns a view into its Data, so no copies.
+        g = pin.computeGeneralizedGravity(model, self._data_g, q)
+        p = pin.rnea(model, self._data, q, self._zero, qd) - g
+        C = pin.computeCoriolisMatrix(model, self._data_c, q, qd)
+        return qd @ C - g, p
 
     def step(self, q, qd, tau) -> np.ndarray:
         """Advance one sample; returns the external joint torque estimate r [Nm] (nv,)."""
         q = self.robot._single(q, "q")
         qd = self.robot._single(qd, "qd")
         tau = self.robot._single(tau, "tau")
+        return self.step_unchecked(q, qd, tau)
+
+    def step_unchecked(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """``step`` for inputs already validated as finite (nv,) float arrays."""
         if self.friction is not None:
             tau = tau - self.friction(qd)
         beta, p = self._beta_and_p(q, qd)
@@ -74,10 +82,10 @@ class MomentumObserver:
             return self.residual.copy()
         integrand = tau + beta
         # Trapezoid on the model terms; the residual term uses the last estimate.
-        self._integral += 0.5 * (integrand + self._last_integrand) * self.dt + self.residual * self.dt
+        self._integral += (integrand + self._last_integrand) * self._half_dt + self.residual * self.dt
         self._last_integrand = integrand
-        self.residual = self.gain * (p - self._p0 - self._integral)
-        return self.residual.copy()
+        self.residual = self.gain * (p - self._p0 - self._integral)  # a fresh array: safe to hand out
+        return self.residual
 
     def force(self, q, residual: np.ndarray | None = None) -> np.ndarray:
         """Tip force [N] (3,) explaining the residual through J_v^T."""

@@ -162,6 +162,12 @@ def _base_wrench_method_single(robot: Robot, q, qd, qdd, base_wrench, return_res
     w = np.asarray(base_wrench, dtype=float)
     if w.shape != (6,) or not math.isfinite(w.dot(w)):
         raise InputError(f"base_wrench must be 6 finite values, got shape {w.shape}")
+    return base_wrench_force_core(robot, q, qd, qdd, w, return_residual)
+
+
+def base_wrench_force_core(robot: Robot, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, w: np.ndarray,
+                           return_residual: bool = False):
+    """The base-wrench method on one already-validated sample (the streaming estimator's path)."""
     w_model_root = robot.rnea_ff_single(q, qd, qdd)[:6]
     # Python floats from here on: numpy scalars cost ~5x more per operation.
     dfx, dfy, dfz, dmx, dmy, dmz = (robot._root_from_sensor @ w - w_model_root).tolist()

@@ -1,0 +1,78 @@
+"""Per-call latency of TipForceEstimator.estimate_tip_force (issue 6).
+
+20,000 single calls on one core (the process is pinned to CPU 0 and torch to
+one thread), fed a recorded-like stream at 1 kHz; prints median, p99 and max
+microseconds for each estimator that can be built here:
+  analytic("base_wrench"), analytic("momentum"), and, given model directories,
+  a seed-tip-11 model and a residual-basewrench model (--models DIR [DIR ...]).
+Floors: analytic <= 30 us median; learned and hybrid <= 100 us median, <= 500 us p99.
+
+Run: .venv/bin/python benchmarks/estimator_latency.py [--models runs/.../seed-tip-11 runs/.../residual-basewrench]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+import numpy as np
+
+import hybrid_dyn as hd
+from hybrid_dyn.estimator import TipForceEstimator
+
+N_CALLS = 20_000
+
+
+def stream(robot, n, seed=0):
+    """A smooth joint trajectory with consistent wrench and torques (exact physics, 1 kHz)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 1e-3
+    centre = np.array(robot.spec.home)
+    amp, w = rng.uniform(0.1, 0.3, 7), rng.uniform(0.5, 2.0, 7)
+    q = centre + amp * np.sin(w * t[:, None])
+    qd = amp * w * np.cos(w * t[:, None])
+    qdd = -amp * w**2 * np.sin(w * t[:, None])
+    f = np.zeros((n, 3))
+    return t, q, qd, robot.base_wrench(q, qd, qdd, f), robot.inverse_dynamics(q, qd, qdd)
+
+
+def measure(est, t, q, qd, w, tau):
+    lat = np.empty(len(t))
+    for k in range(len(t)):
+        t0 = time.perf_counter()
+        est.estimate_tip_force(q[k], qd[k], base_wrench=w[k], tau_J=tau[k], t=t[k])
+        lat[k] = time.perf_counter() - t0
+    lat *= 1e6
+    return np.median(lat), np.percentile(lat, 99), lat.max()
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--models", nargs="*", default=[], help="trained tip-force model directories")
+    ap.add_argument("--calls", type=int, default=N_CALLS)
+    args = ap.parse_args(argv)
+    if hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, {0})
+    try:
+        import torch
+
+        torch.set_num_threads(1)
+    except ImportError:  # pragma: no cover
+        pass
+    robot = hd.load_robot("panda", num_threads=1)
+    data = stream(robot, args.calls)
+    cases = [("analytic(base_wrench)", TipForceEstimator.analytic(robot, "base_wrench", call_hz=1000.0), 30.0, None),
+             ("analytic(momentum)", TipForceEstimator.analytic(robot, "momentum", call_hz=1000.0), 30.0, None)]
+    for m in args.models:
+        cases.append((f"model {m}", TipForceEstimator.load(m, call_hz=1000.0), 100.0, 500.0))
+    print(f"{args.calls} calls each, one core")
+    print(f"{'estimator':60s} {'median us':>10s} {'p99 us':>10s} {'max us':>10s}  floors")
+    for name, est, f_med, f_p99 in cases:
+        med, p99, mx = measure(est, *data)
+        verdict = "met" if med <= f_med and (f_p99 is None or p99 <= f_p99) else "NOT met"
+        floor = f"median <= {f_med:g}" + (f", p99 <= {f_p99:g}" if f_p99 else "")
+        print(f"{name:60s} {med:10.1f} {p99:10.1f} {mx:10.1f}  {floor}: {verdict}")
+
+
+if __name__ == "__main__":
+    main()
