@@ -1,0 +1,140 @@
+"""A trained tip-force model driven one sample at a time (for ``TipForceEstimator``).
+
+The model was trained on windows of L samples recorded at ``record_hz``. A
+control loop calls faster (``call_hz``, e.g. 1 kHz). We keep a ring of the last
+(L-1)*k + 1 calls, k = call_hz / record_hz, and hand the model every k-th of
+them ending at the newest: each call gets a fresh estimate from a window with
+the training spacing. At start-up the ring is filled with the first sample, as
+training edge-padded every instance.
+
+The analytic part comes with the model: per-sample priors (base-wrench, RNEA)
+are evaluated on the newest sample; the momentum prior is an observer stepped
+at every call.
+
+Out of range: an input more than ``RANGE_SIGMAS`` training standard deviations
+from its training mean (any q, qd, qdd, wrench or torque component) makes the
+estimate "out of training range"; it is still returned.
+"""
+from __future__ import annotations
+
+import copy
+import math
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from ..analytic.momentum_observer import MomentumObserver
+from ..data.windows import window_index
+from .model import ModelError, TrainedModel, load_model
+
+RANGE_SIGMAS = 5.0
+
+
+class _ArrayInstance:
+    """Arrays that look like a dataset Instance to ``TrainedModel`` (one run)."""
+
+    def __init__(self, fields: dict):
+        self.fields = [k for k, v in fields.items() if v is not None]
+        self._f = {k: np.asarray(v, float) for k, v in fields.items() if v is not None}
+        self.name = "arrays"
+
+    def __getitem__(self, key):
+        return self._f[key]
+
+    def __len__(self):
+        return len(self._f["q"])
+
+
+class StreamingModel:
+    def __init__(self, model: TrainedModel, call_hz: float | None = None):
+        if list(model.targets) != ["tip_force"]:
+            raise ModelError(f"model {model.preset.name!r} predicts {model.targets}, not the tip force")
+        self.model = model
+        self.robot = model.robot
+        self.inputs = list(model.inputs)
+        self.widths = [model.config["widths"][f] for f in self.inputs]
+        self.window = model.window
+        self.record_hz = float(model.config.get("record_hz") or 100.0)
+        self.qdd_cutoff_hz = float(model.config.get("qdd_cutoff_hz") or 20.0)
+        m = model.module
+        self._x_mean = m.x_mean.double().numpy()
+        self._x_lim = RANGE_SIGMAS * m.x_std.double().numpy()
+        self._row = np.empty(sum(self.widths))
+        self._observer = None
+        self.set_call_rate(call_hz or self.record_hz)
+
+    @classmethod
+    def load(cls, model_dir: Path, robot: str | None = None, call_hz: float | None = None) -> "StreamingModel":
+        return cls(load_model(model_dir, robot=robot), call_hz)
+
+    # ---------------------------------------------------------------- timing
+    def set_call_rate(self, call_hz: float) -> None:
+        ratio = call_hz / self.record_hz
+        self.stride = max(1, int(round(ratio)))
+        if abs(ratio - self.stride) > 1e-6 * ratio and ratio > 1:
+            raise ModelError(f"call rate {call_hz} Hz is not a multiple of the training rate {self.record_hz} Hz")
+        self.call_hz = call_hz
+        self._ring = np.empty(((self.window - 1) * self.stride + 1, len(self._row)))
+        self._offsets = np.arange(self.window - 1, -1, -1) * self.stride  # oldest first
+        if self.model.preset.prior == "momentum":
+            self._observer = MomentumObserver(self.robot, gain=self.model.config.get("observer_gain", 20.0), dt=1.0 / call_hz)
+        self.reset()
+
+    def warmup_calls(self, call_hz: float) -> int:
+        """Calls until the window holds only real samples (and the observer has settled)."""
+        if call_hz != self.call_hz:
+            self.set_call_rate(call_hz)
+        n = (self.window - 1) * self.stride + 1
+        if self._observer is not None:
+            n = max(n, int(math.ceil(5.0 / self._observer.gain[0] * call_hz)))
+        return n
+
+    def reset(self) -> None:
+        self._head = -1
+        if self._observer is not None:
+            self._observer.reset()
+
+    # ------------------------------------------------------------------ step
+    def step(self, q, qd, qdd, base_wrench, tau_J, t) -> tuple[np.ndarray, bool]:
+        """One validated sample in; (tip force (3,) [N], inside the training range?) out."""
+        values = {"q": q, "qd": qd, "qdd": qdd, "base_wrench": base_wrench, "tau_J": tau_J}
+        row, i = self._row, 0
+        for name, w in zip(self.inputs, self.widths):
+            row[i:i + w] = values[name]
+            i += w
+        n = len(self._ring)
+        if self._head < 0:
+            self._ring[:] = row  # edge padding, as in training
+            self._head = 0
+        else:
+            self._head = (self._head + 1) % n
+            self._ring[self._head] = row
+        x = self._ring[(self._head - self._offsets) % n]
+        prior = self._observer.step_force(q, qd, tau_J) if self._observer is not None else None
+        f = self.model.predict_window(x, prior=prior)
+        in_range = bool((np.abs(row - self._x_mean) <= self._x_lim).all())
+        return f, in_range
+
+    # ----------------------------------------------------------------- batch
+    def predict_arrays(self, q, qd, qdd, base_wrench=None, tau_J=None) -> np.ndarray:
+        """Batch predictions (N, 3) [N] over one run of samples, in float64.
+
+        Same windows as training (edge-padded); float64 so that it agrees with
+        the streaming path (also float64) to round-off.
+        """
+        inst = _ArrayInstance({"q": q, "qd": qd, "qdd": qdd, "base_wrench": base_wrench, "tau_J": tau_J})
+        self.model._check_instances([inst])
+        module64 = copy.deepcopy(self.model.module).double()
+        x_all = np.concatenate([inst[f].reshape(len(inst), -1) for f in self.inputs], axis=1)
+        index = window_index([len(inst)], self.window)
+        prior = None
+        if self.model.prior is not None:
+            if self.model.preset.prior == "momentum":
+                obs = MomentumObserver(self.robot, gain=self._observer.gain[0], dt=1.0 / self.call_hz)
+                prior = torch.from_numpy(obs.run(inst["q"], inst["qd"], inst["tau_J"])[0])
+            else:
+                prior = torch.from_numpy(self.model.prior.compute({k: inst[k] for k in self.model.prior.fields}))
+        with torch.no_grad():
+            out = module64(torch.from_numpy(x_all[index]), prior)
+        return out.numpy()

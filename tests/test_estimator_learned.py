@@ -1,0 +1,83 @@
+"""TipForceEstimator around trained models: streaming == batch, decimation, refusal of other robots."""
+import numpy as np
+import pytest
+
+import hybrid_dyn as hd
+from hybrid_dyn.data import load_dataset
+from hybrid_dyn.data.synthetic import make_synthetic_dataset
+from hybrid_dyn.estimator import EstimatorStatus, TipForceEstimator, estimate_tip_force
+from hybrid_dyn.learn import TrainConfig, train_model
+from hybrid_dyn.learn.model import ModelError
+from hybrid_dyn.learn.streaming import StreamingModel
+from hybrid_dyn.sim.sensors import causal_acceleration
+
+RATE = 100.0
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory, panda):
+    root = tmp_path_factory.mktemp("learned")
+    ds = load_dataset(make_synthetic_dataset(root / "d", panda, n_instances=4, n_samples=120, record_hz=RATE,
+                                             noise=0.002, friction=panda.spec.friction(), seed=2))
+    cfg = TrainConfig(max_epochs=1, max_batches_per_epoch=3, progress=False)
+    dirs = {p: root / p for p in ("seed-tip-11", "residual-basewrench", "residual-momentum")}
+    for preset, d in dirs.items():
+        train_model(ds, preset, d, cfg)
+    return ds, dirs
+
+
+@pytest.mark.parametrize("preset", ["seed-tip-11", "residual-basewrench", "residual-momentum"])
+def test_streaming_equals_batch(trained, preset):
+    ds, dirs = trained
+    inst = ds.split("test")[0]
+    est = TipForceEstimator.load(dirs[preset], robot="panda", call_hz=RATE)
+    stream, statuses = [], []
+    for k in range(len(inst)):
+        stream.append(est.estimate_tip_force(inst.q[k], inst.qd[k], base_wrench=inst.base_wrench[k],
+                                             tau_J=inst.tau_J[k], t=inst.t[k]))
+        statuses.append(est.last_status)
+    qdd = causal_acceleration(inst.qd, 1.0 / RATE, est.config.qdd_cutoff_hz)
+    batch = estimate_tip_force(inst.q, inst.qd, qdd, base_wrench=inst.base_wrench, tau_J=inst.tau_J, model=dirs[preset])
+    np.testing.assert_allclose(np.stack(stream), batch, atol=1e-6)
+    # Warming up exactly until the window holds real samples only (and the observer settled).
+    warm = est._warmup_calls
+    assert warm >= 10
+    assert all(s is EstimatorStatus.WARMING_UP for s in statuses[: warm - 1])
+    assert all(s is not EstimatorStatus.WARMING_UP for s in statuses[warm - 1:])
+
+
+def test_faster_calls_keep_the_training_spacing(trained):
+    """Called at 3x the training rate, the window still holds samples 1/RATE apart."""
+    ds, dirs = trained
+    inst = ds.split("test")[0]
+    reference = StreamingModel.load(dirs["seed-tip-11"], call_hz=RATE)
+    fast = StreamingModel.load(dirs["seed-tip-11"], call_hz=3 * RATE)
+    for k in range(40):
+        s = dict(q=inst.q[k], qd=inst.qd[k], qdd=inst.qdd[k], base_wrench=inst.base_wrench[k], tau_J=inst.tau_J[k], t=None)
+        f_ref, _ = reference.step(**s)
+        if k > 0:  # two in-between samples (say, a faster loop) that must not enter the training-rate window
+            for alpha in (1 / 3, 2 / 3):
+                mid = {n: (1 - alpha) * getattr(inst, n)[k - 1] + alpha * getattr(inst, n)[k]
+                       for n in ("q", "qd", "qdd", "base_wrench", "tau_J")}
+                fast.step(**mid, t=None)
+        f_fast, _ = fast.step(**s)
+        np.testing.assert_allclose(f_fast, f_ref, atol=1e-9)
+
+
+def test_model_for_another_robot_is_refused(trained):
+    _, dirs = trained
+    with pytest.raises(ModelError, match="ur5|robot"):
+        TipForceEstimator.load(dirs["seed-tip-11"], robot="ur5")
+
+
+def test_out_of_range_is_flagged(trained):
+    ds, dirs = trained
+    inst = ds.split("train")[0]
+    est = TipForceEstimator.load(dirs["residual-basewrench"], call_hz=RATE)
+    for k in range(30):
+        est.estimate_tip_force(inst.q[k], inst.qd[k], base_wrench=inst.base_wrench[k])
+    assert est.last_status is EstimatorStatus.OK
+    w = inst.base_wrench[30].copy()
+    w[2] += 5000.0  # a load no training sample came near
+    f = est.estimate_tip_force(inst.q[30], inst.qd[30], base_wrench=w)
+    assert est.last_status is EstimatorStatus.OUT_OF_RANGE and np.isfinite(f).all()
