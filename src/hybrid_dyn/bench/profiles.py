@@ -4,6 +4,8 @@ quick    every family on one small scenario (``make demo``), minutes on 2 cores
 default  every row on paper-noext, paper-ext and mismatch-ext
 paper    the study's scale (1000 instances per scenario)
 real     the joint-torque models that need no URDF on the three real-robot logs
+         (KUKA and Baxter split by trajectory; SARCOS, one test file of 4,449
+         rows, split by contiguous blocks: see benchmarks/real/sarcos.toml)
 """
 from __future__ import annotations
 
@@ -72,7 +74,12 @@ class BenchProfile:
         return preset.prior is None or _has_robot(ds)
 
     def dataset(self, scenario: str, data_root: Path, log=print):
-        """The scenario's dataset, generated once and cached by its config hash."""
+        """The scenario's dataset, generated once and cached by its config hash
+        (real-robot logs: imported once, cached by spec and file checksums)."""
+        if scenario.startswith("real-"):
+            from ..data.real import real_dataset
+
+            return load_dataset(real_dataset(scenario, Path(data_root), log=log))
         from ..sim.scenarios import scenario_config
         from ..sim.generator import generate_dataset
 
@@ -103,6 +110,13 @@ PROFILES = {
     "default": BenchProfile(
         name="default", scenarios=("paper-noext", "paper-ext", "mismatch-ext"), generator_profile="default",
         train=dict(max_epochs=40, batch_size=256, patience=5),
+    ),
+    # Real logs carry no base wrench or tip force and no URDF ships for these arms:
+    # only the joint-torque models that need neither (PROTOCOL 2, issue 8).
+    "real": BenchProfile(
+        name="real", scenarios=("real-kuka", "real-baxter", "real-sarcos"), generator_profile="real",
+        analytic_rows=(), tip_models=(), torque_models=SEED_TAU_NETS + ("delan", "delan-friction"),
+        identified=False, train=dict(max_epochs=60, batch_size=256, patience=5),
     ),
     "paper": BenchProfile(
         name="paper", scenarios=("paper-noext", "paper-ext", "mismatch-ext"), generator_profile="paper",
