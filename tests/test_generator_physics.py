@@ -221,3 +221,19 @@ def test_config_hash_round_trip_and_errors():
         scenario_config("paper-ext", record_hz=300.0)
     with pytest.raises(ConfigError, match="override"):
         scenario_config("paper-ext", not_a_field=1)
+
+
+@pytest.mark.parametrize("option", ["viscous", "coulomb"])
+def test_dart_own_joint_friction_option(option):
+    """DART's damping is implicit, d (qd + dt qdd); its Coulomb friction never exceeds its bound."""
+    extra = {"dart_viscous": (0.5,) * 7} if option == "viscous" else {"dart_coulomb": (0.3,) * 7}
+    cfg = scenario_config("paper-ext", "quick", noise=NoiseConfig.off(), friction=None, record_hz=1000.0,
+                          **SMALL, **extra)
+    run, _ = simulate_instance(Simulator(cfg), 0)
+    tr = run.truth
+    dart_friction = tr["tau_m"] - tr["tau_J"]  # tau_J here is what the motion required (Pinocchio)
+    if option == "viscous":
+        np.testing.assert_allclose(dart_friction, 0.5 * (tr["qd"] + cfg.dt * tr["qdd"]), atol=1e-9, rtol=0)
+    else:
+        assert np.abs(dart_friction).max() <= 0.3 + 1e-9
+        assert np.abs(dart_friction).max() > 0.29  # it acts, up to its bound

@@ -1,0 +1,89 @@
+"""Dataset generation speed (issue 3).
+
+Prints, measured in this one run:
+  bare DART step      setForces + world.step with a Python loop, simulated s per wall s (context)
+  sim loop + sensors  Simulator.run on a ready reference (controller, friction, pulses, DART, sensors)
+  full instance       simulate_instance: planning + timing + the above, what a worker does
+                      (medians over instances, one core)
+  1 -> 2 workers      generate_dataset end to end (process start included) with 1 and 2 workers,
+                      wall time and speed-up; the two directories must be byte-identical.
+Floors (issue 3): >= 10x real time per core at 1 kHz with sensors on; >= 1.7x from 1 to 2 workers.
+
+Run: .venv/bin/python benchmarks/generation_speed.py [--instances 12] [--trajectories 8]
+The machine's load average is printed first: the speed-up needs two otherwise idle cores.
+"""
+import argparse
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from hybrid_dyn.sim.generator import Simulator, generate_dataset, instance_rngs, simulate_instance
+from hybrid_dyn.sim.plant import DartPlant
+from hybrid_dyn.sim.pulses import sample_pulses
+from hybrid_dyn.sim.scenarios import scenario_config
+from hybrid_dyn.sim.trajectories import random_reference
+
+
+def bare_dart_speed(sim: Simulator, steps: int = 20000) -> float:
+    plant = DartPlant(sim.plant_robot, sim.config.dt)
+    q = np.asarray(sim.plant_robot.spec.home, float)
+    plant.set_state(q, np.zeros(7))
+    tau = sim.plant_robot.gravity(q)
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        plant.skel.setForces(tau)
+        plant.world.step()
+    return steps * sim.config.dt / (time.perf_counter() - t0)
+
+
+def tree_bytes(path: Path) -> dict:
+    return {str(p.relative_to(path)): p.read_bytes() for p in sorted(path.rglob("*")) if p.is_file()}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--instances", type=int, default=12)
+    ap.add_argument("--trajectories", type=int, default=8)
+    args = ap.parse_args()
+    print(f"load average before: {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
+    cfg = scenario_config("paper-ext", "quick", n_instances=args.instances,
+                          trajectories=(args.trajectories, args.trajectories))
+    sim = Simulator(cfg)
+
+    bare = [bare_dart_speed(sim) for _ in range(3)]
+    print(f"bare DART step (Python loop)        {np.median(bare):7.1f} x real time")
+
+    loop, full, sim_seconds = [], [], 0.0
+    for i in range(min(args.instances, 6)):
+        rng_traj, rng_pulse, rng_noise = instance_rngs(cfg.seed, 1000 + i)
+        ref = random_reference(sim.nominal, rng_traj, args.trajectories, dt=cfg.dt, speed_scale=cfg.speed_scale,
+                               is_valid=sim.checker)
+        force = sample_pulses(rng_pulse, cfg.pulses).force(ref.t)
+        t0 = time.perf_counter()
+        sim.run(ref.q, ref.qd, ref.qdd, force, rng_noise)
+        loop.append(len(ref) * cfg.dt / (time.perf_counter() - t0))
+        t0 = time.perf_counter()
+        run, _ = simulate_instance(sim, i)
+        full.append(run.attrs["duration_s"] / (time.perf_counter() - t0))
+        sim_seconds += run.attrs["duration_s"]
+    print(f"sim loop + sensors (1 kHz, 100 Hz)  {np.median(loop):7.1f} x real time per core")
+    print(f"full instance (plan + sim + sensors){np.median(full):7.1f} x real time per core "
+          f"(median of {len(full)}, {sim_seconds / len(full):.1f} s simulated each)   floor >= 10x")
+
+    with tempfile.TemporaryDirectory() as tmp:
+        walls = {}
+        for workers in (1, 2):
+            t0 = time.perf_counter()
+            generate_dataset(cfg, Path(tmp) / f"w{workers}", workers=workers, progress=False)
+            walls[workers] = time.perf_counter() - t0
+        same = tree_bytes(Path(tmp) / "w1") == tree_bytes(Path(tmp) / "w2")
+    print(f"generate {args.instances} instances: 1 worker {walls[1]:.1f} s, 2 workers {walls[2]:.1f} s, "
+          f"speed-up {walls[1] / walls[2]:.2f}x   floor >= 1.7x; byte-identical: {same}")
+    print(f"load average after: {os.getloadavg()[0]:.2f}")
+
+
+if __name__ == "__main__":
+    main()
