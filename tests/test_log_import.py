@@ -383,3 +383,19 @@ def test_shipped_sarcos_log_in_contiguous_blocks(tmp_path):
     mtime = (path / "manifest.json").stat().st_mtime_ns
     assert real_dataset("real-sarcos", tmp_path / "cache") == path
     assert (path / "manifest.json").stat().st_mtime_ns == mtime
+
+
+def test_robot_with_a_description_uses_its_joint_limits(tmp_path, panda):
+    """A log from a described arm is checked against that arm's limits, not just +-2 pi."""
+    log = sine_log(n=200)
+    log["q"] = 0.5 * np.tanh(log["q"])  # well inside the Panda's limits
+    beyond = panda.q_upper[0] + 0.3      # > limit + margin (0.2 rad), < 2 pi
+    log["q"][50, 0] = beyond
+    write_csv(tmp_path / "log.csv", log)
+    report = import_log(tmp_path / "log.csv", tmp_path / "ds", columns=CSV_COLUMNS, time="t", robot="panda")
+    assert report.rows(kind="unit_range") == [51]
+    assert load_dataset(tmp_path / "ds").meta["robot"] == "panda"
+    with pytest.raises(LogSpecError, match="6 joints"):
+        import_log(tmp_path / "log.csv", tmp_path / "ur", columns=CSV_COLUMNS, time="t", robot="ur5")
+    # Without a description the same row is within the generic +-2 pi bound.
+    assert not import_log(tmp_path / "log.csv", tmp_path / "generic", columns=CSV_COLUMNS, time="t").issues
