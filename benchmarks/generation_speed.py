@@ -9,7 +9,7 @@ Prints, measured in this one run:
                       wall time and speed-up; the two directories must be byte-identical.
 Floors (issue 3): >= 10x real time per core at 1 kHz with sensors on; >= 1.7x from 1 to 2 workers.
 
-Run: .venv/bin/python benchmarks/generation_speed.py [--instances 12] [--trajectories 8]
+Run: .venv/bin/python benchmarks/generation_speed.py [--instances 16] [--trajectories 10]
 The machine's load average is printed first: the speed-up needs two otherwise idle cores.
 """
 import argparse
@@ -45,8 +45,8 @@ def tree_bytes(path: Path) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--instances", type=int, default=12)
-    ap.add_argument("--trajectories", type=int, default=8)
+    ap.add_argument("--instances", type=int, default=16)
+    ap.add_argument("--trajectories", type=int, default=10)
     args = ap.parse_args()
     print(f"load average before: {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
     cfg = scenario_config("paper-ext", "quick", n_instances=args.instances,

@@ -16,7 +16,7 @@ from hybrid_dyn.sim.generator import Simulator, simulate_instance, simulate_refe
 from hybrid_dyn.sim.pulses import sample_pulses
 from hybrid_dyn.sim.scenarios import ConfigError, GeneratorConfig, NoiseConfig, PulseConfig, scenario_config
 from hybrid_dyn.sim.sensors import causal_acceleration
-from hybrid_dyn.sim.trajectories import motion_valid, random_reference, rrt_connect
+from hybrid_dyn.sim.trajectories import motion_valid, random_reference, rrt_connect, time_segment
 
 # Short instances whose pulses surely fall inside them.
 SMALL = dict(trajectories=(2, 2), standstill=0.3, speed_scale=(0.4, 0.6),
@@ -170,6 +170,24 @@ def test_reference_respects_limits_standstills_and_collisions(panda):
     assert np.sum(runs >= 1000) == 4
     # Continuity at the 1 kHz rate: no jumps larger than max velocity x dt.
     assert np.abs(np.diff(ref.q, axis=0)).max() <= 0.5 * 2.61 * 1e-3 + 1e-9
+
+
+def test_time_segment_stays_on_the_straight_segment_within_limits(panda):
+    rng = np.random.default_rng(7)
+    V, A, J = (np.asarray(x) for x in (panda.spec.max_velocity, panda.spec.max_acceleration, panda.spec.max_jerk))
+    for _ in range(20):
+        a, b = rng.uniform(panda.q_lower, panda.q_upper, (2, 7))
+        s = rng.uniform(0.1, 0.4)
+        q, qd, qdd = time_segment(a, b, s * V, s * A, s * J, 1e-3)
+        d = (b - a) / np.linalg.norm(b - a)
+        off_line = (q - a) - np.outer((q - a) @ d, d)
+        assert np.abs(off_line).max() < 1e-12  # the executed path is the collision-checked one
+        assert np.all(np.abs(qd) <= s * V * (1 + 1e-9)) and np.all(np.abs(qdd) <= s * A * (1 + 1e-9))
+        assert np.all(np.abs(np.diff(qdd, axis=0)) / 1e-3 <= s * J * (1 + 1e-6))
+        np.testing.assert_allclose(q[0], a, atol=1e-15)
+        np.testing.assert_allclose(q[-1] + 1e-3 * qd[-1], b, atol=1e-3)  # ends at b, arriving at rest
+        # Velocity is the derivative of position (central differences, an independent check).
+        np.testing.assert_allclose((q[2:] - q[:-2]) / 2e-3, qd[1:-1], atol=s * A.max() * 1e-3)
 
 
 def test_rrt_connect_goes_around_an_obstacle():

@@ -14,10 +14,10 @@ The generator's promise (same seed and config, byte-identical data whatever
 and by iteration counts only. The algorithm is Kuffner & LaValle's (2000)
 RRT-Connect, followed by random shortcutting, as OMPL/MoveIt do by default.
 
-Timing: each path segment is a rest-to-rest ruckig trajectory with phase
-synchronization, which keeps the motion on the straight joint-space segment
-(so the checked path is the executed path), with durations that are whole
-multiples of the control period. The limits are the published ones scaled by
+Timing: each path segment is a rest-to-rest jerk-limited ruckig trajectory of
+the arc length along the straight joint-space segment, so the checked path is
+exactly the executed path, with durations that are whole multiples of the
+control period. The limits are the published ones scaled by
 a per-trajectory speed factor (like MoveIt's velocity/acceleration scaling).
 """
 from __future__ import annotations
@@ -138,30 +138,38 @@ class Reference:
 
 
 def time_segment(a, b, vmax, amax, jmax, dt: float):
-    """Rest-to-rest jerk-limited motion a -> b, sampled every ``dt``; returns (q, qd, qdd), (n, nv).
+    """Rest-to-rest jerk-limited motion along the straight segment a -> b, sampled every ``dt``.
 
-    The samples cover [0, duration); the end state (b at rest) is the first
-    sample of whatever follows.
+    Returns (q, qd, qdd), each (n, nv). The motion is timed as a 1-DoF ruckig
+    problem on the arc length s along the unit direction d = (b - a)/|b - a|,
+    with the tightest per-joint limits projected on d (v_s = min_j vmax_j/|d_j|,
+    and so on), so q = a + s d stays exactly on the checked segment and every
+    joint stays within its own limits. The samples cover [0, duration), a whole
+    number of steps; the end state (b at rest) is the first sample of whatever
+    follows.
     """
-    nv = len(a)
-    otg = ruckig.Ruckig(nv, dt)
-    inp = ruckig.InputParameter(nv)
-    inp.current_position, inp.target_position = list(a), list(b)
-    inp.current_velocity = inp.current_acceleration = [0.0] * nv
-    inp.target_velocity = inp.target_acceleration = [0.0] * nv
-    inp.max_velocity, inp.max_acceleration, inp.max_jerk = list(vmax), list(amax), list(jmax)
-    inp.synchronization = ruckig.Synchronization.Phase  # straight line in joint space
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    length = float(np.linalg.norm(b - a))
+    if length == 0.0:
+        return (np.zeros((0, len(a))),) * 3
+    d = (b - a) / length
+    with np.errstate(divide="ignore"):
+        scale = np.where(np.abs(d) > 0, 1.0 / np.abs(d), np.inf)
+    otg = ruckig.Ruckig(1, dt)
+    inp = ruckig.InputParameter(1)
+    inp.current_position, inp.target_position = [0.0], [length]
+    inp.current_velocity = inp.current_acceleration = inp.target_velocity = inp.target_acceleration = [0.0]
+    inp.max_velocity = [float(np.min(np.asarray(vmax) * scale))]
+    inp.max_acceleration = [float(np.min(np.asarray(amax) * scale))]
+    inp.max_jerk = [float(np.min(np.asarray(jmax) * scale))]
     inp.duration_discretization = ruckig.DurationDiscretization.Discrete  # duration = whole steps
-    traj = ruckig.Trajectory(nv)
+    traj = ruckig.Trajectory(1)
     result = otg.calculate(inp, traj)
     if result not in (ruckig.Result.Working, ruckig.Result.Finished):
         raise PlanningError(f"ruckig could not time the segment ({result})")
     n = int(round(traj.duration / dt))
-    out = np.empty((3, n, nv))
-    for k in range(n):
-        p, v, acc = traj.at_time(k * dt)
-        out[0, k], out[1, k], out[2, k] = p, v, acc
-    return out[0], out[1], out[2]
+    path = np.array([traj.at_time(k * dt) for k in range(n)]).reshape(n, 3)  # s, s', s''
+    return a + path[:, :1] * d, path[:, 1:2] * d, path[:, 2:3] * d
 
 
 def random_goal(robot, rng, is_valid, margin: float, tries: int = 1000) -> np.ndarray:
