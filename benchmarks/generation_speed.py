@@ -5,6 +5,7 @@ Prints, measured in this one run:
   sim loop + sensors  Simulator.run on a ready reference (controller, friction, pulses, DART, sensors)
   full instance       simulate_instance: planning + timing + the above, what a worker does
                       (medians over instances, one core)
+  worker start        seconds to spawn one worker process and build its models
   1 -> 2 workers      generate_dataset end to end (process start included) with 1 and 2 workers,
                       wall time and speed-up; the two directories must be byte-identical.
 Floors (issue 3): >= 10x real time per core at 1 kHz with sensors on; >= 1.7x from 1 to 2 workers.
@@ -13,6 +14,7 @@ Run: .venv/bin/python benchmarks/generation_speed.py [--instances 16] [--traject
 The machine's load average is printed first: the speed-up needs two otherwise idle cores.
 """
 import argparse
+import json
 import os
 import tempfile
 import time
@@ -20,7 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hybrid_dyn.sim.generator import Simulator, generate_dataset, instance_rngs, simulate_instance
+from hybrid_dyn.sim.executors import ProcessExecutor
+from hybrid_dyn.sim.generator import Simulator, _simulator_for, generate_dataset, instance_rngs, simulate_instance
 from hybrid_dyn.sim.plant import DartPlant
 from hybrid_dyn.sim.pulses import sample_pulses
 from hybrid_dyn.sim.scenarios import scenario_config
@@ -37,6 +40,17 @@ def bare_dart_speed(sim: Simulator, steps: int = 20000) -> float:
         plant.skel.setForces(tau)
         plant.world.step()
     return steps * sim.config.dt / (time.perf_counter() - t0)
+
+
+def _build_simulator(config_json: str) -> int:
+    return _simulator_for(config_json).nv
+
+
+def worker_start_seconds(cfg) -> float:
+    """Wall time to start one spawned worker: interpreter, imports, robots, collision model."""
+    t0 = time.perf_counter()
+    list(ProcessExecutor(1).map_unordered(_build_simulator, [(json.dumps(cfg.to_dict(), sort_keys=True),)]))
+    return time.perf_counter() - t0
 
 
 def tree_bytes(path: Path) -> dict:
@@ -73,6 +87,7 @@ def main() -> None:
     print(f"full instance (plan + sim + sensors){np.median(full):7.1f} x real time per core "
           f"(median of {len(full)}, {sim_seconds / len(full):.1f} s simulated each)   floor >= 10x")
 
+    print(f"worker start (spawn, imports, models)  {worker_start_seconds(cfg):.1f} s")
     with tempfile.TemporaryDirectory() as tmp:
         walls = {}
         for workers in (1, 2):

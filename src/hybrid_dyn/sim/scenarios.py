@@ -54,10 +54,13 @@ class NoiseConfig:
     Noise on q and qd is drawn at the simulation rate (the controller sees it
     too); the others at the recording rate. Levels are those of a Panda's
     encoders and joint torque sensors and of a mid-range 6-axis F/T sensor.
+    The controller's gains turn q/qd noise into command jitter (Kp sigma_q +
+    Kd sigma_qd, ~0.17 rad/s^2 here, ~0.2 Nm on joints 1-4): ten times these
+    levels would bury the joint-torque task in it.
     """
 
-    q: float = 1e-4             # rad
-    qd: float = 2e-3            # rad/s
+    q: float = 2e-5             # rad
+    qd: float = 5e-4            # rad/s
     tau_J: float = 0.05         # Nm, link-side joint torque sensors
     force: float = 0.2          # N, base sensor forces
     torque: float = 0.01        # Nm, base sensor moments
