@@ -1,0 +1,46 @@
+"""End-to-end: the bench command's machinery on a tiny generated scenario, every family once."""
+import csv
+import dataclasses
+
+import pytest
+
+from hybrid_dyn.bench.profiles import PROFILES
+from hybrid_dyn.bench.runner import COLUMNS, run_bench
+
+
+@pytest.mark.slow
+def test_tiny_bench_writes_every_row_and_column(tmp_path):
+    quick = PROFILES["quick"]
+    tiny = dataclasses.replace(
+        quick, name="tiny",
+        generator_overrides=dict(n_instances=3, trajectories=(1, 1)),
+        tip_models=("seed-tip-1", "seed-tip-11", "residual-basewrench", "residual-momentum"),
+        torque_models=("seed-tau-lstm", "residual-rnea", "residual-rnea-bw", "delan", "delan-friction", "delan-residual"),
+        train=dict(max_epochs=1, max_batches_per_epoch=2, batch_size=64, progress=False),
+        workers=1,
+    )
+    rows = run_bench(tiny, tmp_path / "report", data_root=tmp_path / "data", work_root=tmp_path / "runs",
+                     log=lambda m: None)
+    with open(tmp_path / "report" / "results.csv", newline="") as f:
+        written = list(csv.DictReader(f))
+    assert list(written[0]) == COLUMNS
+    names = {(r["task"], r["model"]) for r in written}
+    expected = {("tip_force", m) for m in ("torques-pinv", "base-wrench", "momentum-observer", *tiny.tip_models)}
+    expected |= {("joint_torque", m) for m in ("rnea", "rnea-bw", *tiny.torque_models)}
+    assert expected <= names
+    failed = [(r["model"], r["error"]) for r in written if r["status"] != "ok"]
+    assert not failed
+    for r in written:
+        for col in ("val_loss", "test_loss", "rmse", "max_error", "infer_us_per_sample"):
+            assert float(r[col]) >= 0.0, (r["model"], col)
+        assert r["inputs"], r["model"]
+    for name in ("README.md", "tip_force.md", "joint_torque.md", "tip_force.tex", "joint_torque.tex",
+                 "rmse_by_family_tip_force.png", "traces_tip_force_mismatch-ext.png"):
+        assert (tmp_path / "report" / name).is_file(), name
+    # A rerun reuses the cached dataset and trained models rather than redoing them.
+    rows2 = run_bench(tiny, tmp_path / "report", data_root=tmp_path / "data", work_root=tmp_path / "runs",
+                      log=lambda m: None)
+    by_model = {(r["task"], r["model"]): r for r in rows2}
+    for r in rows:
+        if r["family"] != "analytic":
+            assert by_model[(r["task"], r["model"])]["rmse"] == pytest.approx(r["rmse"])
