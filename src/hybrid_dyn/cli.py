@@ -14,6 +14,7 @@ SUBCOMMAND_MODULES = [
     "hybrid_dyn.analytic.cli",
     "hybrid_dyn.sim.cli",
     "hybrid_dyn.data.import_cli",
+    "hybrid_dyn.bench.cli",
 ]
 
 
