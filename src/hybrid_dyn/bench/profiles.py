@@ -43,6 +43,7 @@ class BenchProfile:
     train: dict = field(default_factory=dict)  # TrainConfig fields
     generator_overrides: dict = field(default_factory=dict)
     workers: int = 2
+    torch_threads: int = 1  # see runner.run_bench: one thread is fastest for these nets
     seed: int = 0
 
     def train_config(self):
