@@ -75,7 +75,11 @@ class LinkInertial:
 
 
 def read_param_file(path: Path) -> list[LinkInertial]:
-    """Read a parameter-set JSON (``{"links": [{name, mass, com, inertia}, ...]}``)."""
+    """Read a parameter-set JSON (``{"links": [{name, mass, com, inertia}, ...]}``).
+
+    An entry may carry ``"absorbed_into": "<link>"`` with mass 0: identified sets
+    give all links fixed to one joint (e.g. Panda link 7 + hand + fingers) to one.
+    """
     path = Path(path)
     try:
         doc = json.loads(path.read_text())
@@ -96,7 +100,10 @@ def read_param_file(path: Path) -> list[LinkInertial]:
             raise RobotDescriptionError(f"parameter file {path}, link #{i}: needs name, mass, com[3], inertia[6] ({err})") from err
         if len(com) != 3 or len(inertia) != 6:
             raise RobotDescriptionError(f"parameter file {path}, link {item.name}: com needs 3 values and inertia 6")
-        if not (item.mass > 0 and math.isfinite(item.mass)):
+        # mass 0 is allowed for a link whose inertia an identified set gave to another
+        # link of the same rigid body (``"absorbed_into": "<that link>"``).
+        absorbed = item.mass == 0 and bool(ln.get("absorbed_into"))
+        if not ((item.mass > 0 and math.isfinite(item.mass)) or absorbed):
             raise RobotDescriptionError(f"parameter file {path}, link {item.name}: mass must be positive, got {item.mass}")
         out.append(item)
     return out
