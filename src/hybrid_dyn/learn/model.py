@@ -9,8 +9,9 @@ Every model, whatever its family, computes
 with x_std = (x - x_mean) / x_std the standardized input window and x, y in
 physical units. The statistics come from the training split only and live in
 the model file. A residual net's output is scaled by the target's standard
-deviation (not the residual's) so that "the net adds nothing" means its output
-is small compared with the signal, and an untrained net is not already tiny.
+deviation (not the residual's), so "the net adds little" means small compared
+with the signal; a residual branch's output layer starts at zero, so an
+untrained hybrid model is exactly its physics part.
 
 On disk (``model_dir``): ``config.json`` (preset, robot, fields, widths,
 normalization, dataset checksum, training history) and ``model.safetensors``
@@ -81,6 +82,13 @@ class HybridModel(nn.Module):
         else:
             self.net = build_net(preset.kind, n_in, n_out, preset.window, preset.front_units,
                                  preset.fc_layers, preset.fc_units, preset.activation, preset.conv_kernel)
+        if self.net is not None and (preset.prior is not None or self.delan is not None):
+            # A residual branch starts at exactly zero: the hybrid model begins as its
+            # physics part and moves away only where the data say so (hidden layers
+            # keep the seed's Glorot init, so the gradients are not degenerate).
+            out_layer = self.net.head[-1]
+            nn.init.zeros_(out_layer.weight)
+            nn.init.zeros_(out_layer.bias)
 
     def set_normalization(self, x_mean, x_std, y_mean, y_std) -> None:
         for name, v in (("x_mean", x_mean), ("x_std", x_std), ("y_mean", y_mean), ("y_std", y_std)):

@@ -1,0 +1,119 @@
+"""CLI: train, predict, tune, and the list of presets."""
+from __future__ import annotations
+
+import json
+
+
+def register(sub) -> None:
+    p = sub.add_parser("presets", help="list the learned-model presets")
+    p.set_defaults(func=cmd_presets)
+
+    p = sub.add_parser("train", help="train a learned model on a dataset")
+    p.add_argument("--data", required=True, help="dataset directory")
+    p.add_argument("--preset", required=True, help="preset name (hybrid-dyn presets)")
+    p.add_argument("--out", required=True, help="model directory (a rerun resumes or reuses it)")
+    _train_options(p)
+    p.set_defaults(func=cmd_train)
+
+    p = sub.add_parser("predict", help="evaluate a trained model on a dataset split")
+    p.add_argument("--model", required=True, help="model directory")
+    p.add_argument("--data", required=True, help="dataset directory")
+    p.add_argument("--split", default="test", choices=["train", "val", "test"])
+    p.add_argument("--save", default=None, help="write predictions to this HDF5 file (one array per instance)")
+    p.set_defaults(func=cmd_predict)
+
+    p = sub.add_parser("tune", help="hyperparameter search with Optuna (the seed's search space)")
+    p.add_argument("--data", required=True)
+    p.add_argument("--preset", required=True, help="base preset whose architecture is searched")
+    p.add_argument("--trials", type=int, required=True, help="number of trials to add to the study")
+    p.add_argument("--out", default=None, help="directory for trial models (default runs/tune/<preset>)")
+    p.add_argument("--storage", default=None, help="Optuna RDB URL (default: sqlite in --out)")
+    p.add_argument("--study", default=None, help="study name (default: preset + dataset checksum)")
+    _train_options(p)
+    p.set_defaults(func=cmd_tune)
+
+
+def _train_options(p) -> None:
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--epochs", type=int, default=200, help="maximum epochs (early stopping ends sooner)")
+    p.add_argument("--batch-size", type=int, default=256)
+    p.add_argument("--max-batches-per-epoch", type=int, default=None)
+    p.add_argument("--analytic-params", default=None, help="parameter set or JSON for residual models' analytic part")
+    p.add_argument("--device", default="auto", help="auto, cpu or cuda")
+    p.add_argument("--threads", type=int, default=None, help="PyTorch CPU threads")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _config(args):
+    from .train import TrainConfig
+
+    return TrainConfig(seed=args.seed, max_epochs=args.epochs, batch_size=args.batch_size,
+                       max_batches_per_epoch=args.max_batches_per_epoch, analytic_params=args.analytic_params,
+                       device=args.device, num_threads=args.threads, progress=not args.quiet)
+
+
+def cmd_presets(args) -> int:
+    from .presets import PRESETS
+
+    for name, p in PRESETS.items():
+        print(f"{name:22s} {', '.join(p.inputs)} -> {', '.join(p.targets)}  {p.description}")
+    return 0
+
+
+def cmd_train(args) -> int:
+    from .train import train_model
+
+    model = train_model(args.data, args.preset, args.out, _config(args))
+    print(f"{args.preset}: val loss {model.val_loss:.4f} (standardized MSE), {len(model.history)} epochs, "
+          f"{model.n_params} parameters, {model.train_seconds:.1f} s -> {args.out}")
+    return 0
+
+
+def cmd_predict(args) -> int:
+    import numpy as np
+
+    from ..data import load_dataset
+    from ..data.windows import concat_fields
+    from .model import ModelError, load_model
+
+    ds = load_dataset(args.data)
+    model = load_model(args.model, robot=ds.meta.get("robot"))
+    if model.preset.prior == "momentum" and ds.meta.get("record_hz") != model.config.get("record_hz"):
+        raise ModelError(f"model was trained at {model.config.get('record_hz')} Hz, data is at {ds.meta.get('record_hz')} Hz")
+    instances = ds.split(args.split)
+    preds = model.predict(instances)
+    y = concat_fields(instances, model.targets).astype(np.float64)
+    err = np.concatenate(preds) - y
+    y_std = model.module.y_std.double().numpy()
+    result = {"model": str(args.model), "preset": model.preset.name, "split": args.split,
+              "n_samples": int(len(y)), "loss": float(np.mean((err / y_std) ** 2)),
+              "rmse": float(np.sqrt(np.mean(err ** 2))),
+              "rmse_per_component": np.sqrt(np.mean(err ** 2, 0)).round(6).tolist()}
+    print(json.dumps(result, indent=1))
+    if args.save:
+        import os
+
+        import h5py
+
+        tmp = args.save + ".partial"
+        with h5py.File(tmp, "w") as f:
+            for inst, p in zip(instances, preds):
+                f.create_dataset(inst.name, data=p, track_times=False)
+            f.attrs["model"] = str(args.model)
+            f.attrs["targets"] = ",".join(model.targets)
+        os.replace(tmp, args.save)
+    return 0
+
+
+def cmd_tune(args) -> int:
+    from .tune import tune
+
+    out = args.out or f"runs/tune/{args.preset}"
+    config = _config(args)
+    config.progress = False
+    study = tune(args.data, args.preset, out, args.trials, storage=args.storage, study_name=args.study,
+                 config=config, seed=args.seed)
+    best = study.best_trial
+    print(f"best of {len(study.trials)} trials: val loss {best.value:.4f} with {best.params} "
+          f"-> {best.user_attrs.get('model_dir')}")
+    return 0

@@ -1,0 +1,251 @@
+"""Learned models: training, residual nets, model files, the fast path, the CLI.
+
+All data are tiny synthetic sets with exact physics (Pinocchio), built here.
+"""
+import json
+
+import numpy as np
+import pytest
+import torch
+from safetensors.torch import load_file, save_file
+
+import hybrid_dyn as hd
+from hybrid_dyn.analytic.tip_force import tip_force_from_base_wrench
+from hybrid_dyn.data import load_dataset
+from hybrid_dyn.data.synthetic import make_synthetic_dataset
+from hybrid_dyn.data.windows import concat_fields
+from hybrid_dyn.learn import PRESETS, ModelError, TrainConfig, load_model, train_model
+from hybrid_dyn.learn import train as train_mod
+from hybrid_dyn.learn.model import config_digest
+from hybrid_dyn.learn.priors import AnalyticPrior
+
+QUICK = dict(batch_size=64, progress=False, num_threads=1)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def one_thread():
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)  # tiny batches; and 2 shared cores
+    yield
+    torch.set_num_threads(before)
+
+
+@pytest.fixture(scope="module")
+def friction_set(tmp_path_factory, panda):
+    """Tip forces and Gaz friction: every preset has something to learn."""
+    path = tmp_path_factory.mktemp("fr") / "ds"
+    return load_dataset(make_synthetic_dataset(path, panda, n_instances=5, n_samples=120, seed=1,
+                                               friction=panda.spec.friction("gaz2019")))
+
+
+@pytest.fixture(scope="module")
+def exact_set(tmp_path_factory, panda):
+    """Tip forces, no friction, 0.01 sensor noise: the base-wrench method is exact up to the noise."""
+    path = tmp_path_factory.mktemp("ex") / "ds"
+    return load_dataset(make_synthetic_dataset(path, panda, n_instances=8, n_samples=150, seed=2, noise=0.01))
+
+
+@pytest.fixture(scope="module")
+def free_set(tmp_path_factory, panda):
+    """No tip forces, no friction, 0.01 sensor noise: RNEA is exact for tau_m up to the noise."""
+    path = tmp_path_factory.mktemp("free") / "ds"
+    return load_dataset(make_synthetic_dataset(path, panda, n_instances=8, n_samples=150, seed=3, tip_forces=False,
+                                               noise=0.01))
+
+
+@pytest.fixture(scope="module")
+def tip11(friction_set, tmp_path_factory):
+    return train_model(friction_set, "seed-tip-11", tmp_path_factory.mktemp("m") / "tip11",
+                       TrainConfig(max_epochs=2, **QUICK))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(PRESETS))
+def test_every_preset_trains_and_its_loss_falls(name, friction_set, tmp_path):
+    model = train_model(friction_set, name, tmp_path / name, TrainConfig(max_epochs=3, max_batches_per_epoch=6, **QUICK))
+    losses = [h["train_loss"] for h in model.history]
+    assert len(losses) == 3 and all(np.isfinite(losses))
+    assert losses[-1] < losses[0], losses
+    pred = model.predict(friction_set.split("test"))
+    assert [p.shape for p in pred] == [(len(i), 3 if "tip_force" in model.targets else 7) for i in friction_set.split("test")]
+
+
+def test_presets_match_seed_table_1():
+    # (architecture, joint torques, FC layers, neurons, sequence length) from the seed's Table 1
+    table = {1: ("mlp", False, 2, 32, 1), 2: ("mlp", True, 2, 32, 1), 3: ("mlp", True, 2, 16, 1),
+             4: ("conv", False, 2, 16, 10), 5: ("conv", False, 2, 16, 5), 6: ("conv", True, 2, 16, 5),
+             7: ("lstm", False, 2, 16, 10), 8: ("lstm", True, 2, 16, 10), 9: ("lstm", True, 2, 16, 5),
+             10: ("lstm", False, 2, 16, 10), 11: ("lstm", True, 2, 8, 10)}
+    for no, (kind, torques, layers, units, window) in table.items():
+        p = PRESETS[f"seed-tip-{no}"]
+        assert (p.kind, "tau_J" in p.inputs, p.fc_layers, p.fc_units, p.window) == (kind, torques, layers, units, window)
+        assert p.targets == ("tip_force",) and set(p.inputs) >= {"base_wrench", "q", "qd", "qdd"}
+        assert p.front_units == ((32, 32) if no >= 10 else () if kind == "mlp" else (16,))
+    opt = PRESETS["seed-tau-lstm-opt"]
+    assert (opt.front_units, opt.fc_layers, opt.fc_units, opt.activation) == ((32, 32), 2, 8, "tanh")
+    assert all(PRESETS[n].inputs == ("q", "qd", "qdd") for n in ("seed-tau-mlp", "seed-tau-conv", "seed-tau-lstm"))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name,dataset,prior_fn", [
+    ("residual-basewrench", "exact_set",
+     lambda r, f: tip_force_from_base_wrench(r, f["q"], f["qd"], f["qdd"], f["base_wrench"])),
+    ("residual-rnea", "free_set", lambda r, f: r.inverse_dynamics(f["q"], f["qd"], f["qdd"])),
+])
+def test_residual_net_adds_nothing_where_physics_is_exact(name, dataset, prior_fn, request, tmp_path, panda):
+    """Physics is exact on the noise-free truth; the sensors add noise, so the net does get
+    gradients (of pure noise) and must not turn them into a correction."""
+    ds = request.getfixturevalue(dataset)
+    test = ds.split("test")
+    model = train_model(ds, name, tmp_path / name, TrainConfig(max_epochs=20, **QUICK))
+    y_std = model.module.y_std.double().numpy()
+    for inst, pred in zip(test, model.predict(test)):
+        # The analytic part, computed independently, is the truth on noise-free data.
+        assert np.allclose(prior_fn(panda, inst.truth), inst.truth[model.targets[0]], atol=1e-6)
+        net_part = (pred - prior_fn(panda, inst)) / y_std
+        assert np.sqrt(np.mean(net_part ** 2)) < 0.05, np.sqrt(np.mean(net_part ** 2))
+
+
+def test_save_load_predict_is_bit_identical(tip11, friction_set):
+    test = friction_set.split("test")
+    again = load_model(tip11.path, robot="panda")
+    for a, b in zip(tip11.predict(test), again.predict(test)):
+        assert np.array_equal(a, b)
+    assert again.config == tip11.config and again.n_params == tip11.n_params
+
+
+def test_predict_window_matches_batched_predict(tip11, friction_set, tmp_path):
+    inst = friction_set.split("test")[0]
+    pred = tip11.predict([inst])[0]
+    x = concat_fields([inst], tip11.inputs).astype(np.float64)
+    for k in (0, 3, 60, len(inst) - 1):  # edge-padded start, mid-run, end
+        rows = np.clip(np.arange(k - tip11.window + 1, k + 1), 0, None)
+        np.testing.assert_allclose(tip11.predict_window(x[rows]), pred[k], atol=2e-5 * np.abs(pred).max())
+    with pytest.raises(ModelError, match="shape"):
+        tip11.predict_window(x[:3])
+
+
+def test_single_sample_priors_match_batched_analytic_functions(friction_set, panda):
+    inst = friction_set.split("train")[0]
+    jv = panda.tip_jacobian(inst.q)[:, :3, :]
+    f_bw = tip_force_from_base_wrench(panda, inst.q, inst.qd, inst.qdd, inst.base_wrench)
+    expected = {"rnea": panda.inverse_dynamics(inst.q, inst.qd, inst.qdd), "basewrench": f_bw,
+                "rnea-basewrench": panda.inverse_dynamics(inst.q, inst.qd, inst.qdd) - np.einsum("nij,ni->nj", jv, f_bw)}
+    for kind, ref in expected.items():
+        prior = AnalyticPrior(kind, panda)
+        np.testing.assert_allclose(prior.compute({k: inst[k] for k in prior.fields}), ref, atol=1e-9)
+        for k in (0, 57):
+            np.testing.assert_allclose(prior.single({f: inst[f][k] for f in prior.fields}), ref[k], atol=1e-9)
+
+
+def test_analytic_part_is_cached_per_dataset(friction_set, panda, tmp_path):
+    prior = AnalyticPrior("basewrench", panda)
+    insts = friction_set.split("val")
+    first = prior.compute_instances(insts, tmp_path, friction_set.checksum)
+    files = list(tmp_path.glob("prior-basewrench-*.h5"))
+    assert len(files) == 1
+    prior.compute = None  # a second call must not compute: it reads the cache
+    second = prior.compute_instances(insts, tmp_path, friction_set.checksum)
+    for a, b in zip(first, second):
+        assert np.array_equal(a, b)
+    # Another robot parameter set is another cache entry.
+    other = AnalyticPrior("basewrench", hd.load_robot("panda", params="franka_official"))
+    other.compute_instances(insts, tmp_path, friction_set.checksum)
+    assert len(list(tmp_path.glob("prior-basewrench-*.h5"))) == 2
+
+
+def test_training_is_deterministic_and_resumes_after_a_kill(friction_set, tmp_path, monkeypatch):
+    cfg = TrainConfig(max_epochs=3, max_batches_per_epoch=4, patience=10, **QUICK)
+    straight = train_model(friction_set, "seed-tip-7", tmp_path / "a", cfg)
+
+    real_save = train_mod._save_checkpoint
+
+    def save_then_die(out_dir, module, best, opt, info):
+        real_save(out_dir, module, best, opt, info)
+        if info["epoch"] == 1:
+            raise KeyboardInterrupt  # killed right after epoch 2's checkpoint
+
+    monkeypatch.setattr(train_mod, "_save_checkpoint", save_then_die)
+    with pytest.raises(KeyboardInterrupt):
+        train_model(friction_set, "seed-tip-7", tmp_path / "b", cfg)
+    assert (tmp_path / "b" / "checkpoint.safetensors").is_file() and not (tmp_path / "b" / "config.json").exists()
+    monkeypatch.setattr(train_mod, "_save_checkpoint", real_save)
+    resumed = train_model(friction_set, "seed-tip-7", tmp_path / "b", cfg)
+
+    a = load_file(str(tmp_path / "a" / "model.safetensors"))
+    b = load_file(str(tmp_path / "b" / "model.safetensors"))
+    assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+    strip = lambda h: [{k: v for k, v in e.items()} for e in h]  # noqa: E731
+    assert strip(resumed.history) == strip(straight.history)
+    assert not (tmp_path / "b" / "checkpoint.json").exists()
+    # A finished model of the same run is reused, not retrained.
+    mtime = (tmp_path / "a" / "model.safetensors").stat().st_mtime_ns
+    assert train_model(friction_set, "seed-tip-7", tmp_path / "a", cfg).val_loss == straight.val_loss
+    assert (tmp_path / "a" / "model.safetensors").stat().st_mtime_ns == mtime
+    # Another run into the same directory is refused, nothing overwritten.
+    with pytest.raises(ModelError, match="another run"):
+        train_model(friction_set, "seed-tip-8", tmp_path / "a", cfg)
+
+
+def test_tampered_config_is_refused(tip11, tmp_path):
+    import shutil
+
+    d = tmp_path / "m"
+    shutil.copytree(tip11.path, d)
+    cfg = json.loads((d / "config.json").read_text())
+    cfg["window"] = 5
+    (d / "config.json").write_text(json.dumps(cfg))
+    with pytest.raises(ModelError, match="tampered"):
+        load_model(d)
+
+
+def test_unknown_or_other_robot_is_refused(tip11, tmp_path):
+    import shutil
+
+    with pytest.raises(ModelError, match="not 'ur5'"):
+        load_model(tip11.path, robot="ur5")
+    d = tmp_path / "m"
+    shutil.copytree(tip11.path, d)
+    cfg = json.loads((d / "config.json").read_text())
+    cfg["robot"] = "r2d2"
+    # Re-sign it properly: the robot check must stand on its own, not on the digest.
+    tensors = load_file(str(d / "model.safetensors"))
+    save_file(tensors, str(d / "model.safetensors"), metadata={"format": "hybrid_dyn.model", "config_sha256": config_digest(cfg)})
+    (d / "config.json").write_text(json.dumps(cfg))
+    with pytest.raises(ModelError, match="r2d2"):
+        load_model(d)
+
+
+def test_inputs_the_model_was_not_trained_on_are_refused(tip11, tmp_path, ur5):
+    ds = load_dataset(make_synthetic_dataset(tmp_path / "ur5", ur5, n_instances=3, n_samples=30))
+    with pytest.raises(ModelError, match="columns"):
+        tip11.predict(ds.split("test"))
+
+
+def test_bad_dataset_or_preset_is_refused(friction_set, tmp_path):
+    with pytest.raises(ValueError, match="unknown preset"):
+        train_model(friction_set, "seed-tip-12", tmp_path / "x")
+    with pytest.raises(ModelError, match="not a finished model"):
+        load_model(tmp_path)
+
+
+def test_cli_train_predict_and_tune(friction_set, tmp_path, capsys):
+    from hybrid_dyn.cli import main
+
+    common = ["--epochs", "2", "--batch-size", "64", "--max-batches-per-epoch", "3", "--quiet", "--threads", "1"]
+    assert main(["train", "--data", str(friction_set.path), "--preset", "seed-tau-mlp", "--out", str(tmp_path / "m")] + common) == 0
+    assert main(["predict", "--model", str(tmp_path / "m"), "--data", str(friction_set.path),
+                 "--save", str(tmp_path / "p.h5")]) == 0
+    out = capsys.readouterr().out
+    result = json.loads(out[out.index("{"):])
+    assert result["preset"] == "seed-tau-mlp" and len(result["rmse_per_component"]) == 7
+    assert (tmp_path / "p.h5").is_file()
+    storage = f"sqlite:///{tmp_path / 'study.db'}"
+    assert main(["tune", "--data", str(friction_set.path), "--preset", "seed-tau-lstm", "--trials", "2",
+                 "--out", str(tmp_path / "tune"), "--storage", storage] + common) == 0
+    best = json.loads((tmp_path / "tune" / "best.json").read_text())
+    assert best["n_trials"] == 2 and set(best["best_params"]) == {"lstm_layers", "lstm_units", "fc_layers", "fc_units", "activation"}
+    # The study lives in the given RDB: a rerun adds trials to it.
+    assert main(["tune", "--data", str(friction_set.path), "--preset", "seed-tau-lstm", "--trials", "1",
+                 "--out", str(tmp_path / "tune"), "--storage", storage] + common) == 0
+    assert json.loads((tmp_path / "tune" / "best.json").read_text())["n_trials"] == 3
