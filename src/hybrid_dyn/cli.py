@@ -15,6 +15,7 @@ SUBCOMMAND_MODULES = [
     "hybrid_dyn.sim.cli",
     "hybrid_dyn.data.import_cli",
     "hybrid_dyn.bench.cli",
+    "hybrid_dyn.identify.cli",
     "hybrid_dyn.learn.cli",
 ]
 

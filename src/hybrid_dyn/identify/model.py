@@ -106,16 +106,37 @@ class IdentificationData:
         return cls(*arrs)
 
     @classmethod
-    def from_dataset(cls, dataset, nv: int, splits=("train", "val"), target: str = "tau_m") -> "IdentificationData":
-        """Concatenate the instances of ``splits`` (the test split stays held out)."""
+    def from_dataset(cls, dataset, nv: int, splits=("train", "val"), target: str = "tau_m",
+                     acceleration: str = "measured") -> "IdentificationData":
+        """Concatenate the instances of ``splits`` (the test split stays held out).
+
+        acceleration: ``measured`` uses the dataset's qdd; ``zero-phase`` re-estimates
+        it from qd offline without delay (:func:`.experiment.zero_phase_acceleration`).
+        """
+        if acceleration not in ("measured", "zero-phase"):
+            raise ValueError(f"acceleration must be 'measured' or 'zero-phase', got {acceleration!r}")
         insts = [i for s in splits for i in dataset.split(s)]
         if not insts:
             raise InputError(f"the dataset has no instances in splits {splits}")
-        cat = {k: np.concatenate([np.asarray(i[k]) for i in insts]) for k in ("q", "qd", "qdd", target)}
+        cat = {k: np.concatenate([np.asarray(i[k]) for i in insts]) for k in ("q", "qd", target)}
+        if acceleration == "measured":
+            cat["qdd"] = np.concatenate([np.asarray(i["qdd"]) for i in insts])
+        else:
+            from .experiment import zero_phase_acceleration
+
+            cat["qdd"] = np.concatenate([zero_phase_acceleration(i["qd"], _sample_period(i)) for i in insts])
         return cls.from_arrays(cat["q"], cat["qd"], cat["qdd"], cat[target], nv)
 
     def __len__(self) -> int:
         return len(self.q)
+
+
+def _sample_period(inst) -> float:
+    t = np.asarray(inst["t"], float)
+    dt = np.diff(t)
+    if len(dt) == 0 or not np.allclose(dt, dt[0], rtol=1e-6):
+        raise InputError(f"instance {inst.name}: t is not uniformly sampled, cannot differentiate qd")
+    return float(dt[0])
 
 
 # ------------------------------------------------------------------------- model
@@ -266,13 +287,15 @@ def _joint_rmse(tau, tau_hat) -> np.ndarray:
 
 
 def identify(data, method: str = "consistent", robot: Robot | None = None, *, splits=("train", "val"),
-             target: str = "tau_m", eps: float = DEFAULT_COULOMB_EPS, base: BaseParameters | None = None,
+             target: str = "tau_m", acceleration: str = "measured", eps: float = DEFAULT_COULOMB_EPS,
+             base: BaseParameters | None = None,
              config: est.ConsistentConfig = est.ConsistentConfig()) -> IdentifiedModel:
     """Identify ``robot``'s inertial and friction parameters from motor torques.
 
     data: a :class:`~hybrid_dyn.data.Dataset` (its ``splits`` are used, the test split
       stays held out), an :class:`IdentificationData`, or a tuple (q, qd, qdd, tau).
     method: ``ols`` | ``wls`` | ``consistent`` | ``sigmoid-friction`` (see :mod:`.estimators`).
+    acceleration: for a dataset, ``measured`` (its qdd) or ``zero-phase`` (re-estimated offline).
     robot: the nominal model: its kinematics define the regressor and its inertials
       are the prior that ``consistent`` regularizes towards and the fill-in for
       directions ``ols``/``wls`` cannot see. Default: the dataset's robot, nominal.
@@ -287,7 +310,7 @@ def identify(data, method: str = "consistent", robot: Robot | None = None, *, sp
     if hasattr(data, "split"):
         if data.meta.get("robot") not in (None, robot.name):
             raise InputError(f"the dataset is of robot {data.meta.get('robot')!r}, the model is {robot.name!r}")
-        data = IdentificationData.from_dataset(data, robot.nv, splits, target)
+        data = IdentificationData.from_dataset(data, robot.nv, splits, target, acceleration)
     elif isinstance(data, (tuple, list)):
         data = IdentificationData.from_arrays(*data, nv=robot.nv)
     nv = robot.nv

@@ -90,10 +90,12 @@ class ConsistencyReport:
         return bool(ok and (self.com_in_box is None or self.com_in_box))
 
 
-def check_consistency(pi: np.ndarray, com_box: tuple | None = None, tol: float = 0.0) -> ConsistencyReport:
+def check_consistency(pi: np.ndarray, com_box: tuple | None = None, tol: float = 0.0,
+                      box_tol: float = 1e-6) -> ConsistencyReport:
     """Check one body's dynamic parameters (10,): mass, inertia eigenvalues, triangle inequalities.
 
-    ``tol`` [kg m^2] absorbs round-off in the triangle margin. ``com_box`` = (lo (3,), hi (3,)) [m].
+    ``tol`` [kg m^2] absorbs round-off in the triangle margin. ``com_box`` = (lo (3,), hi (3,)) [m];
+    ``box_tol`` [m]: a COM on the box face within the NLP's constraint tolerance counts as inside.
     """
     m, c, i_com_vec = to_urdf_form(pi)
     xx, xy, xz, yy, yz, zz = i_com_vec
@@ -103,7 +105,7 @@ def check_consistency(pi: np.ndarray, com_box: tuple | None = None, tol: float =
     in_box = None
     if com_box is not None:
         lo, hi = (np.asarray(b, float) for b in com_box)
-        in_box = bool(np.all(c >= lo - 1e-9) and np.all(c <= hi + 1e-9))
+        in_box = bool(np.all(c >= lo - box_tol) and np.all(c <= hi + box_tol))
     return ConsistencyReport(m, eig, float(triangle), j_min, in_box)
 
 
