@@ -344,7 +344,8 @@ def import_log(source, out, *, overwrite: bool = False, strict: bool = False, **
     file(s), with the spec as keyword arguments (``columns=``, ``time=`` or
     ``sample_rate_hz=``, ... see :class:`LogSpec`), e.g.::
 
-        import_log("run.csv", "data/run", name="my-arm", columns={"q": "q1-q7" ...}, time="t")
+        import_log("run.csv", "data/run", name="my-arm", time="t",
+                   columns={"q": ["q1", "q2", "q3"], "tau_m": ["tau1", "tau2", "tau3"]})
 
     The dataset is built beside ``out`` and renamed into place at the end, so an
     interrupted import leaves any previous dataset at ``out`` intact. An existing
@@ -468,129 +469,168 @@ def _robot_limits(spec: LogSpec, nv: int):
 
 
 def _validate(spec: LogSpec, report: ImportReport):
+    """Read, check and cut the log into segments; every problem goes to ``report``."""
     tables = []
     for f in spec.files:
         tables += read_log(f, spec.format, spec.variables, spec.delimiter)
-    trajectories = _trajectories(spec, tables)
-    report.trajectories = 0
-    segments, warnings = [], []
-    nv = None
-    limits = None
-    deg = np.pi / 180 if spec.angle_unit == "deg" else 1.0
-    estimate = "qdd" not in spec.columns
-    timebase = []  # (dq, qd*dt) pairs for the time-base check
-    for traj, table, rows in trajectories:
-        cols = {s: _resolve(ref, table, s) for s, ref in spec.columns.items()}
-        widths = {s: len(c) for s, c in cols.items() if s in JOINT_SIGNALS}
-        if len(set(widths.values())) != 1:
-            raise LogSpecError(f"joint signals must have one width (the number of joints), got {widths}")
-        for s, w in (("base_wrench", 6), ("tip_force", 3)):
-            if s in cols and len(cols[s]) != w:
-                raise LogSpecError(f"{s} needs {w} columns, the spec maps {len(cols[s])}")
-        nv = nv or widths["q"]
+    segments, limits = [], None
+    for traj, table, rows in _trajectories(spec, tables):
+        data, t = _extract(spec, table, rows)
         if limits is None:
-            limits = _robot_limits(spec, nv)
-        tcol = _resolve(spec.time, table, "time") if spec.time is not None else None
-        if tcol is not None and len(tcol) != 1:
-            raise LogSpecError(f"time must be one column, got {len(tcol)}")
-        data = {s: table.data[np.ix_(rows, c)] * (deg if s in ANGLE_SIGNALS else 1.0) for s, c in cols.items()}
-        t = (table.data[rows, tcol[0]] * TIME_UNITS[spec.time_unit] if tcol is not None
-             else rows / spec.sample_rate_hz)
+            limits = _robot_limits(spec, data["q"].shape[1])
         report.rows_read += len(rows)
-        keep = np.ones(len(rows), bool)
-        split = np.zeros(len(rows), bool)
-
-        def issue(i, kind, detail, action):
-            r = int(rows[i])
-            report.issues.append(RowIssue(str(table.source), table.name, r + 1, kind, detail, action,
-                                          None if table.first_line is None else table.first_line + r))
-            if action == "drop":
-                keep[i] = False
-            else:
-                split[i] = True
-
-        # 1. unreadable / NaN cells in the mapped columns
-        cell_msgs = {}
-        for r, msg in table.cell_problems:
-            cell_msgs.setdefault(r, []).append(msg)
-        used = np.concatenate([v for s, v in data.items() if s != "qd_next" and s != "q_next"] + [t[:, None]], axis=1)
-        finite = np.isfinite(used).all(axis=1)
-        for i in np.flatnonzero(~finite):
-            bad = [f"{s}[{j + 1}]" for s, v in data.items() if s not in ("q_next", "qd_next")
-                   for j in np.flatnonzero(~np.isfinite(v[i]))] + (["t"] if not np.isfinite(t[i]) else [])
-            msgs = cell_msgs.get(int(rows[i]), [])
-            kind = "missing_cells" if any("cells" in m for m in msgs) else "nan"
-            issue(i, kind, "no value in " + ", ".join(bad) + (f" ({'; '.join(msgs)})" if msgs else ""), "drop")
-        # 2. unit mistakes, by range
-        for i in np.flatnonzero(keep):
-            over = np.flatnonzero(np.abs(data["q"][i]) > limits)
-            if len(over):
-                j = over[0]
-                issue(i, "unit_range", f"q[{j + 1}] = {data['q'][i, j]:.4g} rad is beyond +-{limits[j]:.3g} rad "
-                      f"(degrees logged as radians?)", "drop")
-                continue
-            if "qd" in data:
-                over = np.flatnonzero(np.abs(data["qd"][i]) > spec.checks.qd_abs_max)
-                if len(over):
-                    j = over[0]
-                    issue(i, "unit_range", f"qd[{j + 1}] = {data['qd'][i, j]:.4g} rad/s is beyond "
-                          f"+-{spec.checks.qd_abs_max:.3g} rad/s (deg/s logged as rad/s?)", "drop")
-        # 3. time order and gaps
-        last, last_i = -np.inf, None
-        for i in np.flatnonzero(keep):
-            if t[i] <= last:
-                issue(i, "time_order", f"t = {t[i]:.6g} s is not after t = {last:.6g} s of row {rows[last_i] + 1}", "drop")
-            else:
-                last, last_i = t[i], i
-        kept = np.flatnonzero(keep)
-        if len(kept) > 2:
-            steps = np.diff(t[kept])
-            median = float(np.median(steps))
-            for k in np.flatnonzero(steps > spec.checks.jump_factor * median):
-                issue(kept[k + 1], "time_jump", f"gap of {steps[k]:.4g} s after row {rows[kept[k]] + 1} "
-                      f"({steps[k] / median:.1f} x the median step {median:.4g} s)", "split")
-        # 4. the logged next sample must be the next row
-        for s_next, s in (("q_next", "q"), ("qd_next", "qd")):
-            if s_next in data and s in data:
-                pairs = np.flatnonzero(keep[:-1] & keep[1:])
-                err = np.abs(data[s_next][pairs] - data[s][pairs + 1]).max(axis=1)
-                for k in pairs[err > spec.checks.next_tol]:
-                    if not split[k + 1]:
-                        issue(k + 1, "discontinuity", f"{s} differs from the previous row's {s_next} by "
-                              f"{np.abs(data[s_next][k] - data[s][k + 1]).max():.3g}: samples missing?", "split")
-        # 5. segments: runs of kept, consecutive rows without a split
-        kept = np.flatnonzero(keep)
-        if not len(kept):
+        checks = _RowChecks(table, rows, report)
+        checks.cells(data, t)
+        checks.ranges(data, limits, spec.checks.qd_abs_max)
+        checks.time(t, spec.checks.jump_factor)
+        checks.next_samples(data, spec.checks.next_tol)
+        if not checks.keep.any():
             continue
         report.trajectories += 1
-        breaks = np.flatnonzero((np.diff(kept) > 1) | split[kept[1:]]) + 1
-        dt = 1.0 / spec.sample_rate_hz if spec.sample_rate_hz else float(np.median(np.diff(t[kept]))) if len(kept) > 1 else 1.0
-        min_len = spec.derivatives.min_samples(dt) if estimate else 1
-        for seg in np.split(kept, breaks):
-            if len(seg) < min_len:
-                report.issues.append(RowIssue(str(table.source), table.name, int(rows[seg[0]]) + 1, "short_segment",
-                                              f"segment of {len(seg)} rows (rows {rows[seg[0]] + 1}-{rows[seg[-1]] + 1}) "
-                                              f"is shorter than the {min_len} the derivative filter needs", "drop",
-                                              None if table.first_line is None else table.first_line + int(rows[seg[0]]),
-                                              n_rows=len(seg)))
-                continue
+        kept_t = t[checks.keep]
+        dt = 1.0 / spec.sample_rate_hz if spec.sample_rate_hz else float(np.median(np.diff(kept_t))) if len(kept_t) > 1 else 1.0
+        min_len = spec.derivatives.min_samples(dt) if "qdd" not in spec.columns else 1
+        for seg in checks.segments(min_len):
             fields = {s: v[seg] for s, v in data.items() if s not in ("q_next", "qd_next")}
             fields["t"] = t[seg]
             nxt = data["qd_next"][seg[-1]] if "qd_next" in data and np.isfinite(data["qd_next"][seg[-1]]).all() else None
             segments.append(_Segment(traj, table, rows[seg], fields, nxt))
             report.rows_kept += len(seg)
-            if estimate and "qd" in fields and len(seg) > 1:
-                timebase.append((np.diff(fields["q"], axis=0), 0.5 * (fields["qd"][1:] + fields["qd"][:-1])
-                                 * np.diff(fields["t"])[:, None]))
-    if timebase:
-        dq = np.concatenate([a for a, _ in timebase]).ravel()
-        vdt = np.concatenate([b for _, b in timebase]).ravel()
-        if vdt @ vdt > 0:
-            ratio = float(dq @ vdt / (vdt @ vdt))
-            if abs(ratio - 1) > spec.checks.timebase_tol:
-                warnings.append(f"the position increments are {ratio:.3f} x the logged velocity times the time step: "
-                                f"a wrong sample rate or time unit, or q and qd in different units?")
-    return segments, warnings
+    warning = _timebase_warning(segments, spec.checks.timebase_tol) if "qdd" not in spec.columns else None
+    return segments, [warning] if warning else []
+
+
+def _extract(spec: LogSpec, table: LogTable, rows: np.ndarray):
+    """The mapped signals of some rows of a table, in SI units, and their times t [s]."""
+    cols = {s: _resolve(ref, table, s) for s, ref in spec.columns.items()}
+    widths = {s: len(c) for s, c in cols.items() if s in JOINT_SIGNALS}
+    if len(set(widths.values())) != 1:
+        raise LogSpecError(f"joint signals must have one width (the number of joints), got {widths}")
+    for s, w in (("base_wrench", 6), ("tip_force", 3)):
+        if s in cols and len(cols[s]) != w:
+            raise LogSpecError(f"{s} needs {w} columns, the spec maps {len(cols[s])}")
+    deg = np.pi / 180 if spec.angle_unit == "deg" else 1.0
+    data = {s: table.data[np.ix_(rows, c)] * (deg if s in ANGLE_SIGNALS else 1.0) for s, c in cols.items()}
+    if spec.time is None:
+        # Original row numbers: a dropped row leaves a gap of one step, as it would in time.
+        return data, rows / spec.sample_rate_hz
+    tcol = _resolve(spec.time, table, "time")
+    if len(tcol) != 1:
+        raise LogSpecError(f"time must be one column, got {len(tcol)}")
+    return data, table.data[rows, tcol[0]] * TIME_UNITS[spec.time_unit]
+
+
+class _RowChecks:
+    """The row checks of one trajectory. Each check reports what it finds by row and
+    marks the row to drop (``keep`` false) or to start a new segment (``split``)."""
+
+    def __init__(self, table: LogTable, rows: np.ndarray, report: ImportReport):
+        self.table, self.rows, self.report = table, rows, report
+        self.keep = np.ones(len(rows), bool)
+        self.split = np.zeros(len(rows), bool)
+
+    def flag(self, i: int, kind: str, detail: str, action: str, n_rows: int = 1) -> None:
+        r = int(self.rows[i])
+        line = None if self.table.first_line is None else self.table.first_line + r
+        self.report.issues.append(RowIssue(str(self.table.source), self.table.name, r + 1, kind, detail, action,
+                                           line, n_rows))
+        if action == "drop":
+            self.keep[i : i + n_rows] = False
+        else:
+            self.split[i] = True
+
+    def cells(self, data: dict, t: np.ndarray) -> None:
+        """Unreadable, empty or NaN cells in a mapped column or the time."""
+        signals = {s: v for s, v in data.items() if s not in ("q_next", "qd_next")}
+        finite = np.isfinite(np.concatenate(list(signals.values()) + [t[:, None]], axis=1)).all(axis=1)
+        messages = {}
+        for r, msg in self.table.cell_problems:
+            messages.setdefault(r, []).append(msg)
+        for i in np.flatnonzero(~finite):
+            bad = [f"{s}[{j + 1}]" for s, v in signals.items() for j in np.flatnonzero(~np.isfinite(v[i]))]
+            bad += ["t"] if not np.isfinite(t[i]) else []
+            msgs = messages.get(int(self.rows[i]), [])
+            kind = "missing_cells" if any("cells" in m for m in msgs) else "nan"
+            self.flag(i, kind, "no value in " + ", ".join(bad) + (f" ({'; '.join(msgs)})" if msgs else ""), "drop")
+
+    def ranges(self, data: dict, q_limits: np.ndarray, qd_max: float) -> None:
+        """Unit mistakes, by range: |q| beyond the joint bound, |qd| beyond qd_max."""
+        for i in np.flatnonzero(self.keep):
+            over = np.flatnonzero(np.abs(data["q"][i]) > q_limits)
+            if len(over):
+                j = over[0]
+                self.flag(i, "unit_range", f"q[{j + 1}] = {data['q'][i, j]:.4g} rad is beyond +-{q_limits[j]:.3g} rad "
+                          f"(degrees logged as radians?)", "drop")
+                continue
+            over = np.flatnonzero(np.abs(data["qd"][i]) > qd_max) if "qd" in data else []
+            if len(over):
+                j = over[0]
+                self.flag(i, "unit_range", f"qd[{j + 1}] = {data['qd'][i, j]:.4g} rad/s is beyond +-{qd_max:.3g} rad/s "
+                          f"(deg/s logged as rad/s?)", "drop")
+
+    def time(self, t: np.ndarray, jump_factor: float) -> None:
+        """Time that does not increase (row dropped) and gaps (a new segment)."""
+        last, last_i = -np.inf, None
+        for i in np.flatnonzero(self.keep):
+            if t[i] <= last:
+                self.flag(i, "time_order", f"t = {t[i]:.6g} s is not after t = {last:.6g} s of row "
+                          f"{self.rows[last_i] + 1}", "drop")
+            else:
+                last, last_i = t[i], i
+        kept = np.flatnonzero(self.keep)
+        if len(kept) > 2:
+            steps = np.diff(t[kept])
+            median = float(np.median(steps))
+            for k in np.flatnonzero(steps > jump_factor * median):
+                self.flag(kept[k + 1], "time_jump", f"gap of {steps[k]:.4g} s after row {self.rows[kept[k]] + 1} "
+                          f"({steps[k] / median:.1f} x the median step {median:.4g} s)", "split")
+
+    def next_samples(self, data: dict, tol: float) -> None:
+        """A row must be the previous row's logged next sample (q_next, qd_next), else samples are missing."""
+        for s_next, s in (("q_next", "q"), ("qd_next", "qd")):
+            if s_next not in data or s not in data:
+                continue
+            pairs = np.flatnonzero(self.keep[:-1] & self.keep[1:])
+            err = np.abs(data[s_next][pairs] - data[s][pairs + 1]).max(axis=1)
+            for k, e in zip(pairs[err > tol], err[err > tol]):
+                if not self.split[k + 1]:
+                    self.flag(k + 1, "discontinuity", f"{s} differs from the previous row's {s_next} by {e:.3g}: "
+                              f"samples missing?", "split")
+
+    def segments(self, min_len: int) -> list[np.ndarray]:
+        """Runs of kept, consecutive rows without a split; shorter than ``min_len``: dropped and reported."""
+        kept = np.flatnonzero(self.keep)
+        breaks = np.flatnonzero((np.diff(kept) > 1) | self.split[kept[1:]]) + 1
+        out = []
+        for seg in np.split(kept, breaks):
+            if len(seg) >= min_len:
+                out.append(seg)
+            else:
+                self.flag(seg[0], "short_segment", f"segment of {len(seg)} rows (rows {self.rows[seg[0]] + 1}-"
+                          f"{self.rows[seg[-1]] + 1}) is shorter than the {min_len} the derivative filter needs",
+                          "drop", n_rows=len(seg))
+        return out
+
+
+def _timebase_warning(segments: list, tol: float) -> str | None:
+    """Least-squares ratio of the position increments to qd x dt over all segments: 1 if the
+    time base and the units of q and qd agree."""
+    dq, vdt = [], []
+    for seg in segments:
+        f = seg.fields
+        if "qd" in f and len(f["t"]) > 1:
+            dq.append(np.diff(f["q"], axis=0).ravel())
+            vdt.append((0.5 * (f["qd"][1:] + f["qd"][:-1]) * np.diff(f["t"])[:, None]).ravel())
+    if not dq:
+        return None
+    dq, vdt = np.concatenate(dq), np.concatenate(vdt)
+    if not vdt @ vdt > 0:
+        return None
+    ratio = float(dq @ vdt / (vdt @ vdt))
+    if abs(ratio - 1) <= tol:
+        return None
+    return (f"the position increments are {ratio:.3f} x the logged velocity times the time step: "
+            f"a wrong sample rate or time unit, or q and qd in different units?")
 
 
 def _derive(spec: LogSpec, seg: _Segment) -> dict:
