@@ -266,8 +266,8 @@ def _links_section(robot: Robot, body_params: np.ndarray) -> list[dict]:
     for j in range(1, model.njoints):
         bodies = [f for f in model.frames if f.parentJoint == j and f.type == pin.FrameType.BODY]
         # The joint's own link: the body frame right after the joint frame.
-        own = next((f for f in bodies if model.frames[f.previousFrame].type == pin.FrameType.JOINT
-                    and model.frames[f.previousFrame].name == model.names[j]), None)
+        own = next((f for f in bodies if model.frames[f.parentFrame].type == pin.FrameType.JOINT
+                    and model.frames[f.parentFrame].name == model.names[j]), None)
         if own is None:
             raise RobotDescriptionError(f"joint {model.names[j]!r} has no child link frame")
         inertia = own.placement.actInv(pin.Inertia.FromDynamicParameters(body_params[j - 1]))
