@@ -215,3 +215,23 @@ def test_gaz_friction_parameters_stay_positive_and_zero_at_rest():
     # Monotone in qd: friction opposes motion with a consistent sign.
     qd = torch.linspace(-2, 2, 101)[:, None].expand(101, 7)
     assert (torch.diff(LearnedGazFriction(7)(qd), dim=0) >= 0).all()
+
+
+def test_hand_derived_single_sample_delan_matches_autodiff():
+    """fastpath.FastDeLaN differentiates by hand; DeepLagrangianNetwork by torch.func."""
+    from hybrid_dyn.learn.fastpath import FastDeLaN
+
+    torch.manual_seed(6)
+    net = DeepLagrangianNetwork(7, (32, 32), q_mean=torch.rand(7), q_std=torch.rand(7) + 0.5, torque_scale=3.0).double()
+    fr = LearnedGazFriction(7).double()
+    with torch.no_grad():
+        fr.phi3.uniform_(-0.1, 0.1)
+    fast = FastDeLaN(net, fr)
+    q, qd, qdd = (torch.randn(4, 7, dtype=torch.float64) for _ in range(3))
+    ref = net.terms(q, qd, qdd)
+    tau_ref = (ref["tau"] + fr(qd)).detach().numpy()
+    for i in range(4):
+        got = fast.terms(q[i].numpy(), qd[i].numpy(), qdd[i].numpy())
+        for k in ("H", "c", "g"):
+            np.testing.assert_allclose(got[k], ref[k][i].detach().numpy(), rtol=1e-10, atol=1e-10)
+        np.testing.assert_allclose(fast(q[i].numpy(), qd[i].numpy(), qdd[i].numpy()), tau_ref[i], rtol=1e-10, atol=1e-10)

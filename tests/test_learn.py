@@ -125,6 +125,17 @@ def test_predict_window_matches_batched_predict(tip11, friction_set, tmp_path):
         tip11.predict_window(x[:3])
 
 
+@pytest.mark.parametrize("name", ["delan-residual", "residual-rnea-bw", "seed-tip-4"])
+def test_predict_window_matches_batched_predict_other_families(name, friction_set, tmp_path):
+    model = train_model(friction_set, name, tmp_path / name, TrainConfig(max_epochs=1, max_batches_per_epoch=3, **QUICK))
+    inst = friction_set.split("test")[0]
+    pred = model.predict([inst])[0]
+    x = concat_fields([inst], model.inputs).astype(np.float64)
+    for k in (0, 40):
+        rows = np.clip(np.arange(k - model.window + 1, k + 1), 0, None)
+        np.testing.assert_allclose(model.predict_window(x[rows]), pred[k], atol=2e-5 * np.abs(pred).max())
+
+
 def test_single_sample_priors_match_batched_analytic_functions(friction_set, panda):
     inst = friction_set.split("train")[0]
     jv = panda.tip_jacobian(inst.q)[:, :3, :]

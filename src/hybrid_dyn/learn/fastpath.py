@@ -106,3 +106,71 @@ class FastNet:
         else:
             h = x[-1]
         return _dense_stack(np.ascontiguousarray(h), self.weights, self.biases, self.acts)
+
+
+def _softplus(x):
+    return np.logaddexp(0.0, x)
+
+
+def _sigmoid(x):
+    return 0.5 * (1.0 + np.tanh(0.5 * x))
+
+
+class _FastTanhMLP:
+    """A tanh MLP of q with its Jacobian d out / d q, by forward-mode differentiation by hand."""
+
+    def __init__(self, seq: nn.Sequential, q_mean, q_std):
+        f64 = lambda t: t.detach().cpu().double().numpy()  # noqa: E731
+        lin = [m for m in seq if isinstance(m, nn.Linear)]
+        self.layers = [(f64(m.weight), f64(m.bias)) for m in lin]
+        self.q_mean, self.q_std = f64(q_mean), f64(q_std)
+
+    def __call__(self, q):
+        h = (q - self.q_mean) / self.q_std
+        J = np.diag(1.0 / self.q_std)
+        for W, b in self.layers[:-1]:
+            h = np.tanh(W @ h + b)
+            J = (1.0 - h * h)[:, None] * (W @ J)
+        W, b = self.layers[-1]
+        return W @ h + b, W @ J
+
+
+class FastDeLaN:
+    """DeLaN's tau = H qdd + c + g (+ friction) for one sample, derivatives derived by hand.
+
+    The same quantities as :class:`~hybrid_dyn.learn.delan.DeepLagrangianNetwork`, which gets
+    them by automatic differentiation; equality of the two is a test of both.
+    With J = dL/dq: dH/dq_k = J_k L^T + L J_k^T, c = (sum_k dH/dq_k qd_k) qd - 1/2 [qd^T dH/dq_k qd]_k,
+    g = dV/dq.
+    """
+
+    def __init__(self, delan, friction=None):
+        self.nv, self.eps = delan.nv, float(delan.eps)
+        self.l_net = _FastTanhMLP(delan.l_net, delan.q_mean, delan.q_std)
+        self.v_net = _FastTanhMLP(delan.v_net, delan.q_mean, delan.q_std)
+        self.place = delan.place.double().numpy()
+        self.v_scale = float(delan.torque_scale)
+        self.friction = None
+        if friction is not None:
+            self.friction = tuple(t.detach().double().numpy() for t in (friction.phi1, friction.phi2, friction.phi3))
+
+    def terms(self, q, qd, qdd) -> dict:
+        nv = self.nv
+        out, J = self.l_net(q)
+        vec = np.concatenate([_softplus(out[:nv]), out[nv:]])
+        dvec = np.concatenate([_sigmoid(out[:nv])[:, None] * J[:nv], J[nv:]])  # (n_l, nv)
+        L = (vec @ self.place).reshape(nv, nv)
+        dL = (dvec.T @ self.place).reshape(nv, nv, nv)  # dL[k] = dL / dq_k
+        H = L @ L.T + self.eps * np.eye(nv)
+        LdL = np.einsum("kij,lj->kil", dL, L)  # dL_k L^T
+        dH = LdL + LdL.transpose(0, 2, 1)
+        c = np.einsum("kij,k,j->i", dH, qd, qd) - 0.5 * np.einsum("i,kij,j->k", qd, dH, qd)
+        g = self.v_scale * self.v_net(q)[1][0]
+        return {"tau": H @ qdd + c + g, "H": H, "c": c, "g": g}
+
+    def __call__(self, q, qd, qdd) -> np.ndarray:
+        tau = self.terms(q, qd, qdd)["tau"]
+        if self.friction is not None:
+            p1, p2, p3 = self.friction
+            tau = tau + p1 * (_sigmoid(p2 * (qd + p3)) - _sigmoid(p2 * p3))
+        return tau

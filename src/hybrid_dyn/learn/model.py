@@ -248,7 +248,7 @@ class TrainedModel:
         the per-sample priors (computed here from the last row, which holds every
         field they need); required for ``momentum`` (a filter with state: pass
         ``MomentumObserver.step_force(q, qd, tau_J)``).
-        DeLaN presets run through PyTorch; the others through :mod:`fastpath`.
+        Runs through :mod:`fastpath` (numba kernels; DeLaN with hand-derived derivatives).
         """
         x = np.asarray(x, dtype=np.float64)
         if x.shape != (self.window, self.module.n_in):
@@ -257,16 +257,18 @@ class TrainedModel:
             raise ModelError("window holds NaN or inf")
         if self.preset.prior is not None and prior is None:
             prior = self.prior.single(self._split_row(x[-1]))
-        if self.module.delan is not None:
-            with torch.no_grad():
-                return self.module(torch.from_numpy(x[None]).float()).double().numpy()[0]
         if self._fast is None:
-            from .fastpath import FastNet
+            from .fastpath import FastDeLaN, FastNet
 
             m = self.module
-            self._fast = (FastNet(m.net), m.x_mean.double().numpy(), m.x_std.double().numpy(),
-                          m.y_mean.double().numpy(), m.y_std.double().numpy())
-        net, x_mean, x_std, y_mean, y_std = self._fast
+            self._fast = (None if m.net is None else FastNet(m.net), m.x_mean.double().numpy(), m.x_std.double().numpy(),
+                          m.y_mean.double().numpy(), m.y_std.double().numpy(),
+                          None if m.delan is None else FastDeLaN(m.delan, m.friction))
+        net, x_mean, x_std, y_mean, y_std, delan = self._fast
+        if delan is not None:
+            nv = self.config["widths"]["q"]
+            y = delan(x[-1, :nv], x[-1, nv:2 * nv], x[-1, 2 * nv:3 * nv])
+            return y if net is None else y + y_std * net((x - x_mean) / x_std)
         y = y_std * net((x - x_mean) / x_std)
         return y + (np.asarray(prior, float) if self.preset.prior is not None else y_mean)
 
