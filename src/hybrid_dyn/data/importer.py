@@ -320,8 +320,9 @@ class ImportReport:
         return {"name": self.name, **self.summary(), "issues": [asdict(i) for i in self.issues]}
 
     def text(self, max_per_kind: int = 20) -> str:
-        lines = [f"import {self.name}: {self.rows_read} rows read, {self.rows_kept} kept, {self.rows_dropped} dropped "
-                 f"{self.dropped_by_kind() or ''}; {self.trajectories} trajectories, {self.instances} instances"]
+        by_kind = self.dropped_by_kind()
+        lines = [f"import {self.name}: {self.rows_read} rows read, {self.rows_kept} kept, {self.rows_dropped} dropped"
+                 f"{f' {by_kind}' if by_kind else ''}; {self.trajectories} trajectories, {self.instances} instances"]
         lines += [f"warning: {w}" for w in self.warnings]
         for kind, n in self.issues_by_kind().items():
             shown = [i for i in self.issues if i.kind == kind][:max_per_kind]
