@@ -17,7 +17,7 @@ def test_tiny_bench_writes_every_row_and_column(tmp_path):
         tip_models=("seed-tip-1", "seed-tip-11", "residual-basewrench", "residual-momentum"),
         torque_models=("seed-tau-lstm", "residual-rnea", "residual-rnea-bw", "delan", "delan-friction", "delan-residual"),
         train=dict(max_epochs=1, max_batches_per_epoch=2, batch_size=64, progress=False),
-        workers=1,
+        workers=2,  # exercises the parallel generator and the training pool
     )
     rows = run_bench(tiny, tmp_path / "report", data_root=tmp_path / "data", work_root=tmp_path / "runs",
                      log=lambda m: None)

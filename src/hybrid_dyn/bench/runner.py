@@ -16,6 +16,7 @@ exactly as a streaming estimator starts up.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import os
 import time
@@ -71,7 +72,7 @@ class BenchContext:
     profile: BenchProfile
     scenario: str
     dataset: Dataset
-    robot: Robot  # the nominal model every analytic part uses
+    robot: Robot | None  # the nominal model every analytic part uses (None: no URDF for this arm)
     work_dir: Path
     log: Callable[[str], None] = print
     cache: dict = field(default_factory=dict)
@@ -267,6 +268,42 @@ def _fmt(v):
     return v
 
 
+def _train_job(args) -> tuple[str, str | None]:
+    """Train one learned row in a worker process (single-threaded torch)."""
+    dataset_path, preset, out_dir, train_config, threads = args
+    _set_torch_threads(threads)
+    from ..learn import train_model
+
+    try:
+        train_model(dataset_path, preset, out_dir, config=train_config)
+        return preset, None
+    except Exception as err:  # reported again, with its row, when the row is scored
+        return preset, f"{type(err).__name__}: {err}"
+
+
+def pretrain(jobs: list, workers: int, log=print) -> None:
+    """Train the learned rows in parallel, one single-threaded model per process.
+
+    Each model's training is seeded on its own, so the result does not depend
+    on the worker count or the order; finished models are reused on a rerun.
+    """
+    if not jobs:
+        return
+    if workers <= 1:
+        for job in tqdm(jobs, desc="training", unit="model"):
+            _train_job(job)
+        return
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as pool:
+        futures = [pool.submit(_train_job, job) for job in jobs]
+        for fut in tqdm(as_completed(futures), total=len(futures), desc="training", unit="model"):
+            preset, err = fut.result()
+            if err:
+                log(f"[bench] training {preset} failed: {err}")
+
+
 def _set_torch_threads(n: int) -> None:
     try:
         import torch
@@ -304,11 +341,22 @@ def run_bench(profile: BenchProfile, out_dir, data_root=None, work_root=None, da
         log(f"[bench] scenario {scenario}: dataset")
         ds = provider(scenario, profile)
         datasets[scenario] = ds
-        robot = load_robot(ds.meta.get("robot", "panda"))
+        # Real logs of arms without a description have no analytic model (their rows are skipped).
+        from ..description import available_robots
+
+        robot = load_robot(ds.meta["robot"]) if ds.meta.get("robot") in available_robots() else None
         ctx = BenchContext(profile, scenario, ds, robot, work_root / scenario / ds.checksum[:12], log=log)
         contexts[scenario] = ctx
         norm = train_split_stats(ds)
         specs = [s for s in row_specs(profile) if TASK_TARGET[s.task] in ds.fields and profile.applies(s, ds)]
+        # Parallel workers train quietly (one progress bar over the models, not one per process).
+        tcfg = profile.train_config()
+        if profile.workers > 1:
+            tcfg = dataclasses.replace(tcfg, progress=False)
+        jobs = [(str(ds.path), s.model, str(ctx.work_dir / "models" / s.model), tcfg, profile.torch_threads)
+                for s in specs if s.family not in ("analytic", "identified")]
+        log(f"[bench] {scenario}: training {len(jobs)} learned models on {profile.workers} workers")
+        pretrain(jobs, profile.workers, log=log)
         for spec in tqdm(specs, desc=f"bench {scenario}", unit="model"):
             t0 = time.perf_counter()
             try:
