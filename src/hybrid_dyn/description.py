@@ -182,7 +182,21 @@ class RobotSpec:
 
 
 def available_robots() -> list[str]:
-    return sorted(p.stem for p in robots_dir().glob("*.toml"))
+    """Robots with a full description (URDF, frames): every part of the toolkit applies."""
+    return sorted(p.stem for p in robots_dir().glob("*.toml") if p.stem != "data_only")
+
+
+def data_only_robots() -> list[str]:
+    """Arms known by name only (``robots/data_only.toml``): data-only models apply."""
+    path = robots_dir() / "data_only.toml"
+    if not path.is_file():
+        return []
+    return sorted(tomllib.loads(path.read_text()).get("robots", {}))
+
+
+def known_robots() -> list[str]:
+    """Every robot name a model file may carry."""
+    return sorted(set(available_robots()) | set(data_only_robots()))
 
 
 def load_spec(name_or_path: str | os.PathLike) -> RobotSpec:
