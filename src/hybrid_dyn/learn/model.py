@@ -133,12 +133,12 @@ class TrainedModel:
     ``history`` (per-epoch train/val loss), ``val_loss`` (standardized MSE).
     """
 
-    def __init__(self, module: HybridModel, config: dict, robot=None, path: Path | None = None):
+    def __init__(self, module: HybridModel, config: dict, path: Path | None = None):
         self.module = module.eval()
         self.config = config
         self.preset = Preset.from_dict(config["preset"])
         self.path = path
-        self._robot = robot
+        self._robot = None
         self._prior = None
         self._fast = None
 
@@ -323,11 +323,13 @@ def load_model(model_dir, robot=None, device: str = "cpu") -> TrainedModel:
         raise ModelError(f"{cpath} does not match the weights it was saved with (edited or tampered); refusing to load")
     if config.get("format") != MODEL_FORMAT or config.get("format_version", 0) > MODEL_FORMAT_VERSION:
         raise ModelError(f"{cpath}: not a {MODEL_FORMAT} v<={MODEL_FORMAT_VERSION} model")
-    from ..description import available_robots
+    from ..description import available_robots, known_robots
 
-    if config["robot"] not in available_robots():
+    if config["robot"] not in known_robots():
         raise ModelError(f"model {model_dir} is for robot {config['robot']!r}, which this toolkit does not know "
-                         f"(known: {', '.join(available_robots())})")
+                         f"(known: {', '.join(known_robots())})")
+    if Preset.from_dict(config["preset"]).prior is not None and config["robot"] not in available_robots():
+        raise ModelError(f"model {model_dir} needs a robot model, and {config['robot']!r} has no description")
     if robot is not None:
         name = robot if isinstance(robot, str) else robot.name
         if name != config["robot"]:
@@ -339,4 +341,6 @@ def load_model(model_dir, robot=None, device: str = "cpu") -> TrainedModel:
     except RuntimeError as err:
         raise ModelError(f"{wpath} does not fit the architecture in config.json: {err}") from err
     module.to(device)
-    return TrainedModel(module, config, robot=None if robot is None or isinstance(robot, str) else robot, path=model_dir)
+    # The analytic part always uses the model's own robot and parameter set (config), never a
+    # caller's Robot that may carry other parameters, a payload or a mis-mounted sensor.
+    return TrainedModel(module, config, path=model_dir)

@@ -4,7 +4,8 @@ Recipe (seed 3.2): Glorot-uniform initialization, Adam at lr 1e-3, MSE loss on
 standardized targets, training until the validation loss has not improved for
 5 consecutive epochs. The weights of the best validation epoch are kept (as
 Keras' ``restore_best_weights``; the seed does not say, and the best epoch is
-what early stopping is for). Choices the seed leaves open: batch size 256, at
+what early stopping is for); the untrained model counts as epoch "0", so a
+residual model that never beats its physics part on validation stays it. Choices the seed leaves open: batch size 256, at
 most 200 epochs (see ``docs/models.md``).
 
 Determinism: the initial weights come from ``torch.manual_seed(seed)``, the
@@ -251,8 +252,11 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
     n_batches = -(-n // config.batch_size)
     if config.max_batches_per_epoch:
         n_batches = min(n_batches, config.max_batches_per_epoch)
-    history, best_val, bad_epochs, start_epoch, seconds = [], float("inf"), 0, 0, 0.0
+    history, bad_epochs, start_epoch, seconds = [], 0, 0, 0.0
+    # The untrained model is the first candidate: a residual model starts as its physics
+    # part (zero-initialized branch), and keeps it when training never beats it on validation.
     best_state = {k: v.detach().clone() for k, v in module.state_dict().items()}
+    best_val = initial_val = evaluate_split(module, ws_val, device)
     resumed = _load_checkpoint(out_dir, fingerprint)
     if resumed is not None:
         info, tensors = resumed
@@ -309,7 +313,7 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
         "normalization": {k: getattr(module, k).cpu().double().tolist() for k in ("x_mean", "x_std", "y_mean", "y_std")},
         "dataset": {"path": str(ds.path), "checksum": ds.checksum, "scenario": ds.meta.get("scenario")},
         "train_config": asdict(config), "fingerprint": fingerprint, "history": history,
-        "epochs": len(history), "stopped_early": bool(stopped), "val_loss": best_val,
+        "epochs": len(history), "stopped_early": bool(stopped), "val_loss": best_val, "initial_val_loss": initial_val,
         "train_seconds": seconds, "n_params": sum(p.numel() for p in module.parameters()),
         "train_samples": len(ws_train), "torch": torch.__version__,
     }
