@@ -63,7 +63,7 @@ def one_thread():
 
 @pytest.fixture(scope="module")
 def two_link_fit():
-    """DeLaN and an MLP trained on the same Pinocchio data (seeded, ~10 s on one core)."""
+    """DeLaN and an MLP trained on the same Pinocchio data (seeded, ~15 s on one core)."""
     arm = TwoLink()
     rng = np.random.default_rng(0)
     n = 3000
@@ -87,7 +87,7 @@ def two_link_fit():
     for net, loss_fn in ((delan, lambda i: delan(qt[i], qdt[i], qddt[i])),
                          (mlp, lambda i: mlp_tau(torch.cat([qt[i], qdt[i], qddt[i]], 1)))):
         opt = torch.optim.Adam(net.parameters(), lr=3e-3)
-        for _ in range(800):
+        for _ in range(1600):
             idx = torch.randint(0, n, (256,), generator=g)
             loss = (((loss_fn(idx) - taut[idx]) / y_std) ** 2).mean()
             opt.zero_grad()
@@ -112,10 +112,11 @@ def test_delan_recovers_two_link_mass_coriolis_gravity(two_link_fit):
     g_true = arm.gravity(q)
     c_true = arm.tau(q, qd, np.zeros_like(q)) - g_true
     # Stated tolerances (RMS error relative to the RMS of the true term):
-    # H 15 %, g 6 %, c 30 % (c is second order and only seen through tau).
-    assert rms_rel(H, arm.mass(q)) < 0.15
-    assert rms_rel(g, g_true) < 0.06
-    assert rms_rel(c, c_true) < 0.30
+    # H 10 %, g 4 %, c 20 % (c is second order and only seen through tau).
+    # Measured when written: H 5.6 %, g 1.7 %, c 11.5 %.
+    assert rms_rel(H, arm.mass(q)) < 0.10
+    assert rms_rel(g, g_true) < 0.04
+    assert rms_rel(c, c_true) < 0.20
 
 
 @pytest.mark.slow
@@ -158,8 +159,9 @@ def test_delan_free_motion_conserves_true_energy_better_than_mlp(two_link_fit):
         qs, qds = rollout(acc)
         E = np.stack([arm.energy(a, b) for a, b in zip(qs, qds)])  # (steps+1, 6)
         drifts[name] = float(np.mean(np.abs(E - E[0]).max(0)))
-    # Truth conserves energy exactly; DeLaN's dynamics must drift clearly less than the MLP's.
-    assert drifts["delan"] < 0.5 * drifts["mlp"], drifts
+    # Truth conserves energy exactly; DeLaN's dynamics must drift far less than the MLP's
+    # (measured when written: 1.1 J vs 166 J over 0.8 s, initial energies -4.6 .. 7.0 J).
+    assert drifts["delan"] < 0.1 * drifts["mlp"], drifts
 
 
 @pytest.mark.parametrize("scale", [0.0, 1.0, 100.0])
