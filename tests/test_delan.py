@@ -11,6 +11,9 @@ import torch
 from hybrid_dyn.learn.delan import DeepLagrangianNetwork, LearnedGazFriction
 from hybrid_dyn.learn.nets import build_net
 
+# torch's forward-mode AD (DeLaN's jvp) loads decompositions through the deprecated torch.jit.script.
+pytestmark = pytest.mark.filterwarnings("ignore:`torch.jit.script` is deprecated:DeprecationWarning")
+
 TWO_LINK_URDF = """<robot name="two_link">
  <link name="base"/>
  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><origin xyz="0 0 0"/>

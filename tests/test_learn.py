@@ -19,6 +19,9 @@ from hybrid_dyn.learn import train as train_mod
 from hybrid_dyn.learn.model import config_digest
 from hybrid_dyn.learn.priors import AnalyticPrior
 
+# torch's forward-mode AD (DeLaN's jvp) loads decompositions through the deprecated torch.jit.script.
+pytestmark = pytest.mark.filterwarnings("ignore:`torch.jit.script` is deprecated:DeprecationWarning")
+
 QUICK = dict(batch_size=64, progress=False, num_threads=1)
 
 
@@ -231,6 +234,20 @@ def test_inputs_the_model_was_not_trained_on_are_refused(tip11, tmp_path, ur5):
     ds = load_dataset(make_synthetic_dataset(tmp_path / "ur5", ur5, n_instances=3, n_samples=30))
     with pytest.raises(ModelError, match="columns"):
         tip11.predict(ds.split("test"))
+
+
+def test_nan_in_data_is_refused_by_name(tip11, tmp_path, panda):
+    from hybrid_dyn.data import write_instance
+
+    ds_path = make_synthetic_dataset(tmp_path / "ds", panda, n_instances=3, n_samples=40)
+    ds = load_dataset(ds_path)
+    inst = ds.split("test")[0]
+    fields = {k: np.array(inst[k]) for k in inst.fields}
+    fields["qd"][7, 2] = np.nan
+    write_instance(tmp_path / "bad.h5", fields)
+    bad = type(inst)("bad", tmp_path / "bad.h5", inst.fields, len(inst))
+    with pytest.raises(ModelError, match="bad: field qd holds NaN"):
+        tip11.predict([bad])
 
 
 def test_bad_dataset_or_preset_is_refused(friction_set, tmp_path):

@@ -54,6 +54,22 @@ def config_digest(config: dict) -> str:
     return hashlib.sha256(canonical_json(config).encode()).hexdigest()
 
 
+def check_instances(instances, fields, widths: dict, who: str) -> None:
+    """Every instance has the fields, with the expected widths, and only finite values."""
+    for inst in instances:
+        missing = sorted(set(fields) - set(inst.fields))
+        if missing:
+            raise ModelError(f"instance {inst.name} lacks fields {missing} that {who} needs")
+        for f in sorted(fields):
+            a = np.asarray(inst[f]).reshape(len(inst), -1)
+            if f in widths and a.shape[1] != widths[f]:
+                raise ModelError(f"instance {inst.name}: field {f} has {a.shape[1]} columns, {who} expects "
+                                 f"{widths[f]} (another robot?)")
+            if not np.isfinite(a).all():
+                row = int(np.argwhere(~np.isfinite(a))[0][0])
+                raise ModelError(f"instance {inst.name}: field {f} holds NaN or inf (first at sample {row})")
+
+
 class HybridModel(nn.Module):
     """The torch module of any preset: standardization, network(s), DeLaN, prior sum.
 
@@ -190,16 +206,8 @@ class TrainedModel:
 
     # ----------------------------------------------------------- prediction
     def _check_instances(self, instances) -> None:
-        need = set(self.inputs) | (set(self.prior.fields) if self.prior else set())
-        for inst in instances:
-            missing = sorted(need - set(inst.fields))
-            if missing:
-                raise ModelError(f"instance {inst.name} lacks fields {missing} that model {self.preset.name!r} needs")
-            for f in need:
-                w = np.asarray(inst[f]).reshape(len(inst), -1).shape[1]
-                if f in self.config["widths"] and w != self.config["widths"][f]:
-                    raise ModelError(f"instance {inst.name}: field {f} has {w} columns, the model was trained on "
-                                     f"{self.config['widths'][f]} (another robot?)")
+        check_instances(instances, set(self.inputs) | (set(self.prior.fields) if self.prior else set()),
+                        self.config["widths"], f"model {self.preset.name!r}")
 
     def predict(self, instances, batch_size: int = 4096, priors: list | None = None) -> list[np.ndarray]:
         """Predictions [physical units] (T, n_out) float64 for each instance, every sample.

@@ -37,7 +37,7 @@ from tqdm.auto import tqdm
 from ..data import Dataset, load_dataset
 from ..data.windows import WindowedSplit, concat_fields
 from .model import (MODEL_FORMAT, MODEL_FORMAT_VERSION, HybridModel, ModelError, TrainedModel, canonical_json,
-                    load_model, save_model)
+                    check_instances, load_model, save_model)
 from .presets import Preset, get_preset
 from .priors import AnalyticPrior
 
@@ -205,6 +205,8 @@ def train_model(dataset, preset, out_dir, config: TrainConfig | None = None) -> 
         prior = AnalyticPrior(preset.prior, load_robot(robot_name, params=config.analytic_params),
                               ds.meta.get("record_hz"), config.observer_gain)
     widths = field_widths(train[0], list(dict.fromkeys(preset.inputs + preset.targets)))
+    needed = set(preset.inputs) | set(preset.targets) | (set(prior.fields) if prior else set())
+    check_instances(train + val, needed, widths, f"preset {preset.name!r}")
 
     def split_data(instances):
         extra = None
