@@ -201,6 +201,37 @@ def test_training_is_deterministic_and_resumes_after_a_kill(friction_set, tmp_pa
         train_model(friction_set, "seed-tip-8", tmp_path / "a", cfg)
 
 
+@pytest.mark.slow
+def test_sigkilled_training_resumes_to_the_same_model(friction_set, tmp_path):
+    """A real kill -9 of `hybrid-dyn train` mid-run; the rerun resumes from the last checkpoint."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    args = ["--epochs", "40", "--batch-size", "16", "--threads", "1", "--quiet"]
+    cfg = TrainConfig(max_epochs=40, batch_size=16, patience=5, progress=False, num_threads=1)
+    out = tmp_path / "killed"
+    proc = subprocess.Popen([sys.executable, "-m", "hybrid_dyn.cli", "train", "--data", str(friction_set.path),
+                             "--preset", "seed-tip-5", "--out", str(out)] + args)
+    deadline = time.time() + 120
+    while time.time() < deadline and proc.poll() is None:
+        ck = out / "checkpoint.json"
+        if ck.is_file() and json.loads(ck.read_text() or "{}").get("epoch", -1) >= 1:
+            os.kill(proc.pid, signal.SIGKILL)
+            break
+        time.sleep(0.05)
+    proc.wait()
+    assert proc.returncode == -signal.SIGKILL, "training ended before it could be killed"
+    assert not (out / "config.json").exists()
+    resumed = train_model(friction_set, "seed-tip-5", out, cfg)
+    straight = train_model(friction_set, "seed-tip-5", tmp_path / "straight", cfg)
+    a, b = load_file(str(out / "model.safetensors")), load_file(str(tmp_path / "straight" / "model.safetensors"))
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    assert resumed.history == straight.history
+
+
 def test_tampered_config_is_refused(tip11, tmp_path):
     import shutil
 
