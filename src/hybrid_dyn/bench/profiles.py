@@ -28,6 +28,7 @@ ANALYTIC_NEEDS = {
     "momentum-observer": ("q", "qd", "tau_J", "tip_force"),
     "rnea": ("q", "qd", "qdd", "tau_m"),
     "rnea-bw": ("q", "qd", "qdd", "base_wrench", "tau_m"),
+    "base-wrench-identified": ("q", "qd", "qdd", "base_wrench", "tip_force"),
 }
 
 
@@ -64,6 +65,12 @@ class BenchProfile:
     def applies(self, spec, ds) -> bool:
         """Whether a row can run on a dataset: its fields exist, and a URDF where it needs one."""
         fields = set(ds.fields)
+        if spec.family == "identified":
+            # Identification needs the scenario's plant to run an excitation experiment on.
+            from ..sim.scenarios import SCENARIOS
+
+            if ds.meta.get("scenario") not in SCENARIOS or ds.meta.get("generator_version") is None:
+                return False
         if spec.family in ("analytic", "identified"):
             needs = ANALYTIC_NEEDS.get(spec.model, ("q", "qd", "qdd", "tau_m"))
             return set(needs) <= fields and _has_robot(ds)

@@ -74,6 +74,7 @@ class BenchContext:
     dataset: Dataset
     robot: Robot | None  # the nominal model every analytic part uses (None: no URDF for this arm)
     work_dir: Path
+    data_root: Path = Path("data")
     log: Callable[[str], None] = print
     cache: dict = field(default_factory=dict)
 
@@ -345,7 +346,7 @@ def run_bench(profile: BenchProfile, out_dir, data_root=None, work_root=None, da
         from ..description import available_robots
 
         robot = load_robot(ds.meta["robot"]) if ds.meta.get("robot") in available_robots() else None
-        ctx = BenchContext(profile, scenario, ds, robot, work_root / scenario / ds.checksum[:12], log=log)
+        ctx = BenchContext(profile, scenario, ds, robot, work_root / scenario / ds.checksum[:12], data_root, log=log)
         contexts[scenario] = ctx
         norm = train_split_stats(ds)
         specs = [s for s in row_specs(profile) if TASK_TARGET[s.task] in ds.fields and profile.applies(s, ds)]
