@@ -20,8 +20,10 @@ $(VENV)/.installed: pyproject.toml | $(BIN)/python
 
 install: $(VENV)/.installed
 
+# The main job on a small default: generate a small dataset, train every model
+# family, benchmark them on the same test split and write reports/quick/.
 demo: install
-	$(BIN)/hybrid-dyn demo
+	$(BIN)/hybrid-dyn bench --profile quick --out reports/quick
 
 test: install
 	$(BIN)/python -m pytest -q

@@ -7,8 +7,7 @@ import numpy as np
 def register(sub) -> None:
     p = sub.add_parser("robots", help="list the robot descriptions and their parameter sets")
     p.set_defaults(func=cmd_robots)
-    p = sub.add_parser("demo", help="the main job on a small default (what `make demo` runs)")
-    p.add_argument("--out", default="reports/quick")
+    p = sub.add_parser("analytic-demo", help="the analytic tip-force baselines on a small synthetic set")
     p.set_defaults(func=cmd_demo)
 
 
