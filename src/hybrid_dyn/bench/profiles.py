@@ -45,6 +45,7 @@ class BenchProfile:
     generator_overrides: dict = field(default_factory=dict)
     workers: int = 2
     torch_threads: int = 1  # see runner.run_bench: one thread is fastest for these nets
+    notes: tuple = ()  # method notes printed in the report (fixed before any result)
     seed: int = 0
 
     def train_config(self):
@@ -123,6 +124,11 @@ PROFILES = {
     "default": BenchProfile(
         name="default", scenarios=("paper-noext", "paper-ext", "mismatch-ext"), generator_profile="default",
         train=dict(max_epochs=30, batch_size=256, patience=5, max_batches_per_epoch=200),
+        notes=("An epoch is capped at 200 batches of 256 (51,200 samples) and training at 30 epochs, so that every "
+               "model of three scenarios trains within 90 minutes on 2 cores; early stopping (patience 5) as the seed.",
+               "Sequence models are scored on every sample: the first L-1 windows of each instance are edge-padded "
+               "with its first sample, as a streaming estimator starts up; all rows see the same test samples.",
+               "paper-noext has no external force: its tip-force rows are not run."),
     ),
     # Real logs carry no base wrench or tip force and no URDF ships for these arms:
     # only the joint-torque models that need neither (PROTOCOL 2, issue 8).
@@ -130,6 +136,12 @@ PROFILES = {
         name="real", scenarios=("real-kuka", "real-baxter", "real-sarcos"), generator_profile="real",
         analytic_rows=(), tip_models=(), torque_models=SEED_TAU_NETS + ("delan", "delan-friction"),
         identified=False, train=dict(max_epochs=60, batch_size=256, patience=5),
+        notes=("KUKA and Baxter: one instance per logged trajectory (10 each), split by trajectory 6/2/2; "
+               "SARCOS: its 4,449-row test file is not one continuous trajectory, so it is cut into 10 contiguous "
+               "blocks, split 6/2/2 (benchmarks/real/*.toml).",
+               "Accelerations: KUKA and Baxter by a zero-phase 5 Hz Butterworth derivative of the logged velocity; "
+               "SARCOS: logged. Target: the logged joint torque.",
+               "nMSE = per-joint test MSE / per-joint test-target variance, averaged over joints."),
     ),
     "paper": BenchProfile(
         name="paper", scenarios=("paper-noext", "paper-ext", "mismatch-ext"), generator_profile="paper",

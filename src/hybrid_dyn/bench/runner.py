@@ -371,7 +371,19 @@ def run_bench(profile: BenchProfile, out_dir, data_root=None, work_root=None, da
             log(f"[bench] {scenario} {spec.task:12s} {spec.model:22s} rmse={row.get('rmse', float('nan')):.4g} "
                 f"({time.perf_counter() - t0:.1f} s)" if row["status"] == "ok" else
                 f"[bench] {scenario} {spec.model} failed")
-    meta = {"profile": profile.to_dict(), "wall_seconds": time.perf_counter() - t_start,
+    wall = time.perf_counter() - t_start
+    # Keep every invocation: a rerun that reuses cached data and models is fast,
+    # and the first, full run's wall time must not be overwritten by it.
+    previous = []
+    if (out_dir / "run.json").is_file():
+        try:
+            old = json.loads((out_dir / "run.json").read_text())
+            previous = old.get("invocations") or [{"wall_seconds": old.get("wall_seconds")}]
+        except (json.JSONDecodeError, AttributeError):
+            previous = []
+    invocations = previous + [{"finished": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "wall_seconds": wall,
+                               "rows": len(rows), "rows_ok": sum(r.get("status") == "ok" for r in rows)}]
+    meta = {"profile": profile.to_dict(), "wall_seconds": wall, "invocations": invocations,
             "datasets": {s: {"path": str(d.path), "checksum": d.checksum, "seed": d.meta.get("seed"),
                              "config_hash": d.meta.get("config_hash")} for s, d in datasets.items()}}
     (out_dir / "run.json").write_text(json.dumps(meta, indent=1, default=str))
