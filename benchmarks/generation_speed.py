@@ -16,6 +16,7 @@ The machine's load average is printed first: the speed-up needs two otherwise id
 import argparse
 import json
 import os
+import resource
 import shutil
 import tempfile
 import time
@@ -59,6 +60,12 @@ def worker_start_seconds(cfg) -> float:
     return time.perf_counter() - t0
 
 
+def cpu_seconds() -> float:
+    """CPU time of this process and its finished children (the workers), user + system."""
+    own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
 def tree_bytes(path: Path) -> dict:
     return {str(p.relative_to(path)): p.read_bytes() for p in sorted(path.rglob("*")) if p.is_file()}
 
@@ -94,15 +101,16 @@ def main() -> None:
           f"(median of {len(full)}, {sim_seconds / len(full):.1f} s simulated each)   floor >= 10x")
 
     print(f"worker start (spawn, imports, models)  {worker_start_seconds(cfg):.1f} s")
-    walls = {1: [], 2: []}
+    walls, cores = {1: [], 2: []}, {1: [], 2: []}
     same = True
     with tempfile.TemporaryDirectory() as tmp:
         for rep in range(args.repeats):  # alternate, so a burst of load elsewhere hits both
             for workers in (1, 2):
                 out = Path(tmp) / f"r{rep}w{workers}"
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), cpu_seconds()
                 generate_dataset(cfg, out, workers=workers, progress=False)
                 walls[workers].append(time.perf_counter() - t0)
+                cores[workers].append((cpu_seconds() - c0) / walls[workers][-1])
             same &= tree_bytes(Path(tmp) / f"r{rep}w1") == tree_bytes(Path(tmp) / f"r{rep}w2")
             for workers in (1, 2):
                 shutil.rmtree(Path(tmp) / f"r{rep}w{workers}")
@@ -110,7 +118,9 @@ def main() -> None:
     print(f"generate {args.instances} instances x {args.trajectories} trajectories "
           f"({args.repeats} runs each, medians): 1 worker {w1:.1f} s, 2 workers {w2:.1f} s, "
           f"speed-up {w1 / w2:.2f}x   floor >= 1.7x; byte-identical: {same}")
-    print(f"  all runs: 1 worker {[round(x, 1) for x in walls[1]]}, 2 workers {[round(x, 1) for x in walls[2]]}")
+    for w in (1, 2):
+        print(f"  {w} worker(s): wall {[round(x, 1) for x in walls[w]]} s, CPU cores obtained "
+              f"{[round(x, 2) for x in cores[w]]} (below {w}: other processes took the rest)")
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 
