@@ -207,7 +207,8 @@ class TipForceEstimator:
             self.last_status = EstimatorStatus.INPUT_REJECTED
             return self._last_good.copy()
         self._last_t = t
-        qdd = self._qdd_filter.step(qd)
+        # The observer needs no acceleration: skip the filter on that path.
+        qdd = None if self.method == "momentum" else self._qdd_filter.step(qd)
         self._calls += 1
         status = EstimatorStatus.OK
         # The inputs are validated above: call the unchecked cores.

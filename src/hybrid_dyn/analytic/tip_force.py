@@ -60,7 +60,11 @@ def damped_force_single(jv: np.ndarray, tau_ext: np.ndarray, singular_region: fl
     a = (jv @ jv.T).tolist()
     bx, by, bz = (jv @ tau_ext).tolist()
     a00, a01, a02, a11, a12, a22 = a[0][0], a[0][1], a[0][2], a[1][1], a[1][2], a[2][2]
-    lam_min = _min_eig_sym3(a00, a01, a02, a11, a12, a22)
+    # lam_min >= det / trace^2 (the other two eigenvalues are each below the trace):
+    # far from singularities that cheap bound settles it without the eigenvalue.
+    det0 = a00 * (a11 * a22 - a12 * a12) - a01 * (a01 * a22 - a12 * a02) + a02 * (a01 * a12 - a11 * a02)
+    tr = a00 + a11 + a22
+    lam_min = _min_eig_sym3(a00, a01, a02, a11, a12, a22) if det0 < singular_region**2 * tr * tr else math.inf
     if lam_min < singular_region**2:
         d = max_damping**2 * (1.0 - max(lam_min, 0.0) / singular_region**2)
         a00, a11, a22 = a00 + d, a11 + d, a22 + d

@@ -25,6 +25,7 @@ import numpy as np
 import torch
 
 from ..analytic.momentum_observer import MomentumObserver
+from ..analytic.tip_force import base_wrench_force_core
 from ..data.windows import window_index
 from .model import ModelError, TrainedModel, load_model
 
@@ -59,10 +60,26 @@ class StreamingModel:
         self.qdd_cutoff_hz = float(model.config.get("qdd_cutoff_hz") or 20.0)
         m = model.module
         self._x_mean = m.x_mean.double().numpy()
-        self._x_lim = RANGE_SIGMAS * m.x_std.double().numpy()
+        self._x_std = m.x_std.double().numpy()
+        self._x_inv_std = 1.0 / self._x_std
+        self._y_mean = m.y_mean.double().numpy()
+        self._y_std = m.y_std.double().numpy()
         self._row = np.empty(sum(self.widths))
+        self._slices = []
+        i = 0
+        for name, w in zip(self.inputs, self.widths):
+            self._slices.append((name, i, i + w))
+            i += w
+        # The control-loop path: the ring holds standardised rows (one 25-value
+        # operation per call instead of a whole window), fed straight to the
+        # numba network. DeLaN goes through the model's own single-sample path.
+        from .fastpath import FastNet
+
+        self._fast = None if m.delan is not None else FastNet(m.net)
+        self._prior_kind = model.preset.prior
         self._observer = None
         self.set_call_rate(call_hz or self.record_hz)
+        self._warm_up()
 
     @classmethod
     def load(cls, model_dir: Path, robot: str | None = None, call_hz: float | None = None) -> "StreamingModel":
@@ -95,14 +112,34 @@ class StreamingModel:
         if self._observer is not None:
             self._observer.reset()
 
+    def _warm_up(self) -> None:
+        """Compile the numba kernels and touch every buffer now, not in the first control cycle."""
+        nv = self.robot.nv
+        q = np.clip(np.zeros(nv), self.robot.q_lower, self.robot.q_upper)
+        z = np.zeros(nv)
+        w = self.robot.base_wrench(q, z, z)
+        self.step(q, z, z, w, z, None)
+        self.reset()
+
+    def _prior_at(self, q, qd, qdd, base_wrench, tau_J):
+        kind = self._prior_kind
+        if kind is None:
+            return None
+        if kind == "basewrench":
+            return base_wrench_force_core(self.robot, q, qd, qdd, base_wrench)
+        if kind == "momentum":
+            return self._observer.step_force(q, qd, tau_J)
+        return self.model.prior.single({"q": q, "qd": qd, "qdd": qdd, "base_wrench": base_wrench})
+
     # ------------------------------------------------------------------ step
     def step(self, q, qd, qdd, base_wrench, tau_J, t) -> tuple[np.ndarray, bool]:
         """One validated sample in; (tip force (3,) [N], inside the training range?) out."""
         values = {"q": q, "qd": qd, "qdd": qdd, "base_wrench": base_wrench, "tau_J": tau_J}
-        row, i = self._row, 0
-        for name, w in zip(self.inputs, self.widths):
-            row[i:i + w] = values[name]
-            i += w
+        row = self._row
+        for name, a, b in self._slices:
+            row[a:b] = values[name]
+        row -= self._x_mean
+        row *= self._x_inv_std  # standardised, as the network saw it in training
         n = len(self._ring)
         if self._head < 0:
             self._ring[:] = row  # edge padding, as in training
@@ -111,9 +148,13 @@ class StreamingModel:
             self._head = (self._head + 1) % n
             self._ring[self._head] = row
         x = self._ring[(self._head - self._offsets) % n]
-        prior = self._observer.step_force(q, qd, tau_J) if self._observer is not None else None
-        f = self.model.predict_window(x, prior=prior)
-        in_range = bool((np.abs(row - self._x_mean) <= self._x_lim).all())
+        prior = self._prior_at(q, qd, qdd, base_wrench, tau_J)
+        if self._fast is not None:
+            f = self._y_std * self._fast(x)
+            f += self._y_mean if prior is None else prior
+        else:
+            f = self.model.predict_window(x * self._x_std + self._x_mean, prior=prior)
+        in_range = float(np.abs(row).max()) <= RANGE_SIGMAS
         return f, in_range
 
     # ----------------------------------------------------------------- batch
