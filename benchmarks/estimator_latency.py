@@ -64,7 +64,8 @@ def main(argv=None) -> None:
     cases = [("analytic(base_wrench)", TipForceEstimator.analytic(robot, "base_wrench", call_hz=1000.0), 30.0, None),
              ("analytic(momentum)", TipForceEstimator.analytic(robot, "momentum", call_hz=1000.0), 30.0, None)]
     for m in args.models:
-        cases.append((f"model {m}", TipForceEstimator.load(m, call_hz=1000.0), 100.0, 500.0))
+        est = TipForceEstimator.load(m, call_hz=1000.0)
+        cases.append((f"{est.model.model.preset.name} [{est.model.runtime}]", est, 100.0, 500.0))
     print(f"{args.calls} calls each, one core")
     print(f"{'estimator':60s} {'median us':>10s} {'p99 us':>10s} {'max us':>10s}  floors")
     for name, est, f_med, f_p99 in cases:

@@ -30,7 +30,7 @@ def trained(tmp_path_factory, panda):
 def test_streaming_equals_batch(trained, preset):
     ds, dirs = trained
     inst = ds.split("test")[0]
-    est = TipForceEstimator.load(dirs[preset], robot="panda", call_hz=RATE)
+    est = TipForceEstimator.load(dirs[preset], robot="panda", call_hz=RATE, runtime="numba")
     stream, statuses = [], []
     for k in range(len(inst)):
         stream.append(est.estimate_tip_force(inst.q[k], inst.qd[k], base_wrench=inst.base_wrench[k],
@@ -50,8 +50,8 @@ def test_faster_calls_keep_the_training_spacing(trained):
     """Called at 3x the training rate, the window still holds samples 1/RATE apart."""
     ds, dirs = trained
     inst = ds.split("test")[0]
-    reference = StreamingModel.load(dirs["seed-tip-11"], call_hz=RATE)
-    fast = StreamingModel.load(dirs["seed-tip-11"], call_hz=3 * RATE)
+    reference = StreamingModel.load(dirs["seed-tip-11"], call_hz=RATE, runtime="numba")
+    fast = StreamingModel.load(dirs["seed-tip-11"], call_hz=3 * RATE, runtime="numba")
     for k in range(40):
         s = dict(q=inst.q[k], qd=inst.qd[k], qdd=inst.qdd[k], base_wrench=inst.base_wrench[k], tau_J=inst.tau_J[k], t=None)
         f_ref, _ = reference.step(**s)
@@ -81,3 +81,18 @@ def test_out_of_range_is_flagged(trained):
     w[2] += 5000.0  # a load no training sample came near
     f = est.estimate_tip_force(inst.q[30], inst.qd[30], base_wrench=w)
     assert est.last_status is EstimatorStatus.OUT_OF_RANGE and np.isfinite(f).all()
+
+
+@pytest.mark.parametrize("preset", ["seed-tip-11", "residual-basewrench"])
+def test_onnx_runtime_agrees_with_batch_to_float32(trained, preset):
+    """The onnxruntime path computes the network in float32: within 1e-4 N of the float64 batch form
+    (forces of a few N, float32 epsilon 1.2e-7, through a 2-layer LSTM)."""
+    ds, dirs = trained
+    inst = ds.split("test")[0]
+    est = TipForceEstimator.load(dirs[preset], call_hz=RATE, runtime="onnx")
+    assert est.model.runtime == "onnx"
+    stream = np.stack([est.estimate_tip_force(inst.q[k], inst.qd[k], base_wrench=inst.base_wrench[k],
+                                              tau_J=inst.tau_J[k]) for k in range(len(inst))])
+    qdd = causal_acceleration(inst.qd, 1.0 / RATE, est.config.qdd_cutoff_hz)
+    batch = estimate_tip_force(inst.q, inst.qd, qdd, base_wrench=inst.base_wrench, tau_J=inst.tau_J, model=dirs[preset])
+    np.testing.assert_allclose(stream, batch, atol=1e-4)

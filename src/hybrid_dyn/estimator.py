@@ -146,15 +146,17 @@ class TipForceEstimator:
         return cls(robot, method, EstimatorConfig(**config))
 
     @classmethod
-    def load(cls, model_dir, robot: str | None = None, **config) -> "TipForceEstimator":
+    def load(cls, model_dir, robot: str | None = None, runtime: str = "auto", **config) -> "TipForceEstimator":
         """An estimator around a trained tip-force model (seed net, residual net, ...).
 
         The model's analytic part (if any) comes with it. ``robot``: when given,
-        a model trained for another robot is refused.
+        a model trained for another robot is refused. ``runtime``: how the network
+        runs: "auto" (the faster of onnxruntime and numba, timed at load), "onnx"
+        (float32) or "numba" (float64: agrees with the batch form to round-off).
         """
         from .learn.streaming import StreamingModel
 
-        model = StreamingModel.load(Path(model_dir), robot=robot)
+        model = StreamingModel.load(Path(model_dir), robot=robot, runtime=runtime)
         cfg = EstimatorConfig(**{"qdd_cutoff_hz": model.qdd_cutoff_hz, **config})
         return cls(model.robot, "learned", cfg, model=model)
 

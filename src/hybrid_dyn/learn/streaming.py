@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import copy
 import math
+import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -47,8 +49,49 @@ class _ArrayInstance:
         return len(self._f["q"])
 
 
+class _OnnxNet:
+    """The network part exported to ONNX, run by onnxruntime on one thread (float32).
+
+    For one window onnxruntime's compiled LSTM is about twice as fast as the
+    numba kernels (benchmarks/export_speed.py); it computes in float32.
+    """
+
+    def __init__(self, net, window: int, n_in: int):
+        import io
+
+        import onnxruntime as ort
+
+        buf = io.BytesIO()
+        x = torch.zeros(1, window, n_in)
+        with warnings.catch_warnings():  # the TorchScript-based exporter warns about its own future
+            warnings.simplefilter("ignore")
+            torch.onnx.export(net.eval(), (x,), buf, input_names=["x"], output_names=["y"], dynamo=False)
+        opts = ort.SessionOptions()
+        opts.intra_op_num_threads = 1
+        opts.inter_op_num_threads = 1
+        self._session = ort.InferenceSession(buf.getvalue(), opts, providers=["CPUExecutionProvider"])
+        self._x = np.empty((1, window, n_in), np.float32)
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        self._x[0] = x
+        return self._session.run(None, {"x": self._x})[0][0].astype(np.float64)
+
+
+def _median_call_seconds(fn, x, n: int = 200) -> float:
+    fn(x)
+    times = []
+    for _ in range(n):
+        t0 = time.perf_counter()
+        fn(x)
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times))
+
+
 class StreamingModel:
-    def __init__(self, model: TrainedModel, call_hz: float | None = None):
+    """runtime: "numba" (float64, agrees with the batch path to round-off), "onnx"
+    (onnxruntime, float32) or "auto": time both at load and keep the faster."""
+
+    def __init__(self, model: TrainedModel, call_hz: float | None = None, runtime: str = "auto"):
         if list(model.targets) != ["tip_force"]:
             raise ModelError(f"model {model.preset.name!r} predicts {model.targets}, not the tip force")
         self.model = model
@@ -75,15 +118,42 @@ class StreamingModel:
         # numba network. DeLaN goes through the model's own single-sample path.
         from .fastpath import FastNet
 
-        self._fast = None if m.delan is not None else FastNet(m.net)
+        self._fast = None
+        self.runtime = "pytorch (DeLaN)"
         self._prior_kind = model.preset.prior
         self._observer = None
         self.set_call_rate(call_hz or self.record_hz)
+        if m.delan is None:
+            self._choose_runtime(runtime)
         self._warm_up()
 
     @classmethod
-    def load(cls, model_dir: Path, robot: str | None = None, call_hz: float | None = None) -> "StreamingModel":
-        return cls(load_model(model_dir, robot=robot), call_hz)
+    def load(cls, model_dir: Path, robot: str | None = None, call_hz: float | None = None,
+             runtime: str = "auto") -> "StreamingModel":
+        return cls(load_model(model_dir, robot=robot), call_hz, runtime)
+
+    def _choose_runtime(self, runtime: str) -> None:
+        """Set the network runtime. "auto" times whole ``step`` calls (analytic part
+        included) with each: in a loop that also runs Pinocchio, onnxruntime's
+        larger working set can lose an advantage it shows on the network alone."""
+        from .fastpath import FastNet
+
+        if runtime not in ("auto", "numba", "onnx"):
+            raise ModelError(f"runtime must be auto, numba or onnx, got {runtime!r}")
+        net = self.model.module.net
+        candidates = {}
+        if runtime in ("auto", "numba"):
+            candidates["numba"] = FastNet(net)
+        if runtime in ("auto", "onnx"):
+            candidates["onnx"] = _OnnxNet(net, self.window, sum(self.widths))
+        timings = {}
+        for name, fast in candidates.items():
+            self._fast, self.runtime = fast, name
+            if len(candidates) > 1:
+                timings[name] = _median_call_seconds(lambda _: self._warm_up(steps=20), None, n=15)
+        if timings:
+            best = min(timings, key=timings.get)
+            self._fast, self.runtime = candidates[best], best
 
     # ---------------------------------------------------------------- timing
     def set_call_rate(self, call_hz: float) -> None:
@@ -112,13 +182,14 @@ class StreamingModel:
         if self._observer is not None:
             self._observer.reset()
 
-    def _warm_up(self) -> None:
+    def _warm_up(self, steps: int = 1) -> None:
         """Compile the numba kernels and touch every buffer now, not in the first control cycle."""
         nv = self.robot.nv
         q = np.clip(np.zeros(nv), self.robot.q_lower, self.robot.q_upper)
         z = np.zeros(nv)
         w = self.robot.base_wrench(q, z, z)
-        self.step(q, z, z, w, z, None)
+        for _ in range(steps):
+            self.step(q, z, z, w, z, None)
         self.reset()
 
     def _prior_at(self, q, qd, qdd, base_wrench, tau_J):
