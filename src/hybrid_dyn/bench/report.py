@@ -232,8 +232,8 @@ def _figures(out_dir: Path, rows, contexts) -> list[str]:
             fig.savefig(out_dir / name, dpi=100)
             plt.close(fig)
             made.append(name)
-        # Error vs contact force magnitude, tip force.
-        if "tip_force" in ctx.dataset.fields:
+        # Error vs contact force magnitude, tip force (where tip-force rows ran).
+        if any(r["task"] == "tip_force" and r["scenario"] == scenario for r in ok):
             f_true = np.concatenate([i.truth.get("tip_force", i["tip_force"]) for i in test])
             mag = np.linalg.norm(f_true, axis=1)
             bins = np.array([0, 1, 5, 10, 15, 20, np.inf])

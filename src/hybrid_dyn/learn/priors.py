@@ -30,7 +30,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..analytic.momentum_observer import MomentumObserver
-from ..analytic.tip_force import tip_force_from_base_wrench
+from ..analytic.tip_force import base_wrench_force_core, tip_force_from_base_wrench
 
 PRIOR_FIELDS = {
     "rnea": ("q", "qd", "qdd"),
@@ -126,34 +126,16 @@ class AnalyticPrior:
 
 
 class _SingleSample:
-    """Per-sample Pinocchio evaluation with the robot's constant transforms precomputed."""
+    """Per-sample Pinocchio evaluation for a control loop (no batching or validation)."""
 
     def __init__(self, robot):
+        self.robot = robot
         self.model, self.data = robot.model, robot.model.createData()
-        self.model_ff, self.data_ff = robot.model_ff, robot.model_ff.createData()
         self.tool = robot.tool_frame_id
-        self.root_from_sensor = np.linalg.inv(robot._sensor_from_root)
-        self.q_ff = np.concatenate([robot._q_ff_base, np.zeros(robot.nv)])
-        self.v_ff = np.zeros(6 + robot.nv)
-        self.a_ff = np.zeros(6 + robot.nv)
 
     def basewrench_force(self, q, qd, qdd, w_sensor) -> np.ndarray:
-        """The base-wrench method at one sample, as ``tip_force_from_base_wrench``."""
-        self.q_ff[7:], self.v_ff[6:], self.a_ff[6:] = q, qd, qdd
-        w_model_root = pin.rnea(self.model_ff, self.data_ff, self.q_ff, self.v_ff, self.a_ff)[:6]
-        dw_root = self.root_from_sensor @ w_sensor - w_model_root
-        pin.forwardKinematics(self.model, self.data, q)
-        p = pin.updateFramePlacement(self.model, self.data, self.tool).translation
-        # force_from_external_wrench's closed form on one sample, in scalars:
-        # numpy's per-call overhead on 3-vectors would dominate a control cycle.
-        px, py, pz = p
-        f0, f1, f2, m0, m1, m2 = dw_root
-        b0 = -(f0 - (py * m2 - pz * m1))
-        b1 = -(f1 - (pz * m0 - px * m2))
-        b2 = -(f2 - (px * m1 - py * m0))
-        pb = px * b0 + py * b1 + pz * b2
-        scale = 1.0 / (1.0 + px * px + py * py + pz * pz)
-        return np.array([(b0 + px * pb) * scale, (b1 + py * pb) * scale, (b2 + pz * pb) * scale])
+        """The base-wrench method at one sample: the analytic layer's own single-sample core."""
+        return base_wrench_force_core(self.robot, q, qd, qdd, w_sensor)
 
 
 def _write_cache(path: Path, arrays: dict) -> None:
