@@ -3,8 +3,9 @@
 Times one single-window call of the network part of a trained model through:
   pytorch       eager module, torch.inference_mode, one thread
   torch.export  the exported program's module (same kernels, traced graph)
-  onnxruntime   the network exported to ONNX (optional: pip install onnx onnxruntime)
-  numba         hybrid_dyn.learn.fastpath.FastNet, what the estimator uses
+  onnxruntime   the network exported to ONNX
+  numba         hybrid_dyn.learn.fastpath.FastNet
+(TipForceEstimator.load(runtime="auto") keeps whichever of numba and onnxruntime is faster in the loop)
 and checks that each agrees with eager PyTorch. Medians of 2,000 calls, one core.
 
 Run: .venv/bin/python benchmarks/export_speed.py runs/default/mismatch-ext/*/models/seed-tip-11
@@ -14,23 +15,13 @@ from __future__ import annotations
 import argparse
 import io
 import os
-import time
 
 import numpy as np
 import torch
 
 from hybrid_dyn.learn import load_model
 from hybrid_dyn.learn.fastpath import FastNet
-
-
-def median_us(fn, n=2000):
-    fn()
-    t = np.empty(n)
-    for i in range(n):
-        t0 = time.perf_counter()
-        fn()
-        t[i] = time.perf_counter() - t0
-    return float(np.median(t) * 1e6)
+from learn_speed import median_us  # benchmarks/ is the script's folder, hence on sys.path
 
 
 def main(argv=None) -> None:
@@ -52,7 +43,7 @@ def main(argv=None) -> None:
         with torch.inference_mode():
             return net(xt)
 
-    rows.append(("pytorch eager", median_us(eager), 0.0))
+    rows.append(("pytorch eager", median_us(eager, 2000), 0.0))
     exported = torch.export.export(net, (xt,)).module()
 
     def exp_call():
@@ -60,7 +51,7 @@ def main(argv=None) -> None:
             return exported(xt)
 
     with torch.inference_mode():
-        rows.append(("torch.export", median_us(exp_call), float(np.abs(exported(xt).numpy()[0] - ref).max())))
+        rows.append(("torch.export", median_us(exp_call, 2000), float(np.abs(exported(xt).numpy()[0] - ref).max())))
     try:
         import onnxruntime as ort
 
@@ -69,13 +60,13 @@ def main(argv=None) -> None:
         opts = ort.SessionOptions()
         opts.intra_op_num_threads = opts.inter_op_num_threads = 1
         sess = ort.InferenceSession(buf.getvalue(), opts, providers=["CPUExecutionProvider"])
-        rows.append(("onnxruntime", median_us(lambda: sess.run(None, {"x": x})),
+        rows.append(("onnxruntime", median_us(lambda: sess.run(None, {"x": x}), 2000),
                      float(np.abs(sess.run(None, {"x": x})[0][0] - ref).max())))
-    except Exception as err:  # optional dependency, or an exporter that refuses the graph
+    except Exception as err:  # an exporter that refuses the graph: report it, keep the other rows
         rows.append((f"onnxruntime (unavailable: {type(err).__name__}: {str(err)[:60]})", float("nan"), float("nan")))
     fast = FastNet(net)
     x64 = x[0].astype(np.float64)
-    rows.append(("numba FastNet (used by TipForceEstimator)", median_us(lambda: fast(x64)),
+    rows.append(("numba FastNet", median_us(lambda: fast(x64), 2000),
                  float(np.abs(fast(x64) - ref).max())))
     print(f"model {args.model_dir} ({model.preset.name}: {model.preset.kind}, window {model.window})")
     print(f"{'runtime':58s} {'median us':>10s} {'max |diff| vs eager':>20s}")
