@@ -18,7 +18,7 @@ from hybrid_dyn.data.importer import (
 )
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED = Path(os.environ.get("HYBRID_DYN_SHARED", REPO.parent / "shared")) / "data" / "real"
+SHARED = Path(os.environ.get("HYBRID_DYN_REAL_LOGS", REPO / "benchmarks" / "real" / "logs"))
 NV = 7
 FS = 100.0
 Q = [f"q{j}" for j in range(1, NV + 1)]
@@ -335,13 +335,9 @@ def test_spec_paths_env_override_and_unknown_keys(tmp_path, monkeypatch):
 
 
 # ---------------------------------------------------------------------------
-# The shipped real logs (the .mat files in the shared data folder)
-
-needs_real = pytest.mark.skipif(not (SHARED / "KukaDirectDynamics.mat").is_file(),
-                                reason=f"real logs not found in {SHARED} (set HYBRID_DYN_SHARED)")
+# The shipped real logs (benchmarks/real/logs, 4.7 MB: they ship with the repository)
 
 
-@needs_real
 @pytest.mark.parametrize("name,mat,prefix,rows", [
     ("kuka", "KukaDirectDynamics.mat", "kukatraj", 20068),
     ("baxter", "BaxterDirectDynamics.mat", "baxtertraj", 19295),
@@ -380,7 +376,6 @@ def test_shipped_trajectory_logs(tmp_path, name, mat, prefix, rows):
     assert np.all(np.sqrt(np.mean((integral - m[:, 7:14]) ** 2, axis=0)) < 0.45 * m[:, 7:14].std(axis=0))
 
 
-@needs_real
 def test_shipped_sarcos_log_in_contiguous_blocks(tmp_path):
     from hybrid_dyn.data import real_dataset
 

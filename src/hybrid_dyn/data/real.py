@@ -1,9 +1,8 @@
 """The three shipped real-robot logs (KUKA LWR, Baxter, SARCOS) as toolkit datasets.
 
 Their import specs live in ``benchmarks/real/*.toml`` of the repository (or in
-the folder named by ``HYBRID_DYN_REAL_SPECS``); the logs themselves in the
-project's shared data folder (``HYBRID_DYN_SHARED``, default ``../shared`` beside
-the repository). :func:`real_dataset` imports a set once and caches it under a
+the folder named by ``HYBRID_DYN_REAL_SPECS``); the logs themselves ship
+beside them in ``benchmarks/real/logs`` (4.7 MB; ``HYBRID_DYN_REAL_LOGS`` overrides). :func:`real_dataset` imports a set once and caches it under a
 key made of the spec, the importer version and the log files' checksums, so a
 changed spec or log is re-imported and an unchanged one is not.
 """
@@ -42,8 +41,8 @@ def real_dataset(name: str, cache_dir, log=None) -> Path:
     spec = read_spec(real_spec_path(name))
     missing = [str(f) for f in spec.files if not Path(f).is_file()]
     if missing:
-        raise DatasetError(f"{name}: log file(s) {missing} not found; set HYBRID_DYN_SHARED to the shared folder "
-                           f"that holds data/real/")
+        raise DatasetError(f"{name}: log file(s) {missing} not found; they ship in benchmarks/real/logs, or set "
+                           f"HYBRID_DYN_REAL_LOGS to the folder that holds them")
     path = Path(cache_dir) / f"{name}-{spec_checksum(spec)[:16]}"
     if (path / "manifest.json").is_file():
         try:
