@@ -132,6 +132,14 @@ def floor_checks(rows) -> list[tuple[str, bool | None, str]]:
         ratio = float(best["rmse"]) / float(rnea["rmse"])
         out.append(("joint torque, mismatch-ext: best model <= 0.3 x nominal RNEA", ratio <= 0.3,
                     f"{best['model']} {float(best['rmse']):.4f} Nm / rnea {float(rnea['rmse']):.4f} Nm = {ratio:.3f}"))
+    # Issue 7: identified-consistent vs nominal RNEA on mismatch-ext, over all samples and in free
+    # motion (no model of q, qd, qdd can know the contact force that the torques carry in contact).
+    ident = _best(rows, "joint_torque", s, lambda r: r["model"] == "identified-consistent")
+    if ident and rnea:
+        for col, label in (("rmse", "all samples"), ("rmse_free", "free motion, |F| < 1 N")):
+            ratio = float(ident[col]) / float(rnea[col])
+            out.append((f"joint torque, mismatch-ext: identified-consistent <= 0.5 x nominal RNEA ({label})", ratio <= 0.5,
+                        f"{float(ident[col]):.4f} Nm / {float(rnea[col]):.4f} Nm = {ratio:.3f}"))
     # Issue 8, real logs: best nMSE <= 0.05, DeLaN-friction within 1.5x of the best.
     for scenario in dict.fromkeys(r["scenario"] for r in rows if r["scenario"].startswith("real-")):
         cand = [r for r in _ok(rows) if r["scenario"] == scenario and r["task"] == "joint_torque"]
