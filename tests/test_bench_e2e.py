@@ -31,8 +31,8 @@ def test_tiny_bench_writes_every_row_and_column(tmp_path):
     failed = [(r["model"], r["error"]) for r in written if r["status"] != "ok"]
     assert not failed
     for r in written:
-        for col in ("val_loss", "test_loss", "rmse", "max_error", "infer_us_per_sample"):
-            assert float(r[col]) >= 0.0, (r["model"], col)
+        for col in ("val_loss", "test_loss", "rmse", "max_error", "infer_us_per_sample", "infer_us_per_call"):
+            assert r[col] != "" and float(r[col]) >= 0.0, (r["model"], col)
         assert r["inputs"], r["model"]
     for name in ("README.md", "tip_force.md", "joint_torque.md", "tip_force.tex", "joint_torque.tex",
                  "rmse_by_family_tip_force.png", "traces_tip_force_mismatch-ext.png"):

@@ -74,22 +74,35 @@ def _row(task, name, predict_instance, inputs, single=None):
     return RowSpec(task, name, "identified", build)
 
 
-def _base_wrench_identified(models, ctx, inst):
+def _identified_robot(models, ctx):
     robot = ctx.cache.get("identified-robot")
     if robot is None:
         robot = ctx.cache["identified-robot"] = models["consistent"].to_robot()
-    return tip_force_from_base_wrench(robot, inst.q, inst.qd, inst.qdd, inst.base_wrench)
+    return robot
+
+
+def _base_wrench_identified(models, ctx, inst):
+    return tip_force_from_base_wrench(_identified_robot(models, ctx), inst.q, inst.qd, inst.qdd, inst.base_wrench)
+
+
+def _torque_row(name: str, method: str):
+    """A row predicting with one identified model; per call: the same function on one sample."""
+    return _row("joint_torque", name, lambda m, c, i: m[method].predict_torque(i.q, i.qd, i.qdd), "q, qd, qdd",
+                single=lambda m, c, i, k: m[method].predict_torque(i.q[k], i.qd[k], i.qdd[k]))
+
+
+def _friction_only(models, ctx, q, qd, qdd):
+    return ctx.robot.inverse_dynamics(q, qd, qdd) + models["sigmoid-friction"].friction(qd)
 
 
 def identified_row_specs(profile) -> list:
-    friction_only = lambda models, ctx, i: ctx.robot.inverse_dynamics(i.q, i.qd, i.qdd) \
-        + models["sigmoid-friction"].friction(i.qd)  # noqa: E731
     return [
-        _row("joint_torque", "identified-ols", lambda m, c, i: m["ols"].predict_torque(i.q, i.qd, i.qdd), "q, qd, qdd"),
-        _row("joint_torque", "identified-consistent", lambda m, c, i: m["consistent"].predict_torque(i.q, i.qd, i.qdd),
-             "q, qd, qdd"),
-        _row("joint_torque", "identified-sigmoid-friction",
-             lambda m, c, i: m["sigmoid-friction"].predict_torque(i.q, i.qd, i.qdd), "q, qd, qdd"),
-        _row("joint_torque", "rnea+identified-friction", friction_only, "q, qd, qdd"),
-        _row("tip_force", "base-wrench-identified", _base_wrench_identified, "q, qd, qdd, base_wrench"),
+        _torque_row("identified-ols", "ols"),
+        _torque_row("identified-consistent", "consistent"),
+        _torque_row("identified-sigmoid-friction", "sigmoid-friction"),
+        _row("joint_torque", "rnea+identified-friction", lambda m, c, i: _friction_only(m, c, i.q, i.qd, i.qdd),
+             "q, qd, qdd", single=lambda m, c, i, k: _friction_only(m, c, i.q[k], i.qd[k], i.qdd[k])),
+        _row("tip_force", "base-wrench-identified", _base_wrench_identified, "q, qd, qdd, base_wrench",
+             single=lambda m, c, i, k: tip_force_from_base_wrench(_identified_robot(m, c), i.q[k], i.qd[k], i.qdd[k],
+                                                                  i.base_wrench[k])),
     ]

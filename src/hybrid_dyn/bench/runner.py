@@ -131,7 +131,9 @@ ANALYTIC_ROWS = {
     "rnea-bw": _analytic(
         "joint_torque", "rnea-bw", "q, qd, qdd, base_wrench",
         lambda r, i, ds: r.inverse_dynamics(i.q, i.qd, i.qdd)
-        - _jv_t_times(r, i.q, tip_force_from_base_wrench(r, i.q, i.qd, i.qdd, i.base_wrench))),
+        - _jv_t_times(r, i.q, tip_force_from_base_wrench(r, i.q, i.qd, i.qdd, i.base_wrench)),
+        lambda r, i, k, ds: r.inverse_dynamics(i.q[k], i.qd[k], i.qdd[k])
+        - r.tip_jacobian(i.q[k])[:3].T @ tip_force_from_base_wrench(r, i.q[k], i.qd[k], i.qdd[k], i.base_wrench[k])),
 }
 
 
@@ -156,11 +158,30 @@ def _learned(task: str, preset: str, family: str) -> RowSpec:
 
 
 def _learned_single_call(model):
-    """A per-call predictor for timing, through the model's streaming fast path."""
-    fast = getattr(model, "single_call", None)
-    if fast is None:
-        return None
-    return lambda inst, k: fast(inst, k)
+    """One prediction at sample k through the model's single-window path, as a control loop calls it.
+
+    The window is the edge-padded one the batch path uses; a momentum prior is
+    an observer stepped once per call, as in the streaming estimator.
+    """
+    from ..data.windows import concat_fields, window_index
+
+    windows, observers = {}, {}
+
+    def call(inst, k):
+        if inst.name not in windows:
+            windows[inst.name] = (concat_fields([inst], model.inputs).astype(np.float64),
+                                  window_index([len(inst)], model.window))
+        x_all, index = windows[inst.name]
+        prior = None
+        if model.preset.prior == "momentum":
+            obs = observers.get(inst.name)
+            if obs is None:
+                obs = observers[inst.name] = MomentumObserver(model.robot, model.config.get("observer_gain", 20.0),
+                                                              1.0 / model.config["record_hz"])
+            prior = obs.step_force(inst.q[k], inst.qd[k], inst.tau_J[k])
+        return model.predict_window(x_all[index[k]], prior=prior)
+
+    return call
 
 
 def learned_family(preset: str) -> str:
