@@ -282,11 +282,12 @@ def build_urdf(spec: RobotSpec, params: str | os.PathLike | None = None, payload
             _set_inertial(links[li.name], li)
 
     if payload is not None and payload.mass > 0:
-        tool_parent = _frame_parent_link(root, spec.tool_frame, links)
+        if spec.tool_frame not in links:
+            raise RobotDescriptionError(f"tool frame {spec.tool_frame!r} is not a link of the URDF")
         pl = ET.SubElement(root, "link", name="hd_payload")
         _set_inertial(pl, LinkInertial("hd_payload", payload.mass, (0.0, 0.0, 0.0), (0.0,) * 6))
         jt = ET.SubElement(root, "joint", name="hd_payload_joint", type="fixed")
-        ET.SubElement(jt, "parent", link=spec.tool_frame if spec.tool_frame in links else tool_parent)
+        ET.SubElement(jt, "parent", link=spec.tool_frame)
         ET.SubElement(jt, "child", link="hd_payload")
         ET.SubElement(jt, "origin", xyz=" ".join(repr(float(x)) for x in payload.offset), rpy="0 0 0")
     return ET.tostring(root, encoding="unicode")
@@ -335,12 +336,6 @@ def _resolve_params(spec: RobotSpec, params) -> Path | None:
         f"robot {spec.name!r} has no parameter set {str(params)!r}; known: {', '.join(spec.param_sets) or 'none'} "
         f"(or pass a path to a .json file)"
     )
-
-
-def _frame_parent_link(root, frame: str, links: dict) -> str:
-    if frame in links:
-        return frame
-    raise RobotDescriptionError(f"tool frame {frame!r} is not a link of the URDF")
 
 
 def _set_inertial(link_el, li: LinkInertial) -> None:

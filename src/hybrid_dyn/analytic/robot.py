@@ -310,10 +310,6 @@ class Robot:
         """Express sensor-frame wrenches (N, 6) in root-link coordinates."""
         return w_sensor @ self._root_from_sensor.T
 
-    def check_limits(self, q) -> None:
-        """Warn when q is outside the joint limits (see ``_q``)."""
-        self._q(q)
-
 
 def load_robot(name: str = "panda", params: str | os.PathLike | None = None, payload: Payload | tuple | None = None,
                sensor_mount: SensorMount | None = None, num_threads: int | None = None) -> Robot:
