@@ -17,6 +17,11 @@ What happens in one call:
 3. The chosen method gives the force: the base-wrench method, the torque
    method, the momentum observer, or a learned model (see ``load``).
 
+The base-wrench method (and a learned model whose analytic part it is) tares
+the base sensor on the first ``tare_seconds`` of calls (``analytic/tare.py``):
+nothing may touch the arm then, and the status is "warming up". A known
+offset can be given instead with ``set_tare_offset``; ``reset`` tares anew.
+
 Threading: an estimator holds per-stream state (filter, window, observer) and
 preallocated buffers, so one instance must be used by one thread at a time;
 use one estimator per control thread. ``estimate_tip_force()`` (the stateless
@@ -35,6 +40,7 @@ from scipy import signal
 
 from .analytic.momentum_observer import MomentumObserver
 from .analytic.robot import InputError, Robot, load_robot
+from .analytic.tare import TARE_SECONDS, StreamingTare, tare_samples, tared_base_wrench
 from .analytic.tip_force import base_wrench_force_core, tip_force_from_base_wrench, tip_force_from_torques
 
 METHODS = ("base_wrench", "torques", "momentum")
@@ -57,12 +63,15 @@ class EstimatorConfig:
     qdd_cutoff_hz: the acceleration filter's cutoff [Hz] (the generator's default).
     on_bad_input: "raise" or "hold".
     momentum_gain: observer bandwidth K [1/s]; its warm-up lasts 5/K s (error < 1 %).
+    tare_seconds: base-wrench method: the contact-free start used to tare the
+    base sensor [s]; 0 = trust the sensor's zero.
     """
 
     call_hz: float = 1000.0
     qdd_cutoff_hz: float = 20.0
     on_bad_input: str = "raise"
     momentum_gain: float = 50.0
+    tare_seconds: float = TARE_SECONDS
 
     def __post_init__(self):
         if self.on_bad_input not in ("raise", "hold"):
@@ -126,8 +135,13 @@ class TipForceEstimator:
             if method == "momentum" else None
         self._needs_wrench = method == "base_wrench" or (model is not None and "base_wrench" in model.inputs)
         self._needs_tau = method in ("torques", "momentum") or (model is not None and "tau_J" in model.inputs)
+        self._tare = None
+        if method == "base_wrench" and self.config.tare_seconds > 0:
+            self._tare = StreamingTare(robot, tare_samples(self.config.call_hz, self.config.tare_seconds))
         if method == "momentum":
             self._warmup_calls = int(math.ceil(5.0 / self.config.momentum_gain * self.config.call_hz))
+        elif self._tare is not None:
+            self._warmup_calls = max(2, self._tare.n_calls)
         elif model is not None:
             self._warmup_calls = model.warmup_calls(self.config.call_hz)
         else:
@@ -168,10 +182,25 @@ class TipForceEstimator:
             self._observer.reset()
         if self.model is not None:
             self.model.reset()
+        if self._tare is not None:
+            self._tare.reset()
         self._calls = 0
         self._last_t = None
         self._last_good = np.zeros(3)
         self.last_status = EstimatorStatus.WARMING_UP
+
+    @property
+    def tare_offset(self) -> np.ndarray | None:
+        """The base-sensor offset in use (6,) [N, Nm], or None when this estimator does not tare."""
+        tare = self._tare if self._tare is not None else getattr(self.model, "_tare", None)
+        return None if tare is None else tare.offset.copy()
+
+    def set_tare_offset(self, offset) -> None:
+        """Use a known base-sensor offset (6,) [N, Nm] and skip the tare window."""
+        tare = self._tare if self._tare is not None else getattr(self.model, "_tare", None)
+        if tare is None:
+            raise ValueError("this estimator does not use the base sensor's tare")
+        tare.set_offset(offset)
 
     # ---------------------------------------------------------------- call
     def _check(self, q, qd, base_wrench, tau_J, t):
@@ -215,6 +244,8 @@ class TipForceEstimator:
         status = EstimatorStatus.OK
         # The inputs are validated above: call the unchecked cores.
         if self.method == "base_wrench":
+            if self._tare is not None:
+                base_wrench = self._tare.update(q, qd, qdd, base_wrench)
             f = base_wrench_force_core(self.robot, q, qd, qdd, base_wrench)
         elif self.method == "torques":
             f = tip_force_from_torques(self.robot, q, qd, qdd, tau_J)
@@ -244,17 +275,24 @@ def _robot_for_thread(name: str) -> Robot:
     return robots[name]
 
 
-def estimate_tip_force(q, qd, qdd, base_wrench=None, tau_J=None, model=None, robot: str = "panda") -> np.ndarray:
+def estimate_tip_force(q, qd, qdd, base_wrench=None, tau_J=None, model=None, robot: str = "panda",
+                       tare_samples: int = 0) -> np.ndarray:
     """Stateless batch tip-force estimate (N, 3) [N] for offline use.
 
-    model=None: the analytic base-wrench method (needs base_wrench (N, 6)).
+    model=None: the analytic base-wrench method (needs base_wrench (N, 6));
+    tare_samples > 0 tares the base sensor on that many contact-free first
+    samples (``analytic/tare.py``), as the streaming estimator does.
     model: a trained model directory (or a loaded model); its inputs decide
     which of base_wrench / tau_J are needed. Thread-safe.
     """
     if model is None:
         if base_wrench is None:
             raise InputError("the analytic base-wrench method needs base_wrench (N, 6)")
-        return tip_force_from_base_wrench(_robot_for_thread(robot), q, qd, qdd, base_wrench)
+        r = _robot_for_thread(robot)
+        if tare_samples > 0:
+            base_wrench = tared_base_wrench(r, np.atleast_2d(q), np.atleast_2d(qd), np.atleast_2d(qdd),
+                                            np.atleast_2d(base_wrench), tare_samples)
+        return tip_force_from_base_wrench(r, q, qd, qdd, base_wrench)
     from .learn.streaming import StreamingModel
 
     m = model if isinstance(model, StreamingModel) else StreamingModel.load(Path(model))

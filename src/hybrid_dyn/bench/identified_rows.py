@@ -9,7 +9,10 @@ like every other row. Design, identification run and fits are cached.
 Rows:
   joint torque  identified-ols, identified-consistent, identified-sigmoid-friction,
                 rnea+identified-friction (nominal RNEA + the Gaz law fitted jointly)
-  tip force     base-wrench-identified (the base-wrench method on the consistent set)
+                identified-bw-tared (identified-sigmoid-friction minus J_v^T F, F from
+                base-wrench-identified-tared: the contact torque removed with the base sensor)
+  tip force     base-wrench-identified (the base-wrench method on the consistent set),
+                base-wrench-identified-tared (the same on a base sensor tared per run)
 """
 from __future__ import annotations
 
@@ -18,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..analytic.tare import TARE_SECONDS, tare_samples, tared_base_wrench
 from ..analytic.tip_force import tip_force_from_base_wrench
 from ..data import DatasetError, load_dataset
 
@@ -85,6 +89,32 @@ def _base_wrench_identified(models, ctx, inst):
     return tip_force_from_base_wrench(_identified_robot(models, ctx), inst.q, inst.qd, inst.qdd, inst.base_wrench)
 
 
+def _tared_wrench(models, ctx, inst) -> np.ndarray:
+    """The run's base wrench tared with the consistent set on its first TARE_SECONDS (cached per run)."""
+    key = ("identified-tared-wrench", inst.name)
+    if key not in ctx.cache:
+        ctx.cache[key] = tared_base_wrench(_identified_robot(models, ctx), inst.q, inst.qd, inst.qdd, inst.base_wrench,
+                                           tare_samples(ctx.dataset.meta["record_hz"], TARE_SECONDS))
+    return ctx.cache[key]
+
+
+def _tared_force_identified(models, ctx, inst, k=None):
+    """The base-wrench method on the consistent set and the tared sensor: all samples, or sample k."""
+    w = _tared_wrench(models, ctx, inst)
+    s = slice(None) if k is None else k
+    return tip_force_from_base_wrench(_identified_robot(models, ctx), inst.q[s], inst.qd[s], inst.qdd[s], w[s])
+
+
+def _identified_bw_torque(models, ctx, inst, k=None):
+    """tau = identified model (with friction) - J_v^T F_bw: the contact torque taken out with the base sensor."""
+    f = _tared_force_identified(models, ctx, inst, k)
+    s = slice(None) if k is None else k
+    tau = models["sigmoid-friction"].predict_torque(inst.q[s], inst.qd[s], inst.qdd[s])
+    if k is None:
+        return tau - np.einsum("nij,ni->nj", ctx.robot.tip_jacobian(inst.q)[:, :3], f)
+    return tau - ctx.robot.tip_jacobian(inst.q[k])[:3].T @ f
+
+
 def _torque_row(name: str, method: str):
     """A row predicting with one identified model; per call: the same function on one sample."""
     return _row("joint_torque", name, lambda m, c, i: m[method].predict_torque(i.q, i.qd, i.qdd), "q, qd, qdd",
@@ -105,4 +135,11 @@ def identified_row_specs(profile) -> list:
         _row("tip_force", "base-wrench-identified", _base_wrench_identified, "q, qd, qdd, base_wrench",
              single=lambda m, c, i, k: tip_force_from_base_wrench(_identified_robot(m, c), i.q[k], i.qd[k], i.qdd[k],
                                                                   i.base_wrench[k])),
+        _row("tip_force", "base-wrench-identified-tared", _tared_force_identified, TARED_INPUTS,
+             single=lambda m, c, i, k: _tared_force_identified(m, c, i, k)),
+        _row("joint_torque", "identified-bw-tared", _identified_bw_torque, TARED_INPUTS,
+             single=lambda m, c, i, k: _identified_bw_torque(m, c, i, k)),
     ]
+
+
+TARED_INPUTS = "q, qd, qdd, base_wrench (tared on the first 0.5 s)"

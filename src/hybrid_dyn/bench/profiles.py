@@ -19,7 +19,7 @@ SEED_TAU_NETS = ("seed-tau-mlp", "seed-tau-conv", "seed-tau-lstm", "seed-tau-lst
 RESIDUAL_TIP = ("residual-basewrench", "residual-momentum")
 RESIDUAL_TAU = ("residual-rnea", "residual-rnea-bw")
 DELAN = ("delan", "delan-friction", "delan-residual")
-ANALYTIC = ("torques-pinv", "base-wrench", "momentum-observer", "rnea", "rnea-bw")
+ANALYTIC = ("torques-pinv", "base-wrench", "base-wrench-tared", "momentum-observer", "rnea", "rnea-bw", "rnea-bw-tared")
 
 # The fields each analytic row reads (beyond a URDF for the dataset's robot).
 ANALYTIC_NEEDS = {
@@ -28,7 +28,11 @@ ANALYTIC_NEEDS = {
     "momentum-observer": ("q", "qd", "tau_J", "tip_force"),
     "rnea": ("q", "qd", "qdd", "tau_m"),
     "rnea-bw": ("q", "qd", "qdd", "base_wrench", "tau_m"),
+    "base-wrench-tared": ("q", "qd", "qdd", "base_wrench", "tip_force"),
+    "rnea-bw-tared": ("q", "qd", "qdd", "base_wrench", "tau_m"),
     "base-wrench-identified": ("q", "qd", "qdd", "base_wrench", "tip_force"),
+    "base-wrench-identified-tared": ("q", "qd", "qdd", "base_wrench", "tip_force"),
+    "identified-bw-tared": ("q", "qd", "qdd", "base_wrench", "tau_m"),
 }
 
 

@@ -30,6 +30,7 @@ from tqdm.auto import tqdm
 
 from ..analytic.momentum_observer import MomentumObserver
 from ..analytic.robot import Robot, load_robot
+from ..analytic.tare import TARE_SECONDS, tare_samples, tared_base_wrench
 from ..analytic.tip_force import tip_force_from_base_wrench, tip_force_from_torques
 from ..data import Dataset
 from .metrics import ErrorReport, standardized_mse
@@ -112,6 +113,25 @@ def _momentum_single(robot, inst, k, ds):
 _momentum_single.cache = {}
 
 
+def _tared(robot, inst, ds) -> np.ndarray:
+    """The instance's base wrench tared on its contact-free first TARE_SECONDS (cached per instance)."""
+    key = (id(robot), inst.name)
+    if key not in _tared.cache:
+        n = tare_samples(ds.meta["record_hz"], TARE_SECONDS)
+        _tared.cache[key] = tared_base_wrench(robot, inst.q, inst.qd, inst.qdd, inst.base_wrench, n)
+    return _tared.cache[key]
+
+
+_tared.cache = {}
+
+
+def _rnea_minus_contact(robot, q, qd, qdd, w):
+    """tau = ID(q, qd, qdd) - J_v^T F_bw: RNEA with the base-wrench force estimate as the contact."""
+    if np.ndim(q) == 1:
+        return robot.inverse_dynamics(q, qd, qdd) - robot.tip_jacobian(q)[:3].T @ tip_force_from_base_wrench(robot, q, qd, qdd, w)
+    return robot.inverse_dynamics(q, qd, qdd) - _jv_t_times(robot, q, tip_force_from_base_wrench(robot, q, qd, qdd, w))
+
+
 ANALYTIC_ROWS = {
     "torques-pinv": _analytic(
         "tip_force", "torques-pinv", "q, qd, qdd, tau_J",
@@ -130,10 +150,17 @@ ANALYTIC_ROWS = {
     # Physics may use the base sensor too (PROTOCOL 4): tau = ID - J_v^T F_hat.
     "rnea-bw": _analytic(
         "joint_torque", "rnea-bw", "q, qd, qdd, base_wrench",
-        lambda r, i, ds: r.inverse_dynamics(i.q, i.qd, i.qdd)
-        - _jv_t_times(r, i.q, tip_force_from_base_wrench(r, i.q, i.qd, i.qdd, i.base_wrench)),
-        lambda r, i, k, ds: r.inverse_dynamics(i.q[k], i.qd[k], i.qdd[k])
-        - r.tip_jacobian(i.q[k])[:3].T @ tip_force_from_base_wrench(r, i.q[k], i.qd[k], i.qdd[k], i.base_wrench[k])),
+        lambda r, i, ds: _rnea_minus_contact(r, i.q, i.qd, i.qdd, i.base_wrench),
+        lambda r, i, k, ds: _rnea_minus_contact(r, i.q[k], i.qd[k], i.qdd[k], i.base_wrench[k])),
+    # The same two with the base sensor tared on each instance's contact-free start (analytic/tare.py).
+    "base-wrench-tared": _analytic(
+        "tip_force", "base-wrench-tared", "q, qd, qdd, base_wrench (tared on the first 0.5 s)",
+        lambda r, i, ds: tip_force_from_base_wrench(r, i.q, i.qd, i.qdd, _tared(r, i, ds)),
+        lambda r, i, k, ds: tip_force_from_base_wrench(r, i.q[k], i.qd[k], i.qdd[k], _tared(r, i, ds)[k])),
+    "rnea-bw-tared": _analytic(
+        "joint_torque", "rnea-bw-tared", "q, qd, qdd, base_wrench (tared on the first 0.5 s)",
+        lambda r, i, ds: _rnea_minus_contact(r, i.q, i.qd, i.qdd, _tared(r, i, ds)),
+        lambda r, i, k, ds: _rnea_minus_contact(r, i.q[k], i.qd[k], i.qdd[k], _tared(r, i, ds)[k])),
 }
 
 
@@ -165,7 +192,7 @@ def _learned_single_call(model):
     """
     from ..data.windows import concat_fields, window_index
 
-    windows, observers = {}, {}
+    windows, observers, tared = {}, {}, {}
 
     def call(inst, k):
         if inst.name not in windows:
@@ -179,6 +206,13 @@ def _learned_single_call(model):
                 obs = observers[inst.name] = MomentumObserver(model.robot, model.config.get("observer_gain", 20.0),
                                                               1.0 / model.config["record_hz"])
             prior = obs.step_force(inst.q[k], inst.qd[k], inst.tau_J[k])
+        elif model.prior is not None and model.prior.tare_seconds > 0:
+            # The tare is per run: its offset comes from the instance's start, as in training.
+            p = model.prior
+            w = tared_base_wrench(p.robot, inst.q, inst.qd, inst.qdd, inst.base_wrench,
+                                  tare_samples(p.record_hz, p.tare_seconds)) if inst.name not in tared else tared[inst.name]
+            tared[inst.name] = w
+            prior = p.single({"q": inst.q[k], "qd": inst.qd[k], "qdd": inst.qdd[k], "base_wrench": w[k]})
         return model.predict_window(x_all[index[k]], prior=prior)
 
     return call

@@ -15,8 +15,15 @@ from .dataset import FIELD_UNITS, package_versions, split_by_instance, write_ins
 
 
 def make_synthetic_dataset(path, robot, n_instances: int = 6, n_samples: int = 200, record_hz: float = 100.0,
-                           seed: int = 0, friction=None, tip_forces: bool = True, noise: float = 0.0) -> Path:
-    """Write a dataset of ``n_instances`` sinusoidal runs to ``path`` and return it."""
+                           seed: int = 0, friction=None, tip_forces: bool = True, noise: float = 0.0,
+                           base_offset: float = 0.0, contact_free_s: float = 0.0) -> Path:
+    """Write a dataset of ``n_instances`` sinusoidal runs to ``path`` and return it.
+
+    base_offset: bound [N] of a per-instance base-sensor force offset, uniform
+    per axis (a tenth of it in Nm on the moments), added to the measured wrench
+    only. contact_free_s: no tip force on [0, contact_free_s) [s]; the bell is centred
+    3 sigma or more after it.
+    """
     path = Path(path)
     rng = np.random.default_rng(seed)
     nv = robot.nv
@@ -37,17 +44,21 @@ def make_synthetic_dataset(path, robot, n_instances: int = 6, n_samples: int = 2
         qdd = -amp * w**2 * np.sin(w * t[:, None] + phase)
         f = np.zeros((n_samples, 3))
         if tip_forces:
-            centre_t = rng.uniform(0.2, 0.8) * t[-1]
             sigma = 0.1 * t[-1]
+            earliest = contact_free_s + 3 * sigma if contact_free_s > 0 else 0.2 * t[-1]
+            centre_t = rng.uniform(earliest, 0.8 * t[-1])
             direction = rng.normal(size=3)
             direction /= np.linalg.norm(direction)
             f = rng.uniform(5, 20) * np.exp(-((t - centre_t) ** 2) / (2 * sigma**2))[:, None] * direction
+            f[t < contact_free_s] = 0.0  # the bell's far tail (< 1 % of its peak) cut: truly contact-free
         jv = robot.tip_jacobian(q)[:, :3]
         tau_J = robot.inverse_dynamics(q, qd, qdd) - np.einsum("nij,ni->nj", jv, f)
         tau_m = tau_J + (friction(qd) if friction is not None else 0.0)
         wrench = robot.base_wrench(q, qd, qdd, tip_force=f)
         truth = {"t": t, "q": q, "qd": qd, "qdd": qdd, "tau_m": tau_m, "tau_J": tau_J, "base_wrench": wrench, "tip_force": f}
         fields = {k: (v + noise * rng.normal(size=v.shape) if (noise and k != "t") else v) for k, v in truth.items()}
+        if base_offset:
+            fields["base_wrench"] = fields["base_wrench"] + rng.uniform(-1, 1, 6) * base_offset * np.repeat([1.0, 0.1], 3)
         name = f"inst_{k:05d}"
         sha = write_instance(path / "instances" / f"{name}.h5", fields, truth)
         records.append({"name": name, "file": f"instances/{name}.h5", "sha256": sha, "n_samples": n_samples})

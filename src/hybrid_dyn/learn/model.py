@@ -200,8 +200,10 @@ class TrainedModel:
         if self.preset.prior is None:
             return None
         if self._prior is None:
+            described = self.config.get("prior") or {}
             self._prior = AnalyticPrior(self.preset.prior, self.robot, self.config.get("record_hz"),
-                                        self.config.get("observer_gain", 20.0))
+                                        self.config.get("observer_gain", 20.0),
+                                        described.get("tare_seconds", 0.0))  # models saved before the tare had none
         return self._prior
 
     # ----------------------------------------------------------- prediction
@@ -255,7 +257,8 @@ class TrainedModel:
         prior: the analytic part (n_out,) at the window's last sample. Optional for
         the per-sample priors (computed here from the last row, which holds every
         field they need); required for ``momentum`` (a filter with state: pass
-        ``MomentumObserver.step_force(q, qd, tau_J)``).
+        ``MomentumObserver.step_force(q, qd, tau_J)``) and for a tared base-wrench
+        prior (its offset comes from the run's start: ``prior.single`` on the tared wrench).
         Runs through :mod:`fastpath` (numba kernels; DeLaN with hand-derived derivatives).
         """
         x = np.asarray(x, dtype=np.float64)
@@ -264,6 +267,9 @@ class TrainedModel:
         if not np.isfinite(x).all():
             raise ModelError("window holds NaN or inf")
         if self.preset.prior is not None and prior is None:
+            if self.prior.tare_seconds > 0:
+                raise ModelError(f"model {self.preset.name!r} tares the base sensor on each run's first "
+                                 f"{self.prior.tare_seconds} s: pass `prior`, computed on the tared wrench")
             prior = self.prior.single(self._split_row(x[-1]))
         if self._fast is None:
             from .fastpath import FastDeLaN, FastNet

@@ -14,6 +14,11 @@ an identified one):
 The momentum observer is a filter with state, so its value at a sample depends
 on the whole instance before it; the others are per sample.
 
+The two base-wrench priors tare the sensor first (``analytic/tare.py``): the
+offset is estimated on each instance's first ``tare_seconds`` (contact-free)
+and removed. Offline (``compute``) that is done per instance; on a stream the
+caller tares and passes the tared wrench to ``single``.
+
 Priors are computed once per dataset and cached in an HDF5 file (one array per
 instance) whose name holds a digest of the dataset checksum, the prior, the
 robot and its parameter set: a changed dataset or robot never reads a stale cache.
@@ -30,6 +35,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..analytic.momentum_observer import MomentumObserver
+from ..analytic.tare import tare_samples, tared_base_wrench
 from ..analytic.tip_force import base_wrench_force_core, tip_force_from_base_wrench
 
 PRIOR_FIELDS = {
@@ -46,13 +52,19 @@ class AnalyticPrior:
     kind: a key of :data:`PRIOR_FIELDS`. robot: the nominal :class:`Robot`.
     record_hz: the dataset's sample rate (the momentum observer's dt is 1/record_hz).
     observer_gain: the momentum observer's bandwidth K [1/s].
+    tare_seconds: base-wrench priors only: the contact-free start of each
+    instance used to tare the base sensor [s]; 0 = no tare.
     """
 
-    def __init__(self, kind: str, robot, record_hz: float | None = None, observer_gain: float = 20.0):
+    def __init__(self, kind: str, robot, record_hz: float | None = None, observer_gain: float = 20.0,
+                 tare_seconds: float = 0.0):
         if kind not in PRIOR_FIELDS:
             raise ValueError(f"unknown analytic prior {kind!r}; known: {sorted(PRIOR_FIELDS)}")
         if kind == "momentum" and not record_hz:
             raise ValueError("the momentum prior needs the dataset's record_hz")
+        self.tare_seconds = float(tare_seconds) if "base_wrench" in PRIOR_FIELDS[kind] else 0.0
+        if self.tare_seconds > 0 and not record_hz:
+            raise ValueError("a tared base-wrench prior needs the dataset's record_hz")
         self.kind = kind
         self.robot = robot
         self.record_hz = record_hz
@@ -64,7 +76,8 @@ class AnalyticPrior:
         """What identifies this prior's values (part of the cache key and the model config)."""
         return {"kind": self.kind, "robot": self.robot.name, "params": self.robot.params_name,
                 "payload": repr(self.robot.payload), "sensor_mount": repr(self.robot.sensor_mount),
-                "record_hz": self.record_hz, "observer_gain": self.observer_gain}
+                "record_hz": self.record_hz, "observer_gain": self.observer_gain,
+                "tare_seconds": self.tare_seconds}
 
     # ------------------------------------------------------------ evaluation
     def compute(self, fields: dict) -> np.ndarray:
@@ -77,7 +90,10 @@ class AnalyticPrior:
         qdd = fields["qdd"]
         if self.kind == "rnea":
             return np.atleast_2d(r.inverse_dynamics(q, qd, qdd))
-        f_bw = np.atleast_2d(tip_force_from_base_wrench(r, q, qd, qdd, fields["base_wrench"]))
+        w = fields["base_wrench"]
+        if self.tare_seconds > 0:
+            w = tared_base_wrench(r, q, qd, qdd, w, tare_samples(self.record_hz, self.tare_seconds))
+        f_bw = np.atleast_2d(tip_force_from_base_wrench(r, q, qd, qdd, w))
         if self.kind == "basewrench":
             return f_bw
         jv = r.tip_jacobian(np.atleast_2d(q))[:, :3, :]
@@ -88,6 +104,7 @@ class AnalyticPrior:
 
         A direct Pinocchio path for a control loop (no batching or validation
         overhead); it computes exactly what :meth:`compute` does (tested).
+        A tared prior expects ``sample["base_wrench"]`` already tared.
         """
         if self.kind == "momentum":
             raise ValueError("the momentum prior is a filter with state: pass its current estimate "

@@ -9,7 +9,9 @@ training edge-padded every instance.
 
 The analytic part comes with the model: per-sample priors (base-wrench, RNEA)
 are evaluated on the newest sample; the momentum prior is an observer stepped
-at every call.
+at every call. A tared base-wrench prior tares the sensor on the first
+``tare_seconds`` of calls, as training did on each instance's start
+(``analytic/tare.py``): the arm must not be touched then.
 
 Out of range: an input more than ``RANGE_SIGMAS`` training standard deviations
 from its training mean (any q, qd, qdd, wrench or torque component) makes the
@@ -27,6 +29,7 @@ import numpy as np
 import torch
 
 from ..analytic.momentum_observer import MomentumObserver
+from ..analytic.tare import StreamingTare, tare_samples
 from ..analytic.tip_force import base_wrench_force_core
 from ..data.windows import window_index
 from .model import ModelError, TrainedModel, load_model
@@ -166,6 +169,9 @@ class StreamingModel:
         self._offsets = np.arange(self.window - 1, -1, -1) * self.stride  # oldest first
         if self.model.preset.prior == "momentum":
             self._observer = MomentumObserver(self.robot, gain=self.model.config.get("observer_gain", 20.0), dt=1.0 / call_hz)
+        self._tare = None
+        if self.model.prior is not None and self.model.prior.tare_seconds > 0:
+            self._tare = StreamingTare(self.robot, tare_samples(call_hz, self.model.prior.tare_seconds))
         self.reset()
 
     def warmup_calls(self, call_hz: float) -> int:
@@ -175,12 +181,16 @@ class StreamingModel:
         n = (self.window - 1) * self.stride + 1
         if self._observer is not None:
             n = max(n, int(math.ceil(5.0 / self._observer.gain[0] * call_hz)))
+        if self._tare is not None:
+            n = max(n, self._tare.n_calls)
         return n
 
     def reset(self) -> None:
         self._head = -1
         if self._observer is not None:
             self._observer.reset()
+        if self._tare is not None:
+            self._tare.reset()
 
     def _warm_up(self, steps: int = 1) -> None:
         """Compile the numba kernels and touch every buffer now, not in the first control cycle."""
@@ -196,6 +206,8 @@ class StreamingModel:
         kind = self._prior_kind
         if kind is None:
             return None
+        if self._tare is not None:
+            base_wrench = self._tare.update(q, qd, qdd, base_wrench)
         if kind == "basewrench":
             return base_wrench_force_core(self.robot, q, qd, qdd, base_wrench)
         if kind == "momentum":

@@ -34,6 +34,7 @@ from safetensors import safe_open
 from safetensors.torch import save_file
 from tqdm.auto import tqdm
 
+from ..analytic.tare import TARE_SECONDS
 from ..data import Dataset, load_dataset
 from ..data.windows import WindowedSplit, concat_fields
 from .model import (MODEL_FORMAT, MODEL_FORMAT_VERSION, HybridModel, ModelError, TrainedModel, canonical_json,
@@ -55,6 +56,8 @@ class TrainConfig:
     analytic_params: parameter set of the residual models' analytic part
     (None: the robot's nominal URDF; a set name or a JSON path, e.g. identified).
     observer_gain: momentum-observer bandwidth K [1/s] for the momentum prior.
+    tare_seconds: base-wrench priors: each instance's contact-free start used to
+    tare the base sensor [s] (``analytic/tare.py``); 0 = no tare.
     device: "auto" (CUDA when present, else CPU), "cpu" or "cuda".
     num_threads: CPU threads for PyTorch during training (None: PyTorch's default).
     Small batches on a shared machine often run faster on one thread.
@@ -69,6 +72,7 @@ class TrainConfig:
     max_batches_per_epoch: int | None = None
     analytic_params: str | None = None
     observer_gain: float = 20.0
+    tare_seconds: float = TARE_SECONDS
     device: str = "auto"
     progress: bool = True
     num_threads: int | None = None
@@ -203,7 +207,7 @@ def train_model(dataset, preset, out_dir, config: TrainConfig | None = None) -> 
         from ..analytic.robot import load_robot
 
         prior = AnalyticPrior(preset.prior, load_robot(robot_name, params=config.analytic_params),
-                              ds.meta.get("record_hz"), config.observer_gain)
+                              ds.meta.get("record_hz"), config.observer_gain, config.tare_seconds)
     widths = field_widths(train[0], list(dict.fromkeys(preset.inputs + preset.targets)))
     needed = set(preset.inputs) | set(preset.targets) | (set(prior.fields) if prior else set())
     check_instances(train + val, needed, widths, f"preset {preset.name!r}")

@@ -1,0 +1,103 @@
+"""Taring the base sensor (analytic/tare.py) against known offsets and exact physics."""
+import numpy as np
+import pytest
+
+from hybrid_dyn.analytic.tare import StreamingTare, base_sensor_offset, tare_samples, tared_base_wrench
+from hybrid_dyn.analytic.tip_force import tip_force_from_base_wrench
+from hybrid_dyn.data import load_dataset
+from hybrid_dyn.data.synthetic import make_synthetic_dataset
+from hybrid_dyn.estimator import TipForceEstimator, estimate_tip_force
+from hybrid_dyn.sim.generator import Simulator, simulate_instance
+from hybrid_dyn.sim.scenarios import scenario_config
+from hybrid_dyn.sim.sensors import causal_acceleration
+
+RATE = 100.0
+
+
+@pytest.fixture(scope="module")
+def offset_set(tmp_path_factory, panda):
+    """Exact physics, 0.005 noise, a per-run sensor offset up to 2 N / 0.2 Nm, no contact in the first 0.5 s."""
+    path = make_synthetic_dataset(tmp_path_factory.mktemp("tare") / "d", panda, n_instances=3, n_samples=300,
+                                  record_hz=RATE, noise=0.005, seed=8, base_offset=2.0, contact_free_s=0.5)
+    return load_dataset(path).split("test")[0]
+
+
+def test_tare_removes_an_offset_the_raw_method_turns_into_force(offset_set, panda):
+    inst = offset_set
+    n = tare_samples(RATE, 0.5)
+    assert n == 50
+    tared = tared_base_wrench(panda, inst.q, inst.qd, inst.qdd, inst.base_wrench, n)
+    # Against the noise-free truth wrench, what is left is noise: the offset is a mean over 50 samples of the
+    # measured wrench minus the model at *noisy* states, and 0.005 rad on q moves the arm's gravity moment
+    # by ~0.1 Nm per sample. The offsets drawn are up to 2 N and 0.2 Nm.
+    err = (tared - inst.truth["base_wrench"]).mean(0)
+    assert np.abs(err[:3]).max() < 0.03 and np.abs(err[3:]).max() < 0.05, err
+    truth_f = inst.truth["tip_force"]
+    raw = tip_force_from_base_wrench(panda, inst.q, inst.qd, inst.qdd, inst.base_wrench)
+    fixed = tip_force_from_base_wrench(panda, inst.q, inst.qd, inst.qdd, tared)
+    rms = lambda e: float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
+    # The oracle knows the offset from the whole run and the noise-free wrench; what it leaves is the
+    # noise floor of the method at noisy states.
+    oracle_offset = (inst.base_wrench - inst.truth["base_wrench"]).mean(0)
+    oracle = tip_force_from_base_wrench(panda, inst.q, inst.qd, inst.qdd, inst.base_wrench - oracle_offset)
+    assert rms(raw - truth_f) > 0.5                              # the drawn offset shows up as force error...
+    assert rms(fixed - truth_f) < rms(oracle - truth_f) + 0.03   # ...and the tare takes it out
+    # No tare (n = 0) leaves the wrench untouched.
+    np.testing.assert_array_equal(tared_base_wrench(panda, inst.q, inst.qd, inst.qdd, inst.base_wrench, 0),
+                                  inst.base_wrench)
+
+
+def test_streaming_tare_equals_batch_tare_after_its_window(offset_set):
+    inst = offset_set
+    est = TipForceEstimator.analytic("panda", "base_wrench", call_hz=RATE, tare_seconds=0.5)
+    stream, statuses = [], []
+    for k in range(len(inst)):
+        stream.append(est.estimate_tip_force(inst.q[k], inst.qd[k], base_wrench=inst.base_wrench[k], t=inst.t[k]))
+        statuses.append(est.last_status.value)
+    qdd = causal_acceleration(inst.qd, 1.0 / RATE, 20.0)
+    batch = estimate_tip_force(inst.q, inst.qd, qdd, base_wrench=inst.base_wrench, tare_samples=50)
+    np.testing.assert_allclose(np.stack(stream)[50:], batch[50:], atol=1e-9)
+    assert statuses[:49] == ["warming up"] * 49 and set(statuses[49:]) == {"ok"}
+    # A known offset skips the window; reset() tares anew.
+    known = est.tare_offset
+    est.reset()
+    est.set_tare_offset(known)
+    f = est.estimate_tip_force(inst.q[0], inst.qd[0], base_wrench=inst.base_wrench[0])
+    assert est.last_status.value == "warming up"  # the qdd filter still needs a previous sample
+    np.testing.assert_allclose(est.tare_offset, known)
+    assert np.isfinite(f).all()
+    with pytest.raises(ValueError, match="6 finite"):
+        est.set_tare_offset([1.0, np.nan, 0, 0, 0, 0])
+
+
+def test_streaming_tare_is_the_running_mean(panda):
+    rng = np.random.default_rng(0)
+    q = np.clip(rng.uniform(-1, 1, (20, 7)), panda.q_lower, panda.q_upper)
+    z = np.zeros((20, 7))
+    offset = np.array([1.0, -2.0, 0.5, 0.05, -0.02, 0.1])
+    w = panda.base_wrench(q, z, z) + offset
+    tare = StreamingTare(panda, n_calls=10)
+    for k in range(20):
+        out = tare.update(q[k], z[k], z[k], w[k])
+        if k == 4:  # mid-window: the mean so far (here exact, as every sample carries the same offset)
+            np.testing.assert_allclose(tare.offset, offset, atol=1e-9)
+    assert tare.done
+    np.testing.assert_allclose(out, panda.base_wrench(q[-1], z[-1], z[-1]), atol=1e-9)
+    np.testing.assert_allclose(base_sensor_offset(panda, q, z, z, w), offset, atol=1e-9)
+
+
+@pytest.mark.slow
+def test_tare_recovers_the_generators_drawn_bias(panda):
+    """On DART data of paper-ext (plant = nominal model), the tare on the first 0.5 s finds the offset the
+    generator drew. Sensor noise averages to 0.2 / sqrt(50) = 0.03 N; the causal qdd's lag while the arm
+    starts adds a little, mostly to the moments."""
+    cfg = scenario_config("paper-ext", "quick", seed=5, trajectories=(2, 2))
+    run, _ = simulate_instance(Simulator(cfg), 0)
+    f = run.fields
+    n = tare_samples(cfg.record_hz, 0.5)
+    assert np.abs(run.truth["tip_force"][:n]).max() < 1e-3  # the first bell is still far away
+    offset = base_sensor_offset(panda, f["q"][:n], f["qd"][:n], f["qdd"][:n], f["base_wrench"][:n])
+    bias = run.attrs["base_wrench_bias"]
+    assert np.abs(bias[:3]).max() > 0.5  # a real offset to find
+    np.testing.assert_allclose(offset[:3], bias[:3], atol=0.1)
+    np.testing.assert_allclose(offset[3:], bias[3:], atol=0.06)
