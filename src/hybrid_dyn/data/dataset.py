@@ -199,6 +199,9 @@ def load_dataset(path, verify: bool = True) -> Dataset:
     """Open a dataset directory. With ``verify``, every instance file must exist
     and match the checksum in the manifest; a missing, partial or corrupt one is
     reported by name."""
+    if isinstance(path, str) and "://" in path:
+        raise DatasetError(f"{path} is a URL: copy it to a local directory first "
+                           "(hybrid_dyn.data.store.fetch_dataset(url, local_dir))")
     path = Path(path)
     meta = read_manifest(path)
     instances = {}
@@ -235,17 +238,23 @@ def split_by_instance(names: list[str], seed: int, test_frac: float = 0.2, val_f
     return {"train": sorted(train), "val": sorted(val), "test": sorted(test)}
 
 
-def write_manifest(path: Path, meta: dict) -> None:
-    """Write manifest.json atomically; required keys are checked."""
+def manifest_text(meta: dict) -> str:
+    """The manifest.json text of ``meta``, format keys added and required keys checked."""
     meta = dict(meta)
     meta.setdefault("format", FORMAT)
     meta.setdefault("format_version", FORMAT_VERSION)
     for key in ("instances", "splits", "fields"):
         if key not in meta:
             raise DatasetError(f"manifest lacks {key!r}")
+    return json.dumps(meta, indent=1, sort_keys=True)
+
+
+def write_manifest(path: Path, meta: dict) -> None:
+    """Write manifest.json atomically; required keys are checked."""
+    text = manifest_text(meta)
     path = Path(path)
     tmp = path / "manifest.json.partial"
-    tmp.write_text(json.dumps(meta, indent=1, sort_keys=True))
+    tmp.write_text(text)
     os.replace(tmp, path / "manifest.json")
 
 

@@ -27,8 +27,13 @@ def register(sub) -> None:
     p.add_argument("--preset", required=True, help="base preset whose architecture is searched")
     p.add_argument("--trials", type=int, required=True, help="number of trials to add to the study")
     p.add_argument("--out", default=None, help="directory for trial models (default runs/tune/<preset>)")
-    p.add_argument("--storage", default=None, help="Optuna RDB URL (default: sqlite in --out)")
+    p.add_argument("--storage", default=None,
+                   help="Optuna RDB URL shared by all workers, e.g. postgresql://user@host/db (default: sqlite in --out)")
     p.add_argument("--study", default=None, help="study name (default: preset + dataset checksum)")
+    p.add_argument("--workers", type=int, default=1, help="local worker processes sharing the trials")
+    p.add_argument("--heartbeat", type=int, default=None,
+                   help="seconds between trial heartbeats; a trial silent for 3 of them is failed and retried "
+                        "(default 10)")
     _train_options(p)
     p.set_defaults(func=cmd_tune)
 
@@ -36,6 +41,7 @@ def register(sub) -> None:
 def _train_options(p) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--epochs", type=int, default=200, help="maximum epochs (early stopping ends sooner)")
+    p.add_argument("--patience", type=int, default=5, help="epochs without validation improvement before stopping")
     p.add_argument("--batch-size", type=int, default=256)
     p.add_argument("--max-batches-per-epoch", type=int, default=None)
     p.add_argument("--analytic-params", default=None, help="parameter set or JSON for residual models' analytic part")
@@ -47,7 +53,7 @@ def _train_options(p) -> None:
 def _config(args):
     from .train import TrainConfig
 
-    return TrainConfig(seed=args.seed, max_epochs=args.epochs, batch_size=args.batch_size,
+    return TrainConfig(seed=args.seed, max_epochs=args.epochs, patience=args.patience, batch_size=args.batch_size,
                        max_batches_per_epoch=args.max_batches_per_epoch, analytic_params=args.analytic_params,
                        device=args.device, num_threads=args.threads, progress=not args.quiet)
 
@@ -111,8 +117,10 @@ def cmd_tune(args) -> int:
     out = args.out or f"runs/tune/{args.preset}"
     config = _config(args)
     config.progress = False
+    from .tune import HEARTBEAT_S
+
     study = tune(args.data, args.preset, out, args.trials, storage=args.storage, study_name=args.study,
-                 config=config, seed=args.seed)
+                 config=config, seed=args.seed, workers=args.workers, heartbeat_s=args.heartbeat or HEARTBEAT_S)
     best = study.best_trial
     print(f"best of {len(study.trials)} trials: val loss {best.value:.4f} with {best.params} "
           f"-> {best.user_attrs.get('model_dir')}")

@@ -1,13 +1,23 @@
-"""Executors: run independent jobs (one per dataset instance) serially or in parallel.
+"""Executors: run independent jobs (one per dataset instance) serially, in local processes, or on Ray.
 
 An executor maps a picklable top-level function over argument tuples and
 yields the results as they finish, in any order. The generator only relies on
-``map_unordered``, so other back-ends (a Ray cluster, issue 9) plug in by
-providing that one method.
+``map_unordered``, so a back-end is that one method:
+
+- ``SerialExecutor``: this process (tests, debugging);
+- ``ProcessExecutor``: local processes, the default;
+- ``RayExecutor``: tasks on a Ray cluster (``pip install hybrid-dyn[cluster]``).
+  Ray schedules them, retries a task whose worker died, and runs them on any
+  machine of the cluster; the jobs write their results to a store all
+  machines reach (``data/store.py``), so only small records travel back.
+
+Each job is deterministic in its arguments, so the bytes of a dataset do not
+depend on the executor, the worker count or the order in which jobs finish.
 """
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
 
@@ -54,5 +64,75 @@ class ProcessExecutor:
             pool.shutdown(wait=True, cancel_futures=True)
 
 
-def make_executor(workers: int):
-    return SerialExecutor() if workers == 1 else ProcessExecutor(workers)
+class RayExecutor:
+    """Runs the jobs as Ray tasks, one CPU each.
+
+    address: a running cluster ("auto", "ray://head:10001", "head:6379"), or
+    None to start a local Ray instance with ``workers`` CPUs (this machine).
+    If Ray is already initialised in this process, that instance is used.
+    At most ``2 x (cluster CPUs)`` tasks are in flight, as for local processes.
+    """
+
+    def __init__(self, workers: int | None = None, address: str | None = None):
+        try:
+            import ray  # noqa: F401
+        except ImportError as err:
+            raise RuntimeError("the ray executor needs Ray: pip install 'hybrid-dyn[cluster]'") from err
+        if workers is not None and workers < 1:
+            raise ValueError(f"workers must be >= 1, got {workers}")
+        self.address = address
+        self.requested_workers = workers
+        self.workers = workers or 1
+
+    def _connect(self) -> bool:
+        """Initialise Ray if needed; True when this executor started it (and must shut it down)."""
+        import ray
+
+        if ray.is_initialized():
+            return False
+        opts = dict(include_dashboard=False, log_to_driver=False, logging_level="ERROR")
+        if self.address:
+            ray.init(address=self.address, **opts)
+        else:  # a local instance: no more CPUs than asked for, a small object store (records are tiny)
+            ray.init(num_cpus=self.requested_workers or os.cpu_count(), object_store_memory=100 * 2**20, **opts)
+        return True
+
+    def map_unordered(self, fn, jobs):
+        import ray
+
+        started = self._connect()
+        self.workers = max(1, int(ray.cluster_resources().get("CPU", 1)))
+        task = ray.remote(num_cpus=1, max_retries=3)(fn)  # a task whose worker died is rerun
+        jobs = iter(jobs)
+        pending = []
+        try:
+            for args in jobs:
+                pending.append(task.remote(*args))
+                if len(pending) >= 2 * self.workers:
+                    break
+            while pending:
+                done, pending = ray.wait(pending, num_returns=1)
+                yield ray.get(done[0])
+                nxt = next(jobs, None)
+                if nxt is not None:
+                    pending.append(task.remote(*nxt))
+        finally:
+            # On an interrupt or error: cancel what is queued; finished files stay in the store.
+            for ref in pending:
+                ray.cancel(ref, force=True)
+            if started:
+                ray.shutdown()
+
+
+EXECUTORS = ("local", "ray")
+
+
+def make_executor(workers: int, kind: str = "local", address: str | None = None):
+    """The executor for ``--executor``: "local" (processes; serial for one worker) or "ray"."""
+    if kind == "local":
+        if address:
+            raise ValueError("--ray-address needs --executor ray")
+        return SerialExecutor() if workers == 1 else ProcessExecutor(workers)
+    if kind == "ray":
+        return RayExecutor(workers, address)
+    raise ValueError(f"executor must be one of {EXECUTORS}, got {kind!r}")

@@ -16,9 +16,10 @@ what DART computed in that step: its acceleration and the ground reaction on
 the base. So ``truth`` is one consistent rigid-body state per sample, which the
 tests check against the analytic model.
 
-Parallelism and restarts: each instance is a job for an executor; it writes
-``instances/<name>.h5`` atomically and then a small ``<name>.json`` completion
-record. A restart skips instances whose record and checksum agree and
+Parallelism and restarts: each instance is a job for an executor (local
+processes or a Ray cluster, ``executors.py``); it writes ``instances/<name>.h5``
+to the dataset's store (a local directory or an fsspec URL, ``data/store.py``)
+and then a small ``<name>.json`` completion record. A restart skips instances whose record and checksum agree and
 regenerates (and names) missing, partial or corrupt ones; the manifest comes
 last. Per-instance seeds derive from (seed, index) alone, so the bytes do not
 depend on the worker count or on the order in which jobs finish.
@@ -27,7 +28,6 @@ from __future__ import annotations
 
 import functools
 import json
-import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,9 +37,9 @@ import pinocchio as pin
 
 from ..analytic.robot import InputError
 from ..data.dataset import (
-    FIELD_UNITS, DatasetError, package_versions, read_manifest, sha256_file, split_by_instance, write_instance,
-    write_manifest,
+    FIELD_UNITS, DatasetError, manifest_text, package_versions, read_manifest, split_by_instance, write_instance,
 )
+from ..data.store import DatasetStore
 from .collision import collision_checker
 from .executors import make_executor
 from .plant import DartPlant
@@ -283,8 +283,12 @@ def _simulator_for(config_json: str) -> Simulator:
     return Simulator(GeneratorConfig.from_dict(json.loads(config_json)))
 
 
-def _instance_job(config_json: str, index: int, inst_dir: str) -> dict:
-    """Executor job: simulate one instance, write it atomically, then its completion record."""
+def _instance_job(config_json: str, index: int, out_location: str) -> dict:
+    """Executor job: simulate one instance, write it to the store, then its completion record.
+
+    Runs wherever the executor puts it (a local process, a Ray worker on
+    another machine): it opens the store from its location string.
+    """
     sim = _simulator_for(config_json)
     cfg = sim.config
     run, info = simulate_instance(sim, index)
@@ -294,39 +298,40 @@ def _instance_job(config_json: str, index: int, inst_dir: str) -> dict:
         "n_trajectories": info["n_trajectories"], "n_pulses_in_instance": info["n_pulses_in_instance"],
         "pulses": json.dumps(info["pulses"]), **run.attrs,
     }
-    path = Path(inst_dir) / f"{name}.h5"
-    sha = write_instance(path, run.fields, run.truth, attrs)
+    store = DatasetStore(out_location)
+    rel = f"instances/{name}.h5"
+    if store.local is not None:
+        sha = write_instance(store.local_path(rel), run.fields, run.truth, attrs)
+    else:  # h5py needs a seekable local file: write it whole, then upload the same bytes
+        with store.scratch_dir() as scratch:
+            local = Path(scratch) / f"{name}.h5"
+            sha = write_instance(local, run.fields, run.truth, attrs)
+            store.put_file(local, rel)
     record = {
-        "name": name, "index": index, "file": f"instances/{name}.h5", "sha256": sha, "n_samples": run.n_samples,
+        "name": name, "index": index, "file": rel, "sha256": sha, "n_samples": run.n_samples,
         "config_hash": cfg.config_hash(), "n_trajectories": info["n_trajectories"],
         "n_pulses_in_instance": info["n_pulses_in_instance"], "duration_s": run.attrs["duration_s"],
         "tracking_rms": [round(float(x), 9) for x in run.attrs["tracking_rms"]],
         "tracking_max": [round(float(x), 9) for x in run.attrs["tracking_max"]],
     }
-    _write_json_atomic(path.with_suffix(".json"), record)
+    store.write_text(f"instances/{name}.json", json.dumps(record, indent=1, sort_keys=True))  # the commit
     return record
 
 
-def _write_json_atomic(path: Path, doc: dict) -> None:
-    tmp = path.with_suffix(path.suffix + ".partial")
-    tmp.write_text(json.dumps(doc, indent=1, sort_keys=True))
-    os.replace(tmp, path)
-
-
-def _finished_record(inst_dir: Path, name: str, config_hash: str) -> tuple[dict | None, str | None]:
+def _finished_record(store: DatasetStore, name: str, config_hash: str) -> tuple[dict | None, str | None]:
     """(record, None) for a verified finished instance, else (None, why it must be regenerated or None if never started)."""
-    h5, rec_path = inst_dir / f"{name}.h5", inst_dir / f"{name}.json"
-    if not rec_path.exists():
-        return None, ("file present without a completion record (interrupted or partial)" if h5.exists() else None)
+    h5, rec_path = f"instances/{name}.h5", f"instances/{name}.json"
+    if not store.exists(rec_path):
+        return None, ("file present without a completion record (interrupted or partial)" if store.exists(h5) else None)
     try:
-        rec = json.loads(rec_path.read_text())
+        rec = json.loads(store.read_text(rec_path))
     except (json.JSONDecodeError, OSError):
         return None, "completion record is corrupt"
     if rec.get("config_hash") != config_hash:
         return None, "made with another configuration"
-    if not h5.exists():
+    if not store.exists(h5):
         return None, "file is missing"
-    if sha256_file(h5) != rec.get("sha256"):
+    if store.sha256(h5) != rec.get("sha256"):
         return None, "file does not match its checksum (corrupt or partial)"
     return rec, None
 
@@ -347,66 +352,67 @@ def _stderr(msg: str) -> None:
 
 
 def generate_dataset(config: GeneratorConfig, out_dir, workers: int = 1, progress: bool = True,
-                     executor=None, log=_stderr) -> Path:
-    """Generate (or resume) the dataset of ``config`` in ``out_dir``; returns its path.
+                     executor=None, log=_stderr):
+    """Generate (or resume) the dataset of ``config`` in ``out_dir``; returns where it is.
 
-    Finished instances already in ``out_dir`` are verified and kept; missing,
-    partial or corrupt ones are (re)generated and named through ``log``. The
-    manifest is written last, so a directory with a manifest is complete.
-    ``executor``: anything with ``map_unordered(fn, jobs)``; default local
-    processes (``workers``).
+    ``out_dir``: a local directory (returned as a Path) or an fsspec URL
+    (returned as given), see ``data/store.py``. Finished instances already
+    there are verified and kept; missing, partial or corrupt ones are
+    (re)generated and named through ``log``. The manifest is written last, so a
+    dataset with a manifest is complete. ``executor``: anything with
+    ``map_unordered(fn, jobs)`` (``executors.py``: local processes, Ray);
+    default local processes (``workers``).
     """
     from tqdm import tqdm
 
-    out = Path(out_dir)
-    inst_dir = out / "instances"
-    inst_dir.mkdir(parents=True, exist_ok=True)
+    store = DatasetStore(out_dir)
+    store.makedirs("instances")
     chash = config.config_hash()
     config_json = json.dumps(config.to_dict(), sort_keys=True)
 
     # One directory holds one configuration: refuse to mix.
-    marker = out / "generator.json"
-    if marker.exists():
+    if store.exists("generator.json"):
         try:
-            old = json.loads(marker.read_text()).get("config_hash")
+            old = json.loads(store.read_text("generator.json")).get("config_hash")
         except json.JSONDecodeError:
             old = None
         if old != chash:
-            raise DatasetError(f"{out} holds a dataset of another configuration (hash {old}, this one {chash}); "
+            raise DatasetError(f"{out_dir} holds a dataset of another configuration (hash {old}, this one {chash}); "
                                "choose another --out or delete it")
     else:
-        _write_json_atomic(marker, {"config_hash": chash, "config": config.to_dict()})
+        store.write_text("generator.json", json.dumps({"config_hash": chash, "config": config.to_dict()},
+                                                      indent=1, sort_keys=True))
 
-    for stale in sorted(inst_dir.glob("*.partial")):
-        log(f"removing {stale.name}: an unfinished write from an interrupted run")
-        stale.unlink()
+    for stale in store.glob("instances/*.partial"):
+        log(f"removing {stale.rsplit('/', 1)[-1]}: an unfinished write from an interrupted run")
+        store.remove(stale)
 
     names = [instance_name(i) for i in range(config.n_instances)]
     records: dict[int, dict] = {}
     todo = []
     for i, name in enumerate(names):
-        rec, why = _finished_record(inst_dir, name, chash)
+        rec, why = _finished_record(store, name, chash)
         if rec is not None:
             records[i] = rec
         else:
             todo.append(i)
             if why:
                 log(f"regenerating {name}: {why}")
-    if todo and (out / "manifest.json").exists():
-        (out / "manifest.json").unlink()  # no longer describes complete data
+    if todo and store.exists("manifest.json"):
+        store.remove("manifest.json")  # no longer describes complete data
 
     ex = executor or make_executor(workers)
     bar = tqdm(total=config.n_instances, initial=len(records), desc=f"generate {config.scenario}/{config.profile}",
                unit="inst", disable=not progress)
     try:
-        for rec in ex.map_unordered(_instance_job, [(config_json, i, str(inst_dir)) for i in todo]):
+        for rec in ex.map_unordered(_instance_job, [(config_json, i, store.location) for i in todo]):
             records[rec["index"]] = rec
             bar.update(1)
     finally:
         bar.close()
 
     ordered = [records[i] for i in range(config.n_instances)]
-    write_manifest(out, {
+    store.write_text("manifest.json", manifest_text({
         "robot": config.robot, "scenario": config.scenario, "profile": config.profile, "seed": config.seed,
         "record_hz": config.record_hz, "dt": config.dt, "generator_version": GENERATOR_VERSION,
         "config": config.to_dict(), "config_hash": chash,
@@ -416,8 +422,8 @@ def generate_dataset(config: GeneratorConfig, out_dir, workers: int = 1, progres
         "instances": ordered,
         "splits": split_by_instance(names, config.seed),
         "tracking_error": _tracking_summary(ordered),
-    })
-    return out
+    }))
+    return store.local if store.local is not None else store.location
 
 
 def verify_dataset_config(out_dir, config: GeneratorConfig) -> bool:

@@ -1,0 +1,149 @@
+"""Where a dataset is written: a local directory or any fsspec URL.
+
+The generator writes through a :class:`DatasetStore`, so the same code fills a
+local folder, a shared network folder, or an object store (``s3://``,
+``gs://``, ``memory://``, ``file://`` ...; any protocol whose fsspec
+filesystem the user has installed). Workers on other machines open the store
+from its URL, so a Ray task writes its instance straight to the shared place.
+
+Writes are made safe for restarts in the way each back-end allows:
+- a local directory: temp file then ``os.replace`` (atomic);
+- an fsspec URL: the file is written whole, and only then its small
+  completion record; object stores have no atomic rename, so the record is the
+  commit: a file without a record (or not matching the record's checksum) is
+  regenerated on resume.
+
+Instances are first written to a local temporary file by h5py (which needs a
+seekable file) and uploaded unchanged, so the bytes, and their checksums, are
+the same whatever the store.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+
+def is_url(location) -> bool:
+    return isinstance(location, str) and "://" in location
+
+
+class DatasetStore:
+    """Files of one dataset under ``location`` (a path or an fsspec URL); paths are '/'-separated and relative."""
+
+    def __init__(self, location):
+        self.location = str(location)
+        if is_url(self.location):
+            try:
+                import fsspec
+            except ImportError as err:  # pragma: no cover - fsspec comes with torch
+                raise RuntimeError("writing to a URL needs fsspec: pip install fsspec") from err
+            self.fs, self.root = fsspec.core.url_to_fs(self.location)
+            self.local = None
+        else:
+            self.fs, self.root = None, None
+            self.local = Path(self.location)
+
+    def __repr__(self) -> str:
+        return f"DatasetStore({self.location!r})"
+
+    # ------------------------------------------------------------- paths
+    def _p(self, rel: str) -> str:
+        return f"{self.root.rstrip('/')}/{rel}" if rel else self.root
+
+    def local_path(self, rel: str = "") -> Path | None:
+        """The local path of ``rel``, or None for a URL store."""
+        return None if self.local is None else self.local / rel
+
+    # ------------------------------------------------------------- queries
+    def exists(self, rel: str) -> bool:
+        return (self.local / rel).exists() if self.local is not None else self.fs.exists(self._p(rel))
+
+    def read_text(self, rel: str) -> str:
+        if self.local is not None:
+            return (self.local / rel).read_text()
+        with self.fs.open(self._p(rel), "r") as f:
+            return f.read()
+
+    def sha256(self, rel: str) -> str:
+        h = hashlib.sha256()
+        opener = open(self.local / rel, "rb") if self.local is not None else self.fs.open(self._p(rel), "rb")
+        with opener as f:
+            for chunk in iter(lambda: f.read(1 << 20), b""):
+                h.update(chunk)
+        return h.hexdigest()
+
+    def glob(self, pattern: str) -> list[str]:
+        """Relative paths matching a glob pattern, sorted."""
+        if self.local is not None:
+            return sorted(str(p.relative_to(self.local)) for p in self.local.glob(pattern))
+        root = self.root.rstrip("/") + "/"
+        return sorted(p[len(root):] if p.startswith(root) else p for p in self.fs.glob(self._p(pattern)))
+
+    # ------------------------------------------------------------- writes
+    def makedirs(self, rel: str = "") -> None:
+        if self.local is not None:
+            (self.local / rel).mkdir(parents=True, exist_ok=True)
+        else:
+            self.fs.makedirs(self._p(rel), exist_ok=True)
+
+    def remove(self, rel: str) -> None:
+        if self.local is not None:
+            (self.local / rel).unlink(missing_ok=True)
+        elif self.fs.exists(self._p(rel)):
+            self.fs.rm(self._p(rel))
+
+    def write_text(self, rel: str, text: str) -> None:
+        """Write a small text file (atomically on a local disk)."""
+        if self.local is not None:
+            path = self.local / rel
+            tmp = path.with_name(path.name + ".partial")
+            tmp.write_text(text)
+            os.replace(tmp, path)
+        else:
+            with self.fs.open(self._p(rel), "w") as f:
+                f.write(text)
+
+    def put_file(self, local_file: Path, rel: str) -> None:
+        """Move a finished local file into the store (atomically on a local disk)."""
+        if self.local is not None:
+            dest = self.local / rel
+            tmp = dest.with_name(dest.name + ".partial")
+            shutil.copyfile(local_file, tmp)
+            os.replace(tmp, dest)
+        else:
+            self.fs.put_file(str(local_file), self._p(rel))
+
+    def scratch_dir(self):
+        """A local temporary directory for files on their way into the store."""
+        return tempfile.TemporaryDirectory(prefix="hybrid-dyn-")
+
+
+def fetch_dataset(url: str, local_dir) -> Path:
+    """Copy a dataset from a URL store to ``local_dir`` (training reads local files); returns the path.
+
+    Only what the manifest lists is copied, and ``load_dataset`` then checks
+    every file against its checksum.
+    """
+    import json
+
+    store = DatasetStore(url)
+    if not store.exists("manifest.json"):
+        from .dataset import DatasetError
+
+        raise DatasetError(f"{url} has no manifest.json: not a dataset, or its generation never finished")
+    meta = json.loads(store.read_text("manifest.json"))
+    local = Path(local_dir)
+    (local / "instances").mkdir(parents=True, exist_ok=True)
+    for rec in meta["instances"]:
+        dest = local / rec["file"]
+        if not dest.exists():
+            tmp = dest.with_name(dest.name + ".partial")
+            store.fs.get_file(store._p(rec["file"]), str(tmp))
+            os.replace(tmp, dest)
+    tmp = local / "manifest.json.partial"
+    tmp.write_text(store.read_text("manifest.json"))
+    os.replace(tmp, local / "manifest.json")
+    return local
