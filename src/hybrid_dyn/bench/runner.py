@@ -209,10 +209,11 @@ def _learned_single_call(model):
         elif model.prior is not None and model.prior.tare_seconds > 0:
             # The tare is per run: its offset comes from the instance's start, as in training.
             p = model.prior
-            w = tared_base_wrench(p.robot, inst.q, inst.qd, inst.qdd, inst.base_wrench,
-                                  tare_samples(p.record_hz, p.tare_seconds)) if inst.name not in tared else tared[inst.name]
-            tared[inst.name] = w
-            prior = p.single({"q": inst.q[k], "qd": inst.qd[k], "qdd": inst.qdd[k], "base_wrench": w[k]})
+            if inst.name not in tared:
+                tared[inst.name] = tared_base_wrench(p.robot, inst.q, inst.qd, inst.qdd, inst.base_wrench,
+                                                     tare_samples(p.record_hz, p.tare_seconds))
+            w = tared[inst.name][k]
+            prior = p.single({"q": inst.q[k], "qd": inst.qd[k], "qdd": inst.qdd[k], "base_wrench": w})
         return model.predict_window(x_all[index[k]], prior=prior)
 
     return call
