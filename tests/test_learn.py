@@ -137,7 +137,7 @@ def test_predict_window_matches_batched_predict(tip11, friction_set, tmp_path):
         tip11.predict_window(x[:3])
 
 
-@pytest.mark.parametrize("name", ["delan-residual", "residual-rnea-bw", "seed-tip-4"])
+@pytest.mark.parametrize("name", ["delan-residual", "residual-rnea-bw", "seed-tip-4", "tau-mlp-wide"])
 def test_predict_window_matches_batched_predict_other_families(name, friction_set, tmp_path):
     model = train_model(friction_set, name, tmp_path / name, TrainConfig(max_epochs=1, max_batches_per_epoch=3, **QUICK))
     inst = friction_set.split("test")[0]
@@ -323,3 +323,17 @@ def test_cli_train_predict_and_tune(friction_set, tmp_path, capsys):
     assert main(["tune", "--data", str(friction_set.path), "--preset", "seed-tau-lstm", "--trials", "1",
                  "--out", str(tmp_path / "tune"), "--storage", storage] + common) == 0
     assert json.loads((tmp_path / "tune" / "best.json").read_text())["n_trials"] == 3
+
+
+def test_dropout_acts_in_training_only(friction_set, tmp_path):
+    """tau-mlp-wide drops hidden units while training (two forward passes differ) and never when predicting."""
+    model = train_model(friction_set, "tau-mlp-wide", tmp_path / "w", TrainConfig(max_epochs=1, max_batches_per_epoch=2, **QUICK))
+    drops = [m for m in model.module.net.modules() if isinstance(m, torch.nn.Dropout)]
+    assert [d.p for d in drops] == [0.2, 0.2]
+    x = torch.randn(64, 1, 21)
+    model.module.net.train()
+    assert not torch.equal(model.module.net(x), model.module.net(x))
+    model.module.net.eval()
+    assert torch.equal(model.module.net(x), model.module.net(x))
+    inst = friction_set.split("test")[0]
+    np.testing.assert_array_equal(model.predict([inst])[0], model.predict([inst])[0])

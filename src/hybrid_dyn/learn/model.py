@@ -97,7 +97,8 @@ class HybridModel(nn.Module):
                                      preset.fc_layers, preset.fc_units, "relu", preset.conv_kernel)
         else:
             self.net = build_net(preset.kind, n_in, n_out, preset.window, preset.front_units,
-                                 preset.fc_layers, preset.fc_units, preset.activation, preset.conv_kernel)
+                                 preset.fc_layers, preset.fc_units, preset.activation, preset.conv_kernel,
+                                 preset.dropout)
         if self.net is not None and (preset.prior is not None or self.delan is not None):
             # A residual branch starts at exactly zero: the hybrid model begins as its
             # physics part and moves away only where the data say so (hidden layers

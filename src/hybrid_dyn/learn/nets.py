@@ -14,11 +14,15 @@ from torch import nn
 ACTIVATIONS = {"relu": nn.ReLU, "tanh": nn.Tanh}
 
 
-def fc_head(n_in: int, n_layers: int, n_units: int, n_out: int, activation: str) -> nn.Sequential:
-    """n_layers fully connected layers of n_units with ``activation``, then a linear output."""
+def fc_head(n_in: int, n_layers: int, n_units: int, n_out: int, activation: str,
+            dropout: float = 0.0) -> nn.Sequential:
+    """n_layers fully connected layers of n_units with ``activation`` (and dropout
+    after each when dropout > 0: active in training only), then a linear output."""
     layers: list[nn.Module] = []
     for _ in range(n_layers):
         layers += [nn.Linear(n_in, n_units), ACTIVATIONS[activation]()]
+        if dropout > 0:
+            layers.append(nn.Dropout(dropout))
         n_in = n_units
     layers.append(nn.Linear(n_in, n_out))
     return nn.Sequential(*layers)
@@ -27,9 +31,9 @@ def fc_head(n_in: int, n_layers: int, n_units: int, n_out: int, activation: str)
 class MLPNet(nn.Module):
     """Fully connected net on the current sample (the window's last row)."""
 
-    def __init__(self, n_in: int, n_out: int, fc_layers: int, fc_units: int, activation: str):
+    def __init__(self, n_in: int, n_out: int, fc_layers: int, fc_units: int, activation: str, dropout: float = 0.0):
         super().__init__()
-        self.head = fc_head(n_in, fc_layers, fc_units, n_out, activation)
+        self.head = fc_head(n_in, fc_layers, fc_units, n_out, activation, dropout)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return self.head(x[:, -1])
@@ -39,10 +43,10 @@ class ConvNet(nn.Module):
     """One Conv1d front layer ('valid' padding, ReLU), flattened, then FC layers."""
 
     def __init__(self, n_in: int, n_out: int, window: int, channels: int, kernel: int,
-                 fc_layers: int, fc_units: int, activation: str):
+                 fc_layers: int, fc_units: int, activation: str, dropout: float = 0.0):
         super().__init__()
         self.conv = nn.Conv1d(n_in, channels, kernel)
-        self.head = fc_head(channels * (window - kernel + 1), fc_layers, fc_units, n_out, activation)
+        self.head = fc_head(channels * (window - kernel + 1), fc_layers, fc_units, n_out, activation, dropout)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         h = torch.relu(self.conv(x.transpose(1, 2)))  # (B, C, L - k + 1)
@@ -52,13 +56,14 @@ class ConvNet(nn.Module):
 class LSTMNet(nn.Module):
     """Stacked LSTM layers (units per layer), the last step's state, then FC layers."""
 
-    def __init__(self, n_in: int, n_out: int, units: tuple, fc_layers: int, fc_units: int, activation: str):
+    def __init__(self, n_in: int, n_out: int, units: tuple, fc_layers: int, fc_units: int, activation: str,
+                 dropout: float = 0.0):
         super().__init__()
         self.lstms = nn.ModuleList()
         for u in units:
             self.lstms.append(nn.LSTM(n_in, u, batch_first=True))
             n_in = u
-        self.head = fc_head(n_in, fc_layers, fc_units, n_out, activation)
+        self.head = fc_head(n_in, fc_layers, fc_units, n_out, activation, dropout)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         for lstm in self.lstms:
@@ -89,14 +94,14 @@ def glorot_init(module: nn.Module) -> None:
 
 
 def build_net(kind: str, n_in: int, n_out: int, window: int, front_units: tuple, fc_layers: int,
-              fc_units: int, activation: str, conv_kernel: int = 3) -> nn.Module:
+              fc_units: int, activation: str, conv_kernel: int = 3, dropout: float = 0.0) -> nn.Module:
     """The network of a preset's ``kind`` (mlp, conv or lstm), Glorot-initialized."""
     if kind == "mlp":
-        net = MLPNet(n_in, n_out, fc_layers, fc_units, activation)
+        net = MLPNet(n_in, n_out, fc_layers, fc_units, activation, dropout)
     elif kind == "conv":
-        net = ConvNet(n_in, n_out, window, front_units[0], conv_kernel, fc_layers, fc_units, activation)
+        net = ConvNet(n_in, n_out, window, front_units[0], conv_kernel, fc_layers, fc_units, activation, dropout)
     elif kind == "lstm":
-        net = LSTMNet(n_in, n_out, tuple(front_units), fc_layers, fc_units, activation)
+        net = LSTMNet(n_in, n_out, tuple(front_units), fc_layers, fc_units, activation, dropout)
     else:
         raise ValueError(f"unknown network kind {kind!r}")
     glorot_init(net)
