@@ -130,6 +130,8 @@ def fetch_dataset(url: str, local_dir) -> Path:
     import json
 
     store = DatasetStore(url)
+    if store.local is not None:
+        raise ValueError(f"{url} is a local path, not a URL: load it with load_dataset directly")
     if not store.exists("manifest.json"):
         from .dataset import DatasetError
 
