@@ -88,7 +88,7 @@ def main(argv=None) -> None:
     contact = np.linalg.norm(f_true_log, axis=1) > 1.0
     print(f"\nestimator: {args.model or args.method}; {n} ticks at {1 / DT:.0f} Hz")
     print(f"tip-force error RMS: {np.sqrt(np.mean(err**2)):.3f} N overall, {np.sqrt(np.mean(err[contact]**2)):.3f} N in contact "
-          f"(note: the base sensor's unknown bias is part of it)")
+          f"(the base-wrench estimators tare the sensor's bias on the first 0.5 s, before the push)")
     print(f"latency per call [us]: median {np.median(lat):.1f}, p99 {np.percentile(lat, 99):.1f}, max {lat.max():.1f} "
           f"(budget for the whole controller at 1 kHz: 1000 us)")
 
