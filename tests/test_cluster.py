@@ -153,7 +153,9 @@ def test_a_killed_worker_leaves_the_study_consistent(tune_set, tmp_path):
             proc.kill()
     killed = study.get_trials()[0]
     assert _states(study) == ["RUNNING"]  # a dead worker's trial: nobody will finish it
-    time.sleep(3.5)  # past the grace period (3 heartbeats of 1 s)
+    # Past the grace period (3 heartbeats of 1 s). SQLite's CURRENT_TIMESTAMP, which Optuna's heartbeat
+    # uses, has whole-second resolution, so a silence of 3.5 s can read as 3 s: wait 5 s.
+    time.sleep(5.0)
     # A restarted (or any other) worker: the stale trial is failed, its parameters are tried again.
     study = tune(tune_set, "seed-tau-mlp", tmp_path / "t", 1, storage=storage, study_name="s", config=FAST,
                  heartbeat_s=1)
