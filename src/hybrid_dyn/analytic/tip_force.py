@@ -117,6 +117,13 @@ def tip_force_from_torques(robot: Robot, q, qd, qdd, tau, singular_region: float
     return f[0] if single else f
 
 
+def contact_joint_torques(robot: Robot, q, force) -> np.ndarray:
+    """tau_c = J_v(q)^T F [Nm]: the joint torques a force F [N] (base frame) at the tool point
+    produces; q (nv,) with F (3,), or batches (N, nv) with (N, 3)."""
+    jv = robot.tip_jacobian(q)[..., :3, :]
+    return np.einsum("...ij,...i->...j", jv, force)
+
+
 def force_from_external_wrench(p_tool: np.ndarray, dw_root: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares pure force at the tool point explaining a wrench change.
 

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..analytic.tare import TARE_SECONDS, tare_samples, tared_base_wrench
-from ..analytic.tip_force import tip_force_from_base_wrench
+from ..analytic.tip_force import contact_joint_torques, tip_force_from_base_wrench
 from ..data import DatasetError, load_dataset
 
 EXCITATION_ITERATIONS = {"quick": 30, "default": 150, "paper": 150}
@@ -109,10 +109,8 @@ def _identified_bw_torque(models, ctx, inst, k=None):
     """tau = identified model (with friction) - J_v^T F_bw: the contact torque taken out with the base sensor."""
     f = _tared_force_identified(models, ctx, inst, k)
     s = slice(None) if k is None else k
-    tau = models["sigmoid-friction"].predict_torque(inst.q[s], inst.qd[s], inst.qdd[s])
-    if k is None:
-        return tau - np.einsum("nij,ni->nj", ctx.robot.tip_jacobian(inst.q)[:, :3], f)
-    return tau - ctx.robot.tip_jacobian(inst.q[k])[:3].T @ f
+    return models["sigmoid-friction"].predict_torque(inst.q[s], inst.qd[s], inst.qdd[s]) \
+        - contact_joint_torques(ctx.robot, inst.q[s], f)
 
 
 def _torque_row(name: str, method: str):

@@ -31,7 +31,7 @@ from tqdm.auto import tqdm
 from ..analytic.momentum_observer import MomentumObserver
 from ..analytic.robot import Robot, load_robot
 from ..analytic.tare import TARE_SECONDS, tare_samples, tared_base_wrench
-from ..analytic.tip_force import tip_force_from_base_wrench, tip_force_from_torques
+from ..analytic.tip_force import contact_joint_torques, tip_force_from_base_wrench, tip_force_from_torques
 from ..data import Dataset
 from .metrics import ErrorReport, standardized_mse
 from .profiles import BenchProfile
@@ -82,85 +82,75 @@ class BenchContext:
 
 # ---------------------------------------------------------------- analytic rows
 def _analytic(task: str, name: str, inputs: str, batch_fn, single_fn=None) -> RowSpec:
+    """An analytic row: batch_fn(robot, instance, ctx) and single_fn(robot, instance, k, ctx)."""
     def build(ds, ctx):
         robot = ctx.robot
         return Predictor(
-            predict=lambda insts: [batch_fn(robot, i, ds) for i in insts],
-            single_call=(lambda inst, k: single_fn(robot, inst, k, ds)) if single_fn else None,
+            predict=lambda insts: [batch_fn(robot, i, ctx) for i in insts],
+            single_call=(lambda inst, k: single_fn(robot, inst, k, ctx)) if single_fn else None,
             inputs=inputs,
         )
 
     return RowSpec(task, name, "analytic", build)
 
 
-def _jv_t_times(robot, q, f):
-    return np.einsum("nij,ni->nj", robot.tip_jacobian(q)[:, :3], f)
-
-
-def _momentum(robot, inst, ds):
-    obs = MomentumObserver(robot, gain=MOMENTUM_GAIN, dt=1.0 / ds.meta["record_hz"])
+def _momentum(robot, inst, ctx):
+    obs = MomentumObserver(robot, gain=MOMENTUM_GAIN, dt=1.0 / ctx.dataset.meta["record_hz"])
     return obs.run(inst.q, inst.qd, inst.tau_J)[0]
 
 
-def _momentum_single(robot, inst, k, ds):
-    obs = _momentum_single.cache.get(id(robot))
+def _momentum_single(robot, inst, k, ctx):
+    """One observer per scenario, stepped once per call, as a control loop runs it."""
+    obs = ctx.cache.get("momentum-observer")
     if obs is None:
-        obs = _momentum_single.cache[id(robot)] = MomentumObserver(robot, MOMENTUM_GAIN, 1.0 / ds.meta["record_hz"])
+        obs = ctx.cache["momentum-observer"] = MomentumObserver(robot, MOMENTUM_GAIN, 1.0 / ctx.dataset.meta["record_hz"])
         obs.step(inst.q[0], inst.qd[0], inst.tau_J[0])
     return obs.step_force(inst.q[k], inst.qd[k], inst.tau_J[k])
 
 
-_momentum_single.cache = {}
-
-
-def _tared(robot, inst, ds) -> np.ndarray:
-    """The instance's base wrench tared on its contact-free first TARE_SECONDS (cached per instance)."""
-    key = (id(robot), inst.name)
-    if key not in _tared.cache:
-        n = tare_samples(ds.meta["record_hz"], TARE_SECONDS)
-        _tared.cache[key] = tared_base_wrench(robot, inst.q, inst.qd, inst.qdd, inst.base_wrench, n)
-    return _tared.cache[key]
-
-
-_tared.cache = {}
+def _tared(robot, inst, ctx) -> np.ndarray:
+    """The instance's base wrench tared on its contact-free first TARE_SECONDS (cached per scenario and instance)."""
+    key = ("tared-base-wrench", inst.name)
+    if key not in ctx.cache:
+        n = tare_samples(ctx.dataset.meta["record_hz"], TARE_SECONDS)
+        ctx.cache[key] = tared_base_wrench(robot, inst.q, inst.qd, inst.qdd, inst.base_wrench, n)
+    return ctx.cache[key]
 
 
 def _rnea_minus_contact(robot, q, qd, qdd, w):
     """tau = ID(q, qd, qdd) - J_v^T F_bw: RNEA with the base-wrench force estimate as the contact."""
-    if np.ndim(q) == 1:
-        return robot.inverse_dynamics(q, qd, qdd) - robot.tip_jacobian(q)[:3].T @ tip_force_from_base_wrench(robot, q, qd, qdd, w)
-    return robot.inverse_dynamics(q, qd, qdd) - _jv_t_times(robot, q, tip_force_from_base_wrench(robot, q, qd, qdd, w))
+    return robot.inverse_dynamics(q, qd, qdd) - contact_joint_torques(robot, q, tip_force_from_base_wrench(robot, q, qd, qdd, w))
 
 
 ANALYTIC_ROWS = {
     "torques-pinv": _analytic(
         "tip_force", "torques-pinv", "q, qd, qdd, tau_J",
-        lambda r, i, ds: tip_force_from_torques(r, i.q, i.qd, i.qdd, i.tau_J),
-        lambda r, i, k, ds: tip_force_from_torques(r, i.q[k], i.qd[k], i.qdd[k], i.tau_J[k])),
+        lambda r, i, ctx: tip_force_from_torques(r, i.q, i.qd, i.qdd, i.tau_J),
+        lambda r, i, k, ctx: tip_force_from_torques(r, i.q[k], i.qd[k], i.qdd[k], i.tau_J[k])),
     "base-wrench": _analytic(
         "tip_force", "base-wrench", "q, qd, qdd, base_wrench",
-        lambda r, i, ds: tip_force_from_base_wrench(r, i.q, i.qd, i.qdd, i.base_wrench),
-        lambda r, i, k, ds: tip_force_from_base_wrench(r, i.q[k], i.qd[k], i.qdd[k], i.base_wrench[k])),
+        lambda r, i, ctx: tip_force_from_base_wrench(r, i.q, i.qd, i.qdd, i.base_wrench),
+        lambda r, i, k, ctx: tip_force_from_base_wrench(r, i.q[k], i.qd[k], i.qdd[k], i.base_wrench[k])),
     "momentum-observer": _analytic(
         "tip_force", "momentum-observer", "q, qd, tau_J", _momentum, _momentum_single),
     "rnea": _analytic(
         "joint_torque", "rnea", "q, qd, qdd",
-        lambda r, i, ds: r.inverse_dynamics(i.q, i.qd, i.qdd),
-        lambda r, i, k, ds: r.inverse_dynamics(i.q[k], i.qd[k], i.qdd[k])),
+        lambda r, i, ctx: r.inverse_dynamics(i.q, i.qd, i.qdd),
+        lambda r, i, k, ctx: r.inverse_dynamics(i.q[k], i.qd[k], i.qdd[k])),
     # Physics may use the base sensor too (PROTOCOL 4): tau = ID - J_v^T F_hat.
     "rnea-bw": _analytic(
         "joint_torque", "rnea-bw", "q, qd, qdd, base_wrench",
-        lambda r, i, ds: _rnea_minus_contact(r, i.q, i.qd, i.qdd, i.base_wrench),
-        lambda r, i, k, ds: _rnea_minus_contact(r, i.q[k], i.qd[k], i.qdd[k], i.base_wrench[k])),
+        lambda r, i, ctx: _rnea_minus_contact(r, i.q, i.qd, i.qdd, i.base_wrench),
+        lambda r, i, k, ctx: _rnea_minus_contact(r, i.q[k], i.qd[k], i.qdd[k], i.base_wrench[k])),
     # The same two with the base sensor tared on each instance's contact-free start (analytic/tare.py).
     "base-wrench-tared": _analytic(
         "tip_force", "base-wrench-tared", "q, qd, qdd, base_wrench (tared on the first 0.5 s)",
-        lambda r, i, ds: tip_force_from_base_wrench(r, i.q, i.qd, i.qdd, _tared(r, i, ds)),
-        lambda r, i, k, ds: tip_force_from_base_wrench(r, i.q[k], i.qd[k], i.qdd[k], _tared(r, i, ds)[k])),
+        lambda r, i, ctx: tip_force_from_base_wrench(r, i.q, i.qd, i.qdd, _tared(r, i, ctx)),
+        lambda r, i, k, ctx: tip_force_from_base_wrench(r, i.q[k], i.qd[k], i.qdd[k], _tared(r, i, ctx)[k])),
     "rnea-bw-tared": _analytic(
         "joint_torque", "rnea-bw-tared", "q, qd, qdd, base_wrench (tared on the first 0.5 s)",
-        lambda r, i, ds: _rnea_minus_contact(r, i.q, i.qd, i.qdd, _tared(r, i, ds)),
-        lambda r, i, k, ds: _rnea_minus_contact(r, i.q[k], i.qd[k], i.qdd[k], _tared(r, i, ds)[k])),
+        lambda r, i, ctx: _rnea_minus_contact(r, i.q, i.qd, i.qdd, _tared(r, i, ctx)),
+        lambda r, i, k, ctx: _rnea_minus_contact(r, i.q[k], i.qd[k], i.qdd[k], _tared(r, i, ctx)[k])),
 }
 
 

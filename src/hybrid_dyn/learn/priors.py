@@ -36,7 +36,7 @@ import pinocchio as pin
 
 from ..analytic.momentum_observer import MomentumObserver
 from ..analytic.tare import tare_samples, tared_base_wrench
-from ..analytic.tip_force import base_wrench_force_core, tip_force_from_base_wrench
+from ..analytic.tip_force import base_wrench_force_core, contact_joint_torques, tip_force_from_base_wrench
 
 PRIOR_FIELDS = {
     "rnea": ("q", "qd", "qdd"),
@@ -96,8 +96,7 @@ class AnalyticPrior:
         f_bw = np.atleast_2d(tip_force_from_base_wrench(r, q, qd, qdd, w))
         if self.kind == "basewrench":
             return f_bw
-        jv = r.tip_jacobian(np.atleast_2d(q))[:, :3, :]
-        return np.atleast_2d(r.inverse_dynamics(q, qd, qdd)) - np.einsum("nij,ni->nj", jv, f_bw)
+        return np.atleast_2d(r.inverse_dynamics(q, qd, qdd)) - contact_joint_torques(r, np.atleast_2d(q), f_bw)
 
     def single(self, sample: dict) -> np.ndarray:
         """The prior at one sample (fields -> 1-D arrays); not for the stateful momentum observer.
