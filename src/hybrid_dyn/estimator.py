@@ -190,14 +190,19 @@ class TipForceEstimator:
         self.last_status = EstimatorStatus.WARMING_UP
 
     @property
+    def _active_tare(self):
+        """The tare of the analytic base-wrench method, or of a learned model's base-wrench prior."""
+        return self._tare if self._tare is not None else getattr(self.model, "_tare", None)
+
+    @property
     def tare_offset(self) -> np.ndarray | None:
         """The base-sensor offset in use (6,) [N, Nm], or None when this estimator does not tare."""
-        tare = self._tare if self._tare is not None else getattr(self.model, "_tare", None)
+        tare = self._active_tare
         return None if tare is None else tare.offset.copy()
 
     def set_tare_offset(self, offset) -> None:
         """Use a known base-sensor offset (6,) [N, Nm] and skip the tare window."""
-        tare = self._tare if self._tare is not None else getattr(self.model, "_tare", None)
+        tare = self._active_tare
         if tare is None:
             raise ValueError("this estimator does not use the base sensor's tare")
         tare.set_offset(offset)

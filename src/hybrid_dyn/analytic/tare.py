@@ -77,11 +77,9 @@ class StreamingTare:
         return self.count >= self.n_calls
 
     def update(self, q, qd, qdd, base_wrench) -> np.ndarray:
-        if not self.done:
-            r = self.robot
-            model = r._sensor_from_root @ r.rnea_ff_single(q, qd, qdd)[:6]
+        if not self.done:  # only during the tare window: after it, one subtraction per call
             self.count += 1
-            self.offset += (base_wrench - model - self.offset) / self.count
+            self.offset += (base_wrench - self.robot.base_wrench(q, qd, qdd) - self.offset) / self.count
         return base_wrench - self.offset
 
     def set_offset(self, offset) -> None:

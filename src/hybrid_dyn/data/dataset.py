@@ -29,6 +29,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from .store import is_url
+
 FORMAT = "hybrid_dyn.dataset"
 FORMAT_VERSION = 1
 SPLITS = ("train", "val", "test")
@@ -50,10 +52,15 @@ class DatasetError(ValueError):
 
 
 def sha256_file(path: Path) -> str:
-    h = hashlib.sha256()
     with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
+        return sha256_stream(f)
+
+
+def sha256_stream(f) -> str:
+    """The sha256 of an open binary file (local or fsspec), read in 1 MiB chunks."""
+    h = hashlib.sha256()
+    for chunk in iter(lambda: f.read(1 << 20), b""):
+        h.update(chunk)
     return h.hexdigest()
 
 
@@ -199,7 +206,7 @@ def load_dataset(path, verify: bool = True) -> Dataset:
     """Open a dataset directory. With ``verify``, every instance file must exist
     and match the checksum in the manifest; a missing, partial or corrupt one is
     reported by name."""
-    if isinstance(path, str) and "://" in path:
+    if is_url(path):
         raise DatasetError(f"{path} is a URL: copy it to a local directory first "
                            "(hybrid_dyn.data.store.fetch_dataset(url, local_dir))")
     path = Path(path)

@@ -19,7 +19,6 @@ the same whatever the store.
 """
 from __future__ import annotations
 
-import hashlib
 import os
 import shutil
 import tempfile
@@ -68,12 +67,12 @@ class DatasetStore:
             return f.read()
 
     def sha256(self, rel: str) -> str:
-        h = hashlib.sha256()
-        opener = open(self.local / rel, "rb") if self.local is not None else self.fs.open(self._p(rel), "rb")
-        with opener as f:
-            for chunk in iter(lambda: f.read(1 << 20), b""):
-                h.update(chunk)
-        return h.hexdigest()
+        from .dataset import sha256_file, sha256_stream
+
+        if self.local is not None:
+            return sha256_file(self.local / rel)
+        with self.fs.open(self._p(rel), "rb") as f:
+            return sha256_stream(f)
 
     def glob(self, pattern: str) -> list[str]:
         """Relative paths matching a glob pattern, sorted."""
