@@ -15,7 +15,7 @@ $(BIN)/python:
 
 $(VENV)/.installed: pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install "$(TORCH)"
-	$(BIN)/python -m pip install -e ".[dev,parquet,cluster]"
+	$(BIN)/python -m pip install -e ".[dev,parquet,cluster,diagnostics]"
 	touch $@
 
 install: $(VENV)/.installed
