@@ -24,7 +24,9 @@ and three diagnostics:
   trajectory (KUKA, Baxter: 4 per trajectory, about 5 s each; SARCOS: 40 blocks of
   about 111 rows) split 64/16/20 at random with the spec's seed. Test states then lie
   among training states of the same trajectories, and neighbouring chunks share their
-  boundary states, so this control is optimistic by design. It is NOT the benchmark's
+  boundary states, so this control is optimistic by design. (The importer derives
+  accelerations per instance, so a chunk's first and last samples carry the filter's
+  edge effects; that part makes the control slightly harder, not easier.) It is NOT the benchmark's
   protocol: the gap between it and the trajectory split measures how much of the error
   is generalisation to unseen trajectories rather than model capacity or sensor noise;
 - **torque content above 5 Hz** (KUKA, Baxter: their rows are continuous in time): the
