@@ -157,7 +157,9 @@ def test_a_killed_worker_leaves_the_study_consistent(tune_set, tmp_path):
     # uses, has whole-second resolution, so a silence of 3.5 s can read as 3 s: wait 5 s.
     time.sleep(5.0)
     # A restarted (or any other) worker: the stale trial is failed, its parameters are tried again.
-    study = tune(tune_set, "seed-tau-mlp", tmp_path / "t", 1, storage=storage, study_name="s", config=FAST,
+    # Its own --out: it trains with another config (FAST), and the killed run may have left a
+    # checkpoint in its trial directory, which train_model rightly refuses to mix with another run.
+    study = tune(tune_set, "seed-tau-mlp", tmp_path / "t2", 1, storage=storage, study_name="s", config=FAST,
                  heartbeat_s=1)
     trials = study.get_trials()
     assert _states(study) == ["FAIL", "COMPLETE"]
