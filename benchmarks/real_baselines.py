@@ -14,11 +14,11 @@ split (by trajectory; SARCOS by contiguous blocks) and nMSE = per-joint test MSE
   Williams 2006, ch. 8). Its hyperparameters are fitted by marginal likelihood on
   ``--gp-hyper`` random training rows; it is then conditioned on at most ``--gp-rows``
   random training rows (a subset-of-data GP, to bound the O(n^3) cost);
+- the bench's ``tau-mlp-wide`` (its best model on KUKA), trained as the ``real``
+  bench profile trains it;
 
 and three diagnostics:
 
-- the bench's ``tau-mlp-wide`` (its best model on KUKA), trained as the ``real``
-  bench profile trains it;
 - **interpolation control**: the GP (same hyperparameters) and ``tau-mlp-wide`` again,
   on a second import of the same log whose instances are contiguous chunks of every
   trajectory (KUKA, Baxter: 4 per trajectory, about 5 s each; SARCOS: 40 blocks of
@@ -46,15 +46,13 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from hybrid_dyn.bench import get_profile
-from hybrid_dyn.data import REAL_SETS, import_log, load_dataset, read_spec, real_dataset
-from hybrid_dyn.data.importer import spec_checksum
-from hybrid_dyn.data.real import nmse_per_joint, real_spec_path, target_statistics
+from hybrid_dyn.data import REAL_SETS, load_dataset, real_dataset
+from hybrid_dyn.data.real import nmse_per_joint, target_statistics
 from hybrid_dyn.learn import TrainConfig, train_model
 
 
@@ -146,16 +144,6 @@ def fit_gp(xtr, ytr, kernels, n_rows, seed=0):
     return predict
 
 
-def chunked_dataset(name: str, cache_dir, n_blocks: int):
-    """The control import of real set ``name``: its spec with every trajectory cut into
-    ``n_blocks`` contiguous chunks (the importer's ``blocks`` mode), cached like the set."""
-    spec = replace(read_spec(real_spec_path(name)), name=f"{name}-chunks", trajectories="blocks", n_blocks=n_blocks)
-    path = Path(cache_dir) / f"{name}-chunks-{spec_checksum(spec)[:16]}"
-    if not (path / "manifest.json").is_file():
-        import_log(spec, path, overwrite=True)
-    return load_dataset(path)
-
-
 def train_bench_model(ds, preset: str, out_dir):
     """``preset`` trained as the ``real`` bench profile trains it; predict(instances) -> rows."""
     model = train_model(ds, preset, out_dir, TrainConfig(**get_profile("real").train, progress=False, num_threads=1))
@@ -217,7 +205,7 @@ def main(argv=None) -> int:
     ap.add_argument("--epochs", type=int, default=100)
     ap.add_argument("--gp-hyper", type=int, default=600, help="training rows for the GP hyperparameter fit")
     ap.add_argument("--gp-rows", type=int, default=8000, help="training rows the GP is conditioned on")
-    ap.add_argument("--sets", nargs="*", default=list(REAL_SETS))
+    ap.add_argument("--sets", nargs="*", default=list(REAL_SETS), choices=list(REAL_SETS))
     ap.add_argument("--out", help="also write the numbers as JSON here (and a Markdown summary beside it)")
     ap.add_argument("--render", help="only rewrite the Markdown summary of this JSON file")
     args = ap.parse_args(argv)
@@ -239,11 +227,13 @@ def main(argv=None) -> int:
         res = results["sets"][name] = {"samples": [len(xtr), len(xva), len(xte)], "test_std": np.sqrt(var).tolist(),
                                        "nmse": {}, "nmse_per_joint": {}}
 
-        def record(label, pred, seconds=None):
-            n = nmse_per_joint(pred, yte, var)
-            res["nmse"][label], res["nmse_per_joint"][label] = float(n.mean()), n.tolist()
+        def record(label, pred, seconds=None, control=False):
+            """nMSE of ``pred`` on the test targets of the trajectory split (or of the control)."""
+            table, target = (res["control"], ty) if control else (res, yte)
+            n = nmse_per_joint(pred, target)
+            table["nmse"][label], table["nmse_per_joint"][label] = float(n.mean()), n.tolist()
             took = "" if seconds is None else f"  ({seconds:.0f} s)"
-            print(f"  nMSE {label:<30}{n}  mean {n.mean():.4f}{took}", flush=True)
+            print(f"  nMSE {label + (', control' if control else ''):<30}{n}  mean {n.mean():.4f}{took}", flush=True)
 
         print(f"\n{name}: train/val/test samples {len(xtr)}/{len(xva)}/{len(xte)}")
         print(f"  test target std per joint [Nm]  {np.sqrt(var)}")
@@ -262,8 +252,9 @@ def main(argv=None) -> int:
                time.perf_counter() - t0)
 
         # Interpolation control: every trajectory contributes train, val and test chunks.
-        continuous = CONTINUOUS.get(name, True)
-        ctrl = chunked_dataset(name, args.cache, CONTROL_BLOCKS.get(name, 4))
+        # The importer's blocks mode cuts every trajectory into CONTROL_BLOCKS[name] contiguous chunks.
+        ctrl = load_dataset(real_dataset(name, args.cache, name=f"{name}-chunks", trajectories="blocks",
+                                         n_blocks=CONTROL_BLOCKS[name]))
         cx, cy = xy(ctrl.split("train"))
         tx, ty = xy(ctrl.split("test"))
         res["control"] = {"instances": [len(ctrl.split(k)) for k in ("train", "val", "test")],
@@ -271,19 +262,14 @@ def main(argv=None) -> int:
         print(f"  interpolation control (not the benchmark's split): {res['control']['instances']} chunks, "
               f"{res['control']['samples']} samples")
 
-        def record_control(label, pred, seconds):
-            n = nmse_per_joint(pred, ty)
-            res["control"]["nmse"][label], res["control"]["nmse_per_joint"][label] = float(n.mean()), n.tolist()
-            print(f"  nMSE {label + ', control':<30}{n}  mean {n.mean():.4f}  ({seconds:.0f} s)", flush=True)
-
         t0 = time.perf_counter()
         # Conditioned on no more rows than the trajectory split's GP, so that only the split differs.
-        record_control("GP", fit_gp(cx, cy, kernels, min(args.gp_rows, len(xtr)))(tx), time.perf_counter() - t0)
+        record("GP", fit_gp(cx, cy, kernels, min(args.gp_rows, len(xtr)))(tx), time.perf_counter() - t0, control=True)
         t0 = time.perf_counter()
-        record_control("tau-mlp-wide (bench model)",
-                       train_bench_model(ctrl, "tau-mlp-wide", Path(args.cache) / "models" / f"{name}-chunks")(
-                           ctrl.split("test")), time.perf_counter() - t0)
-        if continuous:
+        record("tau-mlp-wide (bench model)",
+               train_bench_model(ctrl, "tau-mlp-wide", Path(args.cache) / "models" / f"{name}-chunks")(
+                   ctrl.split("test")), time.perf_counter() - t0, control=True)
+        if CONTINUOUS[name]:
             share = high_frequency_share(ds.split("test"))
             res["torque_share_above_5hz"] = share.tolist()
             print(f"  torque variance > 5 Hz / total  {share}  mean {share.mean():.4f}")

@@ -392,6 +392,14 @@ def test_shipped_sarcos_log_in_contiguous_blocks(tmp_path):
     mtime = (path / "manifest.json").stat().st_mtime_ns
     assert real_dataset("real-sarcos", tmp_path / "cache") == path
     assert (path / "manifest.json").stat().st_mtime_ns == mtime
+    # A spec override is another import, cached under its own key; the rows are the file's, in order.
+    chunks = real_dataset("real-sarcos", tmp_path / "cache", name="real-sarcos-chunks", n_blocks=40)
+    assert chunks != path
+    cds = load_dataset(chunks)
+    cinsts = sorted(cds.instances.values(), key=lambda i: i.t[0])
+    assert cds.meta["scenario"] == "real-sarcos-chunks" and len(cinsts) == 40 and {len(i) for i in cinsts} == {111, 112}
+    np.testing.assert_array_equal(
+        np.concatenate([np.concatenate([i.q, i.qd, i.qdd, i.tau_m], axis=1) for i in cinsts]), raw)
 
 
 def test_robot_with_a_description_uses_its_joint_limits(tmp_path, panda):

@@ -9,6 +9,7 @@ changed spec or log is re-imported and an unchanged one is not.
 from __future__ import annotations
 
 import os
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -35,10 +36,15 @@ def real_spec_path(name: str) -> Path:
     return path
 
 
-def real_dataset(name: str, cache_dir, log=None) -> Path:
+def real_dataset(name: str, cache_dir, /, log=None, **spec_overrides) -> Path:
     """The dataset directory of the real set ``name`` ("real-kuka", "real-baxter",
-    "real-sarcos"), imported into ``cache_dir`` on first use and reused after."""
-    spec = read_spec(real_spec_path(name))
+    "real-sarcos"), imported into ``cache_dir`` on first use and reused after.
+
+    ``spec_overrides``: fields of its :class:`LogSpec` to change for this import
+    (e.g. ``trajectories="blocks", n_blocks=4``, or another ``name`` for its
+    manifest); they enter the cache key.
+    """
+    spec = replace(read_spec(real_spec_path(name)), **spec_overrides)
     missing = [str(f) for f in spec.files if not Path(f).is_file()]
     if missing:
         raise DatasetError(f"{name}: log file(s) {missing} not found; they ship in benchmarks/real/logs, or set "
