@@ -11,6 +11,7 @@ only differ where a scenario says they should.
 """
 from __future__ import annotations
 
+from .errors import HybridDynError
 import importlib.metadata
 import json
 import math
@@ -23,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 
-class RobotDescriptionError(ValueError):
+class RobotDescriptionError(HybridDynError, ValueError):
     """A robot name, frame, URDF or parameter file is missing or inconsistent."""
 
 

@@ -13,6 +13,7 @@ Conventions (PROTOCOL 1):
 """
 from __future__ import annotations
 
+from ..errors import HybridDynError
 import math
 import os
 import warnings
@@ -24,7 +25,7 @@ import pinocchio as pin
 from ..description import Payload, RobotDescriptionError, RobotSpec, build_urdf, load_spec
 
 
-class InputError(ValueError):
+class InputError(HybridDynError, ValueError):
     """An input array has the wrong shape or holds NaN/inf."""
 
 

@@ -20,6 +20,7 @@ base_wrench [N, N, N, Nm, Nm, Nm]; tip_force [N].
 """
 from __future__ import annotations
 
+from ..errors import HybridDynError
 import hashlib
 import json
 import os
@@ -47,7 +48,7 @@ FIELD_UNITS = {
 }
 
 
-class DatasetError(ValueError):
+class DatasetError(HybridDynError, ValueError):
     """A dataset directory, manifest or instance file is missing, corrupt or partial."""
 
 

@@ -15,6 +15,7 @@ returns arrays; :mod:`.model` wraps them into an :class:`IdentifiedModel`.
 """
 from __future__ import annotations
 
+from ..errors import HybridDynError
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,7 +29,7 @@ from .regressor import BaseParameters
 PARAM_SCALE = np.array([1.0, 0.1, 0.1, 0.1, 0.01, 0.01, 0.01, 0.01, 0.01, 0.01])
 
 
-class IdentificationError(ValueError):
+class IdentificationError(HybridDynError, ValueError):
     """The data cannot support the asked-for fit (too few samples, solver failure)."""
 
 

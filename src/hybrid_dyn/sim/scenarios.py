@@ -26,6 +26,7 @@ Profiles: ``quick`` (6 short instances, under a minute on 2 cores), ``default``
 """
 from __future__ import annotations
 
+from ..errors import HybridDynError
 import dataclasses
 import hashlib
 import json
@@ -42,7 +43,7 @@ SCENARIOS = ("paper-noext", "paper-ext", "mismatch-ext")
 PROFILES = ("quick", "default", "paper")
 
 
-class ConfigError(ValueError):
+class ConfigError(HybridDynError, ValueError):
     """A generator configuration is inconsistent or names an unknown scenario/profile."""
 
 

@@ -22,6 +22,7 @@ a per-trajectory speed factor (like MoveIt's velocity/acceleration scaling).
 """
 from __future__ import annotations
 
+from ..errors import HybridDynError
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,7 +31,7 @@ import ruckig
 _TRAPPED, _ADVANCED, _REACHED = 0, 1, 2
 
 
-class PlanningError(RuntimeError):
+class PlanningError(HybridDynError, RuntimeError):
     """No valid goal or path was found within the iteration budget."""
 
 

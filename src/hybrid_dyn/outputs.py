@@ -1,0 +1,58 @@
+"""Output paths: the toolkit replaces only what it can prove it wrote.
+
+Two tools every command that writes a folder or file uses:
+
+- ``output_lock(path)``: an exclusive, non-blocking ``fcntl.flock`` on a hidden lock file
+  beside ``path`` (``.<name>.lock`` in its parent). A second run on the same output is refused
+  at once with ``OutputPathError``; the OS releases the lock when the process dies, so a
+  killed run never leaves a stale lock. (flock is local to one machine, or to a file system
+  that forwards it; a shared folder under Ray should be a store with per-run temporaries.)
+- ``unique_temp(path)``: a temporary name unique to this process and call, beside ``path``,
+  so two runs never write the same temporary and a rename is atomic.
+
+What counts as "written by the toolkit" is decided by each writer from its own manifest or
+marker (a dataset's manifest, a model's config, a report's ``run.json``); ``refuse_foreign``
+is the common refusal.
+"""
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import os
+import uuid
+from pathlib import Path
+
+from .errors import OutputPathError
+
+
+def lock_path(path) -> Path:
+    path = Path(path)
+    return path.parent / f".{path.name}.lock"
+
+
+@contextlib.contextmanager
+def output_lock(path, what: str = "output"):
+    """Hold an exclusive lock on ``path`` (file or folder, existing or not) for the block."""
+    lp = lock_path(path)
+    lp.parent.mkdir(parents=True, exist_ok=True)
+    f = open(lp, "a+")
+    try:
+        try:
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise OutputPathError(f"{what} {Path(path)} is being written by another run "
+                                  f"(lock {lp} is held); wait for it or choose another path") from None
+        yield
+    finally:
+        f.close()  # closing releases the lock
+
+
+def unique_temp(path, suffix: str = ".partial") -> Path:
+    """``<path><suffix>.<pid>.<random>``: a temporary name no other run can share."""
+    path = Path(path)
+    return path.with_name(f"{path.name}{suffix}.{os.getpid()}.{uuid.uuid4().hex[:8]}")
+
+
+def refuse_foreign(path, what: str, why: str) -> None:
+    raise OutputPathError(f"refusing to replace {path}: {why}; it was not written by hybrid-dyn as a {what}. "
+                          f"Move it away or choose another output path")
