@@ -70,7 +70,9 @@ class BenchProfile:
     def applies(self, spec, ds) -> bool:
         """Whether a row can run on a dataset: its fields exist, and a URDF where it needs one."""
         fields = set(ds.fields)
-        if spec.task == "tip_force" and "pulses" in ds.meta.get("config", {}) and ds.meta["config"]["pulses"] is None:
+        config = ds.meta.get("config", {})
+        if spec.task == "tip_force" and "pulses" in config and config["pulses"] is None \
+                and config.get("contact_steps") is None:
             return False  # no external force in this scenario: nothing to estimate at the tip
         if spec.family == "identified":
             # Identification needs the scenario's plant to run an excitation experiment on.

@@ -43,7 +43,7 @@ from ..data.store import DatasetStore
 from .collision import collision_checker
 from .executors import make_executor
 from .plant import DartPlant
-from .pulses import BellPulses, sample_pulses
+from .pulses import BellPulses, sample_contact_steps, sample_pulses
 from .scenarios import GENERATOR_VERSION, GeneratorConfig
 from .sensors import causal_acceleration
 from .trajectories import random_reference
@@ -266,7 +266,12 @@ def simulate_instance(sim: Simulator, index: int) -> tuple[SimulatedRun, dict]:
     ref = random_reference(sim.nominal, rng_traj, n_traj, dt=cfg.dt, speed_scale=cfg.speed_scale,
                            margin=cfg.joint_margin, standstill=cfg.standstill, is_valid=sim.checker)
     pulses: BellPulses | None = sample_pulses(rng_pulse, cfg.pulses) if cfg.pulses is not None else None
-    force = pulses.force(ref.t) if pulses is not None else None
+    # Contacts draw from the pulse stream after the bells (a config has one or the other in the scenarios).
+    contacts = sample_contact_steps(rng_pulse, cfg.contact_steps, cfg.dt) if cfg.contact_steps is not None else None
+    force = None
+    for source in (pulses, contacts):
+        if source is not None:
+            force = source.force(ref.t) if force is None else force + source.force(ref.t)
     run = sim.run(ref.q, ref.qd, ref.qdd, force, rng_noise)
     duration = len(ref) * cfg.dt
     info = {
@@ -274,6 +279,9 @@ def simulate_instance(sim: Simulator, index: int) -> tuple[SimulatedRun, dict]:
         "pulses": pulses.to_dict() if pulses is not None else None,
         "n_pulses_in_instance": int(np.sum(pulses.centre < duration)) if pulses is not None else 0,
     }
+    if contacts is not None:
+        info["contact_steps"] = contacts.to_dict()
+        info["n_pulses_in_instance"] += int(np.sum(contacts.start < duration))
     return run, info
 
 
@@ -298,6 +306,8 @@ def _instance_job(config_json: str, index: int, out_location: str) -> dict:
         "n_trajectories": info["n_trajectories"], "n_pulses_in_instance": info["n_pulses_in_instance"],
         "pulses": json.dumps(info["pulses"]), **run.attrs,
     }
+    if "contact_steps" in info:
+        attrs["contact_steps"] = json.dumps(info["contact_steps"])
     store = DatasetStore(out_location)
     rel = f"instances/{name}.h5"
     if store.local is not None:

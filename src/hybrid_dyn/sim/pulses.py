@@ -1,4 +1,5 @@
-"""External force at the tool point: the seed's Gaussian bell pulses (PROTOCOL 3).
+"""External force at the tool point: the seed's Gaussian bell pulses (PROTOCOL 3),
+and the step and trapezoid contacts of the ``contact-steps`` scenario.
 
 Seed section 3.1 models the experimenter's push as a sum of bells,
 
@@ -19,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scenarios import PulseConfig
+from .scenarios import ContactStepConfig, PulseConfig
 
 
 @dataclass(frozen=True)
@@ -58,3 +59,57 @@ def sample_pulses(rng: np.random.Generator, cfg: PulseConfig = PulseConfig()) ->
     direction = rng.normal(size=(n, 3))  # isotropic Gaussian -> uniform on the sphere
     direction /= np.linalg.norm(direction, axis=1, keepdims=True)
     return BellPulses(np.cumsum(gaps), sigma, amplitude, direction)
+
+
+@dataclass(frozen=True)
+class ContactSteps:
+    """Drawn contacts: per contact the start [s], rise time [s], plateau [s], amplitude [N] and direction.
+
+    The force ramps linearly from 0 to the amplitude in ``rise``, holds for
+    ``plateau``, and ramps back to 0 in ``rise``. A step has a rise of one
+    control period, so the plant sees it as a jump between two 1 ms ticks.
+    """
+
+    start: np.ndarray      # (n,)
+    rise: np.ndarray       # (n,)
+    plateau: np.ndarray    # (n,)
+    amplitude: np.ndarray  # (n,), >= 0
+    direction: np.ndarray  # (n, 3), unit vectors in the base frame
+
+    def __len__(self) -> int:
+        return len(self.start)
+
+    @property
+    def end(self) -> np.ndarray:
+        return self.start + 2 * self.rise + self.plateau
+
+    def force(self, t: np.ndarray) -> np.ndarray:
+        """Force [N] (T, 3) on the robot at the tool point at times ``t`` [s] (T,)."""
+        t = np.asarray(t, float)
+        out = np.zeros((len(t), 3))
+        for t0, r, p, a, u in zip(self.start, self.rise, self.plateau, self.amplitude, self.direction):
+            # Trapezoid = clip(ramp up) - clip(ramp down): 0 before t0, 1 on the plateau, 0 after the end.
+            shape = np.clip((t - t0) / r, 0.0, 1.0) - np.clip((t - t0 - r - p) / r, 0.0, 1.0)
+            out += (a * shape)[:, None] * u
+        return out
+
+    def to_dict(self) -> dict:
+        return {k: getattr(self, k).tolist() for k in ("start", "rise", "plateau", "amplitude", "direction")}
+
+
+def sample_contact_steps(rng: np.random.Generator, cfg: ContactStepConfig, dt: float) -> ContactSteps:
+    """Draw one instance's contacts; ``dt`` [s] is the control period, a step's rise."""
+    n = int(rng.integers(cfg.count[0], cfg.count[1] + 1))
+    is_step = rng.random(n) < cfg.step_fraction
+    rise = np.where(is_step, dt, rng.uniform(cfg.rise[0], cfg.rise[1], n))
+    plateau = rng.uniform(cfg.plateau[0], cfg.plateau[1], n)
+    amplitude = rng.uniform(cfg.amplitude[0], cfg.amplitude[1], n)
+    gaps = rng.uniform(cfg.gap[0], cfg.gap[1], n)
+    direction = rng.normal(size=(n, 3))  # isotropic Gaussian -> uniform on the sphere
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    start = np.empty(n)
+    t = cfg.first_after
+    for i in range(n):  # each contact starts one gap after the previous one ended
+        start[i] = t + gaps[i]
+        t = start[i] + 2 * rise[i] + plateau[i]
+    return ContactSteps(start, rise, plateau, amplitude, direction)

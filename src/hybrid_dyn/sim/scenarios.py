@@ -15,7 +15,13 @@ name            plant                                                    externa
 ``paper-ext``   same                                                     bell pulses
 ``mismatch-ext``manufacturer inertials + 0.5 kg tool + Gaz friction,     bell pulses
                 base sensor mounted 1 mm / 1 deg off its nominal pose
+``contact-steps``as paper-ext, recorded at 1 kHz                         step and trapezoid
+                                                                         contacts
 =============== ======================================================== ==============
+
+``contact-steps`` is recorded at the control rate (1 kHz), because a 10 ms sample
+step hides what a force step does to an estimator; its instances are fewer and
+shorter than the other scenarios' (10x the samples per second).
 
 The controller always uses the nominal model (``load_robot(robot)``), so in
 ``mismatch-ext`` it is wrong and tracking errors grow: they are reported.
@@ -39,7 +45,7 @@ from ..analytic.robot import Robot, SensorMount, load_robot
 # Bump when the generator's algorithm changes what a config produces.
 GENERATOR_VERSION = 1
 
-SCENARIOS = ("paper-noext", "paper-ext", "mismatch-ext")
+SCENARIOS = ("paper-noext", "paper-ext", "mismatch-ext", "contact-steps")
 PROFILES = ("quick", "default", "paper")
 
 
@@ -84,6 +90,25 @@ class PulseConfig:
 
 
 @dataclass(frozen=True)
+class ContactStepConfig:
+    """Step and trapezoid contacts (issue 16): a force that ramps up in ``rise``, holds
+    ``plateau``, ramps down in ``rise`` again, in a uniformly random direction.
+
+    A contact is a step (rise of one control period, 1 ms) with probability
+    ``step_fraction``, else a trapezoid with a rise drawn in ``rise``. The first
+    contact starts one gap after ``first_after`` (so the tare window stays free).
+    """
+
+    count: tuple = (5, 15)           # contacts per instance, integers inclusive
+    amplitude: tuple = (3.0, 25.0)   # N
+    rise: tuple = (0.001, 0.020)     # s, ramp time of a trapezoid
+    plateau: tuple = (0.3, 1.5)      # s
+    gap: tuple = (1.0, 3.0)          # s between the end of one contact and the start of the next
+    step_fraction: float = 0.5       # share of contacts that are steps (1 ms rise)
+    first_after: float = 1.0         # s, no contact before this (the tare window is the first 0.5 s)
+
+
+@dataclass(frozen=True)
 class GeneratorConfig:
     """Everything that determines a simulated dataset. Units SI unless noted."""
 
@@ -113,6 +138,7 @@ class GeneratorConfig:
     dart_coulomb: tuple | None = None        # Nm per joint: DART's own Coulomb stiction (extra)
     dart_viscous: tuple | None = None        # Nm s/rad per joint: DART's own viscous damping (extra)
     pulses: PulseConfig | None = field(default_factory=PulseConfig)  # None: no external force
+    contact_steps: ContactStepConfig | None = None  # step/trapezoid contacts (contact-steps scenario)
     noise: NoiseConfig = field(default_factory=NoiseConfig)
     qdd_cutoff_hz: float = 20.0              # low-pass of the causal acceleration estimate
     seed: int = 0
@@ -151,13 +177,23 @@ class GeneratorConfig:
 
     # -------------------------------------------------------- (de)serialise
     def to_dict(self) -> dict:
-        return _jsonable(dataclasses.asdict(self))
+        d = _jsonable(dataclasses.asdict(self))
+        if d["contact_steps"] is None:
+            del d["contact_steps"]  # configs without contacts keep the hashes they had before the field existed
+        return d
+
+    @property
+    def has_external_force(self) -> bool:
+        return self.pulses is not None or self.contact_steps is not None
 
     @classmethod
     def from_dict(cls, d: dict) -> "GeneratorConfig":
         d = dict(d)
         if d.get("pulses") is not None:
             d["pulses"] = PulseConfig(**{k: tuple(v) for k, v in d["pulses"].items()})
+        if d.get("contact_steps") is not None:
+            d["contact_steps"] = ContactStepConfig(**{k: tuple(v) if isinstance(v, list) else v
+                                                      for k, v in d["contact_steps"].items()})
         if "noise" in d:
             d["noise"] = NoiseConfig(**d["noise"])
         for k in ("trajectories", "speed_scale", "sensor_translation", "sensor_rotation", "dart_coulomb", "dart_viscous"):
@@ -189,6 +225,12 @@ _PROFILE_SIZES = {
     "default": dict(n_instances=40, trajectories=(5, 20)),
     "paper": dict(n_instances=1000, trajectories=(5, 50)),
 }
+# contact-steps records at 1 kHz: fewer, shorter instances (the default size is ~0.5 M samples).
+_CONTACT_STEPS_SIZES = {
+    "quick": dict(n_instances=4, trajectories=(2, 2)),
+    "default": dict(n_instances=10, trajectories=(3, 5)),
+    "paper": dict(n_instances=100, trajectories=(5, 20)),
+}
 
 # mismatch-ext: the unmodelled tool and the misaligned sensor.
 MISMATCH_PAYLOAD = (0.5, (0.01, 0.0, -0.04))  # kg; m from panda_hand_tcp, between the fingers and the flange
@@ -205,12 +247,15 @@ def scenario_config(name: str, profile: str = "quick", seed: int = 0, **override
         raise ConfigError(f"unknown scenario {name!r}; known: {', '.join(SCENARIOS)}")
     if profile not in PROFILES:
         raise ConfigError(f"unknown profile {profile!r}; known: {', '.join(PROFILES)}")
-    kw = dict(scenario=name, profile=profile, seed=int(seed), **_PROFILE_SIZES[profile])
+    sizes = _CONTACT_STEPS_SIZES if name == "contact-steps" else _PROFILE_SIZES
+    kw = dict(scenario=name, profile=profile, seed=int(seed), **sizes[profile])
     if name == "paper-noext":
         kw["pulses"] = None
     if name == "mismatch-ext":
         kw.update(plant_params="franka_official", payload=MISMATCH_PAYLOAD,
                   sensor_translation=MISMATCH_SENSOR_TRANSLATION, sensor_rotation=MISMATCH_SENSOR_ROTATION)
+    if name == "contact-steps":
+        kw.update(pulses=None, contact_steps=ContactStepConfig(), record_hz=1000.0)
     kw.update(overrides)
     try:
         return GeneratorConfig(**kw)
