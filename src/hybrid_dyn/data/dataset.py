@@ -21,11 +21,12 @@ base_wrench [N, N, N, Nm, Nm, Nm]; tip_force [N].
 from __future__ import annotations
 
 from ..errors import HybridDynError
+from ..outputs import unique_temp
 import hashlib
 import json
 import os
 from dataclasses import dataclass, field
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 
 import h5py
 import numpy as np
@@ -68,19 +69,23 @@ def sha256_stream(f) -> str:
 def write_instance(path: Path, fields: dict, truth: dict | None = None, attrs: dict | None = None) -> str:
     """Write one instance atomically (temp file, then rename); returns its sha256.
 
-    Byte-identical output for identical input: HDF5 timestamps are off.
+    Byte-identical output for identical input: HDF5 timestamps are off. The
+    temporary's name is unique to this call and the checksum is taken from it
+    before the rename, so a concurrent writer of the same path can never make
+    this call vouch for bytes it did not write.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(path.suffix + ".partial")
+    tmp = unique_temp(path)
     with h5py.File(tmp, "w", libver=("earliest", "v110"), track_order=False) as f:
         for k, v in (attrs or {}).items():
             f.attrs[k] = v
         _write_group(f, fields)
         if truth:
             _write_group(f.create_group("truth", track_order=False), truth)
+    sha = sha256_file(tmp)
     os.replace(tmp, path)
-    return sha256_file(path)
+    return sha
 
 
 def _write_group(group, fields: dict) -> None:
@@ -97,19 +102,23 @@ class Instance:
     """One recorded run. Fields are numpy arrays, loaded from disk on first use.
 
     ``inst.q`` or ``inst["q"]``: (T, nv); ``inst.truth["q"]``: the noise-free copy.
+    ``expected_attrs``: file attributes the manifest vouches for (``scenario``,
+    ``config_hash``); a file that states another value is refused on opening.
     """
 
-    def __init__(self, name: str, path: Path, fields: list[str], n_samples: int):
+    def __init__(self, name: str, path: Path, fields: list[str], n_samples: int, expected_attrs: dict | None = None):
         self.name = name
         self.path = Path(path)
         self.fields = list(fields)
         self.n_samples = n_samples
+        self.expected_attrs = dict(expected_attrs or {})
         self._data: dict | None = None
         self._truth: dict | None = None
 
     def _load(self) -> None:
         try:
             with h5py.File(self.path, "r") as f:
+                self._check_attrs(f.attrs)
                 missing = [k for k in self.fields if k not in f]
                 if missing:
                     raise DatasetError(f"instance {self.name} ({self.path}) lacks fields {missing}")
@@ -121,6 +130,14 @@ class Instance:
         if set(n.values()) != {self.n_samples}:
             raise DatasetError(f"instance {self.name}: expected {self.n_samples} samples, file has {n}")
 
+    def _check_attrs(self, attrs) -> None:
+        """The file's own scenario and config hash must be the manifest's: a file copied in from
+        another dataset (its checksum re-recorded) would otherwise train or score silently."""
+        for key, want in self.expected_attrs.items():
+            if key in attrs and str(attrs[key]) != str(want):
+                raise DatasetError(f"instance {self.name}: file {self.path} has {key} {str(attrs[key])!r}, "
+                                   f"the manifest {str(want)!r}; it belongs to another dataset")
+
     def __getitem__(self, key: str) -> np.ndarray:
         if self._data is None:
             self._load()
@@ -130,7 +147,7 @@ class Instance:
             raise KeyError(f"instance {self.name} has no field {key!r}; fields: {self.fields}") from None
 
     def __getattr__(self, key: str) -> np.ndarray:
-        if key.startswith("_") or key in ("name", "path", "fields", "n_samples"):
+        if key.startswith("_") or key in ("name", "path", "fields", "n_samples", "expected_attrs"):
             raise AttributeError(key)
         try:
             return self[key]
@@ -193,14 +210,79 @@ def read_manifest(path: Path) -> dict:
         meta = json.loads(mpath.read_text())
     except json.JSONDecodeError as err:
         raise DatasetError(f"{mpath} is corrupt: {err}") from err
-    if meta.get("format") != FORMAT:
+    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         raise DatasetError(f"{mpath} is not a {FORMAT} manifest")
-    if meta.get("format_version", 0) > FORMAT_VERSION:
-        raise DatasetError(f"{mpath} has format version {meta['format_version']}; this toolkit reads <= {FORMAT_VERSION}")
+    version = meta.get("format_version", 0)
+    if not isinstance(version, int) or version > FORMAT_VERSION:
+        raise DatasetError(f"{mpath} has format version {version!r}; this toolkit reads integers <= {FORMAT_VERSION}")
+    check_manifest(meta, mpath)
+    return meta
+
+
+def check_manifest(meta: dict, where) -> None:
+    """Refuse a manifest whose structure would fail later, or mislead, naming the key.
+
+    Checked: the required keys and their types; every instance record has a unique
+    ``name``, a ``file`` confined to the dataset folder (relative, no ``..``), a
+    ``sha256`` and an integer ``n_samples``; ``splits`` maps each of ``SPLITS`` to a
+    list of known instance names, and no instance is in two splits or twice in one
+    (a train/test overlap would score a model on data it was trained on).
+    """
     for key in ("instances", "splits", "fields"):
         if key not in meta:
-            raise DatasetError(f"{mpath} lacks {key!r}")
-    return meta
+            raise DatasetError(f"{where} lacks {key!r}")
+    if not isinstance(meta["fields"], (dict, list)) or not all(isinstance(k, str) for k in meta["fields"]):
+        raise DatasetError(f"{where}: 'fields' must map field names to units, got {meta['fields']!r:.80}")
+    if not isinstance(meta["instances"], list):
+        raise DatasetError(f"{where}: 'instances' must be a list of records, got {type(meta['instances']).__name__}")
+    names, files = set(), set()
+    for k, rec in enumerate(meta["instances"]):
+        if not isinstance(rec, dict):
+            raise DatasetError(f"{where}: instances[{k}] must be a record (object), got {rec!r:.80}")
+        for key, kind in (("name", str), ("file", str), ("sha256", str), ("n_samples", int)):
+            if key not in rec:
+                raise DatasetError(f"{where}: instances[{k}] ({rec.get('name', 'unnamed')}) lacks {key!r}")
+            if not isinstance(rec[key], kind) or isinstance(rec[key], bool):
+                raise DatasetError(f"{where}: instances[{k}] ({rec.get('name', 'unnamed')}): {key!r} must be "
+                                   f"{kind.__name__}, got {rec[key]!r:.80}")
+        if rec["name"] in names:
+            raise DatasetError(f"{where}: instance {rec['name']!r} is listed twice")
+        _check_confined(rec["file"], f"{where}: instance {rec['name']!r}")
+        if rec["file"] in files:
+            raise DatasetError(f"{where}: instance {rec['name']!r} shares file {rec['file']!r} with another instance")
+        names.add(rec["name"])
+        files.add(rec["file"])
+    splits = meta["splits"]
+    if not isinstance(splits, dict):
+        raise DatasetError(f"{where}: 'splits' must map {list(SPLITS)} to lists of instance names, "
+                           f"got {type(splits).__name__}")
+    unknown_splits = sorted(set(splits) - set(SPLITS))
+    if unknown_splits:
+        raise DatasetError(f"{where}: unknown splits {unknown_splits}; splits are {list(SPLITS)}")
+    seen: dict[str, str] = {}
+    for split in SPLITS:
+        if split not in splits:
+            raise DatasetError(f"{where}: 'splits' lacks {split!r} (an empty list if it has no instances)")
+        members = splits[split]
+        if not isinstance(members, list) or not all(isinstance(n, str) for n in members):
+            raise DatasetError(f"{where}: split {split!r} must be a list of instance names, got {members!r:.80}")
+        unknown = [n for n in members if n not in names]
+        if unknown:
+            raise DatasetError(f"{where}: split {split!r} names unknown instances {unknown[:5]}")
+        for n in members:
+            if n in seen:
+                again = "twice" if seen[n] == split else f"in both {seen[n]!r} and {split!r}"
+                raise DatasetError(f"{where}: instance {n!r} is {again}; each instance belongs to one split")
+            seen[n] = split
+
+
+def _check_confined(file: str, who: str) -> None:
+    """An instance file is a relative path inside the dataset folder: no absolute path, no ``..``."""
+    rel = PurePosixPath(file)
+    # A backslash is a Windows separator ("..\\x.h5" escapes there): refused on every system.
+    if not rel.parts or rel.is_absolute() or ".." in rel.parts or "\\" in file:
+        raise DatasetError(f"{who}: file {file!r} must be a relative path inside the dataset folder "
+                           f"(no absolute path, no '..', '/' as separator)")
 
 
 def load_dataset(path, verify: bool = True) -> Dataset:
@@ -214,19 +296,17 @@ def load_dataset(path, verify: bool = True) -> Dataset:
     meta = read_manifest(path)
     instances = {}
     problems = []
+    # What each generated file states about itself (imported files state neither).
+    expected = {k: meta[k] for k in ("scenario", "config_hash") if meta.get(k) is not None}
     for rec in meta["instances"]:
         ipath = path / rec["file"]
         if not ipath.is_file():
             problems.append(f"{rec['name']}: file {rec['file']} is missing")
         elif verify and sha256_file(ipath) != rec["sha256"]:
             problems.append(f"{rec['name']}: file {rec['file']} does not match its checksum (corrupt or partial)")
-        instances[rec["name"]] = Instance(rec["name"], ipath, meta["fields"], int(rec["n_samples"]))
+        instances[rec["name"]] = Instance(rec["name"], ipath, meta["fields"], rec["n_samples"], expected)
     if problems:
         raise DatasetError(f"dataset {path}: " + "; ".join(problems))
-    for split, names in meta["splits"].items():
-        unknown = [n for n in names if n not in instances]
-        if unknown:
-            raise DatasetError(f"dataset {path}: split {split!r} names unknown instances {unknown[:5]}")
     return Dataset(path, meta, instances)
 
 
@@ -261,7 +341,7 @@ def write_manifest(path: Path, meta: dict) -> None:
     """Write manifest.json atomically; required keys are checked."""
     text = manifest_text(meta)
     path = Path(path)
-    tmp = path / "manifest.json.partial"
+    tmp = unique_temp(path / "manifest.json")
     tmp.write_text(text)
     os.replace(tmp, path / "manifest.json")
 

@@ -7,7 +7,9 @@ filesystem the user has installed). Workers on other machines open the store
 from its URL, so a Ray task writes its instance straight to the shared place.
 
 Writes are made safe for restarts in the way each back-end allows:
-- a local directory: temp file then ``os.replace`` (atomic);
+- a local directory: a temp file whose name is unique to the writer
+  (``outputs.unique_temp``), then ``os.replace`` (atomic), so two writers of one
+  file never share, truncate or rename each other's temporary;
 - an fsspec URL: the file is written whole, and only then its small
   completion record; object stores have no atomic rename, so the record is the
   commit: a file without a record (or not matching the record's checksum) is
@@ -23,6 +25,8 @@ import os
 import shutil
 import tempfile
 from pathlib import Path
+
+from ..outputs import unique_temp
 
 
 def is_url(location) -> bool:
@@ -56,6 +60,14 @@ class DatasetStore:
         """The local path of ``rel``, or None for a URL store."""
         return None if self.local is None else self.local / rel
 
+    def lock_target(self) -> Path | None:
+        """The local path a run locks (``outputs.output_lock``): the folder itself, also for a
+        ``file://`` URL; None for a remote store, where flock cannot reach."""
+        if self.local is not None:
+            return self.local
+        protocol = self.fs.protocol if isinstance(self.fs.protocol, tuple) else (self.fs.protocol,)
+        return Path(self.root) if {"file", "local"} & set(protocol) else None
+
     # ------------------------------------------------------------- queries
     def exists(self, rel: str) -> bool:
         return (self.local / rel).exists() if self.local is not None else self.fs.exists(self._p(rel))
@@ -73,6 +85,14 @@ class DatasetStore:
             return sha256_file(self.local / rel)
         with self.fs.open(self._p(rel), "rb") as f:
             return sha256_stream(f)
+
+    def entries(self) -> list[str]:
+        """Names directly inside the store's folder (hidden ones included), sorted; [] if it does not exist."""
+        if self.local is not None:
+            return sorted(p.name for p in self.local.iterdir()) if self.local.is_dir() else []
+        if not self.fs.exists(self.root):
+            return []
+        return sorted(p.rstrip("/").rsplit("/", 1)[-1] for p in self.fs.ls(self.root, detail=False))
 
     def glob(self, pattern: str) -> list[str]:
         """Relative paths matching a glob pattern, sorted."""
@@ -98,7 +118,7 @@ class DatasetStore:
         """Write a small text file (atomically on a local disk)."""
         if self.local is not None:
             path = self.local / rel
-            tmp = path.with_name(path.name + ".partial")
+            tmp = unique_temp(path)
             tmp.write_text(text)
             os.replace(tmp, path)
         else:
@@ -109,7 +129,7 @@ class DatasetStore:
         """Move a finished local file into the store (atomically on a local disk)."""
         if self.local is not None:
             dest = self.local / rel
-            tmp = dest.with_name(dest.name + ".partial")
+            tmp = unique_temp(dest)
             shutil.copyfile(local_file, tmp)
             os.replace(tmp, dest)
         else:
@@ -136,15 +156,18 @@ def fetch_dataset(url: str, local_dir) -> Path:
 
         raise DatasetError(f"{url} has no manifest.json: not a dataset, or its generation never finished")
     meta = json.loads(store.read_text("manifest.json"))
+    from .dataset import check_manifest
+
+    check_manifest(meta, f"{url}/manifest.json")  # before copying: a file must not land outside local_dir
     local = Path(local_dir)
     (local / "instances").mkdir(parents=True, exist_ok=True)
     for rec in meta["instances"]:
         dest = local / rec["file"]
         if not dest.exists():
-            tmp = dest.with_name(dest.name + ".partial")
+            tmp = unique_temp(dest)
             store.fs.get_file(store._p(rec["file"]), str(tmp))
             os.replace(tmp, dest)
-    tmp = local / "manifest.json.partial"
+    tmp = unique_temp(local / "manifest.json")
     tmp.write_text(store.read_text("manifest.json"))
     os.replace(tmp, local / "manifest.json")
     return local
