@@ -302,6 +302,40 @@ def test_wrong_sample_rate_warns(tmp_path):
     assert not report.warnings or all("sample rate" not in w for w in report.warnings)
 
 
+def test_wrong_sample_rate_warning_names_the_rate_that_fits(tmp_path):
+    log = sine_log(n=300)
+    np.savez(tmp_path / "log.npz", run=np.concatenate([log["q"], log["qd"], log["tau"]], axis=1))
+    report = import_log(tmp_path / "log.npz", tmp_path / "ds", variables="run", sample_rate_hz=110.0,
+                        columns={"q": "1-7", "qd": "8-14", "tau_m": "15-21"})
+    assert any("fit a sample rate of 100 Hz, not the declared 110 Hz" in w for w in report.warnings), report.warnings
+
+
+@pytest.mark.parametrize("factor, declared, fits", [(1e3, "s", "ms"), (1e6, "s", "us"), (1e9, "us", "ns")])
+def test_time_in_another_unit_warns_with_the_unit_that_fits(tmp_path, factor, declared, fits):
+    """t logged in ms but declared s (and the like: a declared unit too large, which imports and only
+    warns): the warning names the unit whose scale makes the position increments over the time steps
+    match the logged velocities; the right unit gives no warning."""
+    log = sine_log(n=300)
+    log_t = dict(log, t=log["t"] * factor)
+    write_csv(tmp_path / "log.csv", log_t)
+    report = import_log(tmp_path / "log.csv", tmp_path / "ds", columns=CSV_COLUMNS, time="t", time_unit=declared)
+    assert any(f"the time column fits the unit '{fits}', not the declared '{declared}'" in w
+               for w in report.warnings), report.warnings
+    report = import_log(tmp_path / "log.csv", tmp_path / "ok", columns=CSV_COLUMNS, time="t", time_unit=fits)
+    assert not any("position increments" in w for w in report.warnings), report.warnings
+
+
+def test_utf8_bom_in_csv_header_is_not_part_of_the_first_name(tmp_path, clean):
+    log, clean_path = clean
+    text = (tmp_path / "clean.csv").read_bytes()
+    (tmp_path / "bom.csv").write_bytes(b"\xef\xbb\xbf" + text)  # as Excel's "CSV UTF-8" writes it
+    import_log(tmp_path / "bom.csv", tmp_path / "bom", columns=CSV_COLUMNS, time="t")
+    got, _ = load_all(tmp_path / "bom")
+    ref, _ = load_all(clean_path)
+    for k in ref:
+        np.testing.assert_array_equal(got[k], ref[k])
+
+
 # ---------------------------------------------------------------------------
 # Specs and CLI
 

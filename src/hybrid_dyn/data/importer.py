@@ -41,6 +41,7 @@ from .dataset import (
 )
 from .derivatives import DerivativeFilter, differentiate
 from .log_readers import LogTable, natural_key, read_log
+from ..outputs import output_lock, refuse_foreign, unique_temp
 
 IMPORTER_VERSION = 1
 
@@ -348,9 +349,12 @@ def import_log(source, out, *, overwrite: bool = False, strict: bool = False, **
         import_log("run.csv", "data/run", name="my-arm", time="t",
                    columns={"q": ["q1", "q2", "q3"], "tau_m": ["tau1", "tau2", "tau3"]})
 
-    The dataset is built beside ``out`` and renamed into place at the end, so an
-    interrupted import leaves any previous dataset at ``out`` intact. An existing
-    ``out`` is replaced only with ``overwrite``. ``strict``: fail on any row issue.
+    The dataset is built beside ``out`` (under a name unique to this run) and
+    renamed into place at the end, so an interrupted import leaves any previous
+    dataset at ``out`` intact. An existing ``out`` is replaced only with
+    ``overwrite``, and only when it is a hybrid-dyn dataset holding nothing but its
+    own files (anything else is refused, named). One import per ``out`` at a time
+    (``outputs.output_lock``). ``strict``: fail on any row issue.
     """
     is_spec = isinstance(source, LogSpec) or (isinstance(source, (str, Path)) and Path(source).suffix == ".toml")
     if is_spec and spec_args:
@@ -364,9 +368,12 @@ def import_log(source, out, *, overwrite: bool = False, strict: bool = False, **
         spec_args.setdefault("name", re.sub(r"[^A-Za-z0-9_.-]", "_", Path(files[0]).stem))
         spec = LogSpec(files=files, **spec_args)
     out = Path(out)
-    if out.exists() and not overwrite:
-        raise LogImportError(f"{out} already exists; pass overwrite=True (CLI: --overwrite) to replace it")
+    with output_lock(out, "dataset"):
+        return _import_locked(spec, out, overwrite, strict)
 
+
+def _import_locked(spec: "LogSpec", out: Path, overwrite: bool, strict: bool) -> "ImportReport":
+    _check_replaceable(out, overwrite)
     report = ImportReport(spec.name)
     segments, warnings = _validate(spec, report)
     report.warnings += warnings
@@ -497,7 +504,7 @@ def _validate(spec: LogSpec, report: ImportReport):
             nxt = data["qd_next"][seg[-1]] if "qd_next" in data and np.isfinite(data["qd_next"][seg[-1]]).all() else None
             segments.append(_Segment(traj, table, rows[seg], fields, nxt))
             report.rows_kept += len(seg)
-    warning = _timebase_warning(segments, spec.checks.timebase_tol) if "qdd" not in spec.columns else None
+    warning = _timebase_warning(segments, spec) if "qdd" not in spec.columns else None
     return segments, [warning] if warning else []
 
 
@@ -613,9 +620,11 @@ class _RowChecks:
         return out
 
 
-def _timebase_warning(segments: list, tol: float) -> str | None:
+def _timebase_warning(segments: list, spec: LogSpec) -> str | None:
     """Least-squares ratio of the position increments to qd x dt over all segments: 1 if the
-    time base and the units of q and qd agree."""
+    time base and the units of q and qd agree. Otherwise the warning names the time unit
+    (or sample rate) whose scale makes the increments fit the logged velocities."""
+    tol = spec.checks.timebase_tol
     dq, vdt = [], []
     for seg in segments:
         f = seg.fields
@@ -630,8 +639,18 @@ def _timebase_warning(segments: list, tol: float) -> str | None:
     ratio = float(dq @ vdt / (vdt @ vdt))
     if abs(ratio - 1) <= tol:
         return None
-    return (f"the position increments are {ratio:.3f} x the logged velocity times the time step: "
-            f"a wrong sample rate or time unit, or q and qd in different units?")
+    head = f"the position increments are {ratio:.4g} x the logged velocity times the time step"
+    if spec.time is None:  # the time base is the declared rate: the fitting rate scales by 1 / ratio
+        return (f"{head}: the velocities fit a sample rate of {spec.sample_rate_hz / ratio:.3g} Hz, "
+                f"not the declared {spec.sample_rate_hz:g} Hz (or are q and qd in different units?)")
+    # Seconds per logged time unit that make the increments fit; a unit fits within the tolerance.
+    scale = TIME_UNITS[spec.time_unit] * ratio
+    fits = [u for u, s in TIME_UNITS.items() if abs(scale / s - 1) <= tol]
+    if fits:
+        return (f"{head}: the time column fits the unit {fits[0]!r}, not the declared {spec.time_unit!r} "
+                f"(set [time] unit = \"{fits[0]}\")")
+    return (f"{head}: no time unit fits (one logged time unit would be {scale:.4g} s); a wrong time column, "
+            f"or q and qd in different units?")
 
 
 def _derive(spec: LogSpec, seg: _Segment) -> dict:
@@ -649,13 +668,69 @@ def _derive(spec: LogSpec, seg: _Segment) -> dict:
     return f
 
 
+# What a dataset folder of the toolkit holds at its top level (generated or imported).
+_DATASET_ENTRIES = {"manifest.json", "instances", "import_report.json", "import_report.txt", "generator.json"}
+
+
+def _check_replaceable(out: Path, overwrite: bool) -> None:
+    """Refuse an existing ``out`` unless ``overwrite`` and it provably holds only a toolkit dataset.
+
+    The proof is the dataset's own manifest: every file in the folder must be the
+    manifest, an import report, or an instance file (or completion record) it lists.
+    An empty folder holds nothing to lose.
+    """
+    if not out.exists() and not out.is_symlink():
+        return
+    if not overwrite:
+        raise LogImportError(f"{out} already exists; pass overwrite=True (CLI: --overwrite) to replace it")
+    if out.is_symlink() or not out.is_dir():
+        refuse_foreign(out, "dataset", "it is not a folder")
+    entries = sorted(p.name for p in out.iterdir())
+    if not entries:
+        return
+    try:
+        meta = json.loads((out / "manifest.json").read_text())
+        listed = {Path(r["file"]).name for r in meta["instances"]} | {f"{r['name']}.json" for r in meta["instances"]}
+        ours = meta.get("format") == "hybrid_dyn.dataset"
+    except (OSError, ValueError, KeyError, TypeError):
+        ours = False
+    if not ours:
+        refuse_foreign(out, "dataset", "it has no readable hybrid-dyn manifest.json")
+    foreign = [out / e for e in entries if e not in _DATASET_ENTRIES]
+    if (out / "instances").is_dir():
+        foreign += [p for p in sorted((out / "instances").iterdir()) if p.name not in listed]
+    if foreign:
+        refuse_foreign(out, "dataset", f"it holds {', '.join(map(str, foreign[:3]))}"
+                                       f"{' ...' if len(foreign) > 3 else ''}, which its manifest does not list")
+
+
 def _write(spec: LogSpec, segments: list, report: ImportReport, out: Path, overwrite: bool) -> None:
+    partial = unique_temp(out)  # this run's own build folder: never another's, never the user's
+    partial.mkdir(parents=True)
+    try:
+        _build(spec, segments, report, partial)
+        _swap_in(partial, out, overwrite)
+    finally:
+        if partial.exists():  # an error before the rename: leave nothing of this run behind
+            shutil.rmtree(partial)
+    report.path = out
+
+
+def _swap_in(partial: Path, out: Path, overwrite: bool) -> None:
+    """Rename the finished ``partial`` to ``out``; a previous dataset there goes to a run-unique backup first."""
+    _check_replaceable(out, overwrite)  # again: something may have appeared during the import
+    if not out.exists():
+        os.replace(partial, out)
+        return
+    old = unique_temp(out, ".old")
+    os.replace(out, old)
+    os.replace(partial, out)
+    shutil.rmtree(old)
+
+
+def _build(spec: LogSpec, segments: list, report: ImportReport, partial: Path) -> None:
     from tqdm import tqdm
 
-    partial = out.with_name(out.name + ".partial")
-    if partial.exists():
-        shutil.rmtree(partial)
-    partial.mkdir(parents=True)
     by_traj = {}
     for seg in segments:
         by_traj.setdefault(seg.trajectory, []).append(seg)
@@ -699,19 +774,6 @@ def _write(spec: LogSpec, segments: list, report: ImportReport, out: Path, overw
                    "sources": [{"file": str(f), "sha256": sha256_file(f)} for f in spec.files],
                    "issues_first_100": full["issues"][:100], "report": "import_report.json"},
     })
-    report.path = out
-    if out.exists():
-        if not overwrite:
-            shutil.rmtree(partial)
-            raise LogImportError(f"{out} appeared during the import; pass overwrite=True to replace it")
-        old = out.with_name(out.name + ".old")
-        if old.exists():
-            shutil.rmtree(old)
-        os.replace(out, old)
-        os.replace(partial, out)
-        shutil.rmtree(old)
-    else:
-        os.replace(partial, out)
 
 
 def spec_checksum(spec: LogSpec) -> str:

@@ -163,7 +163,11 @@ def _named_table(name: str, path: Path, arrays: dict) -> LogTable:
 
 
 def _read_csv(path: Path, delimiter: str | None) -> LogTable:
-    text = path.read_text()
+    # utf-8-sig drops a byte-order mark (Excel writes one), which would else be part of the first name.
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as err:
+        raise LogReadError(f"{path}: not a UTF-8 text file ({err.reason} at byte {err.start})") from err
     lines = text.splitlines()
     if not lines:
         raise LogReadError(f"{path}: empty file")
