@@ -50,3 +50,24 @@ def test_results_csv_has_the_stable_columns(tmp_path):
                 "rmse_free", "max_error", "train_seconds", "infer_us_per_sample", "infer_us_per_call", "n_params"):
         assert col in COLUMNS
     assert back[0]["rmse"] == "0.123457" and back[1]["error"] == "boom"
+
+
+class _FakeInstance(dict):
+    def __init__(self, measured, truth):
+        super().__init__(base_wrench=measured)
+        self.truth = {"base_wrench": truth}
+
+
+def test_base_force_noise_rms_recovers_a_known_white_noise_under_a_bias():
+    from hybrid_dyn.bench.metrics import base_force_noise_rms
+
+    rng = np.random.default_rng(0)
+    insts = []
+    for _ in range(3):
+        truth = rng.normal(0, 5, (20000, 6))
+        bias = rng.uniform(-2, 2, 6)  # a per-run offset: a tare removes it, so it is not noise
+        insts.append(_FakeInstance(truth + bias + 0.2 * rng.standard_normal((20000, 6)), truth))
+    assert abs(base_force_noise_rms(insts) - 0.2) < 0.004  # 60,000 x 3 draws: the RMS is within 1 %
+    no_truth = _FakeInstance(np.zeros((5, 6)), None)
+    no_truth.truth = {}
+    assert np.isnan(base_force_noise_rms([no_truth]))

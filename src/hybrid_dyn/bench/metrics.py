@@ -46,6 +46,26 @@ def standardized_mse(pred: np.ndarray, target: np.ndarray, mean: np.ndarray, std
     return float(np.mean(((np.asarray(pred) - np.asarray(target)) / std) ** 2))
 
 
+def base_force_noise_rms(instances) -> float:
+    """The base sensor's white-noise RMS per force axis [N]: the floor under every base-sensor estimate.
+
+    Measured, not taken from the generator's config: the recorded base force
+    minus its noise-free truth, each instance's mean removed (the per-run bias
+    a tare takes out), pooled over samples and the three axes. NaN when the
+    data carry no truth (real logs).
+    """
+    sq, n = 0.0, 0
+    for inst in instances:
+        truth = inst.truth.get("base_wrench")
+        if truth is None:
+            return float("nan")
+        e = inst["base_wrench"][:, :3] - truth[:, :3]
+        e = e - e.mean(axis=0)
+        sq += float(np.sum(e**2))
+        n += e.size
+    return float(np.sqrt(sq / n)) if n else float("nan")
+
+
 @dataclass
 class ErrorReport:
     """Every error figure of one model on one split."""

@@ -51,7 +51,7 @@ def _latex(header: list, body: list, caption: str) -> str:
     return "\n".join(out) + "\n"
 
 
-TIP_HEADER = ["model", "family", "inputs", "val loss", "test loss", "RMSE [N]", "RMSE x/y/z [N]",
+TIP_HEADER = ["model", "family", "inputs", "val loss", "test loss", "RMSE [N]", "RMSE / noise", "RMSE x/y/z [N]",
               "contact", "free", "max err", "train s", "us/sample", "us/call", "params",
               "seed val loss*", "seed test loss*", "seed RMSE* [N]"]
 TAU_HEADER = ["model", "family", "inputs", "val loss", "test loss", "RMSE [Nm]", "RMSE per joint [Nm]",
@@ -66,13 +66,24 @@ def _row_cells(r, task, scenario):
         seed = SEED_TABLE2.get(r["model"])
     else:
         seed = SEED_TABLE3.get((r["model"], seed_dataset_label(scenario)))
+    header = TIP_HEADER if task == "tip_force" else TAU_HEADER
     if r.get("status") != "ok":
         return [r["model"], r.get("family", ""), r.get("inputs", ""), "FAILED: " + str(r.get("error", ""))[:80]] + \
-            ["-"] * (len(TIP_HEADER) - 4)
-    return [r["model"], r["family"], r.get("inputs", ""), _f(r["val_loss"]), _f(r["test_loss"]), _f(r["rmse"]), per,
+            ["-"] * (len(header) - 4)
+    # Tip force: the RMSE as a multiple of the base sensor's per-axis noise RMS (the limit of a base-sensor method).
+    over_noise = [_f(_ratio(r.get("rmse"), r.get("noise_rms")), 2)] if task == "tip_force" else []
+    return [r["model"], r["family"], r.get("inputs", ""), _f(r["val_loss"]), _f(r["test_loss"]), _f(r["rmse"]),
+            *over_noise, per,
             _f(r.get("rmse_contact")), _f(r.get("rmse_free")), _f(r.get("max_error"), 2), _f(r.get("train_seconds"), 1),
             _f(r.get("infer_us_per_sample"), 2), _f(r.get("infer_us_per_call"), 1), r.get("n_params", "") or "0",
             *(_f(s) for s in (seed or ("", "", "")))]
+
+
+def _ratio(a, b) -> float:
+    try:
+        return float(a) / float(b)
+    except (TypeError, ValueError, ZeroDivisionError):
+        return float("nan")
 
 
 def task_tables(rows, task: str) -> tuple[str, str]:
@@ -94,7 +105,13 @@ def task_tables(rows, task: str) -> tuple[str, str]:
         body = [_row_cells(r, task, scenario) for r in rows if r["task"] == task and r["scenario"] == scenario]
         if not body:
             continue
-        md += [f"## {scenario}", "", _table(header, body), ""]
+        md += [f"## {scenario}", ""]
+        noise = [float(r["noise_rms"]) for r in rows if r["task"] == task and r["scenario"] == scenario
+                 and r.get("status") == "ok" and r.get("noise_rms") not in (None, "")]
+        if task == "tip_force" and noise and np.isfinite(noise[0]):
+            md += [f"Base sensor noise RMS per force axis: {noise[0]:.4f} N (recorded minus noise-free force on the "
+                   "test split, each run's bias removed); 'RMSE / noise' is each row's RMSE in that unit.", ""]
+        md += [_table(header, body), ""]
         tex.append(_latex(header[:6] + header[-3:], [b[:6] + b[-3:] for b in body], f"{title}, {scenario}"))
     if task == "tip_force":
         md += ["Seed Table 1 architectures: " + "; ".join(f"`{k}` {v}" for k, v in SEED_TABLE1.items()), ""]

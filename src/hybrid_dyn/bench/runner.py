@@ -33,7 +33,7 @@ from ..analytic.robot import Robot, load_robot
 from ..analytic.tare import TARE_SECONDS, tare_samples, tared_base_wrench
 from ..analytic.tip_force import contact_joint_torques, tip_force_from_base_wrench, tip_force_from_torques
 from ..data import Dataset
-from .metrics import ErrorReport, standardized_mse
+from .metrics import ErrorReport, base_force_noise_rms, standardized_mse
 from .profiles import BenchProfile
 
 TASK_TARGET = {"tip_force": "tip_force", "joint_torque": "tau_m"}
@@ -41,7 +41,7 @@ TASK_TARGET = {"tip_force": "tip_force", "joint_torque": "tau_m"}
 COLUMNS = [
     "task", "scenario", "model", "family", "inputs", "status",
     "val_loss", "test_loss", "rmse", "nmse", "rmse_contact", "rmse_free", "max_error",
-    "rmse_1", "rmse_2", "rmse_3", "rmse_4", "rmse_5", "rmse_6", "rmse_7",
+    "rmse_1", "rmse_2", "rmse_3", "rmse_4", "rmse_5", "rmse_6", "rmse_7", "noise_rms",
     "train_seconds", "infer_us_per_sample", "infer_us_per_call", "n_params", "n_test_samples", "error",
 ]
 
@@ -267,6 +267,10 @@ def score_row(spec: RowSpec, ctx: BenchContext, norm: dict) -> dict:
             f_truth = (np.concatenate([i.truth.get("tip_force", i["tip_force"]) for i in insts])
                        if "tip_force" in ds.fields else None)
             report = ErrorReport.compute(pred, tgt, f_truth)
+            if spec.task == "tip_force" and "base_wrench" in ds.fields:
+                if "base-force-noise" not in ctx.cache:  # a property of the data: once per scenario
+                    ctx.cache["base-force-noise"] = base_force_noise_rms(insts)
+                row["noise_rms"] = ctx.cache["base-force-noise"]
             row["infer_us_per_sample"] = elapsed / len(pred) * 1e6
             ctx.cache[(spec.task, spec.model)] = preds
     row.update(val_loss=losses["val"], test_loss=losses["test"], rmse=report.rmse, nmse=report.nmse,
