@@ -84,9 +84,20 @@ def test_out_of_range_is_flagged(trained):
         est.estimate_tip_force(inst.q[k], inst.qd[k], base_wrench=inst.base_wrench[k])
     assert est.last_status is EstimatorStatus.OK
     w = inst.base_wrench[n].copy()
-    w[2] += 5000.0  # a load no training sample came near
+    # A load no training sample came near (training wrenches vary by a few N), yet a believable
+    # one: 5000 N would now be refused as input (above the estimator's base-wrench bound).
+    w[2] += 300.0
     f = est.estimate_tip_force(inst.q[n], inst.qd[n], base_wrench=w)
     assert est.last_status is EstimatorStatus.OUT_OF_RANGE and np.isfinite(f).all()
+
+
+def test_slower_calls_than_training_are_refused(trained):
+    """Called at 50 Hz, a model trained at 100 Hz would see windows twice as long as in training
+    (issue 17: it was accepted with stride 1); 150 Hz is no integer multiple either."""
+    _, dirs = trained
+    for hz in (0.5 * RATE, 1.5 * RATE):
+        with pytest.raises(ModelError, match="training rate 100 Hz or an integer multiple"):
+            TipForceEstimator.load(dirs["seed-tip-11"], call_hz=hz, runtime="numba")
 
 
 @pytest.mark.parametrize("preset", ["seed-tip-11", "residual-basewrench"])

@@ -7,15 +7,43 @@ Control engineers call :class:`TipForceEstimator` once per tick of a 1 kHz loop:
     est.last_status                                         # EstimatorStatus.OK, ...
 
 What happens in one call:
-1. The inputs are checked (shape, NaN/inf, monotonic time). A bad sample raises
-   :class:`EstimatorInputError` (a ``ValueError``), or with
-   ``on_bad_input="hold"`` returns the last good estimate and sets
-   ``last_status = INPUT_REJECTED``. Garbage is never returned silently, and a
-   rejected sample does not enter the estimator's history.
+1. ``_accept`` checks the sample before any state is touched (every method
+   passes through it). A sample is rejected when
+   - an argument is not numeric, has the wrong shape, holds NaN/inf, or a
+     needed one (base_wrench, tau_J) is missing;
+   - it is physically implausible for the robot description (the bounds are
+     ``EstimatorConfig`` fields): q more than ``q_margin`` (0.1 rad) outside the
+     URDF position limits; |qd| above the velocity limit by more than
+     ``qd_margin`` (50 %); |tau_J| above the URDF effort limit by more than
+     ``tau_margin`` (50 %); a base-wrench force component above
+     ``max_tip_force + 3 m g`` [N] (the arm's weight and up to 2 g of inertial
+     load on top of the largest believable contact), or a moment component above
+     that times the arm's reach [Nm] (the sum of its joint offsets: no point of
+     the arm lies farther from the base);
+   - its time breaks the stream: t not increasing, t missing once the stream
+     has given t (the first call with t makes a stream timed until ``reset``), or
+     a step off 1/call_hz by more than ``rate_tolerance`` (25 %). The filter and
+     the observer are designed for that step, so a wrong ``call_hz`` (a 100 Hz
+     recording fed to a 1 kHz estimator errs 10 N) or a gap (a lost tick) is
+     refused rather than silently mis-filtered; 25 % lets a loop's jitter through
+     and stops any rate off by 2x. After a gap, ``reset()`` starts a new stream.
+   A rejected sample raises :class:`EstimatorInputError` (a ``ValueError`` that
+   names the argument), or with ``on_bad_input="hold"`` returns the last good
+   estimate with ``last_status = INPUT_REJECTED`` (``last_rejection`` says why).
+   It never enters the filter, observer, tare, window or time state: the calls
+   after it give exactly what they give without it.
 2. qdd is estimated from qd causally, with the generator's filter (backward
    difference + 2nd-order Butterworth, ``sim/sensors.py``) at the call rate.
 3. The chosen method gives the force: the base-wrench method, the torque
    method, the momentum observer, or a learned model (see ``load``).
+4. An estimate above ``max_tip_force`` (500 N) is returned with status
+   FORCE_OUT_OF_RANGE ("out of range") and is not kept as the last good one.
+
+Statuses (``last_status``), first match wins: INPUT_REJECTED (this sample was
+refused; the last good estimate is returned), FORCE_OUT_OF_RANGE (the estimate
+exceeds ``max_tip_force``), WARMING_UP (the filter, observer, tare or window
+still fills), OUT_OF_RANGE (a learned model's input lies outside its training
+range: "out of training range"), OK.
 
 The base-wrench method (and a learned model whose analytic part it is) tares
 the base sensor on the first ``tare_seconds`` of calls (``analytic/tare.py``):
@@ -42,19 +70,25 @@ from .analytic.momentum_observer import MomentumObserver
 from .analytic.robot import InputError, Robot, load_robot
 from .analytic.tare import TARE_SECONDS, StreamingTare, tare_samples, tared_base_wrench
 from .analytic.tip_force import base_wrench_force_core, tip_force_from_base_wrench, tip_force_from_torques
+from .errors import UsageError
 
 METHODS = ("base_wrench", "torques", "momentum")
 
 
 class EstimatorInputError(InputError):
-    """A sample given to the estimator is unusable: wrong shape, NaN/inf, time going backwards."""
+    """A sample given to the estimator is unusable: not numeric, wrong shape, NaN/inf, physically
+    implausible, or out of step with the stream's time; the message names the argument."""
 
 
 class EstimatorStatus(str, Enum):
     OK = "ok"
-    WARMING_UP = "warming up"            # history not yet long enough (filter / observer / window)
+    WARMING_UP = "warming up"            # history not yet long enough (filter / observer / window / tare)
     INPUT_REJECTED = "input rejected"    # this call's sample was bad; the last good estimate was held
+    FORCE_OUT_OF_RANGE = "out of range"  # the estimate exceeds EstimatorConfig.max_tip_force
     OUT_OF_RANGE = "out of training range"  # learned model: input outside its training distribution
+
+
+G = 9.81  # m/s^2, for the base-wrench bound
 
 
 @dataclass(frozen=True)
@@ -65,6 +99,19 @@ class EstimatorConfig:
     momentum_gain: observer bandwidth K [1/s]; its warm-up lasts 5/K s (error < 1 %).
     tare_seconds: base-wrench method: the contact-free start used to tare the
     base sensor [s]; 0 = trust the sensor's zero.
+
+    Plausibility bounds (see the module docstring):
+    q_margin: how far q may lie outside the URDF position limits [rad]; encoders
+    read a hair past a limit, 0.1 rad (6 deg) is no measurement of this arm.
+    qd_margin, tau_margin: the fraction by which |qd| may exceed the velocity
+    limit (TOML ``max_velocity``, else the URDF's) and |tau_J| the URDF effort
+    limit; the arm's controller stops at the limits, so 50 % more is a fault.
+    max_tip_force: bound on the estimate [N]. 500 N is beyond what the Panda's
+    87 Nm shoulder can hold 0.2 m from its axis; a larger estimate is a fault
+    (a corrupt sensor, a singular pose), not a contact. It also sets the
+    base-wrench bound. Raise it for a stronger arm.
+    rate_tolerance: the fraction by which a timed stream's step may differ
+    from 1 / call_hz.
     """
 
     call_hz: float = 1000.0
@@ -72,12 +119,24 @@ class EstimatorConfig:
     on_bad_input: str = "raise"
     momentum_gain: float = 50.0
     tare_seconds: float = TARE_SECONDS
+    q_margin: float = 0.1
+    qd_margin: float = 0.5
+    tau_margin: float = 0.5
+    max_tip_force: float = 500.0
+    rate_tolerance: float = 0.25
 
     def __post_init__(self):
         if self.on_bad_input not in ("raise", "hold"):
-            raise ValueError(f"on_bad_input must be 'raise' or 'hold', got {self.on_bad_input!r}")
+            raise UsageError(f"on_bad_input must be 'raise' or 'hold', got {self.on_bad_input!r}")
         if self.call_hz <= 0 or not (0 < self.qdd_cutoff_hz < 0.5 * self.call_hz):
-            raise ValueError("need call_hz > 0 and 0 < qdd_cutoff_hz < call_hz / 2")
+            raise UsageError("need call_hz > 0 and 0 < qdd_cutoff_hz < call_hz / 2")
+        for name in ("q_margin", "qd_margin", "tau_margin"):
+            if not getattr(self, name) >= 0:
+                raise UsageError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+        if not self.max_tip_force > 0:
+            raise UsageError(f"max_tip_force must be > 0 [N], got {self.max_tip_force!r}")
+        if not 0 < self.rate_tolerance < 1:
+            raise UsageError(f"rate_tolerance must lie in (0, 1), got {self.rate_tolerance!r}")
 
 
 class CausalAccelerationFilter:
@@ -133,8 +192,12 @@ class TipForceEstimator:
         self._qdd_filter = CausalAccelerationFilter(nv, self.config.call_hz, self.config.qdd_cutoff_hz)
         self._observer = MomentumObserver(robot, gain=self.config.momentum_gain, dt=1.0 / self.config.call_hz) \
             if method == "momentum" else None
-        self._needs_wrench = method == "base_wrench" or (model is not None and "base_wrench" in model.inputs)
-        self._needs_tau = method in ("torques", "momentum") or (model is not None and "tau_J" in model.inputs)
+        # A learned model needs its network's inputs and its analytic prior's.
+        model_fields = () if model is None else tuple(model.inputs) + tuple(
+            getattr(model.model.prior, "fields", None) or ())
+        self._needs_wrench = method == "base_wrench" or "base_wrench" in model_fields
+        self._needs_tau = method in ("torques", "momentum") or "tau_J" in model_fields
+        self._build_gate()
         self._tare = None
         if method == "base_wrench" and self.config.tare_seconds > 0:
             self._tare = StreamingTare(robot, tare_samples(self.config.call_hz, self.config.tare_seconds))
@@ -185,9 +248,10 @@ class TipForceEstimator:
         if self._tare is not None:
             self._tare.reset()
         self._calls = 0
-        self._last_t = None
+        self._last_t = None  # set by the first call with t: from then on the stream is timed
         self._last_good = np.zeros(3)
         self.last_status = EstimatorStatus.WARMING_UP
+        self.last_rejection = None  # why the latest rejected sample was refused (hold mode)
 
     @property
     def _active_tare(self):
@@ -208,41 +272,133 @@ class TipForceEstimator:
         tare.set_offset(offset)
 
     # ---------------------------------------------------------------- call
-    def _check(self, q, qd, base_wrench, tau_J, t):
-        r = self.robot
-        try:
-            q = r._single(q, "q")
-            qd = r._single(qd, "qd")
-            if self._needs_wrench:
-                if base_wrench is None:
-                    raise InputError("this estimator needs base_wrench (6,) [N, Nm]")
-                base_wrench = np.asarray(base_wrench, dtype=float)
-                if base_wrench.shape != (6,) or not math.isfinite(base_wrench.dot(base_wrench)):
-                    raise InputError(f"base_wrench must be 6 finite values, got {base_wrench!r}")
-            if self._needs_tau:
-                if tau_J is None:
-                    raise InputError(f"this estimator needs tau_J ({r.nv},) [Nm]")
-                tau_J = r._single(tau_J, "tau_J")
-            if t is not None:
+    def _build_gate(self) -> None:
+        """Precompute the plausibility box [lo, hi] of every value a call brings (module docstring).
+
+        All needed inputs are copied into one preallocated vector and checked at
+        once: |(x - centre) / half_width| <= 1, four numpy operations, no
+        allocation. NaN and inf fail that comparison too. An unbounded value
+        (no limit in the description) gets 1 / half_width = 0: finite passes.
+        """
+        r, c, nv = self.robot, self.config, self.robot.nv
+        v_max = np.asarray(r.spec.max_velocity or r.model.velocityLimit, float)
+        tau_max = np.asarray(r.model.effortLimit, float)
+        # Base wrench: the arm's weight, up to 2 g of inertial load, and the largest believable
+        # contact; moments through the arm's reach (the sum of its joint and tool offsets:
+        # by the triangle inequality no point of the chain lies farther from the base).
+        force = c.max_tip_force + 3.0 * r.total_mass * G
+        reach = sum(float(np.linalg.norm(r.model.jointPlacements[i].translation)) for i in range(1, r.model.njoints))
+        reach += float(np.linalg.norm(r.model.frames[r.tool_frame_id].placement.translation))
+        reach += float(np.linalg.norm(r._root_M_sensor.translation))
+        boxes = [("q", 0, r.q_lower - c.q_margin, r.q_upper + c.q_margin, "rad",
+                  f"the position limits +- {c.q_margin:g} rad"),
+                 ("qd", 1, -v_max * (1 + c.qd_margin), v_max * (1 + c.qd_margin), "rad/s",
+                  f"the velocity limits + {100 * c.qd_margin:g} %")]
+        if self._needs_wrench:
+            w = np.r_[np.full(3, force), np.full(3, force * reach)]
+            boxes.append(("base_wrench", 2, -w, w, "N, Nm",
+                          f"max_tip_force + 3 m g = {force:.0f} N per force axis, x reach {reach:.2f} m per moment axis"))
+        if self._needs_tau:
+            boxes.append(("tau_J", 3, -tau_max * (1 + c.tau_margin), tau_max * (1 + c.tau_margin), "Nm",
+                          f"the effort limits + {100 * c.tau_margin:g} %"))
+        lo = np.concatenate([b[2] for b in boxes])
+        hi = np.concatenate([b[3] for b in boxes])
+        half = 0.5 * (hi - lo)
+        bounded = np.isfinite(half) & (half > 0)
+        self._lo, self._hi = lo, hi
+        self._centre = np.where(bounded, 0.5 * (lo + hi), 0.0)
+        self._inv_half = np.where(bounded, 1.0 / np.where(bounded, half, 1.0), 0.0)
+        self._sample = np.empty(len(lo))  # the accepted sample: q, qd[, base_wrench][, tau_J]
+        self._work = np.empty(len(lo))
+        self._slots, start = [], 0
+        for name, index, b_lo, _, unit, why in boxes:
+            n = len(b_lo)
+            self._slots.append((name, index, self._sample[start:start + n], unit, why, start))
+            start += n
+        views = [None] * 4  # q, qd, base_wrench, tau_J: what _accept hands on
+        for _, index, view, *_ in self._slots:
+            views[index] = view
+        self._views = tuple(views)
+        self._period = 1.0 / c.call_hz
+        self._period_tol = c.rate_tolerance * self._period
+        self._max_force_sq = c.max_tip_force ** 2
+
+    def _accept(self, q, qd, base_wrench, tau_J, t):
+        """Check one sample before it touches any state (every method passes here).
+
+        Returns (q, qd, base_wrench, tau_J, t): the arrays as float views of the
+        preallocated sample vector (None where this estimator does not use them),
+        t as a float or None. Raises EstimatorInputError naming the argument.
+        """
+        given = (q, qd, base_wrench, tau_J)
+        for name, index, view, unit, _, _ in self._slots:
+            x = given[index]
+            if x is None:
+                raise EstimatorInputError(f"this estimator needs {name} ({view.size},) [{unit}]")
+            try:
+                x = np.asarray(x, dtype=float)
+            except (TypeError, ValueError) as err:
+                raise EstimatorInputError(f"{name} must be {view.size} numbers [{unit}], got a "
+                                          f"{type(x).__name__}: {err}") from None
+            if x.shape != view.shape:
+                raise EstimatorInputError(f"{name} must have shape ({view.size},), got {x.shape}")
+            view[...] = x
+        work = self._work
+        np.subtract(self._sample, self._centre, out=work)
+        np.multiply(work, self._inv_half, out=work)
+        np.abs(work, out=work)
+        if not work.max() <= 1.0:  # NaN compares False: rejected too
+            raise EstimatorInputError(self._implausible())
+        if t is None:
+            if self._last_t is not None:
+                raise EstimatorInputError(f"t is missing, but this stream gave t before (last t = {self._last_t} s): "
+                                          "once a stream is timed every call needs t; reset() starts anew")
+        else:
+            try:
                 t = float(t)
-                if not math.isfinite(t):
-                    raise InputError(f"t must be finite, got {t}")
-                if self._last_t is not None and t <= self._last_t:
-                    raise InputError(f"time must increase: t={t} after t={self._last_t}")
-        except InputError as err:
-            raise EstimatorInputError(str(err)) from None
+            except (TypeError, ValueError):
+                raise EstimatorInputError(f"t must be a number [s], got a {type(t).__name__}: {t!r:.60}") from None
+            if not math.isfinite(t):
+                raise EstimatorInputError(f"t must be finite, got {t}")
+            if self._last_t is not None:
+                dt = t - self._last_t
+                if dt <= 0:
+                    raise EstimatorInputError(f"time must increase: t={t} after t={self._last_t}")
+                if abs(dt - self._period) > self._period_tol:
+                    raise EstimatorInputError(
+                        f"t={t} s steps {dt:.6g} s from the last accepted sample, but call_hz="
+                        f"{self.config.call_hz:g} expects {self._period:.6g} s +- {100 * self.config.rate_tolerance:g} %"
+                        ": a wrong call_hz, or a gap in the stream (reset() starts a new one)")
+        q, qd, base_wrench, tau_J = self._views
         return q, qd, base_wrench, tau_J, t
+
+    def _implausible(self) -> str:
+        """The message for a sample outside its box (the slow path: only on rejection)."""
+        x, lo, hi = self._sample, self._lo, self._hi
+        bad = int(np.flatnonzero(~((x >= lo) & (x <= hi)))[0])
+        for name, _, view, unit, why, start in self._slots:
+            if start <= bad < start + view.size:
+                j = bad - start
+                if not math.isfinite(x[bad]):
+                    return f"{name} holds NaN or inf: {name}[{j}] = {x[bad]}"
+                if name == "base_wrench":
+                    unit = "N" if j < 3 else "Nm"
+                return (f"{name}[{j}] = {x[bad]:.6g} {unit} is outside [{lo[bad]:.6g}, {hi[bad]:.6g}] "
+                        f"({why}; robot {self.robot.name!r})")
+        raise AssertionError("no value outside its box")  # pragma: no cover
 
     def estimate_tip_force(self, q, qd, base_wrench=None, tau_J=None, t=None) -> np.ndarray:
         """One sample in, the tip force (3,) [N] in the base frame out; see ``last_status``."""
         try:
-            q, qd, base_wrench, tau_J, t = self._check(q, qd, base_wrench, tau_J, t)
-        except EstimatorInputError:
+            q, qd, base_wrench, tau_J, t = self._accept(q, qd, base_wrench, tau_J, t)
+        except EstimatorInputError as err:
             if self.config.on_bad_input == "raise":
                 raise
             self.last_status = EstimatorStatus.INPUT_REJECTED
+            self.last_rejection = str(err)
             return self._last_good.copy()
-        self._last_t = t
+        if t is not None:
+            self._last_t = t
         # The observer needs no acceleration: skip the filter on that path.
         qdd = None if self.method == "momentum" else self._qdd_filter.step(qd)
         self._calls += 1
@@ -262,8 +418,11 @@ class TipForceEstimator:
                 status = EstimatorStatus.OUT_OF_RANGE
         if self._calls < self._warmup_calls:
             status = EstimatorStatus.WARMING_UP
+        if not f.dot(f) <= self._max_force_sq:  # NaN compares False: flagged too
+            status = EstimatorStatus.FORCE_OUT_OF_RANGE  # returned, but never held as the last good estimate
+        else:
+            self._last_good = f
         self.last_status = status
-        self._last_good = f
         return f.copy()
 
 

@@ -162,8 +162,11 @@ class StreamingModel:
     def set_call_rate(self, call_hz: float) -> None:
         ratio = call_hz / self.record_hz
         self.stride = max(1, int(round(ratio)))
-        if abs(ratio - self.stride) > 1e-6 * ratio and ratio > 1:
-            raise ModelError(f"call rate {call_hz} Hz is not a multiple of the training rate {self.record_hz} Hz")
+        # Slower than training (ratio < 1) used to pass with stride 1: a window spanning
+        # 1/ratio times the training time, and a momentum prior stepped at the wrong dt.
+        if not ratio > 0 or abs(ratio - self.stride) > 1e-6 * ratio:
+            raise ModelError(f"call rate {call_hz} Hz must be the training rate {self.record_hz:g} Hz "
+                             "or an integer multiple of it")
         self.call_hz = call_hz
         self._ring = np.empty(((self.window - 1) * self.stride + 1, len(self._row)))
         self._offsets = np.arange(self.window - 1, -1, -1) * self.stride  # oldest first
