@@ -13,6 +13,13 @@ DART conventions handled here:
 """
 from __future__ import annotations
 
+import contextlib
+import ctypes
+import os
+import sys
+import tempfile
+import xml.etree.ElementTree as ET
+
 import numpy as np
 import dartpy as dart
 
@@ -25,10 +32,50 @@ def load_skeleton(urdf_xml: str):
     opts = dart.utils.DartLoader.Options()
     opts.mDefaultRootJointType = dart.utils.DartLoader.RootJointType.FIXED
     loader.setOptions(opts)
-    skel = loader.parseSkeletonString(urdf_xml, "")
+    # DART warns (on C++ stderr, once per plant) about every zero-mass body. Frame links welded to
+    # their parent (panda_link8, panda_hand_tcp) are massless by design: drop those lines only.
+    expected = tuple(f"is set to BodyNode [{name}]" for name in massless_frame_links(urdf_xml))
+    with _stderr_without(lambda line: "zero mass" in line and any(e in line for e in expected)):
+        skel = loader.parseSkeletonString(urdf_xml, "")
     if skel is None:
         raise ValueError("DART could not parse the URDF")
     return skel
+
+
+def massless_frame_links(urdf_xml: str) -> list[str]:
+    """Links of mass 0 attached by a fixed joint: pure frames (a tool point, a flange)."""
+    root = ET.fromstring(urdf_xml)
+    fixed_children = {j.find("child").get("link") for j in root.iter("joint") if j.get("type") == "fixed"}
+    out = []
+    for link in root.iter("link"):
+        mass = link.find("inertial/mass")
+        if link.get("name") in fixed_children and (mass is None or float(mass.get("value", 0.0)) == 0.0):
+            out.append(link.get("name"))
+    return out
+
+
+_LIBC = ctypes.CDLL(None)
+
+
+@contextlib.contextmanager
+def _stderr_without(drop):
+    """Run the block with the process's stderr (fd 2, where C++ logs) filtered: lines for which
+    ``drop(line)`` is true are discarded, every other line is written on afterwards."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile(mode="w+b") as tmp:
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield
+        finally:
+            _LIBC.fflush(None)  # DART's logger writes through C stdio: flush it into the file first
+            os.dup2(saved, 2)
+            os.close(saved)
+            tmp.seek(0)
+            kept = [ln for ln in tmp.read().decode(errors="replace").splitlines(keepends=True) if not drop(ln)]
+            if kept:
+                sys.stderr.write("".join(kept))
+                sys.stderr.flush()
 
 
 class DartPlant:
