@@ -17,7 +17,6 @@ from hybrid_dyn.data.synthetic import make_synthetic_dataset
 from hybrid_dyn.data.windows import concat_fields
 from hybrid_dyn.learn import PRESETS, ModelError, TrainConfig, load_model, train_model
 from hybrid_dyn.learn import train as train_mod
-from hybrid_dyn.learn.model import config_digest
 from hybrid_dyn.learn.priors import AnalyticPrior
 
 # torch's forward-mode AD (DeLaN's jvp) loads decompositions through the deprecated torch.jit.script.
@@ -259,21 +258,31 @@ def test_tampered_config_is_refused(tip11, tmp_path):
         load_model(d)
 
 
-def test_unknown_or_other_robot_is_refused(tip11, tmp_path):
+def test_unknown_or_other_robot_is_refused(tip11, friction_set, tmp_path):
     import shutil
+
+    from hybrid_dyn.learn.model import file_metadata
 
     with pytest.raises(ModelError, match="not 'ur5'"):
         load_model(tip11.path, robot="ur5")
-    d = tmp_path / "m"
-    shutil.copytree(tip11.path, d)
-    cfg = json.loads((d / "config.json").read_text())
-    cfg["robot"] = "r2d2"
-    # Re-sign it properly: the robot check must stand on its own, not on the digest.
-    tensors = load_file(str(d / "model.safetensors"))
-    save_file(tensors, str(d / "model.safetensors"), metadata={"format": "hybrid_dyn.model", "config_sha256": config_digest(cfg)})
-    (d / "config.json").write_text(json.dumps(cfg))
-    with pytest.raises(ModelError, match="r2d2"):
-        load_model(d)
+
+    def relabel(src, d):
+        shutil.copytree(src, d)
+        cfg = json.loads((d / "config.json").read_text())
+        cfg["robot"] = "r2d2"
+        # Re-sign it properly: the robot check must stand on its own, not on the digest.
+        tensors = load_file(str(d / "model.safetensors"))
+        save_file(tensors, str(d / "model.safetensors"), metadata=file_metadata(cfg, tensors))
+        (d / "config.json").write_text(json.dumps(cfg))
+        return d
+
+    # A data-only model needs no description of its robot: it loads under any name.
+    assert load_model(relabel(tip11.path, tmp_path / "m"), robot="r2d2").config["robot"] == "r2d2"
+    # One with an analytic part does.
+    res = train_model(friction_set, "residual-basewrench", tmp_path / "res",
+                      TrainConfig(max_epochs=1, max_batches_per_epoch=2, **QUICK))
+    with pytest.raises(ModelError, match="description of robot 'r2d2'"):
+        load_model(relabel(res.path, tmp_path / "res-r2d2"))
 
 
 def test_inputs_the_model_was_not_trained_on_are_refused(tip11, tmp_path, ur5):

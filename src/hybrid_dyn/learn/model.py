@@ -14,10 +14,14 @@ with the signal; a residual branch's output layer starts at zero, so an
 untrained hybrid model is exactly its physics part.
 
 On disk (``model_dir``): ``config.json`` (preset, robot, fields, widths,
-normalization, dataset checksum, training history) and ``model.safetensors``
-(every tensor, with the sha256 of the canonical config JSON in its metadata).
-Loading refuses a config that does not match that digest, an unknown robot, or
-a robot other than the one asked for. Nothing is unpickled.
+normalization, dataset checksum, training history), ``model.safetensors``
+(every tensor; its metadata holds the sha256 of the canonical config JSON and
+the sha256 of the tensors' names, dtypes, shapes and bytes) and ``timing.json``
+(wall-clock figures, outside both digests, so that two identical runs write
+byte-identical config and weights). Loading refuses a config or tensors that do
+not match their digests, a file older than the tensor digest, a robot the model
+needs a description of and the toolkit lacks, or a robot other than the one
+asked for. Nothing is unpickled.
 """
 from __future__ import annotations
 
@@ -33,16 +37,18 @@ from safetensors.torch import save_file
 from torch import nn
 
 from ..data.windows import concat_fields, window_index
+from ..errors import HybridDynError
 from .delan import DeepLagrangianNetwork, LearnedGazFriction
 from .nets import build_net
 from .presets import Preset
 from .priors import AnalyticPrior
 
 MODEL_FORMAT = "hybrid_dyn.model"
-MODEL_FORMAT_VERSION = 1
+MODEL_FORMAT_VERSION = 2  # 2: tensor digest in the metadata, wall-clock figures in timing.json
+TIMING_FORMAT = "hybrid_dyn.model-timing"
 
 
-class ModelError(ValueError):
+class ModelError(HybridDynError, ValueError):
     """A model directory is missing, tampered with, or does not fit the robot or data."""
 
 
@@ -52,6 +58,45 @@ def canonical_json(obj) -> str:
 
 def config_digest(config: dict) -> str:
     return hashlib.sha256(canonical_json(config).encode()).hexdigest()
+
+
+def tensors_digest(tensors: dict) -> str:
+    """sha256 over every tensor's name, dtype, shape and raw bytes, in name order.
+
+    Stored in the safetensors metadata: a flipped bit anywhere in the weights or
+    the normalization buffers changes it (the config digest does not see them).
+    """
+    h = hashlib.sha256()
+    for name in sorted(tensors):
+        t = tensors[name].detach().cpu().contiguous()
+        h.update(f"{name}:{t.dtype}:{list(t.shape)};".encode())
+        h.update(t.reshape(-1).view(torch.uint8).numpy().tobytes())
+    return h.hexdigest()
+
+
+METADATA_KEY = "hybrid_dyn"
+
+
+def file_metadata(config: dict, tensors: dict) -> dict:
+    """The safetensors metadata of a model file: one key holding canonical JSON.
+
+    One key because safetensors writes several in hash-map order, which differs
+    between processes: the file of two identical runs would differ in its header.
+    """
+    return {METADATA_KEY: canonical_json({"format": MODEL_FORMAT, "format_version": MODEL_FORMAT_VERSION,
+                                          "config_sha256": config_digest(config),
+                                          "tensors_sha256": tensors_digest(tensors)})}
+
+
+def read_file_metadata(meta: dict) -> dict:
+    """format, config_sha256 and (from format 2 on) tensors_sha256 of a model file's metadata."""
+    if METADATA_KEY in meta:
+        try:
+            doc = json.loads(meta[METADATA_KEY])
+        except ValueError:
+            return {}
+        return doc if isinstance(doc, dict) else {}
+    return {k: meta[k] for k in ("format", "config_sha256") if k in meta}  # format 1: two plain keys
 
 
 def check_instances(instances, fields, widths: dict, who: str) -> None:
@@ -150,9 +195,11 @@ class TrainedModel:
     ``history`` (per-epoch train/val loss), ``val_loss`` (standardized MSE).
     """
 
-    def __init__(self, module: HybridModel, config: dict, path: Path | None = None):
+    def __init__(self, module: HybridModel, config: dict, path: Path | None = None,
+                 train_seconds: float | None = None):
         self.module = module.eval()
         self.config = config
+        self._train_seconds = train_seconds
         self.preset = Preset.from_dict(config["preset"])
         self.path = path
         self._robot = None
@@ -166,7 +213,10 @@ class TrainedModel:
 
     @property
     def train_seconds(self) -> float:
-        return float(self.config.get("train_seconds", 0.0))
+        """Wall-clock training time [s] (timing.json; NaN when it is not known)."""
+        if self._train_seconds is not None:
+            return float(self._train_seconds)
+        return float(self.config.get("train_seconds", float("nan")))  # format 1 kept it in the config
 
     @property
     def history(self) -> list:
@@ -297,28 +347,54 @@ class TrainedModel:
 
     # ------------------------------------------------------------------ I/O
     def save(self, model_dir) -> None:
-        save_model(self.module, self.config, model_dir)
+        seconds = self.train_seconds
+        save_model(self.module, self.config, model_dir, None if np.isnan(seconds) else seconds)
 
 
-def save_model(module: HybridModel, config: dict, model_dir) -> None:
-    """Write config.json and model.safetensors (config digest in its metadata), each atomically."""
+def save_model(module: HybridModel, config: dict, model_dir, train_seconds: float | None = None) -> None:
+    """Write model.safetensors (config and tensor digests in its metadata), timing.json
+    (train_seconds, when given) and config.json, each atomically.
+
+    Only what the digests cover is reproducible, so wall-clock figures stay out of
+    config.json and the metadata: two identical runs write byte-identical files.
+    """
     model_dir = Path(model_dir)
     model_dir.mkdir(parents=True, exist_ok=True)
     tensors = {k: v.detach().cpu().contiguous() for k, v in module.state_dict().items()}
+    digest = config_digest(config)
     tmp = model_dir / "model.safetensors.partial"
-    save_file(tensors, str(tmp), metadata={"format": MODEL_FORMAT, "config_sha256": config_digest(config)})
+    save_file(tensors, str(tmp), metadata=file_metadata(config, tensors))
     ctmp = model_dir / "config.json.partial"
     ctmp.write_text(json.dumps(config, indent=1, sort_keys=True))
     # Weights first, config last: a model dir with config.json is complete.
     os.replace(tmp, model_dir / "model.safetensors")
+    if train_seconds is not None:
+        ttmp = model_dir / "timing.json.partial"
+        ttmp.write_text(json.dumps({"format": TIMING_FORMAT, "config_sha256": digest,
+                                    "train_seconds": float(train_seconds)}, indent=1))
+        os.replace(ttmp, model_dir / "timing.json")
     os.replace(ctmp, model_dir / "config.json")
+
+
+def _read_timing(path: Path, digest: str) -> float | None:
+    """train_seconds from timing.json when it belongs to this config (None otherwise)."""
+    try:
+        doc = json.loads(path.read_text())
+        if doc.get("format") == TIMING_FORMAT and doc.get("config_sha256") == digest:
+            return float(doc["train_seconds"])
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        pass  # a lost or foreign timing file only loses a figure no result depends on
+    return None
 
 
 def load_model(model_dir, robot=None, device: str = "cpu") -> TrainedModel:
     """Open a model directory. robot: a Robot or robot name the model must be for (optional).
 
     Refuses: a missing or partial directory, a config.json that is not the one
-    written with the weights, a robot this toolkit does not know, another robot.
+    written with the weights, tensors whose bytes do not match their digest (a
+    flipped bit), a file older than the tensor digest (format 1: retrain it), a
+    model with an analytic part for a robot without a description, another robot.
+    A data-only model (no analytic part) loads whatever its robot's name.
     """
     model_dir = Path(model_dir)
     cpath, wpath = model_dir / "config.json", model_dir / "model.safetensors"
@@ -330,21 +406,26 @@ def load_model(model_dir, robot=None, device: str = "cpu") -> TrainedModel:
         raise ModelError(f"{cpath} is corrupt: {err}") from err
     try:
         with safe_open(str(wpath), framework="pt") as f:
-            meta = f.metadata() or {}
+            meta = read_file_metadata(f.metadata() or {})
             tensors = {k: f.get_tensor(k) for k in f.keys()}
     except Exception as err:  # safetensors raises its own error types
         raise ModelError(f"{wpath} is corrupt: {err}") from err
-    if meta.get("config_sha256") != config_digest(config):
+    digest = config_digest(config)
+    if meta.get("config_sha256") != digest:
         raise ModelError(f"{cpath} does not match the weights it was saved with (edited or tampered); refusing to load")
     if config.get("format") != MODEL_FORMAT or config.get("format_version", 0) > MODEL_FORMAT_VERSION:
         raise ModelError(f"{cpath}: not a {MODEL_FORMAT} v<={MODEL_FORMAT_VERSION} model")
-    from ..description import available_robots, known_robots
+    if "tensors_sha256" not in meta:
+        raise ModelError(f"{wpath} predates the tensor digest (model format {MODEL_FORMAT_VERSION}): its weights "
+                         f"cannot be checked for corruption; retrain it (delete {model_dir}, rerun train)")
+    if meta["tensors_sha256"] != tensors_digest(tensors):
+        raise ModelError(f"{wpath}: its tensors do not match the sha256 saved with them (corrupted or edited); "
+                         f"refusing to load; retrain or restore the file")
+    from ..description import available_robots
 
-    if config["robot"] not in known_robots():
-        raise ModelError(f"model {model_dir} is for robot {config['robot']!r}, which this toolkit does not know "
-                         f"(known: {', '.join(known_robots())})")
     if Preset.from_dict(config["preset"]).prior is not None and config["robot"] not in available_robots():
-        raise ModelError(f"model {model_dir} needs a robot model, and {config['robot']!r} has no description")
+        raise ModelError(f"model {model_dir} needs a description of robot {config['robot']!r} for its analytic "
+                         f"part, and this toolkit has none (available: {', '.join(available_robots())})")
     if robot is not None:
         name = robot if isinstance(robot, str) else robot.name
         if name != config["robot"]:
@@ -358,4 +439,4 @@ def load_model(model_dir, robot=None, device: str = "cpu") -> TrainedModel:
     module.to(device)
     # The analytic part always uses the model's own robot and parameter set (config), never a
     # caller's Robot that may carry other parameters, a payload or a mis-mounted sensor.
-    return TrainedModel(module, config, path=model_dir)
+    return TrainedModel(module, config, path=model_dir, train_seconds=_read_timing(model_dir / "timing.json", digest))

@@ -14,16 +14,23 @@ with deterministic algorithms; a run resumed from its checkpoint continues
 exactly as if it had never stopped.
 
 Checkpoints (every epoch, atomically): ``checkpoint.safetensors`` (weights,
-best weights, Adam state) and ``checkpoint.json`` (epoch, history, counters,
+best weights, Adam state, torch's generator state for dropout) and ``checkpoint.json`` (epoch, history, counters,
 fingerprint). The fingerprint (preset + training config + dataset checksum)
 decides whether an existing checkpoint or model in ``out_dir`` is this run's.
+
+One run per ``out_dir``: training holds ``output_lock(out_dir)`` throughout, and a
+folder holding files training did not write (no config.json, and not a killed
+run's checkpoint) is refused, never overwritten.
 """
 from __future__ import annotations
 
 import contextlib
 import hashlib
 import json
+import math
+import numbers
 import os
+import re
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -37,8 +44,10 @@ from tqdm.auto import tqdm
 from ..analytic.tare import TARE_SECONDS
 from ..data import Dataset, load_dataset
 from ..data.windows import WindowedSplit, concat_fields
-from .model import (MODEL_FORMAT, MODEL_FORMAT_VERSION, HybridModel, ModelError, TrainedModel, canonical_json,
-                    check_instances, load_model, save_model)
+from ..errors import UsageError
+from ..outputs import output_lock, refuse_foreign
+from .model import (MODEL_FORMAT, MODEL_FORMAT_VERSION, TIMING_FORMAT, HybridModel, ModelError, TrainedModel,
+                    canonical_json, check_instances, load_model, read_file_metadata, save_model)
 from .presets import Preset, get_preset
 from .priors import AnalyticPrior
 
@@ -77,6 +86,36 @@ class TrainConfig:
     progress: bool = True
     num_threads: int | None = None
 
+    def __post_init__(self):
+        self.validate()
+
+    def validate(self) -> None:
+        """Refuse values out of range with a one-line UsageError naming the field and the CLI flag.
+
+        Checked before any work: an epoch count of 0 or a negative batch size would
+        otherwise save an untrained model, a bad device end in a traceback.
+        """
+        for name, least, optional in (("seed", 0, False), ("batch_size", 1, False), ("max_epochs", 1, False),
+                                      ("patience", 1, False), ("max_batches_per_epoch", 1, True),
+                                      ("num_threads", 1, True)):
+            v = getattr(self, name)
+            if v is None and optional:
+                continue
+            if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < least:
+                raise UsageError(f"{_option(name)} must be an integer >= {least}{' or None' if optional else ''}, "
+                                 f"got {v!r}")
+            setattr(self, name, int(v))
+        for name, positive in (("lr", True), ("min_delta", False), ("observer_gain", True), ("tare_seconds", False)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v) or v < 0 \
+                    or (positive and v == 0):
+                raise UsageError(f"{_option(name)} must be a finite number {'> 0' if positive else '>= 0'}, got {v!r}")
+        if not isinstance(self.device, str) or not re.fullmatch(r"auto|cpu|cuda(:\d+)?", self.device):
+            raise UsageError(f"{_option('device')} must be auto, cpu, cuda or cuda:N, got {self.device!r}")
+        if self.analytic_params is not None and not isinstance(self.analytic_params, (str, os.PathLike)):
+            raise UsageError(f"{_option('analytic_params')} must be a parameter-set name or a JSON path, "
+                             f"got {self.analytic_params!r}")
+
     def fingerprint_fields(self) -> dict:
         d = asdict(self)
         for k in ("device", "progress", "num_threads"):  # where and how loudly a run goes does not change its result
@@ -84,10 +123,28 @@ class TrainConfig:
         return d
 
 
+def _option(field: str) -> str:
+    """A TrainConfig field as the user wrote it: the field and, where there is one, its CLI flag."""
+    flag = _CLI_FLAGS.get(field)
+    return f"TrainConfig.{field}" + (f" ({flag})" if flag else "")
+
+
+_CLI_FLAGS = {"seed": "--seed", "batch_size": "--batch-size", "max_epochs": "--epochs", "patience": "--patience",
+              "max_batches_per_epoch": "--max-batches-per-epoch", "num_threads": "--threads",
+              "device": "--device", "analytic_params": "--analytic-params"}
+
+
 def _device(name: str) -> torch.device:
+    """The torch device for TrainConfig.device; a CUDA device that is not there is refused, not replaced."""
     if name == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    return torch.device(name)
+    dev = torch.device(name)
+    if dev.type == "cuda":
+        count = torch.cuda.device_count() if torch.cuda.is_available() else 0
+        if (dev.index or 0) >= count:
+            raise UsageError(f"{_option('device')} is {name!r}, but this PyTorch ({torch.__version__}) sees "
+                             f"{count} CUDA device(s); use cpu or auto")
+    return dev
 
 
 @contextlib.contextmanager
@@ -138,6 +195,12 @@ def _save_checkpoint(out_dir: Path, module, best_state, opt, info: dict) -> None
     tensors.update({f"best.{k}": v.detach().cpu().contiguous() for k, v in best_state.items()})
     opt_tensors, opt_meta = _optimizer_tensors(opt)
     tensors.update(opt_tensors)
+    # Dropout draws its masks from torch's global generator: its state is part of
+    # where training stands, or a resumed run drops other units than a straight one.
+    tensors["rng.cpu"] = torch.get_rng_state()
+    device = next(module.buffers()).device
+    if device.type == "cuda":
+        tensors["rng.cuda"] = torch.cuda.get_rng_state(device).cpu()
     info = dict(info, optimizer=opt_meta)
     tmp = out_dir / "checkpoint.safetensors.partial"
     save_file(tensors, str(tmp), metadata={"fingerprint": info["fingerprint"], "epoch": str(info["epoch"])})
@@ -180,17 +243,115 @@ def train_model(dataset, preset, out_dir, config: TrainConfig | None = None) -> 
     run there is an error (nothing is overwritten).
     """
     config = config or TrainConfig()
+    config.validate()  # a caller may have changed a field since construction
+    device = _device(config.device)
     preset = get_preset(preset)
     ds: Dataset = dataset if isinstance(dataset, Dataset) else load_dataset(dataset)
     out_dir = Path(out_dir)
     fingerprint = run_fingerprint(preset, config, ds.checksum)
-    if (out_dir / "config.json").is_file():
-        model = load_model(out_dir)
-        if model.config.get("fingerprint") != fingerprint:
-            raise ModelError(f"{out_dir} holds a finished model of another run (other preset, config or data); "
-                             "choose another --out or delete it")
-        return model
-    out_dir.mkdir(parents=True, exist_ok=True)
+    if (out_dir / "config.json").is_file():  # a finished model is never written again: no lock needed to read it
+        return _reuse(out_dir, fingerprint)
+    with output_lock(out_dir, "model folder"):
+        if (out_dir / "config.json").is_file():  # finished by another run between the check and the lock
+            return _reuse(out_dir, fingerprint)
+        _refuse_foreign_files(out_dir)
+        return _train_locked(ds, preset, out_dir, config, fingerprint, device)
+
+
+def _reuse(out_dir: Path, fingerprint: str) -> TrainedModel:
+    model = load_model(out_dir)
+    if model.config.get("fingerprint") != fingerprint:
+        raise ModelError(f"{out_dir} holds a finished model of another run (other preset, config or data); "
+                         "choose another --out or delete it")
+    return model
+
+
+# What training writes into its folder (and nothing else is replaced there).
+_OWN_TEMPORARY = re.compile(r"(model\.safetensors|config\.json|timing\.json|checkpoint\.safetensors|checkpoint\.json)"
+                            r"\.partial")
+_OWN_CACHE = re.compile(r"prior-[a-z-]+-[0-9a-f]+\.h5(\.partial)?")
+
+
+def _safetensors_metadata(path: Path) -> dict | None:
+    try:
+        with safe_open(str(path), framework="pt") as f:
+            return f.metadata() or {}
+    except Exception:  # safetensors raises its own error types: unreadable is simply not ours
+        return None
+
+
+def _json_doc(path: Path) -> dict | None:
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    return doc if isinstance(doc, dict) else None
+
+
+def _is_own(path: Path) -> bool:
+    """Whether ``path`` (in a model folder without config.json) is something training wrote.
+
+    Proof is in the content, not the name alone: our metadata or JSON keys. Temporaries
+    and prior caches are known by name (a temporary is partial by nature).
+    """
+    name = path.name
+    if path.is_dir():
+        return name == "analytic_cache" and all(p.is_file() and _OWN_CACHE.fullmatch(p.name) for p in path.iterdir())
+    if not path.is_file():
+        return False
+    if _OWN_TEMPORARY.fullmatch(name):
+        return True
+    if name == "model.safetensors":  # killed between writing the weights and the config
+        return read_file_metadata(_safetensors_metadata(path) or {}).get("format") == MODEL_FORMAT
+    if name == "checkpoint.safetensors":
+        return "fingerprint" in (_safetensors_metadata(path) or {})
+    if name == "checkpoint.json":
+        doc = _json_doc(path) or {}
+        return {"fingerprint", "epoch", "history"} <= set(doc)
+    if name == "timing.json":
+        return (_json_doc(path) or {}).get("format") == TIMING_FORMAT
+    return False
+
+
+def _refuse_foreign_files(out_dir: Path) -> None:
+    """An output folder must be missing, empty, or hold only what training writes."""
+    if out_dir.exists() and not out_dir.is_dir():
+        refuse_foreign(out_dir, "model folder", "it is a file, not a folder")
+    if not out_dir.is_dir():
+        return
+    foreign = sorted(p.name for p in out_dir.iterdir() if not _is_own(p))
+    if foreign:
+        refuse_foreign(out_dir, "model folder", f"it holds {', '.join(foreign[:5])}"
+                                                f"{' ...' if len(foreign) > 5 else ''} but no config.json")
+
+
+# Fields with one column per joint; the others have fixed widths.
+JOINT_FIELDS = ("q", "qd", "qdd", "tau_m", "tau_J")
+FIXED_WIDTHS = {"base_wrench": 6, "tip_force": 3}
+
+
+def _check_robot_and_widths(ds: Dataset, widths: dict, robot) -> None:
+    """The dataset's field widths fit its robot (nv columns per joint field), before any training.
+
+    robot: the loaded Robot when the dataset's robot has a description, else None (a
+    data-only arm: the joint fields need only agree with each other).
+    """
+    joint = {f: w for f, w in widths.items() if f in JOINT_FIELDS}
+    nv = robot.nv if robot is not None else None
+    for f, w in sorted(widths.items()):
+        if f in FIXED_WIDTHS and w != FIXED_WIDTHS[f]:
+            raise ModelError(f"dataset {ds.path}: field {f} has {w} columns, expected {FIXED_WIDTHS[f]}")
+    if nv is not None and any(w != nv for w in joint.values()):
+        raise ModelError(f"dataset {ds.path} is labelled robot {ds.meta['robot']!r} ({nv} joints), but its joint "
+                         f"fields have {joint} columns: another robot's data, or the wrong robot name")
+    if len(set(joint.values())) > 1:
+        raise ModelError(f"dataset {ds.path}: joint fields disagree in width: {joint}")
+
+
+def _train_locked(ds: Dataset, preset: Preset, out_dir: Path, config: TrainConfig, fingerprint: str,
+                  device) -> TrainedModel:
+    """Checks of robot and data first (nothing is written before they pass), then training."""
+    from ..description import available_robots
 
     robot_name = ds.meta.get("robot")
     if not robot_name:
@@ -201,16 +362,29 @@ def train_model(dataset, preset, out_dir, config: TrainConfig | None = None) -> 
     missing = sorted((set(preset.inputs) | set(preset.targets)) - set(ds.fields))
     if missing:
         raise ModelError(f"dataset {ds.path} lacks fields {missing} that preset {preset.name!r} needs")
+    robot = None
+    if robot_name in available_robots():
+        from ..analytic.robot import load_robot
+
+        robot = load_robot(robot_name, params=config.analytic_params if preset.prior is not None else None)
+    elif preset.prior is not None:
+        raise ModelError(f"preset {preset.name!r} needs a description of robot {robot_name!r} (dataset {ds.path}) "
+                         f"for its analytic part, and there is none (available: {', '.join(available_robots())}); "
+                         f"a data-only preset (seed nets, DeLaN) needs none")
 
     prior = None
     if preset.prior is not None:
-        from ..analytic.robot import load_robot
-
-        prior = AnalyticPrior(preset.prior, load_robot(robot_name, params=config.analytic_params),
-                              ds.meta.get("record_hz"), config.observer_gain, config.tare_seconds)
-    widths = field_widths(train[0], list(dict.fromkeys(preset.inputs + preset.targets)))
+        prior = AnalyticPrior(preset.prior, robot, ds.meta.get("record_hz"), config.observer_gain,
+                              config.tare_seconds)
     needed = set(preset.inputs) | set(preset.targets) | (set(prior.fields) if prior else set())
-    check_instances(train + val, needed, widths, f"preset {preset.name!r}")
+    missing = sorted(needed - set(ds.fields))
+    if missing:
+        raise ModelError(f"dataset {ds.path} lacks fields {missing} that the analytic part of {preset.name!r} needs")
+    all_widths = field_widths(train[0], sorted(needed))
+    _check_robot_and_widths(ds, all_widths, robot)
+    check_instances(train + val, needed, all_widths, f"preset {preset.name!r}")  # every instance as the first
+    widths = {f: all_widths[f] for f in dict.fromkeys(preset.inputs + preset.targets)}
+    out_dir.mkdir(parents=True, exist_ok=True)
 
     def split_data(instances):
         extra = None
@@ -222,7 +396,6 @@ def train_model(dataset, preset, out_dir, config: TrainConfig | None = None) -> 
     x_mean, x_std = _stats(concat_fields(train, list(preset.inputs)))
     y_mean, y_std = _stats(ws_train.y)
 
-    device = _device(config.device)
     with _deterministic(config.num_threads):
         torch.manual_seed(config.seed)
         module = HybridModel(preset, widths)
@@ -269,6 +442,10 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
         module.load_state_dict({k[6:]: v for k, v in tensors.items() if k.startswith("model.")})
         best_state = {k[5:]: v.to(device) for k, v in tensors.items() if k.startswith("best.")}
         _restore_optimizer(opt, {k: v for k, v in tensors.items() if k.startswith("opt.")}, info["optimizer"])
+        if "rng.cpu" in tensors:  # checkpoints written before the generator state was saved lack it
+            torch.set_rng_state(tensors["rng.cpu"])
+        if "rng.cuda" in tensors and device.type == "cuda":
+            torch.cuda.set_rng_state(tensors["rng.cuda"], device)
         history, best_val, bad_epochs = info["history"], info["best_val"], info["bad_epochs"]
         start_epoch, seconds = info["epoch"] + 1, info["train_seconds"]
     stopped = bad_epochs >= config.patience
@@ -320,11 +497,11 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
         "dataset": {"path": str(ds.path), "checksum": ds.checksum, "scenario": ds.meta.get("scenario")},
         "train_config": asdict(config), "fingerprint": fingerprint, "history": history,
         "epochs": len(history), "stopped_early": bool(stopped), "val_loss": best_val, "initial_val_loss": initial_val,
-        "train_seconds": seconds, "n_params": sum(p.numel() for p in module.parameters()),
+        "n_params": sum(p.numel() for p in module.parameters()),
         "train_samples": len(ws_train), "torch": torch.__version__,
-    }
+    }  # no wall-clock figures: they would make two identical runs' files differ (timing.json has them)
     module.cpu()
-    save_model(module, config_doc, out_dir)
+    save_model(module, config_doc, out_dir, train_seconds=seconds)
     for name in ("checkpoint.safetensors", "checkpoint.json"):
         (out_dir / name).unlink(missing_ok=True)
     return load_model(out_dir)
