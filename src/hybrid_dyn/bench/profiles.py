@@ -19,7 +19,8 @@ SEED_TAU_NETS = ("seed-tau-mlp", "seed-tau-conv", "seed-tau-lstm", "seed-tau-lst
 RESIDUAL_TIP = ("residual-basewrench", "residual-momentum")
 RESIDUAL_TAU = ("residual-rnea", "residual-rnea-bw")
 DELAN = ("delan", "delan-friction", "delan-residual")
-ANALYTIC = ("torques-pinv", "base-wrench", "base-wrench-tared", "momentum-observer", "rnea", "rnea-bw", "rnea-bw-tared")
+ANALYTIC = ("torques-pinv", "base-wrench", "base-wrench-tared", "momentum-observer", "base-momentum",
+            "kalman-fusion", "rnea", "rnea-bw", "rnea-bw-tared")
 
 # The fields each analytic row reads (beyond a URDF for the dataset's robot).
 ANALYTIC_NEEDS = {
@@ -29,6 +30,9 @@ ANALYTIC_NEEDS = {
     "rnea": ("q", "qd", "qdd", "tau_m"),
     "rnea-bw": ("q", "qd", "qdd", "base_wrench", "tau_m"),
     "base-wrench-tared": ("q", "qd", "qdd", "base_wrench", "tip_force"),
+    # qdd only for the tare (analytic/tare.py); the estimators themselves need none.
+    "base-momentum": ("q", "qd", "qdd", "base_wrench", "tip_force"),
+    "kalman-fusion": ("q", "qd", "qdd", "base_wrench", "tau_J", "tip_force"),
     "rnea-bw-tared": ("q", "qd", "qdd", "base_wrench", "tau_m"),
     "base-wrench-identified": ("q", "qd", "qdd", "base_wrench", "tip_force"),
     "base-wrench-identified-tared": ("q", "qd", "qdd", "base_wrench", "tip_force"),

@@ -28,6 +28,8 @@ from typing import Callable
 import numpy as np
 from tqdm.auto import tqdm
 
+from ..analytic.base_momentum import BaseMomentumObserver
+from ..analytic.kalman import KalmanTipForce, tare_window_noise
 from ..analytic.momentum_observer import MomentumObserver
 from ..analytic.robot import Robot, load_robot
 from ..analytic.tare import TARE_SECONDS, tare_samples, tared_base_wrench
@@ -122,6 +124,43 @@ def _rnea_minus_contact(robot, q, qd, qdd, w):
     return robot.inverse_dynamics(q, qd, qdd) - contact_joint_torques(robot, q, tip_force_from_base_wrench(robot, q, qd, qdd, w))
 
 
+def _base_momentum(robot, inst, ctx):
+    """The base momentum observer (force rows, gain MOMENTUM_GAIN) on the tared base wrench."""
+    obs = BaseMomentumObserver(robot, MOMENTUM_GAIN, 1.0 / ctx.dataset.meta["record_hz"])
+    return obs.run(inst.q, inst.qd, _tared(robot, inst, ctx))[0]
+
+
+def _base_momentum_single(robot, inst, k, ctx):
+    """One observer per scenario, stepped once per call, as a control loop runs it."""
+    obs = ctx.cache.get("base-momentum")
+    if obs is None:
+        obs = ctx.cache["base-momentum"] = BaseMomentumObserver(robot, MOMENTUM_GAIN, 1.0 / ctx.dataset.meta["record_hz"])
+        obs.step(inst.q[0], inst.qd[0], _tared(robot, inst, ctx)[0])
+    return obs.step_force(inst.q[k], inst.qd[k], _tared(robot, inst, ctx)[k])
+
+
+def _kalman_filter(robot, inst, ctx) -> KalmanTipForce:
+    """The fusion filter of one instance: sensor specifications plus the model errors measured on
+    its contact-free tare window (``analytic/kalman.py``)."""
+    hz = ctx.dataset.meta["record_hz"]
+    n = tare_samples(hz, TARE_SECONDS)
+    w = _tared(robot, inst, ctx)
+    noise = tare_window_noise(robot, 1.0 / hz, inst.q[:n], inst.qd[:n], w[:n], inst.tau_J[:n])
+    return KalmanTipForce(robot, 1.0 / hz, noise)
+
+
+def _kalman(robot, inst, ctx):
+    return _kalman_filter(robot, inst, ctx).run(inst.q, inst.qd, _tared(robot, inst, ctx), inst.tau_J)
+
+
+def _kalman_single(robot, inst, k, ctx):
+    """One filter per scenario, stepped once per call."""
+    kf = ctx.cache.get("kalman-fusion")
+    if kf is None:
+        kf = ctx.cache["kalman-fusion"] = _kalman_filter(robot, inst, ctx)
+    return kf.step(inst.q[k], inst.qd[k], _tared(robot, inst, ctx)[k], inst.tau_J[k])
+
+
 ANALYTIC_ROWS = {
     "torques-pinv": _analytic(
         "tip_force", "torques-pinv", "q, qd, qdd, tau_J",
@@ -151,6 +190,12 @@ ANALYTIC_ROWS = {
         "joint_torque", "rnea-bw-tared", "q, qd, qdd, base_wrench (tared on the first 0.5 s)",
         lambda r, i, ctx: _rnea_minus_contact(r, i.q, i.qd, i.qdd, _tared(r, i, ctx)),
         lambda r, i, k, ctx: _rnea_minus_contact(r, i.q[k], i.qd[k], i.qdd[k], _tared(r, i, ctx)[k])),
+    # Issue 16: Newton's law for the whole robot (no qdd), and both force sensors fused.
+    "base-momentum": _analytic(
+        "tip_force", "base-momentum", "q, qd, base_wrench (tared on the first 0.5 s)", _base_momentum,
+        _base_momentum_single),
+    "kalman-fusion": _analytic(
+        "tip_force", "kalman-fusion", "q, qd, base_wrench (tared), tau_J", _kalman, _kalman_single),
 }
 
 

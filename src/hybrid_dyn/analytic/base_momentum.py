@@ -1,0 +1,184 @@
+"""Base momentum observer: the tip force from Newton's law for the whole robot, no joint acceleration.
+
+The ground (through the base sensor), gravity and the environment are the only
+wrenches on the robot. About the root origin O, which does not move,
+
+    d/dt [h; L_O] = W_ground + W_grav(q) + W_ext                              (1)
+
+with h = m v_com the linear momentum [N s], L_O = L_com + c x h the angular
+momentum about O [N m s] (both from q and qd alone: Pinocchio's centroidal
+momentum), W_grav = [m g; c x m g] the weight, and W_ext = [F; p x F] for a force
+F at the tool point p. Everything is in root (``panda_link0``) coordinates; the
+measured base wrench is mapped there from the sensor frame.
+
+The observer integrates (1) instead of differentiating qd (De Luca & Mattone's
+construction, applied to the whole body):
+
+    r(t) = K [ H(t) - H(0) - integral_0^t (W_ground + W_grav + r) ds ],   H = [h; L_O]
+
+so that r' = K (W_ext - r): a first-order filter of the external wrench with
+bandwidth K [1/s]. The same discretisation as ``MomentumObserver``: trapezoid
+on the sensor and gravity terms, the previous estimate for r.
+
+Tip force from r: the force rows alone (``moment_weight = 0``, the default), or
+the least squares of all six rows with the moment rows weighted by
+``moment_weight`` [1/m]. On the force rows the weight is the constant
+[0, 0, -m g], so a tare absorbs a mass error completely; the moment rows carry
+c(q) x m g, whose error changes with the pose (see ``docs/analytic.md``, where
+both are measured).
+
+Feed it a tared base wrench (``analytic/tare.py``): a sensor offset passes
+straight through (1) into r.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from .robot import InputError, Robot, as_batch
+
+
+def wrench_to_tip_force(p: np.ndarray, w_ext: np.ndarray, moment_weight: float = 0.0) -> np.ndarray:
+    """Pure tool-point force F [N] explaining an external wrench [F; p x F] ~ w_ext, (N, 3) or (3,).
+
+    Minimises |f - F|^2 + w^2 |m - p x F|^2 with w = moment_weight [1/m]. With
+    A = [I; w [p]x], A^T A = (1 + w^2 |p|^2) I - w^2 p p^T has the inverse
+    (I + w^2 p p^T) / (1 + w^2 |p|^2), and A^T [f; w m] = f - w^2 p x m.
+    w = 1 is ``tip_force.force_from_external_wrench`` (equal weights); w = 0 the force rows.
+    """
+    f, m = w_ext[..., :3], w_ext[..., 3:]
+    if moment_weight == 0.0:
+        return f.copy()
+    w2 = moment_weight * moment_weight
+    b = f - w2 * np.cross(p, m)
+    pb = np.sum(p * b, axis=-1, keepdims=True)
+    return (b + w2 * p * pb) / (1.0 + w2 * np.sum(p * p, axis=-1, keepdims=True))
+
+
+class BaseMomentumObserver:
+    """Streaming observer of the external wrench from the base sensor and q, qd (no qdd).
+
+    gain: K [1/s] (scalar). dt: sample time [s]. moment_weight: see
+    :func:`wrench_to_tip_force` [1/m]; 0 uses the force rows only.
+    Inputs: q [rad], qd [rad/s] (nv,), base_wrench [N, Nm] (6,) in the base-sensor
+    frame, tared.
+    """
+
+    def __init__(self, robot: Robot, gain: float = 20.0, dt: float = 1e-3, moment_weight: float = 0.0):
+        if dt <= 0:
+            raise InputError(f"dt must be positive [s], got {dt}")
+        if not gain > 0:
+            raise InputError(f"gain must be positive [1/s], got {gain}")
+        if not moment_weight >= 0:
+            raise InputError(f"moment_weight must be >= 0 [1/m], got {moment_weight}")
+        self.robot = robot
+        self.gain = float(gain)
+        self.dt = float(dt)
+        self.moment_weight = float(moment_weight)
+        self._data = robot.model_ff.createData()
+        self._qff = robot._qff.copy()
+        self._vff = np.zeros(robot.model_ff.nv)
+        self._mg_list = (robot.total_mass * robot.model_ff.gravity.linear).tolist()  # weight [N], root axes
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the history; the next step re-initialises H(0)."""
+        self._H0 = None
+        self._integral = np.zeros(6)
+        self._last_u = None
+        self.wrench = np.zeros(6)
+
+    # ------------------------------------------------------------- physics
+    def momentum_and_gravity(self, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(H = [h; L_O] [N s, N m s], W_grav = [m g; c x m g] [N, Nm]) at one validated sample, root axes."""
+        self._qff[7:] = q
+        self._vff[6:] = qd
+        hg = pin.computeCentroidalMomentum(self.robot.model_ff, self._data, self._qff, self._vff)
+        # Python floats: np.cross costs far more than the dynamics at this size.
+        cx, cy, cz = self._data.com[0].tolist()
+        hx, hy, hz = hg.linear.tolist()
+        lx, ly, lz = hg.angular.tolist()
+        gx, gy, gz = self._mg_list
+        H = np.array([hx, hy, hz, lx + cy * hz - cz * hy, ly + cz * hx - cx * hz, lz + cx * hy - cy * hx])
+        w_grav = np.array([gx, gy, gz, cy * gz - cz * gy, cz * gx - cx * gz, cx * gy - cy * gx])
+        return H, w_grav
+
+    def momentum_rate(self, q, qd, qdd) -> np.ndarray:
+        """dH/dt [N, Nm] (6,) at one sample, from the acceleration: the quantity the observer
+        reconstructs without it (used to verify (1), not by the observer)."""
+        q, qd, qdd = (self.robot._single(x, n) for x, n in ((q, "q"), (qd, "qd"), (qdd, "qdd")))
+        self._qff[7:] = q
+        self._vff[6:] = qd
+        aff = np.zeros_like(self._vff)
+        aff[6:] = qdd
+        dhg = pin.computeCentroidalMomentumTimeVariation(self.robot.model_ff, self._data, self._qff, self._vff, aff)
+        c, h = self._data.com[0], self._data.hg.linear
+        # d/dt (L_com + c x h) = dL_com + c_dot x h + c x h_dot, and c_dot x h = 0 (h = m c_dot).
+        return np.concatenate([dhg.linear, dhg.angular + np.cross(c, dhg.linear)])
+
+    # ------------------------------------------------------------ streaming
+    def step(self, q, qd, base_wrench) -> np.ndarray:
+        """Advance one sample; returns the external wrench estimate r [N, Nm] (6,), root axes."""
+        q = self.robot._single(q, "q")
+        qd = self.robot._single(qd, "qd")
+        w = np.asarray(base_wrench, dtype=float)
+        if w.shape != (6,) or not np.isfinite(w.dot(w)):
+            raise InputError(f"base_wrench must be 6 finite values [N, Nm], got {w!r}")
+        return self.step_unchecked(q, qd, w)
+
+    def step_unchecked(self, q: np.ndarray, qd: np.ndarray, base_wrench: np.ndarray) -> np.ndarray:
+        """``step`` for inputs already validated as finite float arrays."""
+        H, w_grav = self.momentum_and_gravity(q, qd)
+        u = self.robot._root_from_sensor @ base_wrench + w_grav
+        if self._H0 is None:
+            self._H0, self._last_u = H, u
+            return self.wrench.copy()
+        self._integral += (u + self._last_u) * (0.5 * self.dt) + self.wrench * self.dt
+        self._last_u = u
+        self.wrench = self.gain * (H - self._H0 - self._integral)  # a fresh array: safe to hand out
+        return self.wrench
+
+    def force(self, q, wrench: np.ndarray | None = None) -> np.ndarray:
+        """Tip force [N] (3,) from the wrench estimate (the last one by default)."""
+        r = self.wrench if wrench is None else wrench
+        if self.moment_weight == 0.0:
+            return r[:3].copy()
+        return wrench_to_tip_force(self.robot.tip_position_single(q), r, self.moment_weight)
+
+    def step_force(self, q, qd, base_wrench) -> np.ndarray:
+        """One step, returning the tip force estimate [N] (3,)."""
+        r = self.step(q, qd, base_wrench)
+        return self.force(q, r)
+
+    # ---------------------------------------------------------------- batch
+    def run(self, q, qd, base_wrench) -> tuple[np.ndarray, np.ndarray]:
+        """Over a trajectory sampled every ``dt``: (tip forces (N, 3) [N], wrenches (N, 6) [N, Nm]).
+
+        The same recursion as ``step`` from a reset, written as a linear filter:
+        with a_k = H_k - H_0 - sum of trapezoids of u and S_k = r_0 + ... + r_k,
+        r_k = K (a_k - dt S_{k-1}), i.e. S_k = (1 - K dt) S_{k-1} + K a_k.
+        The first 5/K seconds are the filter's transient.
+        """
+        from scipy.signal import lfilter
+
+        robot = self.robot
+        q, _ = as_batch(q, "q", robot.nv)
+        qd, _ = as_batch(qd, "qd", robot.nv)
+        w, _ = as_batch(base_wrench, "base_wrench", 6)
+        if not (len(q) == len(qd) == len(w)):
+            raise InputError(f"q, qd, base_wrench have different lengths: {len(q)}, {len(qd)}, {len(w)}")
+        self.reset()
+        Hg = [self.momentum_and_gravity(q[k], qd[k]) for k in range(len(q))]
+        H = np.stack([x[0] for x in Hg])
+        u = robot.base_wrench_to_root(w) + np.stack([x[1] for x in Hg])
+        trap = np.zeros_like(u)
+        trap[1:] = np.cumsum((u[1:] + u[:-1]) * (0.5 * self.dt), axis=0)
+        a = H - H[0] - trap
+        K = self.gain
+        S = lfilter([K], [1.0, -(1.0 - K * self.dt)], a, axis=0)
+        r = np.diff(S, axis=0, prepend=0.0)
+        if self.moment_weight == 0.0:
+            f = r[:, :3].copy()
+        else:
+            f = wrench_to_tip_force(robot._tip_positions(q), r, self.moment_weight)
+        return f, r
