@@ -8,7 +8,9 @@ def register(sub) -> None:
     p = sub.add_parser("import", help="import a robot log (CSV, npz, .mat, Parquet) described by a TOML spec")
     p.add_argument("--spec", required=True, help="the import spec (TOML; see docs/bring_your_own_log.md)")
     p.add_argument("--out", required=True, help="the dataset directory to write")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing dataset at --out")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing dataset at --out (only a hybrid-dyn dataset holding nothing but its own "
+                        "files; anything else is refused)")
     p.add_argument("--strict", action="store_true", help="fail on any row problem instead of dropping the row")
     p.add_argument("--report", action="store_true", help="print every row problem, not the first few per kind")
     p.add_argument("--json", action="store_true", help="print the report summary as JSON")

@@ -20,6 +20,8 @@ def register(sub) -> None:
     p.add_argument("--data", required=True, help="dataset directory")
     p.add_argument("--split", default="test", choices=["train", "val", "test"])
     p.add_argument("--save", default=None, help="write predictions to this HDF5 file (one array per instance)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing --save file (only a predictions file written by hybrid-dyn predict)")
     p.set_defaults(func=cmd_predict)
 
     p = sub.add_parser("tune", help="hyperparameter search with Optuna (the seed's search space)")
@@ -82,6 +84,8 @@ def cmd_predict(args) -> int:
     from ..data.windows import concat_fields
     from .model import ModelError, load_model
 
+    if args.save:
+        _check_save_path(args.save, args.overwrite)  # before the work, not after it
     ds = load_dataset(args.data)
     model = load_model(args.model, robot=ds.meta.get("robot"))
     if model.preset.prior == "momentum" and ds.meta.get("record_hz") != model.config.get("record_hz"):
@@ -101,14 +105,48 @@ def cmd_predict(args) -> int:
 
         import h5py
 
-        tmp = args.save + ".partial"
-        with h5py.File(tmp, "w") as f:
-            for inst, p in zip(instances, preds):
-                f.create_dataset(inst.name, data=p, track_times=False)
-            f.attrs["model"] = str(args.model)
-            f.attrs["targets"] = ",".join(model.targets)
-        os.replace(tmp, args.save)
+        from ..outputs import output_lock, unique_temp
+
+        with output_lock(args.save, "predictions file"):
+            _check_save_path(args.save, args.overwrite)  # again, under the lock
+            tmp = unique_temp(args.save)
+            with h5py.File(tmp, "w") as f:
+                for inst, p in zip(instances, preds):
+                    f.create_dataset(inst.name, data=p, track_times=False)
+                f.attrs["model"] = str(args.model)
+                f.attrs["targets"] = ",".join(model.targets)
+                f.attrs[PREDICTIONS_MARKER] = 1
+            os.replace(tmp, args.save)
     return 0
+
+
+# The attribute that marks an HDF5 file as written by ``predict --save``.
+PREDICTIONS_MARKER = "hybrid_dyn_predictions"
+
+
+def _check_save_path(path, overwrite: bool) -> None:
+    """Refuse to replace ``path`` unless ``overwrite`` and it is a predictions file of ours."""
+    from pathlib import Path
+
+    from ..errors import OutputPathError
+    from ..outputs import refuse_foreign
+
+    path = Path(path)
+    if not path.parent.is_dir():
+        raise OutputPathError(f"--save {path}: its folder {path.parent} does not exist")
+    if not path.exists() and not path.is_symlink():
+        return
+    if not overwrite:
+        raise OutputPathError(f"--save {path} already exists; pass --overwrite to replace it")
+    import h5py
+
+    try:
+        with h5py.File(path, "r") as f:
+            ours = bool(f.attrs.get(PREDICTIONS_MARKER, 0))
+    except (OSError, ValueError):
+        ours = False
+    if path.is_symlink() or not ours:
+        refuse_foreign(path, "predictions file", f"it lacks the {PREDICTIONS_MARKER!r} attribute")
 
 
 def cmd_tune(args) -> int:

@@ -11,8 +11,8 @@ def register(sub) -> None:
     p.add_argument("--scenario", choices=SCENARIOS, default="paper-ext")
     p.add_argument("--profile", choices=PROFILES, default="quick",
                    help="quick: under a minute; default: ~0.4 M samples; paper: the seed's 1000 instances")
-    p.add_argument("--out", required=True, help="dataset directory or fsspec URL (created; an interrupted run there "
-                                                 "resumes)")
+    p.add_argument("--out", required=True, help="dataset directory or fsspec URL (created in an existing folder; an "
+                                                 "interrupted run there resumes; one run at a time)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--workers", type=int, default=1,
                    help="local processes, or CPUs of a local Ray instance (the bytes do not depend on it)")
@@ -25,6 +25,25 @@ def register(sub) -> None:
     p.set_defaults(func=cmd_generate)
 
 
+def _check_args(args) -> None:
+    """Refuse bad arguments before anything is written (generate_dataset checks the rest)."""
+    from pathlib import Path
+
+    from ..data.store import is_url
+    from ..errors import OutputPathError, UsageError
+
+    if not args.out.strip():
+        raise UsageError("--out is empty: give the dataset directory (or an fsspec URL) to write")
+    if args.seed < 0:
+        raise UsageError(f"--seed must be >= 0, got {args.seed}")
+    if args.workers < 1:
+        raise UsageError(f"--workers must be >= 1, got {args.workers}")
+    if not is_url(args.out):
+        parent = Path(args.out).absolute().parent
+        if not parent.is_dir():
+            raise OutputPathError(f"--out {args.out}: its folder {parent} does not exist (create it first)")
+
+
 def cmd_generate(args) -> int:
     import json
 
@@ -34,6 +53,7 @@ def cmd_generate(args) -> int:
     from .generator import generate_dataset
     from .scenarios import NoiseConfig, scenario_config
 
+    _check_args(args)
     overrides = {"noise": NoiseConfig.off()} if args.no_noise else {}
     cfg = scenario_config(args.scenario, args.profile, seed=args.seed, **overrides)
     executor = make_executor(args.workers, args.executor, args.ray_address)

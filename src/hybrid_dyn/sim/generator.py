@@ -23,11 +23,21 @@ and then a small ``<name>.json`` completion record. A restart skips instances wh
 regenerates (and names) missing, partial or corrupt ones; the manifest comes
 last. Per-instance seeds derive from (seed, index) alone, so the bytes do not
 depend on the worker count or on the order in which jobs finish.
+
+Concurrent runs: a run holds ``outputs.output_lock`` on a local output for its
+whole length, so a second run into the same folder is refused at once. Each
+file is written under a temporary name unique to its writer and hashed before
+the atomic rename, so a record only ever vouches for bytes its own job wrote
+(this also holds for Ray workers on a shared folder, which the lock of the
+driver does not cover). A folder is only written into if it is empty or was
+started by the generator (its ``generator.json``).
 """
 from __future__ import annotations
 
+import contextlib
 import functools
 import json
+import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,6 +50,8 @@ from ..data.dataset import (
     FIELD_UNITS, DatasetError, manifest_text, package_versions, read_manifest, split_by_instance, write_instance,
 )
 from ..data.store import DatasetStore
+from ..errors import OutputPathError, UsageError
+from ..outputs import output_lock, refuse_foreign
 from .collision import collision_checker
 from .executors import make_executor
 from .plant import DartPlant
@@ -328,6 +340,24 @@ def _instance_job(config_json: str, index: int, out_location: str) -> dict:
     return record
 
 
+def _readable(path: Path) -> bool:
+    """True when every dataset of an HDF5 instance decompresses: a checksum only proves the
+    bytes are those recorded, and a record made before the per-run temporaries may vouch for
+    a file two runs wrote over each other."""
+    import h5py
+
+    def read(_, obj):  # returns None: a value would stop visititems
+        if isinstance(obj, h5py.Dataset):
+            obj[()]
+
+    try:
+        with h5py.File(path, "r") as f:
+            f.visititems(read)
+        return True
+    except (OSError, ValueError, RuntimeError, KeyError):
+        return False
+
+
 def _finished_record(store: DatasetStore, name: str, config_hash: str) -> tuple[dict | None, str | None]:
     """(record, None) for a verified finished instance, else (None, why it must be regenerated or None if never started)."""
     h5, rec_path = f"instances/{name}.h5", f"instances/{name}.json"
@@ -343,6 +373,8 @@ def _finished_record(store: DatasetStore, name: str, config_hash: str) -> tuple[
         return None, "file is missing"
     if store.sha256(h5) != rec.get("sha256"):
         return None, "file does not match its checksum (corrupt or partial)"
+    if store.local is not None and not _readable(store.local_path(h5)):
+        return None, "file matches its checksum but does not read (corrupt HDF5)"
     return rec, None
 
 
@@ -375,8 +407,57 @@ def generate_dataset(config: GeneratorConfig, out_dir, workers: int = 1, progres
     """
     from tqdm import tqdm
 
+    store = _checked_store(config, out_dir)
+    lock_on = store.lock_target()
+    # One run per output at a time (a second is refused, naming the lock); a remote
+    # store cannot be locked and relies on per-writer temporaries and records.
+    with output_lock(lock_on, "dataset") if lock_on is not None else contextlib.nullcontext():
+        return _generate_locked(config, store, workers, progress, executor, log, tqdm, locked=lock_on is not None)
+
+
+def _checked_store(config: GeneratorConfig, out_dir) -> DatasetStore:
+    """The store of ``out_dir`` after the checks that must pass before anything is written."""
+    if out_dir is None or not str(out_dir).strip():
+        raise UsageError(f"output folder (--out) is empty ({out_dir!r}): give the dataset directory or an fsspec URL")
+    if not isinstance(config.seed, (int, np.integer)) or config.seed < 0:
+        raise UsageError(f"seed must be a non-negative integer, got {config.seed!r}")
     store = DatasetStore(out_dir)
-    store.makedirs("instances")
+    if store.local is not None:
+        path = store.local
+        if path.exists() and not path.is_dir():
+            raise OutputPathError(f"--out {path} exists and is not a directory")
+        parent = next((p for p in [path, *path.parents] if p.exists()), Path("."))
+        if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
+            raise OutputPathError(f"cannot write the dataset at {path}: {parent} is not a writable directory")
+    return store
+
+
+# What the generator writes at a dataset's top level; a folder holding anything else
+# before generator.json exists is not one of its datasets.
+_OWN_ENTRIES = ("generator.json", "manifest.json", "instances")
+
+
+def _check_ours(store: DatasetStore, out_dir) -> None:
+    """Refuse a non-empty folder that the generator did not start (e.g. an imported dataset)."""
+    if store.exists("generator.json"):
+        return
+    present = [e for e in store.entries() if not _is_temporary(e)]
+    if present == ["instances"] and not [e for e in store.glob("instances/*") if not _is_temporary(e)]:
+        return  # an earlier run stopped before writing generator.json
+    if present:
+        refuse_foreign(out_dir, "generated dataset",
+                       f"it holds {', '.join(present[:5])}{' ...' if len(present) > 5 else ''} but no generator.json")
+
+
+def _is_temporary(name: str) -> bool:
+    """A temporary of an interrupted write: ``X.partial`` (older runs) or ``X.partial.<pid>.<hex>``."""
+    name = name.rsplit("/", 1)[-1]
+    return name.endswith(".partial") or ".partial." in name
+
+
+def _generate_locked(config, store, workers, progress, executor, log, tqdm, locked: bool):
+    out_dir = store.location
+    _check_ours(store, out_dir)
     chash = config.config_hash()
     config_json = json.dumps(config.to_dict(), sort_keys=True)
 
@@ -390,10 +471,14 @@ def generate_dataset(config: GeneratorConfig, out_dir, workers: int = 1, progres
             raise DatasetError(f"{out_dir} holds a dataset of another configuration (hash {old}, this one {chash}); "
                                "choose another --out or delete it")
     else:
+        store.makedirs()
         store.write_text("generator.json", json.dumps({"config_hash": chash, "config": config.to_dict()},
                                                       indent=1, sort_keys=True))
+    store.makedirs("instances")
 
-    for stale in store.glob("instances/*.partial"):
+    # Under the lock no other run writes here, so every temporary is a dead run's
+    # (a remote store has none: its writes go whole, committed by their record).
+    for stale in [p for p in store.glob("instances/*") + store.glob("*") if locked and _is_temporary(p)]:
         log(f"removing {stale.rsplit('/', 1)[-1]}: an unfinished write from an interrupted run")
         store.remove(stale)
 
