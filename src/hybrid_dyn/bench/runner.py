@@ -36,6 +36,7 @@ from ..analytic.tare import TARE_SECONDS, tare_samples, tared_base_wrench
 from ..analytic.tip_force import contact_joint_torques, tip_force_from_base_wrench, tip_force_from_torques
 from ..data import Dataset
 from .metrics import ErrorReport, base_force_noise_rms, standardized_mse
+from ..outputs import output_lock, refuse_foreign, unique_temp
 from .profiles import BenchProfile
 
 TASK_TARGET = {"tip_force": "tip_force", "joint_torque": "tau_m"}
@@ -344,7 +345,7 @@ def write_results(path: Path, rows: list[dict]) -> None:
     """results.csv with the stable column set, written atomically."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".csv.partial")
+    tmp = unique_temp(path)
     with open(tmp, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=COLUMNS, extrasaction="ignore")
         w.writeheader()
@@ -415,17 +416,62 @@ def run_bench(profile: BenchProfile, out_dir, data_root=None, work_root=None, da
     dataset_provider(scenario, profile) -> Dataset; default: generate with the
     DART generator, cached by config hash under ``data_root``.
     Models and datasets are reused on rerun (same config and data checksum),
-    so an interrupted bench resumes where it stopped.
+    so an interrupted bench resumes where it stopped. ``out_dir`` must be new,
+    empty or an earlier report of the bench (its ``run.json``); it is locked
+    for the run.
     """
-    from .report import write_report
-
     # The study's networks are tiny: torch's intra-op threads cost more than they
     # give, and on a busy machine they spin (measured: a 2x32 MLP step 0.8 ms on
     # one thread, 118 ms on two with the cores oversubscribed). The bench owns its
     # process, so it pins torch to ``profile.torch_threads``.
     _set_torch_threads(profile.torch_threads)
     out_dir = Path(out_dir)
+    with output_lock(out_dir, "report folder"):  # one bench per report folder at a time
+        previous = _claim_report_dir(out_dir)
+        return _run_bench_locked(profile, out_dir, previous, data_root, work_root, dataset_provider, log)
+
+
+def _claim_report_dir(out_dir: Path) -> list[dict]:
+    """Make ``out_dir`` a report folder of this toolkit, or refuse; returns its earlier invocations.
+
+    A folder is the bench's when its ``run.json`` says so (a ``"bench_report"``
+    key, or the ``profile`` of reports written before that key); an empty or new folder is claimed by writing that marker before
+    anything else, so a run killed halfway still leaves a folder a rerun may
+    use. Anything else (a user's README.md or results.csv) is refused, named.
+    """
+    from ..errors import OutputPathError
+
+    if out_dir.exists() and not out_dir.is_dir():
+        raise OutputPathError(f"report folder {out_dir} exists and is not a directory")
+    marker = out_dir / "run.json"
+    if marker.is_file():
+        try:
+            old = json.loads(marker.read_text())
+        except (OSError, ValueError):
+            old = None
+        if not isinstance(old, dict) or not ("bench_report" in old or "profile" in old):
+            refuse_foreign(marker, "benchmark report", "it is not a run.json of hybrid-dyn bench")
+        if "invocations" in old:
+            return list(old["invocations"])
+        return [{"wall_seconds": old.get("wall_seconds")}]  # a report from before invocations were kept
+    present = sorted(p.name for p in out_dir.iterdir()) if out_dir.is_dir() else []
+    if present:
+        refuse_foreign(out_dir, "benchmark report",
+                       f"it holds {', '.join(present[:5])}{' ...' if len(present) > 5 else ''} but no run.json")
     out_dir.mkdir(parents=True, exist_ok=True)
+    _write_json(marker, {"bench_report": 1, "invocations": []})
+    return []
+
+
+def _write_json(path: Path, obj: dict) -> None:
+    tmp = unique_temp(path)
+    tmp.write_text(json.dumps(obj, indent=1, default=str))
+    os.replace(tmp, path)
+
+
+def _run_bench_locked(profile, out_dir, previous, data_root, work_root, dataset_provider, log) -> list[dict]:
+    from .report import write_report
+
     data_root = Path(data_root or os.environ.get("HYBRID_DYN_DATA", "data"))
     work_root = Path(work_root or os.environ.get("HYBRID_DYN_RUNS", "runs")) / profile.name
     provider = dataset_provider or (lambda scenario, prof: prof.dataset(scenario, data_root, log=log))
@@ -467,20 +513,14 @@ def run_bench(profile: BenchProfile, out_dir, data_root=None, work_root=None, da
                 f"({time.perf_counter() - t0:.1f} s)" if row["status"] == "ok" else
                 f"[bench] {scenario} {spec.model} failed")
     wall = time.perf_counter() - t_start
-    # Keep every invocation: a rerun that reuses cached data and models is fast,
-    # and the first, full run's wall time must not be overwritten by it.
-    previous = []
-    if (out_dir / "run.json").is_file():
-        try:
-            old = json.loads((out_dir / "run.json").read_text())
-            previous = old.get("invocations") or [{"wall_seconds": old.get("wall_seconds")}]
-        except (json.JSONDecodeError, AttributeError):
-            previous = []
+    # Keep every invocation (``previous``, read when the folder was claimed): a rerun
+    # that reuses cached data and models is fast, and the first, full run's wall
+    # time must not be overwritten by it.
     invocations = previous + [{"finished": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "wall_seconds": wall,
                                "rows": len(rows), "rows_ok": sum(r.get("status") == "ok" for r in rows)}]
-    meta = {"profile": profile.to_dict(), "wall_seconds": wall, "invocations": invocations,
+    meta = {"bench_report": 1, "profile": profile.to_dict(), "wall_seconds": wall, "invocations": invocations,
             "datasets": {s: {"path": str(d.path), "checksum": d.checksum, "seed": d.meta.get("seed"),
                              "config_hash": d.meta.get("config_hash")} for s, d in datasets.items()}}
-    (out_dir / "run.json").write_text(json.dumps(meta, indent=1, default=str))
+    _write_json(out_dir / "run.json", meta)
     write_report(out_dir, rows, meta, contexts)
     return rows
