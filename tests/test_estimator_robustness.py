@@ -124,6 +124,7 @@ def check_floor(make, robot, needs, good, rng, period):
     return calls, clean_status
 
 
+@pytest.mark.filterwarnings("error::RuntimeWarning")  # no numpy overflow warning escapes on absurd values
 def test_floor_no_ok_garbage_and_rejected_samples_leave_no_trace(panda):
     rng = np.random.default_rng(17)
     good = stream(panda, 1340)
