@@ -7,7 +7,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
+import threading
+
+from .errors import HybridDynError
 
 # Modules that contribute subcommands; each has register(subparsers).
 SUBCOMMAND_MODULES = [
@@ -28,16 +32,38 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (a scheduler's or ``kill``'s stop): unwinds like Ctrl-C, so workers are stopped and
+    finished work is kept."""
+
+
+def _on_sigterm(signum, frame):
+    raise Terminated()
+
+
 def main(argv=None) -> int:
+    """Run one command. Exit status: 0 done; 2 a user error (a ``HybridDynError``: one line, no
+    traceback); 130/143 interrupted by SIGINT/SIGTERM; any other exception is a bug in the toolkit
+    and propagates with its traceback (exit 1)."""
     args = build_parser().parse_args(argv)
+    handle_term = _main_thread()
+    previous = signal.signal(signal.SIGTERM, _on_sigterm) if handle_term else None
     try:
         return int(args.func(args) or 0)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as err:
         print("\ninterrupted; finished work is kept and a rerun resumes", file=sys.stderr)
-        return 130
-    except ValueError as err:  # our input errors are ValueError subclasses: print them plainly
+        return 143 if isinstance(err, Terminated) else 130
+    except HybridDynError as err:  # the toolkit's own errors name the problem: print them plainly
         print(f"error: {err}", file=sys.stderr)
         return 2
+    finally:
+        if handle_term:  # None: a handler not set from Python; the default is what it was
+            signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
+
+
+def _main_thread() -> bool:
+    # signal.signal works only in the main thread (main() may be called from a test's thread).
+    return threading.current_thread() is threading.main_thread()
 
 
 if __name__ == "__main__":

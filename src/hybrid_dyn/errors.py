@@ -17,3 +17,7 @@ class UsageError(HybridDynError, ValueError):
 
 class OutputPathError(HybridDynError, ValueError):
     """An output path holds something the toolkit did not write, or is locked by another run."""
+
+
+class MissingDependencyError(HybridDynError, RuntimeError):
+    """An optional dependency that the chosen option needs is not installed (the message says what to install)."""

@@ -13,6 +13,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from ..data import DatasetError, load_dataset
+from ..errors import UsageError
 
 SEED_TIP_NETS = tuple(f"seed-tip-{i}" for i in range(1, 12))
 SEED_TAU_NETS = ("seed-tau-mlp", "seed-tau-conv", "seed-tau-lstm", "seed-tau-lstm-opt")
@@ -179,5 +180,5 @@ PROFILES = {
 
 def get_profile(name: str) -> BenchProfile:
     if name not in PROFILES:
-        raise ValueError(f"unknown bench profile {name!r}; known: {', '.join(PROFILES)}")
+        raise UsageError(f"unknown bench profile {name!r}; known: {', '.join(PROFILES)}")
     return PROFILES[name]

@@ -383,17 +383,22 @@ def pretrain(jobs: list, workers: int, log=print) -> None:
 
     Each model's training is seeded on its own, so the result does not depend
     on the worker count or the order; finished models are reused on a rerun.
+    The workers die with this process, and an interrupt stops them instead of
+    waiting for every queued model (``process_pool``).
     """
     if not jobs:
         return
     if workers <= 1:
         for job in tqdm(jobs, desc="training", unit="model"):
-            _train_job(job)
+            preset, err = _train_job(job)
+            if err:
+                log(f"[bench] training {preset} failed: {err}")
         return
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures import as_completed
 
-    with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as pool:
+    from ..sim.executors import process_pool
+
+    with process_pool(workers) as pool:
         futures = [pool.submit(_train_job, job) for job in jobs]
         for fut in tqdm(as_completed(futures), total=len(futures), desc="training", unit="model"):
             preset, err = fut.result()

@@ -20,7 +20,7 @@ base_wrench [N, N, N, Nm, Nm, Nm]; tip_force [N].
 """
 from __future__ import annotations
 
-from ..errors import HybridDynError
+from ..errors import HybridDynError, UsageError
 from ..outputs import unique_temp
 import hashlib
 import json
@@ -177,7 +177,7 @@ class Dataset:
 
     def split(self, name: str) -> list[Instance]:
         if name not in SPLITS:
-            raise ValueError(f"split must be one of {SPLITS}, got {name!r}")
+            raise UsageError(f"split must be one of {SPLITS}, got {name!r}")
         return [self.instances[n] for n in self.meta["splits"][name]]
 
     @property

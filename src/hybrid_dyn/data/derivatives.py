@@ -37,6 +37,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import signal
 
+from ..errors import UsageError
+
 METHODS = ("savgol", "central", "butter")
 
 
@@ -56,9 +58,9 @@ class DerivativeFilter:
 
     def __post_init__(self):
         if self.method not in METHODS:
-            raise ValueError(f"derivative method must be one of {METHODS}, got {self.method!r}")
+            raise UsageError(f"derivative method must be one of {METHODS}, got {self.method!r}")
         if self.window_s <= 0 or self.cutoff_hz <= 0 or self.polyorder < 2 or self.order < 1:
-            raise ValueError(f"derivative filter parameters out of range: {self}")
+            raise UsageError(f"derivative filter parameters out of range: {self}")
 
     def window_samples(self, dt: float) -> int:
         """The Savitzky-Golay window in samples at step ``dt`` [s]: odd, > polyorder."""
@@ -104,7 +106,7 @@ def differentiate(x: np.ndarray, t: np.ndarray, flt: DerivativeFilter, deriv: in
     if flt.method == "butter":
         nyquist = 0.5 / dt
         if flt.cutoff_hz >= nyquist:
-            raise ValueError(f"butter cutoff {flt.cutoff_hz} Hz is not below the Nyquist frequency {nyquist:.1f} Hz")
+            raise UsageError(f"butter cutoff {flt.cutoff_hz} Hz is not below the Nyquist frequency {nyquist:.1f} Hz")
         b, a = signal.butter(flt.order, flt.cutoff_hz / nyquist)
         # Filter the difference quotient, not the signal: the filter commutes with d/dt, and the
         # odd-extension padding then keeps the derivative's own value and slope at the ends.

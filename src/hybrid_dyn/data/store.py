@@ -42,7 +42,9 @@ class DatasetStore:
             try:
                 import fsspec
             except ImportError as err:  # pragma: no cover - fsspec comes with torch
-                raise RuntimeError("writing to a URL needs fsspec: pip install fsspec") from err
+                from ..errors import MissingDependencyError
+
+                raise MissingDependencyError("writing to a URL needs fsspec: pip install fsspec") from err
             self.fs, self.root = fsspec.core.url_to_fs(self.location)
             self.local = None
         else:
@@ -150,7 +152,9 @@ def fetch_dataset(url: str, local_dir) -> Path:
 
     store = DatasetStore(url)
     if store.local is not None:
-        raise ValueError(f"{url} is a local path, not a URL: load it with load_dataset directly")
+        from ..errors import UsageError
+
+        raise UsageError(f"{url} is a local path, not a URL: load it with load_dataset directly")
     if not store.exists("manifest.json"):
         from .dataset import DatasetError
 

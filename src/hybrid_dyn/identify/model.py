@@ -28,6 +28,7 @@ import pinocchio as pin
 
 from ..analytic.robot import InputError, Robot, as_batch, load_robot
 from ..description import GazFriction, RobotDescriptionError
+from ..errors import UsageError
 from . import estimators as est
 from .parameters import N_BODY_PARAMS, check_consistency, to_urdf_form
 from .regressor import (DEFAULT_COULOMB_EPS, BaseParameters, base_parameters, friction_regressor,
@@ -114,7 +115,7 @@ class IdentificationData:
         it from qd offline without delay (:func:`.experiment.zero_phase_acceleration`).
         """
         if acceleration not in ("measured", "zero-phase"):
-            raise ValueError(f"acceleration must be 'measured' or 'zero-phase', got {acceleration!r}")
+            raise UsageError(f"acceleration must be 'measured' or 'zero-phase', got {acceleration!r}")
         insts = [i for s in splits for i in dataset.split(s)]
         if not insts:
             raise InputError(f"the dataset has no instances in splits {splits}")
@@ -301,7 +302,7 @@ def identify(data, method: str = "consistent", robot: Robot | None = None, *, sp
       directions ``ols``/``wls`` cannot see. Default: the dataset's robot, nominal.
     """
     if method not in METHODS:
-        raise ValueError(f"unknown identification method {method!r}; choose from {', '.join(METHODS)}")
+        raise UsageError(f"unknown identification method {method!r}; choose from {', '.join(METHODS)}")
     if robot is None:
         name = getattr(data, "meta", {}).get("robot") if hasattr(data, "meta") else None
         if name is None:

@@ -19,6 +19,8 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
 
+from ..errors import UsageError
+
 STATE = ["q", "qd", "qdd"]
 TIP_INPUTS = ["base_wrench", "q", "qd", "qdd"]
 TIP_INPUTS_TAU = TIP_INPUTS + ["tau_J"]
@@ -184,4 +186,4 @@ def get_preset(name_or_preset) -> Preset:
     try:
         return PRESETS[name_or_preset]
     except KeyError:
-        raise ValueError(f"unknown preset {name_or_preset!r}; known: {', '.join(PRESETS)}") from None
+        raise UsageError(f"unknown preset {name_or_preset!r}; known: {', '.join(PRESETS)}") from None

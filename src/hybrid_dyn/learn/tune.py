@@ -42,6 +42,7 @@ from pathlib import Path
 import optuna
 
 from ..data import Dataset, load_dataset
+from ..errors import UsageError
 from .model import canonical_json
 from .presets import Preset, get_preset
 from .train import TrainConfig, train_model
@@ -86,7 +87,7 @@ MAX_RETRY = 2     # times a failed trial's parameters are tried again
 def open_storage(url: str, heartbeat_s: int = HEARTBEAT_S) -> optuna.storages.RDBStorage:
     """An RDB storage (SQLite, PostgreSQL, MySQL) with heartbeats and retry of failed trials."""
     if not url.split(":", 1)[0].startswith(("sqlite", "postgresql", "mysql")):
-        raise ValueError(f"storage must be an RDB URL (sqlite:///..., postgresql://..., mysql://...), got {url!r}; "
+        raise UsageError(f"storage must be an RDB URL (sqlite:///..., postgresql://..., mysql://...), got {url!r}; "
                          "the heartbeat that detects killed workers needs one")
     engine_kwargs = {"connect_args": {"timeout": 60}} if url.startswith("sqlite") else None  # writers wait, not fail
     with warnings.catch_warnings():  # Optuna labels heartbeats experimental; they are what we rely on
@@ -169,7 +170,7 @@ def tune(dataset, preset, out_dir, n_trials: int, storage: str | None = None, st
     (best parameters, validation loss, model dir).
     """
     if n_trials < 1 or workers < 1:
-        raise ValueError(f"need n_trials >= 1 and workers >= 1, got {n_trials} and {workers}")
+        raise UsageError(f"need n_trials >= 1 and workers >= 1, got {n_trials} and {workers}")
     base = get_preset(preset)
     ds: Dataset = dataset if isinstance(dataset, Dataset) else load_dataset(dataset)
     config = config or TrainConfig(progress=False)
