@@ -46,7 +46,7 @@ def test_streaming_base_wrench_equals_batch(recorded):
 
 
 def test_streaming_torques_method_equals_batch(recorded, panda):
-    est = TipForceEstimator.analytic(panda, "torques", call_hz=RATE)
+    est = TipForceEstimator.analytic(panda, "torques", call_hz=RATE, qdd_cutoff_hz=20.0)
     stream = np.stack([est.estimate_tip_force(recorded.q[k], recorded.qd[k], tau_J=recorded.tau_J[k])
                        for k in range(len(recorded))])
     qdd = causal_acceleration(recorded.qd, 1.0 / RATE, 20.0)
@@ -144,3 +144,123 @@ def test_batch_form_is_thread_safe(recorded):
 def test_unknown_method():
     with pytest.raises(ValueError, match="method must be one of"):
         TipForceEstimator.analytic("panda", "kalman")
+
+
+def test_auto_cutoff_replays_the_noise_window_then_equals_the_batch_filter(recorded, panda):
+    """With qdd_cutoff_hz="auto" the cutoff is chosen at the end of the noise window, and the
+    filter behaves as if it had run at that cutoff from the start (the generator's offline filter)."""
+    est = TipForceEstimator.analytic(panda, "torques", call_hz=RATE, tare_seconds=0.5)
+    stream = np.stack([est.estimate_tip_force(recorded.q[k], recorded.qd[k], tau_J=recorded.tau_J[k])
+                       for k in range(len(recorded))])
+    fc = est.qdd_cutoff_hz
+    assert 5.0 <= fc <= 0.45 * RATE and fc != 20.0
+    from hybrid_dyn.analytic.tip_force import tip_force_from_torques
+    qdd = causal_acceleration(recorded.qd, 1.0 / RATE, fc)
+    np.testing.assert_allclose(stream[50:], tip_force_from_torques(panda, recorded.q, recorded.qd, qdd,
+                                                                   recorded.tau_J)[50:], atol=1e-6)
+
+
+def test_qdd_noise_gain_matches_a_monte_carlo_of_the_generators_filter():
+    from hybrid_dyn.estimator import qdd_noise_gain
+
+    rng = np.random.default_rng(1)
+    qd = rng.standard_normal((200_000, 1))  # unit white noise on qd
+    for rate, fc in ((1000.0, 20.0), (1000.0, 150.0), (100.0, 20.0)):
+        qdd = causal_acceleration(qd, 1.0 / rate, fc)[1000:]  # past the start-up transient
+        assert np.var(qdd) == pytest.approx(qdd_noise_gain(rate, fc), rel=0.03)
+
+
+def test_white_noise_rms_ignores_a_smooth_motion():
+    from hybrid_dyn.estimator import white_noise_rms
+
+    rng = np.random.default_rng(2)
+    t = np.arange(2000) / 1000.0
+    x = np.stack([np.sin(3 * t), 0.5 * t**2], axis=1) + np.array([1e-3, 0.2]) * rng.standard_normal((2000, 2))
+    np.testing.assert_allclose(white_noise_rms(x), [1e-3, 0.2], rtol=0.08)
+
+
+def test_auto_cutoff_rises_as_the_velocity_noise_falls(panda):
+    """The rule trades lag for noise: quieter encoders let the filter open up."""
+    from hybrid_dyn.estimator import auto_qdd_cutoff
+
+    rng = np.random.default_rng(3)
+    q = np.tile(panda.spec.home, (500, 1))
+    w = 0.2 * rng.standard_normal((500, 6))
+    cutoffs = [auto_qdd_cutoff(panda, 1000.0, q, s * rng.standard_normal((500, 7)), w, "base_wrench")
+               for s in (5e-3, 5e-4, 5e-5, 0.0)]
+    assert cutoffs == sorted(cutoffs) and cutoffs[0] < cutoffs[-1] and cutoffs[-1] == pytest.approx(450.0)
+
+
+def _window_tared(panda, inst, n):
+    """The batch tare the streaming estimator does on its first n calls (qdd: the 20 Hz causal filter)."""
+    from hybrid_dyn.analytic.tare import tared_base_wrench
+
+    qdd = causal_acceleration(inst.qd, 1.0 / RATE, 20.0)
+    return tared_base_wrench(panda, inst.q, inst.qd, qdd, inst.base_wrench, n)
+
+
+def test_streaming_base_momentum_equals_the_batch_observer_after_the_tare(recorded, panda):
+    from hybrid_dyn.analytic.base_momentum import BaseMomentumObserver
+
+    est = TipForceEstimator.analytic(panda, "base_momentum", call_hz=RATE, tare_seconds=0.5, momentum_gain=20.0)
+    stream, statuses = [], []
+    for k in range(len(recorded)):
+        stream.append(est.estimate_tip_force(recorded.q[k], recorded.qd[k], base_wrench=recorded.base_wrench[k],
+                                             t=recorded.t[k]))
+        statuses.append(est.last_status)
+    w = _window_tared(panda, recorded, 50)
+    batch = BaseMomentumObserver(panda, gain=20.0, dt=1.0 / RATE).run(recorded.q[50:], recorded.qd[50:], w[50:])[0]
+    np.testing.assert_allclose(np.stack(stream)[50:], batch, atol=1e-9)
+    # The tare window, then 5/K = 0.25 s of observer transient, warm up.
+    assert set(statuses[:74]) == {EstimatorStatus.WARMING_UP} and set(statuses[74:]) == {EstimatorStatus.OK}
+
+
+@pytest.mark.parametrize("with_torques", [True, False], ids=["both sensors", "base sensor only"])
+def test_streaming_kalman_fusion_equals_the_batch_filter(recorded, panda, with_torques):
+    """Noise from the tare window, then the steady-state filter; without tau_J it is the base-only filter."""
+    from hybrid_dyn.analytic.kalman import KalmanTipForce, tare_window_noise
+
+    est = TipForceEstimator.analytic(panda, "kalman_fusion", call_hz=RATE, tare_seconds=0.5)
+    tau = recorded.tau_J if with_torques else [None] * len(recorded)
+    stream = np.stack([est.estimate_tip_force(recorded.q[k], recorded.qd[k], base_wrench=recorded.base_wrench[k],
+                                              tau_J=tau[k], t=recorded.t[k]) for k in range(len(recorded))])
+    w = _window_tared(panda, recorded, 50)
+    tau_arr = recorded.tau_J if with_torques else None
+    dt = 1.0 / RATE
+    noise = tare_window_noise(panda, dt, recorded.q[:50], recorded.qd[:50], w[:50],
+                              None if tau_arr is None else tau_arr[:50])
+    assert est.fusion_noise == noise
+    batch = KalmanTipForce(panda, dt, noise).run(recorded.q[50:], recorded.qd[50:], w[50:],
+                                                 None if tau_arr is None else tau_arr[50:])
+    np.testing.assert_allclose(stream[50:], batch, atol=1e-9)
+
+
+def test_kalman_fusion_needs_one_sensor_at_least(panda):
+    est = TipForceEstimator.analytic(panda, "kalman_fusion", call_hz=RATE)
+    with pytest.raises(EstimatorInputError, match="needs base_wrench .* tau_J .* or both"):
+        est.estimate_tip_force(panda.spec.home, np.zeros(7))
+
+
+def test_a_gap_in_a_timed_stream_costs_one_sample_and_a_warm_up(recorded):
+    """A sample late by a lost tick is refused; the stream resumes one period after it and warms up anew."""
+    est = TipForceEstimator.analytic("panda", "momentum", call_hz=RATE, momentum_gain=50.0, on_bad_input="hold")
+    tau = recorded.tau_J
+    for k in range(40):
+        est.estimate_tip_force(recorded.q[k], recorded.qd[k], tau_J=tau[k], t=recorded.t[k])
+    assert est.last_status is EstimatorStatus.OK
+    est.estimate_tip_force(recorded.q[42], recorded.qd[42], tau_J=tau[42], t=recorded.t[42])  # ticks 40, 41 lost
+    assert est.last_status is EstimatorStatus.INPUT_REJECTED
+    est.estimate_tip_force(recorded.q[43], recorded.qd[43], tau_J=tau[43], t=recorded.t[43])
+    assert est.last_status is EstimatorStatus.WARMING_UP
+    fresh = TipForceEstimator.analytic("panda", "momentum", call_hz=RATE, momentum_gain=50.0)
+    for k in range(43, 80):  # the resumed stream equals a new one started at tick 43
+        a = est.estimate_tip_force(recorded.q[k], recorded.qd[k], tau_J=tau[k], t=recorded.t[k]) if k > 43 else None
+        b = fresh.estimate_tip_force(recorded.q[k], recorded.qd[k], tau_J=tau[k], t=recorded.t[k])
+        if a is not None:
+            np.testing.assert_array_equal(a, b)
+            assert est.last_status == fresh.last_status
+    # A wrong rate never resumes: every step of a 2x slower stream is refused.
+    slow = TipForceEstimator.analytic("panda", "momentum", call_hz=RATE, on_bad_input="hold")
+    for k in range(0, 40, 2):
+        slow.estimate_tip_force(recorded.q[k], recorded.qd[k], tau_J=tau[k], t=recorded.t[k])
+    assert slow.last_status is EstimatorStatus.INPUT_REJECTED

@@ -2,7 +2,7 @@
 
 The floor test feeds 10,000 calls that mix good samples with bad ones (NaN, inf, huge values, wrong
 types and shapes, q past its limits, qd past the velocity limits, time going back or missing, a wrong
-rate) to the three analytic methods, in both modes. No call may return "ok" with a force beyond the
+rate) to the five analytic methods, in both modes. No call may return "ok" with a force beyond the
 bound, every bad sample must be rejected, and every good call must give exactly what the run without
 the bad samples gives. The other tests reproduce the issue's cases one by one.
 """
@@ -13,7 +13,8 @@ from hybrid_dyn.estimator import EstimatorInputError, EstimatorStatus, TipForceE
 
 HZ = 1000.0
 BOUND = 500.0  # EstimatorConfig.max_tip_force's default [N]
-NEEDS = {"base_wrench": ("q", "qd", "base_wrench"), "torques": ("q", "qd", "tau_J"), "momentum": ("q", "qd", "tau_J")}
+NEEDS = {"base_wrench": ("q", "qd", "base_wrench"), "torques": ("q", "qd", "tau_J"), "momentum": ("q", "qd", "tau_J"),
+         "base_momentum": ("q", "qd", "base_wrench"), "kalman_fusion": ("q", "qd", "base_wrench", "tau_J")}
 
 
 def stream(robot, n, hz=HZ, seed=0):
@@ -31,7 +32,7 @@ def stream(robot, n, hz=HZ, seed=0):
             for k, w_k in enumerate(robot.base_wrench(q, qd, qdd, tip_force=f))]
 
 
-def bad_sample(rng, robot, needs, good, last_t, period):
+def bad_sample(rng, robot, needs, good, last_t, period, optional=()):
     """A corrupted copy of the next good sample; only inputs the estimator reads (``needs``) are
     corrupted (an input it ignores may hold anything). period: the stream's step [s]."""
     s = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in good.items()}
@@ -64,8 +65,8 @@ def bad_sample(rng, robot, needs, good, last_t, period):
         s[name] = [0.0, [1.0, 2.0]] + [0.0] * 5  # ragged
     elif kind == 12:
         s[name] = s[name][:-1] if rng.random() < 0.5 else s[name].reshape(-1, 1)
-    else:
-        s[name] = rng.choice([None, "fast"])
+    else:  # a missing input, unless the estimator may go without it (kalman_fusion's sensors)
+        s[name] = "fast" if name in optional else rng.choice([None, "fast"])
     return s
 
 
@@ -86,7 +87,7 @@ def run(est, samples, mode_raise):
     return out, statuses
 
 
-def check_floor(make, robot, needs, good, rng, period):
+def check_floor(make, robot, needs, good, rng, period, optional=()):
     """make(mode) -> a fresh estimator. Both modes: the run with bad samples (a quarter of the calls)
     against the clean one; returns (the number of calls made, the clean run's statuses)."""
     clean, clean_status = run(make("raise"), good, True)
@@ -96,7 +97,7 @@ def check_floor(make, robot, needs, good, rng, period):
         samples, is_good, k, last_t = [], [], 0, None
         while k < len(good):
             if last_t is not None and rng.random() < 0.25:
-                samples.append(bad_sample(rng, robot, needs, good[k], last_t, period))
+                samples.append(bad_sample(rng, robot, needs, good[k], last_t, period, optional))
                 is_good.append(False)
             else:
                 samples.append(good[k])
@@ -133,10 +134,11 @@ def test_floor_no_ok_garbage_and_rejected_samples_leave_no_trace(panda):
     for k in (700, 701, 1100):
         good[k] = dict(good[k], base_wrench=good[k]["base_wrench"] + np.array([0, 0, 800.0, 0, 0, 0]))
     calls = 0
-    for method in ("base_wrench", "torques", "momentum"):
+    for method in NEEDS:
         def make(mode):
             return TipForceEstimator.analytic(panda, method, call_hz=HZ, on_bad_input=mode)
-        n, clean_status = check_floor(make, panda, NEEDS[method], good, rng, 1.0 / HZ)
+        n, clean_status = check_floor(make, panda, NEEDS[method], good, rng, 1.0 / HZ,
+                                      optional=("base_wrench", "tau_J") if method == "kalman_fusion" else ())
         calls += n
         if method == "base_wrench":  # the loads above are base-wrench inputs
             assert [clean_status[k] for k in (700, 701, 1100)] == [EstimatorStatus.FORCE_OUT_OF_RANGE] * 3

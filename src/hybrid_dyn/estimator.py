@@ -66,13 +66,20 @@ from pathlib import Path
 import numpy as np
 from scipy import signal
 
+from .analytic.base_momentum import BaseMomentumObserver
+from .analytic.kalman import FusionNoise, KalmanTipForce, tare_window_noise
 from .analytic.momentum_observer import MomentumObserver
 from .analytic.robot import InputError, Robot, load_robot
 from .analytic.tare import TARE_SECONDS, StreamingTare, tare_samples, tared_base_wrench
 from .analytic.tip_force import base_wrench_force_core, tip_force_from_base_wrench, tip_force_from_torques
 from .errors import UsageError
 
-METHODS = ("base_wrench", "torques", "momentum")
+# The analytic methods and the sensors each reads (beyond q, qd). kalman_fusion reads
+# whichever of the two a call brings (at least one), the others need all they name.
+METHODS = ("base_wrench", "torques", "momentum", "base_momentum", "kalman_fusion")
+METHOD_SENSORS = {"base_wrench": ("base_wrench",), "torques": ("tau_J",), "momentum": ("tau_J",),
+                  "base_momentum": ("base_wrench",), "kalman_fusion": ("base_wrench", "tau_J")}
+NEEDS_QDD = ("base_wrench", "torques", "learned")  # the others need none (but a tare window does)
 
 
 class EstimatorInputError(InputError):
@@ -89,6 +96,7 @@ class EstimatorStatus(str, Enum):
 
 
 G = 9.81  # m/s^2, for the base-wrench bound
+DEFAULT_QDD_CUTOFF_HZ = 20.0  # the generator's acceleration filter (sim/sensors.py)
 
 
 @dataclass(frozen=True)
@@ -115,7 +123,7 @@ class EstimatorConfig:
     """
 
     call_hz: float = 1000.0
-    qdd_cutoff_hz: float = 20.0
+    qdd_cutoff_hz: float | str = "auto"
     on_bad_input: str = "raise"
     momentum_gain: float = 50.0
     tare_seconds: float = TARE_SECONDS
@@ -128,8 +136,11 @@ class EstimatorConfig:
     def __post_init__(self):
         if self.on_bad_input not in ("raise", "hold"):
             raise UsageError(f"on_bad_input must be 'raise' or 'hold', got {self.on_bad_input!r}")
-        if self.call_hz <= 0 or not (0 < self.qdd_cutoff_hz < 0.5 * self.call_hz):
-            raise UsageError("need call_hz > 0 and 0 < qdd_cutoff_hz < call_hz / 2")
+        if not (isinstance(self.call_hz, (int, float)) and self.call_hz > 0):
+            raise UsageError(f"call_hz must be > 0 [Hz], got {self.call_hz!r}")
+        if self.qdd_cutoff_hz != "auto" and not (isinstance(self.qdd_cutoff_hz, (int, float))
+                                                 and 0 < self.qdd_cutoff_hz < 0.5 * self.call_hz):
+            raise UsageError(f"qdd_cutoff_hz must be 'auto' or lie in (0, call_hz / 2) [Hz], got {self.qdd_cutoff_hz!r}")
         for name in ("q_margin", "qd_margin", "tau_margin"):
             if not getattr(self, name) >= 0:
                 raise UsageError(f"{name} must be >= 0, got {getattr(self, name)!r}")
@@ -180,6 +191,71 @@ class CausalAccelerationFilter:
         return out[0]
 
 
+def white_noise_rms(x: np.ndarray) -> np.ndarray:
+    """Per-column RMS [unit of x] of the white noise on a smooth signal (N, k), from its second differences.
+
+    For white noise of variance s^2, x[k+1] - 2 x[k] + x[k-1] has variance 6 s^2;
+    a smooth signal adds only its third derivative times dt^2 (1e-7 of it at 1 kHz).
+    The median of the squares (over 0.4549, the median of chi^2 with 1 dof) keeps a
+    contact's single jump from inflating the estimate.
+    """
+    x = np.asarray(x, float)
+    d2 = x[2:] - 2.0 * x[1:-1] + x[:-2]
+    return np.sqrt(np.median(d2**2, axis=0) / 0.4549 / 6.0)
+
+
+def qdd_noise_gain(rate_hz: float, cutoff_hz: float) -> float:
+    """Variance gain [1/s^2] from white noise on qd to the causal qdd estimate (difference + Butterworth)."""
+    b, a = signal.butter(2, cutoff_hz, fs=rate_hz)
+    n = int(max(64, 20 * rate_hz / cutoff_hz))  # the impulse response has decayed by then
+    impulse = np.zeros(n)
+    impulse[0] = 1.0
+    h = signal.lfilter(b, a, rate_hz * np.diff(impulse, prepend=0.0))
+    return float(np.sum(h**2))
+
+
+def auto_qdd_cutoff(robot: Robot, rate_hz: float, q, qd, sensor, kind: str) -> float:
+    """The acceleration filter's cutoff [Hz] chosen from noise measured on a window of samples.
+
+    The rule: **the qdd estimate may add no more noise to the method's input than
+    the sensor itself carries.** A higher cutoff lags less (the 2nd-order
+    Butterworth delays by ~0.23 / f_c s, 11 ms at 20 Hz), so the highest cutoff on
+    a grid from 5 Hz to 0.45 x rate that obeys the rule is taken:
+
+    - base wrench (``kind="base_wrench"``): the force rows of the model wrench move
+      with qdd through m J_com(q), so the qdd noise enters as
+      m J_com diag(g s_qd^2) J_com^T; its per-axis RMS must not exceed the base
+      sensor's per-axis force noise;
+    - joint torques (``kind="tau_J"``): it enters as M(q) diag(g s_qd^2) M(q); its
+      per-joint RMS must not exceed the torque sensors'.
+
+    s_qd, the sensors' noise: :func:`white_noise_rms` on the window (the arm may
+    move); g: :func:`qdd_noise_gain`; J_com and M at the window's mean pose.
+    Noise-free data get the top of the grid.
+    """
+    q, qd, sensor = (np.asarray(x, float) for x in (q, qd, sensor))
+    if len(q) < 8:
+        raise InputError(f"the noise window needs at least 8 samples, got {len(q)}")
+    s_qd = white_noise_rms(qd)
+    q_mean = q.mean(axis=0)
+    if kind == "base_wrench":
+        s_sensor = float(np.sqrt(np.mean(white_noise_rms(sensor[:, :3]) ** 2)))
+        import pinocchio as pin
+
+        m_jcom = robot.total_mass * pin.jacobianCenterOfMass(robot.model, robot.model.createData(), q_mean)
+        mapping, n_out = m_jcom, 3
+    elif kind == "tau_J":
+        s_sensor = float(np.sqrt(np.mean(white_noise_rms(sensor) ** 2)))
+        mapping, n_out = robot.mass_matrix(q_mean), robot.nv
+    else:
+        raise ValueError(f"kind must be 'base_wrench' or 'tau_J', got {kind!r}")
+    # RMS of the mapped noise per unit of g: sqrt(tr(A diag(s^2) A^T) / n_out).
+    per_gain = float(np.sqrt(np.sum((mapping * s_qd) ** 2) / n_out))
+    grid = np.geomspace(5.0, 0.45 * rate_hz, 48)
+    admissible = [fc for fc in grid if math.sqrt(qdd_noise_gain(rate_hz, fc)) * per_gain <= s_sensor]
+    return float(admissible[-1]) if admissible else float(grid[0])
+
+
 class TipForceEstimator:
     """Streaming tip-force estimator; see the module docstring."""
 
@@ -188,27 +264,48 @@ class TipForceEstimator:
         self.method = method
         self.config = config or EstimatorConfig()
         self.model = model
-        nv = robot.nv
-        self._qdd_filter = CausalAccelerationFilter(nv, self.config.call_hz, self.config.qdd_cutoff_hz)
-        self._observer = MomentumObserver(robot, gain=self.config.momentum_gain, dt=1.0 / self.config.call_hz) \
-            if method == "momentum" else None
+        c = self.config
+        nv, dt = robot.nv, 1.0 / c.call_hz
+        # "auto": a learned model keeps the cutoff it was trained with (load passes it); an analytic
+        # method starts at the generator's 20 Hz and picks its own after the noise window.
+        self._auto_cutoff = c.qdd_cutoff_hz == "auto"
+        self._qdd_filter = CausalAccelerationFilter(nv, c.call_hz, DEFAULT_QDD_CUTOFF_HZ if self._auto_cutoff
+                                                    else c.qdd_cutoff_hz)
+        self.qdd_cutoff_hz = None if self._auto_cutoff else float(c.qdd_cutoff_hz)  # the cutoff in use [Hz]
+        self._observer = (MomentumObserver(robot, gain=c.momentum_gain, dt=dt) if method == "momentum" else
+                          BaseMomentumObserver(robot, gain=c.momentum_gain, dt=dt) if method == "base_momentum"
+                          else None)
         # A learned model needs its network's inputs and its analytic prior's.
         model_fields = () if model is None else tuple(model.inputs) + tuple(
             getattr(model.model.prior, "fields", None) or ())
-        self._needs_wrench = method == "base_wrench" or "base_wrench" in model_fields
-        self._needs_tau = method in ("torques", "momentum") or "tau_J" in model_fields
+        sensors = METHOD_SENSORS.get(method, ())
+        self._needs_wrench = "base_wrench" in sensors or "base_wrench" in model_fields
+        self._needs_tau = "tau_J" in sensors or "tau_J" in model_fields
+        # kalman_fusion degrades to the sensor a call brings; every other method needs all it reads.
+        self._optional = frozenset(sensors) if method == "kalman_fusion" else frozenset()
         self._build_gate()
         self._tare = None
-        if method == "base_wrench" and self.config.tare_seconds > 0:
-            self._tare = StreamingTare(robot, tare_samples(self.config.call_hz, self.config.tare_seconds))
+        if method in ("base_wrench", "base_momentum", "kalman_fusion") and c.tare_seconds > 0:
+            self._tare = StreamingTare(robot, tare_samples(c.call_hz, c.tare_seconds))
+        # The first tare_seconds of calls are the noise window: the tare's, the Kalman filter's
+        # model errors and the automatic qdd cutoff are all measured on it (module docstring).
+        self._window_calls = tare_samples(c.call_hz, c.tare_seconds) if (
+            self._tare is not None or (self._auto_cutoff and method in NEEDS_QDD)) else 0
+        self._observer_calls = int(math.ceil(5.0 / c.momentum_gain * c.call_hz))  # 5/K s: error < 1 %
         if method == "momentum":
-            self._warmup_calls = int(math.ceil(5.0 / self.config.momentum_gain * self.config.call_hz))
-        elif self._tare is not None:
-            self._warmup_calls = max(2, self._tare.n_calls)
+            self._warmup_calls = self._observer_calls
+        elif method == "base_momentum":
+            # The observer starts when the tare is done, so no pre-tare offset lingers in it.
+            self._warmup_calls = self._window_calls + self._observer_calls
+        elif method == "kalman_fusion":
+            self._warmup_calls = self._window_calls + 1  # raised to the filter's settling once it is built
+        elif self._window_calls:
+            self._warmup_calls = max(2, self._window_calls)
         elif model is not None:
-            self._warmup_calls = model.warmup_calls(self.config.call_hz)
+            self._warmup_calls = model.warmup_calls(c.call_hz)
         else:
             self._warmup_calls = 2  # the backward difference needs one previous qd
+        self._warmup_initial = self._warmup_calls
         self.reset()
 
     # ------------------------------------------------------------ factories
@@ -234,13 +331,18 @@ class TipForceEstimator:
         from .learn.streaming import StreamingModel
 
         model = StreamingModel.load(Path(model_dir), robot=robot, runtime=runtime)
-        cfg = EstimatorConfig(**{"qdd_cutoff_hz": model.qdd_cutoff_hz, **config})
+        if config.get("qdd_cutoff_hz", "auto") == "auto":  # the network saw qdd through its training filter
+            config = {**config, "qdd_cutoff_hz": model.qdd_cutoff_hz}
+        cfg = EstimatorConfig(**config)
         return cls(model.robot, "learned", cfg, model=model)
 
     # --------------------------------------------------------------- state
     def reset(self) -> None:
-        """Forget all history (filter, observer, window); the next calls warm up again."""
+        """Forget all history (filter, observer, window, tare); the next calls warm up again."""
         self._qdd_filter.reset()
+        if self._auto_cutoff:
+            self._qdd_filter = CausalAccelerationFilter(self.robot.nv, self.config.call_hz, DEFAULT_QDD_CUTOFF_HZ)
+            self.qdd_cutoff_hz = None
         if self._observer is not None:
             self._observer.reset()
         if self.model is not None:
@@ -248,7 +350,13 @@ class TipForceEstimator:
         if self._tare is not None:
             self._tare.reset()
         self._calls = 0
+        self._warmup_calls = self._warmup_initial
+        self._kalman = None
+        if self.method == "kalman_fusion" and self._tare is None:
+            self._build_kalman(FusionNoise())  # no noise window: the sensors' specifications
+        self._window = []  # the noise window's samples (q, qd, raw base_wrench, tau_J)
         self._last_t = None  # set by the first call with t: from then on the stream is timed
+        self._gap_t = None  # t of a sample refused for its step: the stream may resume from it
         self._last_good = np.zeros(3)
         self.last_status = EstimatorStatus.WARMING_UP
         self.last_rejection = None  # why the latest rejected sample was refused (hold mode)
@@ -334,10 +442,13 @@ class TipForceEstimator:
         preallocated sample vector (None where this estimator does not use them),
         t as a float or None. Raises EstimatorInputError naming the argument.
         """
-        given = (q, qd, base_wrench, tau_J)
+        given = [q, qd, base_wrench, tau_J]
         for index, view, name, unit in self._copy_in:
             x = given[index]
             if x is None:
+                if name in self._optional:  # kalman_fusion: this call lacks the sensor (inside the box)
+                    view[...] = 0.0  # every box is symmetric about 0
+                    continue
                 raise EstimatorInputError(f"this estimator needs {name} ({view.size},) [{unit}]")
             try:
                 x = np.asarray(x, dtype=float)
@@ -354,6 +465,9 @@ class TipForceEstimator:
         np.sign(u, out=u)
         if not u.dot(u) == 0.0:  # NaN compares False: rejected too
             raise EstimatorInputError(self._implausible())
+        if self._optional and given[2] is None and given[3] is None:
+            raise EstimatorInputError("kalman_fusion needs base_wrench (6,) [N, Nm], tau_J (nv,) [Nm] or both")
+        resumed = False
         if t is None:
             if self._last_t is not None:
                 raise EstimatorInputError(f"t is missing, but this stream gave t before (last t = {self._last_t} s): "
@@ -370,12 +484,23 @@ class TipForceEstimator:
                 if dt <= 0:
                     raise EstimatorInputError(f"time must increase: t={t} after t={self._last_t}")
                 if abs(dt - self._period) > self._period_tol:
-                    raise EstimatorInputError(
-                        f"t={t} s steps {dt:.6g} s from the last accepted sample, but call_hz="
-                        f"{self.config.call_hz:g} expects {self._period:.6g} s +- {100 * self.config.rate_tolerance:g} %"
-                        ": a wrong call_hz, or a gap in the stream (reset() starts a new one)")
+                    # One period after a sample refused for its step, the stream has resumed on
+                    # rate after a gap: accept it and warm up anew. A wrong rate never gets here.
+                    if self._gap_t is not None and abs(t - self._gap_t - self._period) <= self._period_tol:
+                        resumed = True
+                    else:
+                        self._gap_t = t
+                        raise EstimatorInputError(
+                            f"t={t} s steps {dt:.6g} s from the last accepted sample, but call_hz="
+                            f"{self.config.call_hz:g} expects {self._period:.6g} s +- "
+                            f"{100 * self.config.rate_tolerance:g} %: a wrong call_hz, or a gap in the stream "
+                            "(it resumes one period after this sample)")
+        self._gap_t = None
         q, qd, base_wrench, tau_J = self._views
-        return q, qd, base_wrench, tau_J, t
+        if self._optional:  # an absent sensor stays None
+            base_wrench = base_wrench if given[2] is not None else None
+            tau_J = tau_J if given[3] is not None else None
+        return q, qd, base_wrench, tau_J, t, resumed
 
     def _implausible(self) -> str:
         """The message for a sample outside its box (the slow path: only on rejection)."""
@@ -395,28 +520,45 @@ class TipForceEstimator:
     def estimate_tip_force(self, q, qd, base_wrench=None, tau_J=None, t=None) -> np.ndarray:
         """One sample in, the tip force (3,) [N] in the base frame out; see ``last_status``."""
         try:
-            q, qd, base_wrench, tau_J, t = self._accept(q, qd, base_wrench, tau_J, t)
+            q, qd, base_wrench, tau_J, t, resumed = self._accept(q, qd, base_wrench, tau_J, t)
         except EstimatorInputError as err:
             if self.config.on_bad_input == "raise":
                 raise
             self.last_status = EstimatorStatus.INPUT_REJECTED
             self.last_rejection = str(err)
             return self._last_good.copy()
+        if resumed:
+            self._restart_dynamics()
         if t is not None:
             self._last_t = t
-        # The observer needs no acceleration: skip the filter on that path.
-        qdd = None if self.method == "momentum" else self._qdd_filter.step(qd)
+        in_window = self._calls < self._window_calls
+        # qdd only where a method (or the noise window, or an unfinished tare) needs it: the observers need none.
+        taring = self._tare is not None and not self._tare.done
+        qdd = self._qdd_filter.step(qd) if (self.method in NEEDS_QDD or in_window or taring) else None
         self._calls += 1
+        if in_window:
+            self._window.append((q.copy(), qd.copy(), None if base_wrench is None else base_wrench.copy(),
+                                 None if tau_J is None else tau_J.copy()))
         status = EstimatorStatus.OK
+        tared = base_wrench
+        if self._tare is not None and base_wrench is not None:
+            tared = self._tare.update(q, qd, qdd, base_wrench)
+        if in_window and self._calls == self._window_calls:
+            self._close_window()
         # The inputs are validated above: call the unchecked cores.
         if self.method == "base_wrench":
-            if self._tare is not None:
-                base_wrench = self._tare.update(q, qd, qdd, base_wrench)
-            f = base_wrench_force_core(self.robot, q, qd, qdd, base_wrench)
+            f = base_wrench_force_core(self.robot, q, qd, qdd, tared)
         elif self.method == "torques":
             f = tip_force_from_torques(self.robot, q, qd, qdd, tau_J)
         elif self.method == "momentum":
             f = self._observer.force(q, self._observer.step_unchecked(q, qd, tau_J))
+        elif self.method == "base_momentum":
+            # Stepped from the first sample after the tare window: a running offset would linger as e^-Kt.
+            f = self._last_good if in_window else self._observer.force(q, self._observer.step_unchecked(q, qd, tared))
+        elif self.method == "kalman_fusion":
+            # The base sensor enters the filter only once it is tared (a sensor absent from the window tares late).
+            w = tared if self._tare is None or self._tare.done else None
+            f = self._last_good if self._kalman is None or in_window else self._kalman.step_unchecked(q, qd, w, tau_J)
         else:
             f, in_range = self.model.step(q, qd, qdd, base_wrench, tau_J, t)
             if not in_range:
@@ -429,6 +571,52 @@ class TipForceEstimator:
             self._last_good = f
         self.last_status = status
         return f.copy()
+
+    # ------------------------------------------------------- noise window
+    def _close_window(self) -> None:
+        """End of the noise window: pick the qdd cutoff, build the Kalman filter (once per stream)."""
+        window = self._window
+        self._window = []
+        if self._auto_cutoff and self.method in NEEDS_QDD:
+            q = np.array([x[0] for x in window])
+            qd = np.array([x[1] for x in window])
+            signal_ = np.array([x[2] if self.method == "base_wrench" else x[3] for x in window])
+            self.qdd_cutoff_hz = auto_qdd_cutoff(self.robot, self.config.call_hz, q, qd, signal_,
+                                                 "base_wrench" if self.method == "base_wrench" else "tau_J")
+            # Replay the window through the new filter, so its state is as if it had run from the start.
+            self._qdd_filter = CausalAccelerationFilter(self.robot.nv, self.config.call_hz, self.qdd_cutoff_hz)
+            for x in window:
+                self._qdd_filter.step(x[1])
+        if self.method == "kalman_fusion":
+            offset = self._tare.offset if self._tare is not None else np.zeros(6)
+            arrays = {"q": np.array([x[0] for x in window]), "qd": np.array([x[1] for x in window])}
+            for name, i in (("base_wrench", 2), ("tau_J", 3)):  # a sensor absent at any window call keeps its specs
+                if all(x[i] is not None for x in window):
+                    arrays[name] = np.array([x[i] for x in window]) - (offset if name == "base_wrench" else 0.0)
+            noise = FusionNoise()
+            if len(window) >= 3 and len(arrays) > 2:
+                noise = tare_window_noise(self.robot, 1.0 / self.config.call_hz, arrays["q"], arrays["qd"],
+                                          arrays.get("base_wrench"), arrays.get("tau_J"), noise)
+            self._build_kalman(noise)
+
+    def _build_kalman(self, noise: FusionNoise) -> None:
+        self._kalman = KalmanTipForce(self.robot, 1.0 / self.config.call_hz, noise)
+        self.fusion_noise = noise
+        # Warm up until the fused filter's transient is below 1 % (its slowest closed-loop mode).
+        rho = max(abs(np.linalg.eigvals(self._kalman.filters[("base", "joint")].closed_loop)))
+        settle = int(math.ceil(math.log(0.01) / math.log(rho))) if 0 < rho < 1 else 1
+        self._warmup_calls = self._calls + settle
+
+    def _restart_dynamics(self) -> None:
+        """After a gap in a timed stream: the filter and observers restart; a finished tare is kept."""
+        self._qdd_filter.reset()
+        if self._observer is not None:
+            self._observer.reset()
+        if self._kalman is not None:
+            self._kalman.reset()
+        if self.model is not None:
+            self.model.reset()
+        self._warmup_calls = max(self._warmup_calls, self._calls + self._warmup_initial - self._window_calls)
 
 
 # ------------------------------------------------------------------ batch form
