@@ -21,13 +21,13 @@ def trained(tmp_path_factory, panda):
     ds = load_dataset(make_synthetic_dataset(root / "d", panda, n_instances=4, n_samples=120, record_hz=RATE,
                                              noise=0.002, friction=panda.spec.friction(), seed=2))
     cfg = TrainConfig(max_epochs=1, max_batches_per_epoch=3, progress=False)
-    dirs = {p: root / p for p in ("seed-tip-11", "residual-basewrench", "residual-momentum")}
+    dirs = {p: root / p for p in ("seed-tip-11", "residual-basewrench", "residual-momentum", "residual-base-momentum")}
     for preset, d in dirs.items():
         train_model(ds, preset, d, cfg)
     return ds, dirs
 
 
-@pytest.mark.parametrize("preset", ["seed-tip-11", "residual-basewrench", "residual-momentum"])
+@pytest.mark.parametrize("preset", ["seed-tip-11", "residual-basewrench", "residual-momentum", "residual-base-momentum"])
 def test_streaming_equals_batch(trained, preset):
     ds, dirs = trained
     inst = ds.split("test")[0]
@@ -42,7 +42,7 @@ def test_streaming_equals_batch(trained, preset):
     # A tared prior (residual-basewrench) tares on the first TARE_SECONDS: causally, with the mean so far,
     # where the batch form knows the whole window's mean. From the window's end on the two must agree.
     start = tare_samples(RATE, TARE_SECONDS) if est.tare_offset is not None else 0
-    assert (start > 0) == (preset == "residual-basewrench")
+    assert (start > 0) == (preset in ("residual-basewrench", "residual-base-momentum"))
     np.testing.assert_allclose(np.stack(stream)[start:], batch[start:], atol=1e-6)
     # Warming up exactly until the window holds real samples only (and the observer settled).
     warm = est._warmup_calls

@@ -17,7 +17,7 @@ from ..errors import UsageError
 
 SEED_TIP_NETS = tuple(f"seed-tip-{i}" for i in range(1, 12))
 SEED_TAU_NETS = ("seed-tau-mlp", "seed-tau-conv", "seed-tau-lstm", "seed-tau-lstm-opt")
-RESIDUAL_TIP = ("residual-basewrench", "residual-momentum")
+RESIDUAL_TIP = ("residual-basewrench", "residual-momentum", "residual-base-momentum")
 RESIDUAL_TAU = ("residual-rnea", "residual-rnea-bw")
 DELAN = ("delan", "delan-friction", "delan-residual")
 ANALYTIC = ("torques-pinv", "base-wrench", "base-wrench-tared", "momentum-observer", "base-momentum",

@@ -28,7 +28,7 @@ from typing import Callable
 import numpy as np
 from tqdm.auto import tqdm
 
-from ..analytic.base_momentum import BaseMomentumObserver
+from ..analytic.base_momentum import BaseMomentumObserver, base_momentum_tip_force
 from ..analytic.kalman import KalmanTipForce, tare_window_noise
 from ..analytic.momentum_observer import MomentumObserver
 from ..analytic.robot import Robot, load_robot
@@ -126,9 +126,11 @@ def _rnea_minus_contact(robot, q, qd, qdd, w):
 
 
 def _base_momentum(robot, inst, ctx):
-    """The base momentum observer (force rows, gain MOMENTUM_GAIN) on the tared base wrench."""
-    obs = BaseMomentumObserver(robot, MOMENTUM_GAIN, 1.0 / ctx.dataset.meta["record_hz"])
-    return obs.run(inst.q, inst.qd, _tared(robot, inst, ctx))[0]
+    """The base momentum observer (force rows, gain MOMENTUM_GAIN) on the tared base wrench,
+    started after the tare window as a stream starts it."""
+    hz = ctx.dataset.meta["record_hz"]
+    return base_momentum_tip_force(robot, inst.q, inst.qd, _tared(robot, inst, ctx), 1.0 / hz, MOMENTUM_GAIN,
+                                   tare_samples(hz, TARE_SECONDS))
 
 
 def _base_momentum_single(robot, inst, k, ctx):
@@ -151,7 +153,13 @@ def _kalman_filter(robot, inst, ctx) -> KalmanTipForce:
 
 
 def _kalman(robot, inst, ctx):
-    return _kalman_filter(robot, inst, ctx).run(inst.q, inst.qd, _tared(robot, inst, ctx), inst.tau_J)
+    """The fusion filter started after the tare window, as TipForceEstimator starts it (0 before)."""
+    n = tare_samples(ctx.dataset.meta["record_hz"], TARE_SECONDS)
+    out = np.zeros((len(inst), 3))
+    if n < len(inst):
+        out[n:] = _kalman_filter(robot, inst, ctx).run(inst.q[n:], inst.qd[n:], _tared(robot, inst, ctx)[n:],
+                                                       inst.tau_J[n:])
+    return out
 
 
 def _kalman_single(robot, inst, k, ctx):
@@ -235,20 +243,22 @@ def _learned_single_call(model):
             windows[inst.name] = (concat_fields([inst], model.inputs).astype(np.float64),
                                   window_index([len(inst)], model.window))
         x_all, index = windows[inst.name]
-        prior = None
-        if model.preset.prior == "momentum":
-            obs = observers.get(inst.name)
-            if obs is None:
-                obs = observers[inst.name] = MomentumObserver(model.robot, model.config.get("observer_gain", 20.0),
-                                                              1.0 / model.config["record_hz"])
-            prior = obs.step_force(inst.q[k], inst.qd[k], inst.tau_J[k])
-        elif model.prior is not None and model.prior.tare_seconds > 0:
+        prior, w = None, None
+        p = model.prior
+        if p is not None and p.tare_seconds > 0:
             # The tare is per run: its offset comes from the instance's start, as in training.
-            p = model.prior
             if inst.name not in tared:
                 tared[inst.name] = tared_base_wrench(p.robot, inst.q, inst.qd, inst.qdd, inst.base_wrench,
                                                      tare_samples(p.record_hz, p.tare_seconds))
             w = tared[inst.name][k]
+        if model.preset.prior in ("momentum", "base-momentum"):
+            obs = observers.get(inst.name)
+            if obs is None:
+                observer = MomentumObserver if model.preset.prior == "momentum" else BaseMomentumObserver
+                obs = observers[inst.name] = observer(model.robot, model.config.get("observer_gain", 20.0),
+                                                      1.0 / model.config["record_hz"])
+            prior = obs.step_force(inst.q[k], inst.qd[k], inst.tau_J[k] if model.preset.prior == "momentum" else w)
+        elif w is not None:
             prior = p.single({"q": inst.q[k], "qd": inst.qd[k], "qdd": inst.qdd[k], "base_wrench": w})
         return model.predict_window(x_all[index[k]], prior=prior)
 

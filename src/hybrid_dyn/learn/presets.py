@@ -26,7 +26,7 @@ TIP_INPUTS = ["base_wrench", "q", "qd", "qdd"]
 TIP_INPUTS_TAU = TIP_INPUTS + ["tau_J"]
 
 KINDS = ("mlp", "conv", "lstm", "delan")
-PRIORS = (None, "rnea", "rnea-basewrench", "basewrench", "momentum")
+PRIORS = (None, "rnea", "rnea-basewrench", "basewrench", "momentum", "base-momentum")
 
 
 @dataclass(frozen=True)
@@ -47,6 +47,7 @@ class Preset:
       "rnea-basewrench" tau = RNEA(q, qd, qdd) - J_v^T F_bw (F_bw: base-wrench method)
       "basewrench"      F = tip_force_from_base_wrench(q, qd, qdd, base_wrench)
       "momentum"        F = MomentumObserver(q, qd, tau_J) at dt = 1 / record_hz
+      "base-momentum"   F = base momentum observer(q, qd, tared base_wrench) at dt = 1 / record_hz
     delan_*: DeLaN's hidden layers for L(q) and V(q); friction: learn a Gaz
     sigmoid friction per joint; residual: add a residual network of the other
     fields (kind of the residual net: residual_kind, with its own window).
@@ -164,6 +165,9 @@ def _build_registry() -> dict:
         Preset("residual-momentum", "lstm", tuple(STATE + ["tau_J"]), ("tip_force",), window=10,
                front_units=(32,), prior="momentum",
                description="F = momentum observer(q, qd, tau_J) + LSTM(window of q, qd, qdd, tau_J)"),
+        Preset("residual-base-momentum", "lstm", tuple(TIP_INPUTS), ("tip_force",), window=10, front_units=(32,),
+               prior="base-momentum",
+               description="F = base momentum observer(q, qd, tared base_wrench) + LSTM(window of base_wrench, q, qd, qdd)"),
         # DeLaN (Lutter et al. 2019): tau = H qdd + c + g (+ friction) (+ residual).
         Preset("delan", "delan", tuple(STATE), ("tau_m",), activation="tanh",
                description="DeLaN: H = L L^T + eps I, V(q); c, g by autograd"),

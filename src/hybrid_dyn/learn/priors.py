@@ -10,8 +10,10 @@ an identified one):
   may use the base sensor (PROTOCOL 4), which sees the external force.
 - ``basewrench``      F = tip_force_from_base_wrench(q, qd, qdd, w)  [N] (3)
 - ``momentum``        F = MomentumObserver(q, qd, tau_J), dt = 1 / record_hz [N] (3)
+- ``base-momentum``   F = the base momentum observer (q, qd, tared base wrench) [N] (3),
+  0 in the tare window and started after it (``analytic.base_momentum_tip_force``)
 
-The momentum observer is a filter with state, so its value at a sample depends
+The two observers are filters with state, so their value at a sample depends
 on the whole instance before it; the others are per sample.
 
 The two base-wrench priors tare the sensor first (``analytic/tare.py``): the
@@ -34,6 +36,7 @@ import h5py
 import numpy as np
 import pinocchio as pin
 
+from ..analytic.base_momentum import base_momentum_tip_force
 from ..analytic.momentum_observer import MomentumObserver
 from ..analytic.tare import tare_samples, tared_base_wrench
 from ..analytic.tip_force import base_wrench_force_core, contact_joint_torques, tip_force_from_base_wrench
@@ -43,7 +46,9 @@ PRIOR_FIELDS = {
     "rnea-basewrench": ("q", "qd", "qdd", "base_wrench"),
     "basewrench": ("q", "qd", "qdd", "base_wrench"),
     "momentum": ("q", "qd", "tau_J"),
+    "base-momentum": ("q", "qd", "qdd", "base_wrench"),  # qdd: only for the tare
 }
+STATEFUL_PRIORS = ("momentum", "base-momentum")
 
 
 class AnalyticPrior:
@@ -60,8 +65,8 @@ class AnalyticPrior:
                  tare_seconds: float = 0.0):
         if kind not in PRIOR_FIELDS:
             raise ValueError(f"unknown analytic prior {kind!r}; known: {sorted(PRIOR_FIELDS)}")
-        if kind == "momentum" and not record_hz:
-            raise ValueError("the momentum prior needs the dataset's record_hz")
+        if kind in STATEFUL_PRIORS and not record_hz:
+            raise ValueError(f"the {kind} prior needs the dataset's record_hz")
         self.tare_seconds = float(tare_seconds) if "base_wrench" in PRIOR_FIELDS[kind] else 0.0
         if self.tare_seconds > 0 and not record_hz:
             raise ValueError("a tared base-wrench prior needs the dataset's record_hz")
@@ -91,8 +96,11 @@ class AnalyticPrior:
         if self.kind == "rnea":
             return np.atleast_2d(r.inverse_dynamics(q, qd, qdd))
         w = fields["base_wrench"]
-        if self.tare_seconds > 0:
-            w = tared_base_wrench(r, q, qd, qdd, w, tare_samples(self.record_hz, self.tare_seconds))
+        n_tare = tare_samples(self.record_hz, self.tare_seconds) if self.tare_seconds > 0 else 0
+        if n_tare:
+            w = tared_base_wrench(r, q, qd, qdd, w, n_tare)
+        if self.kind == "base-momentum":
+            return base_momentum_tip_force(r, q, qd, w, 1.0 / self.record_hz, self.observer_gain, n_tare)
         f_bw = np.atleast_2d(tip_force_from_base_wrench(r, q, qd, qdd, w))
         if self.kind == "basewrench":
             return f_bw
@@ -105,9 +113,9 @@ class AnalyticPrior:
         overhead); it computes exactly what :meth:`compute` does (tested).
         A tared prior expects ``sample["base_wrench"]`` already tared.
         """
-        if self.kind == "momentum":
-            raise ValueError("the momentum prior is a filter with state: pass its current estimate "
-                             "(MomentumObserver.step_force) as `prior`")
+        if self.kind in STATEFUL_PRIORS:
+            raise ValueError(f"the {self.kind} prior is a filter with state: pass its current estimate "
+                             "(the observer's step_force) as `prior`")
         if self._single is None:
             self._single = _SingleSample(self.robot)
         s = self._single

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from ..analytic.base_momentum import BaseMomentumObserver
 from ..analytic.momentum_observer import MomentumObserver
 from ..analytic.tare import StreamingTare, tare_samples
 from ..analytic.tip_force import base_wrench_force_core
@@ -170,8 +171,11 @@ class StreamingModel:
         self.call_hz = call_hz
         self._ring = np.empty(((self.window - 1) * self.stride + 1, len(self._row)))
         self._offsets = np.arange(self.window - 1, -1, -1) * self.stride  # oldest first
+        gain = self.model.config.get("observer_gain", 20.0)
         if self.model.preset.prior == "momentum":
-            self._observer = MomentumObserver(self.robot, gain=self.model.config.get("observer_gain", 20.0), dt=1.0 / call_hz)
+            self._observer = MomentumObserver(self.robot, gain=gain, dt=1.0 / call_hz)
+        elif self.model.preset.prior == "base-momentum":
+            self._observer = BaseMomentumObserver(self.robot, gain=gain, dt=1.0 / call_hz)
         self._tare = None
         if self.model.prior is not None and self.model.prior.tare_seconds > 0:
             self._tare = StreamingTare(self.robot, tare_samples(call_hz, self.model.prior.tare_seconds))
@@ -183,7 +187,10 @@ class StreamingModel:
             self.set_call_rate(call_hz)
         n = (self.window - 1) * self.stride + 1
         if self._observer is not None:
-            n = max(n, int(math.ceil(5.0 / self._observer.gain[0] * call_hz)))
+            settle = int(math.ceil(5.0 / float(np.min(self._observer.gain)) * call_hz))
+            # The base momentum observer starts after the tare window (base_momentum_tip_force).
+            tare = self._tare.n_calls if self._tare is not None and self._prior_kind == "base-momentum" else 0
+            n = max(n, tare + settle)
         if self._tare is not None:
             n = max(n, self._tare.n_calls)
         return n
@@ -209,8 +216,11 @@ class StreamingModel:
         kind = self._prior_kind
         if kind is None:
             return None
+        in_tare = self._tare is not None and not self._tare.done
         if self._tare is not None:
             base_wrench = self._tare.update(q, qd, qdd, base_wrench)
+        if kind == "base-momentum":  # 0 in the tare window, then the observer from a fresh start
+            return np.zeros(3) if in_tare else self._observer.step_force(q, qd, base_wrench)
         if kind == "basewrench":
             return base_wrench_force_core(self.robot, q, qd, qdd, base_wrench)
         if kind == "momentum":
