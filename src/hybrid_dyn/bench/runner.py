@@ -29,7 +29,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ..analytic.base_momentum import BaseMomentumObserver, base_momentum_tip_force
-from ..analytic.kalman import KalmanTipForce, tare_window_noise
+from ..analytic.kalman import FusionNoise, KalmanTipForce, tare_window_noise
 from ..analytic.momentum_observer import MomentumObserver
 from ..analytic.robot import Robot, load_robot
 from ..analytic.tare import TARE_SECONDS, tare_samples, tared_base_wrench
@@ -47,9 +47,6 @@ COLUMNS = [
     "rmse_1", "rmse_2", "rmse_3", "rmse_4", "rmse_5", "rmse_6", "rmse_7", "noise_rms",
     "train_seconds", "infer_us_per_sample", "infer_us_per_call", "n_params", "n_test_samples", "error",
 ]
-
-# Bandwidth of the momentum observer at the 100 Hz record rate: K dt = 0.2.
-MOMENTUM_GAIN = 20.0
 
 
 @dataclass
@@ -91,22 +88,56 @@ def _analytic(task: str, name: str, inputs: str, batch_fn, single_fn=None) -> Ro
         return Predictor(
             predict=lambda insts: [batch_fn(robot, i, ctx) for i in insts],
             single_call=(lambda inst, k: single_fn(robot, inst, k, ctx)) if single_fn else None,
-            inputs=inputs,
+            inputs=inputs(ctx) if callable(inputs) else inputs,
         )
 
     return RowSpec(task, name, "analytic", build)
 
 
+# The observers' gains and the Kalman filter's force rate set a bandwidth: the best one depends on
+# the sample rate and on how fast the contact force changes (bells over seconds, steps in 1 ms).
+# Each physics row takes the value of its grid with the least validation RMSE, once per scenario,
+# as the learned rows stop on the validation loss: every row is at its best on the same split.
+OBSERVER_GAINS = (10.0, 20.0, 50.0, 100.0, 200.0)   # K [1/s]
+FORCE_RATES = (0.3, 0.6, 1.0, 2.0, 5.0, 10.0)      # Kalman random-walk intensity [N/sqrt(s)]
+
+
+def _chosen_on_val(ctx, name: str, grid, estimate) -> float:
+    """The grid value whose estimate(robot, instance, ctx, value) has the least validation RMSE (cached)."""
+    key = ("chosen-on-val", name)
+    if key not in ctx.cache:
+        val = ctx.dataset.split("val")
+        target = np.concatenate([i["tip_force"] for i in val])
+
+        def val_rmse(value):
+            return float(np.sqrt(np.mean((np.concatenate([estimate(ctx.robot, i, ctx, value) for i in val])
+                                          - target) ** 2)))
+
+        scores = {v: val_rmse(v) for v in grid}
+        ctx.cache[key] = min(scores, key=scores.get)
+        ctx.log(f"[bench] {ctx.scenario} {name}: validation RMSE by value "
+                + ", ".join(f"{v:g}: {e:.4f}" for v, e in scores.items()) + f" -> {ctx.cache[key]:g}")
+    return ctx.cache[key]
+
+
+def _momentum_at(robot, inst, ctx, gain):
+    return MomentumObserver(robot, gain=gain, dt=1.0 / ctx.dataset.meta["record_hz"]).run(inst.q, inst.qd, inst.tau_J)[0]
+
+
+def _momentum_gain(ctx) -> float:
+    return _chosen_on_val(ctx, "momentum-observer gain", OBSERVER_GAINS, _momentum_at)
+
+
 def _momentum(robot, inst, ctx):
-    obs = MomentumObserver(robot, gain=MOMENTUM_GAIN, dt=1.0 / ctx.dataset.meta["record_hz"])
-    return obs.run(inst.q, inst.qd, inst.tau_J)[0]
+    return _momentum_at(robot, inst, ctx, _momentum_gain(ctx))
 
 
 def _momentum_single(robot, inst, k, ctx):
     """One observer per scenario, stepped once per call, as a control loop runs it."""
     obs = ctx.cache.get("momentum-observer")
     if obs is None:
-        obs = ctx.cache["momentum-observer"] = MomentumObserver(robot, MOMENTUM_GAIN, 1.0 / ctx.dataset.meta["record_hz"])
+        obs = ctx.cache["momentum-observer"] = MomentumObserver(robot, _momentum_gain(ctx),
+                                                                1.0 / ctx.dataset.meta["record_hz"])
         obs.step(inst.q[0], inst.qd[0], inst.tau_J[0])
     return obs.step_force(inst.q[k], inst.qd[k], inst.tau_J[k])
 
@@ -125,41 +156,60 @@ def _rnea_minus_contact(robot, q, qd, qdd, w):
     return robot.inverse_dynamics(q, qd, qdd) - contact_joint_torques(robot, q, tip_force_from_base_wrench(robot, q, qd, qdd, w))
 
 
-def _base_momentum(robot, inst, ctx):
-    """The base momentum observer (force rows, gain MOMENTUM_GAIN) on the tared base wrench,
-    started after the tare window as a stream starts it."""
+def _base_momentum_at(robot, inst, ctx, gain):
+    """The base momentum observer (force rows) on the tared base wrench, started after the tare
+    window as a stream starts it."""
     hz = ctx.dataset.meta["record_hz"]
-    return base_momentum_tip_force(robot, inst.q, inst.qd, _tared(robot, inst, ctx), 1.0 / hz, MOMENTUM_GAIN,
+    return base_momentum_tip_force(robot, inst.q, inst.qd, _tared(robot, inst, ctx), 1.0 / hz, gain,
                                    tare_samples(hz, TARE_SECONDS))
+
+
+def _base_momentum_gain(ctx) -> float:
+    return _chosen_on_val(ctx, "base-momentum gain", OBSERVER_GAINS, _base_momentum_at)
+
+
+def _base_momentum(robot, inst, ctx):
+    return _base_momentum_at(robot, inst, ctx, _base_momentum_gain(ctx))
 
 
 def _base_momentum_single(robot, inst, k, ctx):
     """One observer per scenario, stepped once per call, as a control loop runs it."""
     obs = ctx.cache.get("base-momentum")
     if obs is None:
-        obs = ctx.cache["base-momentum"] = BaseMomentumObserver(robot, MOMENTUM_GAIN, 1.0 / ctx.dataset.meta["record_hz"])
+        obs = ctx.cache["base-momentum"] = BaseMomentumObserver(robot, _base_momentum_gain(ctx),
+                                                                1.0 / ctx.dataset.meta["record_hz"])
         obs.step(inst.q[0], inst.qd[0], _tared(robot, inst, ctx)[0])
     return obs.step_force(inst.q[k], inst.qd[k], _tared(robot, inst, ctx)[k])
 
 
-def _kalman_filter(robot, inst, ctx) -> KalmanTipForce:
+def _kalman_filter(robot, inst, ctx, force_rate=None) -> KalmanTipForce:
     """The fusion filter of one instance: sensor specifications plus the model errors measured on
-    its contact-free tare window (``analytic/kalman.py``)."""
+    its contact-free tare window (``analytic/kalman.py``), at the force rate chosen on validation."""
     hz = ctx.dataset.meta["record_hz"]
     n = tare_samples(hz, TARE_SECONDS)
     w = _tared(robot, inst, ctx)
-    noise = tare_window_noise(robot, 1.0 / hz, inst.q[:n], inst.qd[:n], w[:n], inst.tau_J[:n])
+    rate = _kalman_force_rate(ctx) if force_rate is None else force_rate
+    noise = tare_window_noise(robot, 1.0 / hz, inst.q[:n], inst.qd[:n], w[:n], inst.tau_J[:n],
+                              FusionNoise(force_rate=rate))
     return KalmanTipForce(robot, 1.0 / hz, noise)
 
 
-def _kalman(robot, inst, ctx):
+def _kalman_at(robot, inst, ctx, force_rate):
     """The fusion filter started after the tare window, as TipForceEstimator starts it (0 before)."""
     n = tare_samples(ctx.dataset.meta["record_hz"], TARE_SECONDS)
     out = np.zeros((len(inst), 3))
     if n < len(inst):
-        out[n:] = _kalman_filter(robot, inst, ctx).run(inst.q[n:], inst.qd[n:], _tared(robot, inst, ctx)[n:],
-                                                       inst.tau_J[n:])
+        out[n:] = _kalman_filter(robot, inst, ctx, force_rate).run(inst.q[n:], inst.qd[n:],
+                                                                   _tared(robot, inst, ctx)[n:], inst.tau_J[n:])
     return out
+
+
+def _kalman_force_rate(ctx) -> float:
+    return _chosen_on_val(ctx, "kalman-fusion force rate", FORCE_RATES, _kalman_at)
+
+
+def _kalman(robot, inst, ctx):
+    return _kalman_at(robot, inst, ctx, _kalman_force_rate(ctx))
 
 
 def _kalman_single(robot, inst, k, ctx):
@@ -180,7 +230,8 @@ ANALYTIC_ROWS = {
         lambda r, i, ctx: tip_force_from_base_wrench(r, i.q, i.qd, i.qdd, i.base_wrench),
         lambda r, i, k, ctx: tip_force_from_base_wrench(r, i.q[k], i.qd[k], i.qdd[k], i.base_wrench[k])),
     "momentum-observer": _analytic(
-        "tip_force", "momentum-observer", "q, qd, tau_J", _momentum, _momentum_single),
+        "tip_force", "momentum-observer", lambda ctx: f"q, qd, tau_J; gain {_momentum_gain(ctx):g}/s (chosen on val)",
+        _momentum, _momentum_single),
     "rnea": _analytic(
         "joint_torque", "rnea", "q, qd, qdd",
         lambda r, i, ctx: r.inverse_dynamics(i.q, i.qd, i.qdd),
@@ -201,10 +252,11 @@ ANALYTIC_ROWS = {
         lambda r, i, k, ctx: _rnea_minus_contact(r, i.q[k], i.qd[k], i.qdd[k], _tared(r, i, ctx)[k])),
     # Issue 16: Newton's law for the whole robot (no qdd), and both force sensors fused.
     "base-momentum": _analytic(
-        "tip_force", "base-momentum", "q, qd, base_wrench (tared on the first 0.5 s)", _base_momentum,
-        _base_momentum_single),
+        "tip_force", "base-momentum", lambda ctx: "q, qd, base_wrench (tared on the first 0.5 s); gain "
+        f"{_base_momentum_gain(ctx):g}/s (chosen on val)", _base_momentum, _base_momentum_single),
     "kalman-fusion": _analytic(
-        "tip_force", "kalman-fusion", "q, qd, base_wrench (tared), tau_J", _kalman, _kalman_single),
+        "tip_force", "kalman-fusion", lambda ctx: "q, qd, base_wrench (tared), tau_J; force rate "
+        f"{_kalman_force_rate(ctx):g} N/sqrt(s) (chosen on val)", _kalman, _kalman_single),
 }
 
 
