@@ -38,12 +38,13 @@ from functools import lru_cache
 
 import numpy as np
 import pinocchio as pin
+from numba import njit
 from scipy.linalg import solve_discrete_are
 
 from .base_momentum import BaseMomentumObserver
 from .momentum_observer import MomentumObserver
 from .robot import InputError, Robot, as_batch
-from .tip_force import MAX_DAMPING, SINGULAR_REGION, damped_force_from_joint_torques, damped_force_single
+from .tip_force import MAX_DAMPING, SINGULAR_REGION, damped_force_from_joint_torques
 
 SENSORS = ("base", "joint")
 
@@ -217,13 +218,28 @@ class KalmanTipForce:
             rows = [SENSORS.index(c) for c in subset]
             G[np.ix_(rows + [2], rows)] = f.K
             self._gains[subset] = G
+        # For the compiled step: the gains indexed by 1 (base), 2 (joint), 3 (both), and constants.
+        self._gain_table = np.zeros((4, 3, 2))
+        for code, subset in ((1, ("base",)), (2, ("joint",)), (3, ("base", "joint"))):
+            self._gain_table[code] = self._gains[subset]
+        self._R3 = np.ascontiguousarray(robot._root_from_sensor[:3])
+        self._mg3 = robot.total_mass * np.asarray(robot.model_ff.gravity.linear, float)
+        self._zero3, self._zero6, self._zero_nv = np.zeros(3), np.zeros(6), np.zeros(robot.nv)
+        self._zero_jac = np.zeros((6, robot.nv))
         self.reset()
+        # Compile (or load from numba's cache) now, not in the first control cycle: one call on copies.
+        _fusion_step(self.state.copy(), self._y.copy(), self._last_base.copy(), self._last_joint.copy(),
+                     self._has_last.copy(), self._gain_table, True, self._zero3, self._R3, self._zero6, self._mg3,
+                     True, self._zero_nv, self._zero_nv, self._zero_nv, self._zero_jac, self.dt,
+                     SINGULAR_REGION, MAX_DAMPING)
 
     def reset(self) -> None:
         """Forget the history: F = 0 and both sensors re-anchor at their next sample."""
         self.state = np.zeros((3, 3))  # rows: s_base, s_joint, F; columns: x, y, z
         self._y = np.zeros((2, 3))
-        self._last = [None, None]  # per sensor: (momentum, input) of its previous sample
+        self._last_base = np.zeros((2, 3))  # the compiled step's copy: h, u of the previous sample
+        self._last_joint = np.zeros((2, self.robot.nv))  # p, tau + beta of the previous sample
+        self._has_last = np.zeros(2, dtype=np.bool_)
 
     @property
     def force(self) -> np.ndarray:
@@ -240,19 +256,6 @@ class KalmanTipForce:
         beta, p = self._joint._beta_and_p(q, qd)
         return p, tau + beta
 
-    def _increment(self, i, momentum, u, q):
-        """The sensor's unexplained-momentum increment [N s] (3,), or None when it has no previous sample."""
-        last = self._last[i]
-        self._last[i] = (momentum, u)
-        if last is None:
-            return None
-        d = momentum - last[0] - (u + last[1]) * (0.5 * self.dt)
-        if i == 0:
-            return d
-        jv = pin.computeFrameJacobian(self.robot.model, self._jdata, q, self.robot.tool_frame_id,
-                                      pin.LOCAL_WORLD_ALIGNED)[:3]
-        return damped_force_single(jv, d, SINGULAR_REGION, MAX_DAMPING)
-
     # ------------------------------------------------------------ streaming
     def step(self, q, qd, base_wrench=None, tau_J=None) -> np.ndarray:
         """Advance one sample; returns the tip force estimate [N] (3,), base frame."""
@@ -268,24 +271,33 @@ class KalmanTipForce:
         return self.step_unchecked(q, qd, base_wrench, tau_J)
 
     def step_unchecked(self, q, qd, base_wrench, tau_J) -> np.ndarray:
-        """``step`` for validated inputs (None for an absent sensor)."""
-        x = self.state
-        x[:2] += self.dt * x[2]  # predict: s_c += dt F
-        present = []
-        for i, sample in enumerate((base_wrench, tau_J)):
-            if sample is None:
-                self._last[i] = None  # its next sample re-anchors
-                continue
-            terms = self._base_terms(q, qd, sample) if i == 0 else self._joint_terms(q, qd, sample)
-            d = self._increment(i, terms[0], terms[1], q)
-            if d is None:
-                self._y[i] = x[i]  # (re)start: anchor the sensor's sum at the prediction
-            else:
-                self._y[i] += d
-                present.append(SENSORS[i])
-        if present:
-            x += self._gains[tuple(present)] @ (self._y - x[:2])  # an absent sensor's column is zero
-        return x[2].copy()
+        """``step`` for validated inputs (None for an absent sensor).
+
+        The dynamics terms come from Pinocchio; everything after them (the increments,
+        the damped projection, predict and update) is one compiled kernel, since at
+        these sizes each numpy call would cost more than the arithmetic.
+        """
+        robot = self.robot
+        has_base, has_joint = base_wrench is not None, tau_J is not None
+        if has_base:
+            b = self._base
+            b._qff[7:] = q
+            b._vff[6:] = qd
+            h = pin.computeCentroidalMomentum(robot.model_ff, b._data, b._qff, b._vff).linear
+            w = base_wrench
+        else:
+            h, w = self._zero3, self._zero6
+        if has_joint:
+            beta, p = self._joint._beta_and_p(q, qd)
+            jv = pin.computeFrameJacobian(robot.model, self._jdata, q, robot.tool_frame_id, pin.LOCAL_WORLD_ALIGNED)
+            tau = tau_J
+        else:
+            beta = p = tau = self._zero_nv
+            jv = self._zero_jac
+        _fusion_step(self.state, self._y, self._last_base, self._last_joint, self._has_last, self._gain_table,
+                     has_base, h, self._R3, w, self._mg3, has_joint, p, beta, tau, jv, self.dt,
+                     SINGULAR_REGION, MAX_DAMPING)
+        return self.state[2].copy()
 
     # ---------------------------------------------------------------- batch
     def measurements(self, q, qd, base_wrench=None, tau_J=None) -> dict:
@@ -330,3 +342,106 @@ class KalmanTipForce:
         self.reset()
         Y = np.stack([y[c] for c in subset], axis=1)  # (N, sensors, 3)
         return np.stack([f.filter(Y[:, :, axis])[:, -1] for axis in range(3)], axis=1)
+
+
+@njit(cache=True)
+def _fusion_step(x, y, last_base, last_joint, has_last, gain_table, has_base, h, R3, w, mg3,
+                 has_joint, p, beta, tau, jac, dt, singular_region, max_damping):  # pragma: no cover (compiled)
+    """One predict-update of ``KalmanTipForce`` after the dynamics terms (see ``step_unchecked``).
+
+    x (3, 3): s_base, s_joint, F by axis; y (2, 3): the sensors' unexplained momenta.
+    A sensor with no previous sample re-anchors (y = its prediction, no update from it).
+    The joint increment is projected to the tool by the damped least squares of
+    ``tip_force.damped_force_single``, written out here in the same closed form.
+    """
+    for j in range(3):
+        x[0, j] += dt * x[2, j]
+        x[1, j] += dt * x[2, j]
+    code = 0
+    if has_base:
+        u = np.empty(3)
+        for i in range(3):
+            acc = mg3[i]
+            for k in range(6):
+                acc += R3[i, k] * w[k]
+            u[i] = acc
+        if has_last[0]:
+            for i in range(3):
+                y[0, i] += h[i] - last_base[0, i] - (u[i] + last_base[1, i]) * (0.5 * dt)
+            code += 1
+        else:
+            for i in range(3):
+                y[0, i] = x[0, i]
+        for i in range(3):
+            last_base[0, i] = h[i]
+            last_base[1, i] = u[i]
+        has_last[0] = True
+    else:
+        has_last[0] = False
+    if has_joint:
+        nv = p.shape[0]
+        if has_last[1]:
+            d = np.empty(nv)
+            for k in range(nv):
+                d[k] = p[k] - last_joint[0, k] - (tau[k] + beta[k] + last_joint[1, k]) * (0.5 * dt)
+            a = np.zeros((3, 3))
+            bvec = np.zeros(3)
+            for i in range(3):
+                for k in range(nv):
+                    bvec[i] += jac[i, k] * d[k]
+                for j in range(3):
+                    acc = 0.0
+                    for k in range(nv):
+                        acc += jac[i, k] * jac[j, k]
+                    a[i, j] = acc
+            z = _damped_solve3(a, bvec, singular_region, max_damping)
+            for i in range(3):
+                y[1, i] += z[i]
+            code += 2
+        else:
+            for i in range(3):
+                y[1, i] = x[1, i]
+        for k in range(nv):
+            last_joint[0, k] = p[k]
+            last_joint[1, k] = tau[k] + beta[k]
+        has_last[1] = True
+    else:
+        has_last[1] = False
+    if code > 0:
+        G = gain_table[code]
+        inn0 = np.empty(3)
+        inn1 = np.empty(3)
+        for j in range(3):
+            inn0[j] = y[0, j] - x[0, j]
+            inn1[j] = y[1, j] - x[1, j]
+        for r in range(3):
+            for j in range(3):
+                x[r, j] += G[r, 0] * inn0[j] + G[r, 1] * inn1[j]
+
+
+@njit(cache=True)
+def _damped_solve3(a, b, singular_region, max_damping):  # pragma: no cover (compiled)
+    """``damped_force_single``'s damping law and adjugate solve for a = J_v J_v^T, b = J_v tau."""
+    a00, a01, a02, a11, a12, a22 = a[0, 0], a[0, 1], a[0, 2], a[1, 1], a[1, 2], a[2, 2]
+    det0 = a00 * (a11 * a22 - a12 * a12) - a01 * (a01 * a22 - a12 * a02) + a02 * (a01 * a12 - a11 * a02)
+    tr = a00 + a11 + a22
+    lam_min = np.inf
+    if det0 < singular_region**2 * tr * tr:
+        lam_min = np.linalg.eigvalsh(a)[0]
+    if lam_min < singular_region**2:
+        dmp = max_damping**2 * (1.0 - max(lam_min, 0.0) / singular_region**2)
+        a00 += dmp
+        a11 += dmp
+        a22 += dmp
+    c00 = a11 * a22 - a12 * a12
+    c01 = a02 * a12 - a01 * a22
+    c02 = a01 * a12 - a02 * a11
+    c11 = a00 * a22 - a02 * a02
+    c12 = a01 * a02 - a00 * a12
+    c22 = a00 * a11 - a01 * a01
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    out = np.empty(3)
+    out[0] = (c00 * b[0] + c01 * b[1] + c02 * b[2]) / det
+    out[1] = (c01 * b[0] + c11 * b[1] + c12 * b[2]) / det
+    out[2] = (c02 * b[0] + c12 * b[1] + c22 * b[2]) / det
+    return out
