@@ -9,6 +9,7 @@ estimate against the true force and the per-tick latency of that call.
 
     .venv/bin/python examples/control_loop.py                   # analytic base-wrench method
     .venv/bin/python examples/control_loop.py --method momentum # needs tau_J, given here
+    .venv/bin/python examples/control_loop.py --method kalman_fusion  # base sensor and tau_J fused
     .venv/bin/python examples/control_loop.py --model runs/.../models/residual-basewrench
 """
 from __future__ import annotations
@@ -20,7 +21,7 @@ import numpy as np
 import pinocchio as pin
 
 import hybrid_dyn as hd
-from hybrid_dyn.estimator import TipForceEstimator
+from hybrid_dyn.estimator import METHODS, TipForceEstimator
 from hybrid_dyn.sim.plant import DartPlant
 
 DT = 1e-3
@@ -28,7 +29,7 @@ DT = 1e-3
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--method", default="base_wrench", choices=["base_wrench", "torques", "momentum"])
+    ap.add_argument("--method", default="base_wrench", choices=list(METHODS))
     ap.add_argument("--model", default=None, help="a trained tip-force model directory instead of an analytic method")
     ap.add_argument("--seconds", type=float, default=10.0)
     args = ap.parse_args(argv)

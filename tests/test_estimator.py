@@ -1,4 +1,5 @@
 """The streaming estimator (issue 6): streaming == batch, bad input, warm-up, threads."""
+import dataclasses
 import threading
 
 import numpy as np
@@ -218,7 +219,7 @@ def test_streaming_base_momentum_equals_the_batch_observer_after_the_tare(record
 @pytest.mark.parametrize("with_torques", [True, False], ids=["both sensors", "base sensor only"])
 def test_streaming_kalman_fusion_equals_the_batch_filter(recorded, panda, with_torques):
     """Noise from the tare window, then the steady-state filter; without tau_J it is the base-only filter."""
-    from hybrid_dyn.analytic.kalman import KalmanTipForce, tare_window_noise
+    from hybrid_dyn.analytic.kalman import FusionNoise, KalmanTipForce, tare_window_noise
 
     est = TipForceEstimator.analytic(panda, "kalman_fusion", call_hz=RATE, tare_seconds=0.5)
     tau = recorded.tau_J if with_torques else [None] * len(recorded)
@@ -228,8 +229,10 @@ def test_streaming_kalman_fusion_equals_the_batch_filter(recorded, panda, with_t
     tau_arr = recorded.tau_J if with_torques else None
     dt = 1.0 / RATE
     noise = tare_window_noise(panda, dt, recorded.q[:50], recorded.qd[:50], w[:50],
-                              None if tau_arr is None else tau_arr[:50])
-    assert est.fusion_noise == noise
+                              None if tau_arr is None else tau_arr[:50], FusionNoise(force_rate=est.config.fusion_force_rate))
+    # The stream accumulates the window's increments call by call; the batch sums them at once.
+    assert dataclasses.asdict(est.fusion_noise) == pytest.approx(dataclasses.asdict(noise), rel=1e-9)
+    noise = est.fusion_noise
     batch = KalmanTipForce(panda, dt, noise).run(recorded.q[50:], recorded.qd[50:], w[50:],
                                                  None if tau_arr is None else tau_arr[50:])
     np.testing.assert_allclose(stream[50:], batch, atol=1e-9)

@@ -26,16 +26,29 @@ What happens in one call:
      the observer are designed for that step, so a wrong ``call_hz`` (a 100 Hz
      recording fed to a 1 kHz estimator errs 10 N) or a gap (a lost tick) is
      refused rather than silently mis-filtered; 25 % lets a loop's jitter through
-     and stops any rate off by 2x. After a gap, ``reset()`` starts a new stream.
+     and stops any rate off by 2x. A wrong rate is refused at every call; after a
+     gap, the sample one period after the refused one resumes the stream: the
+     filter and observers restart (a finished tare is kept) and it warms up anew.
    A rejected sample raises :class:`EstimatorInputError` (a ``ValueError`` that
    names the argument), or with ``on_bad_input="hold"`` returns the last good
    estimate with ``last_status = INPUT_REJECTED`` (``last_rejection`` says why).
    It never enters the filter, observer, tare, window or time state: the calls
    after it give exactly what they give without it.
-2. qdd is estimated from qd causally, with the generator's filter (backward
-   difference + 2nd-order Butterworth, ``sim/sensors.py``) at the call rate.
+2. Where the method needs it, qdd is estimated from qd causally, with the
+   generator's filter (backward difference + 2nd-order Butterworth,
+   ``sim/sensors.py``) at the call rate. Its cutoff, with ``qdd_cutoff_hz="auto"``
+   (the default), is chosen at the end of the noise window (the first
+   ``tare_seconds`` of calls) by :func:`auto_qdd_cutoff`: the highest cutoff at
+   which the qdd estimate adds no more noise to the method's input than the
+   sensor itself carries; before that, and without a window, 20 Hz. A learned
+   model keeps the cutoff it was trained with.
 3. The chosen method gives the force: the base-wrench method, the torque
-   method, the momentum observer, or a learned model (see ``load``).
+   method, the joint-torque momentum observer, the base momentum observer
+   (``base_momentum``: Newton's law for the whole robot, no qdd), the Kalman
+   filter that fuses the base sensor and the joint torques (``kalman_fusion``:
+   a call may bring either sensor or both), or a learned model (see ``load``).
+   The two base-sensor observers start after the tare window, the Kalman filter
+   with the sensors' model errors measured on it (``analytic/kalman.py``).
 4. An estimate above ``max_tip_force`` (500 N) is returned with status
    FORCE_OUT_OF_RANGE ("out of range") and is not kept as the last good one.
 
@@ -67,7 +80,7 @@ import numpy as np
 from scipy import signal
 
 from .analytic.base_momentum import BaseMomentumObserver
-from .analytic.kalman import FusionNoise, KalmanTipForce, tare_window_noise
+from .analytic.kalman import FusionNoise, KalmanTipForce, noise_from_increments
 from .analytic.momentum_observer import MomentumObserver
 from .analytic.robot import InputError, Robot, load_robot
 from .analytic.tare import TARE_SECONDS, StreamingTare, tare_samples, tared_base_wrench
@@ -120,6 +133,10 @@ class EstimatorConfig:
     base-wrench bound. Raise it for a stronger arm.
     rate_tolerance: the fraction by which a timed stream's step may differ
     from 1 / call_hz.
+    fusion_force_rate: kalman_fusion's random-walk intensity of the tip force
+    [N/sqrt(s)]: its bandwidth. The bench picks it per scenario on validation
+    data (0.6-5 there: slow bells at 100 Hz to 1 ms steps at 1 kHz); 2 is a middle
+    that follows a 1 s push without lag and keeps the noise near the sensor's.
     """
 
     call_hz: float = 1000.0
@@ -132,6 +149,7 @@ class EstimatorConfig:
     tau_margin: float = 0.5
     max_tip_force: float = 500.0
     rate_tolerance: float = 0.25
+    fusion_force_rate: float = 2.0
 
     def __post_init__(self):
         if self.on_bad_input not in ("raise", "hold"):
@@ -146,6 +164,8 @@ class EstimatorConfig:
                 raise UsageError(f"{name} must be >= 0, got {getattr(self, name)!r}")
         if not self.max_tip_force > 0:
             raise UsageError(f"max_tip_force must be > 0 [N], got {self.max_tip_force!r}")
+        if not self.fusion_force_rate > 0:
+            raise UsageError(f"fusion_force_rate must be > 0 [N/sqrt(s)], got {self.fusion_force_rate!r}")
         if not 0 < self.rate_tolerance < 1:
             raise UsageError(f"rate_tolerance must lie in (0, 1), got {self.rate_tolerance!r}")
 
@@ -306,15 +326,17 @@ class TipForceEstimator:
         else:
             self._warmup_calls = 2  # the backward difference needs one previous qd
         self._warmup_initial = self._warmup_calls
+        self._spec_noise = FusionNoise(force_rate=c.fusion_force_rate)
         self.reset()
 
     # ------------------------------------------------------------ factories
     @classmethod
     def analytic(cls, robot: str | Robot = "panda", method: str = "base_wrench", params=None,
                  **config) -> "TipForceEstimator":
-        """A model-free estimator: method "base_wrench", "torques" (needs tau_J) or "momentum" (needs tau_J)."""
+        """A model-free estimator: method "base_wrench", "torques" (needs tau_J), "momentum" (needs tau_J),
+        "base_momentum" (needs base_wrench) or "kalman_fusion" (base_wrench, tau_J or both per call)."""
         if method not in METHODS:
-            raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+            raise UsageError(f"method must be one of {METHODS}, got {method!r}")
         if not isinstance(robot, Robot):
             robot = load_robot(robot, params=params, num_threads=1)
         return cls(robot, method, EstimatorConfig(**config))
@@ -352,8 +374,13 @@ class TipForceEstimator:
         self._calls = 0
         self._warmup_calls = self._warmup_initial
         self._kalman = None
-        if self.method == "kalman_fusion" and self._tare is None:
-            self._build_kalman(FusionNoise())  # no noise window: the sensors' specifications
+        self._probe = None  # kalman_fusion in the noise window: a specifications-only filter whose sums give
+        self._probe_sums = []  # ... the sensors' increments call by call (no batch pass at the window's end)
+        if self.method == "kalman_fusion":
+            if self._tare is None:
+                self._build_kalman(self._spec_noise)  # no noise window: the sensors' specifications
+            else:
+                self._probe = KalmanTipForce(self.robot, 1.0 / self.config.call_hz, self._spec_noise)
         self._window = []  # the noise window's samples (q, qd, raw base_wrench, tau_J)
         self._last_t = None  # set by the first call with t: from then on the stream is timed
         self._gap_t = None  # t of a sample refused for its step: the stream may resume from it
@@ -536,13 +563,18 @@ class TipForceEstimator:
         taring = self._tare is not None and not self._tare.done
         qdd = self._qdd_filter.step(qd) if (self.method in NEEDS_QDD or in_window or taring) else None
         self._calls += 1
-        if in_window:
+        if in_window and self._auto_cutoff and self.method in NEEDS_QDD:
             self._window.append((q.copy(), qd.copy(), None if base_wrench is None else base_wrench.copy(),
                                  None if tau_J is None else tau_J.copy()))
         status = EstimatorStatus.OK
         tared = base_wrench
         if self._tare is not None and base_wrench is not None:
             tared = self._tare.update(q, qd, qdd, base_wrench)
+        if in_window and self._probe is not None:
+            # The raw wrench (the tare's offset is still moving): its final offset o is added back at the
+            # window's end, exactly, since an increment is linear in it: d_tared = d_raw + R o dt.
+            self._probe.step_unchecked(q, qd, base_wrench, tau_J)
+            self._probe_sums.append((self._probe.sums.copy(), base_wrench is not None, tau_J is not None))
         if in_window and self._calls == self._window_calls:
             self._close_window()
         # The inputs are validated above: call the unchecked cores.
@@ -587,17 +619,20 @@ class TipForceEstimator:
             self._qdd_filter = CausalAccelerationFilter(self.robot.nv, self.config.call_hz, self.qdd_cutoff_hz)
             for x in window:
                 self._qdd_filter.step(x[1])
-        if self.method == "kalman_fusion":
-            offset = self._tare.offset if self._tare is not None else np.zeros(6)
-            arrays = {"q": np.array([x[0] for x in window]), "qd": np.array([x[1] for x in window])}
-            for name, i in (("base_wrench", 2), ("tau_J", 3)):  # a sensor absent at any window call keeps its specs
-                if all(x[i] is not None for x in window):
-                    arrays[name] = np.array([x[i] for x in window]) - (offset if name == "base_wrench" else 0.0)
-            noise = FusionNoise()
-            if len(window) >= 3 and len(arrays) > 2:
-                noise = tare_window_noise(self.robot, 1.0 / self.config.call_hz, arrays["q"], arrays["qd"],
-                                          arrays.get("base_wrench"), arrays.get("tau_J"), noise)
-            self._build_kalman(noise)
+        if self._probe is not None:
+            # Each sensor's increments: the growth of its sum between consecutive calls that both had it.
+            increments = {}
+            for row, name in ((0, "base"), (1, "joint")):
+                inc = [b[0][row] - a[0][row] for a, b in zip(self._probe_sums, self._probe_sums[1:])
+                       if a[1 + row] and b[1 + row]]
+                if len(inc) >= 2:
+                    increments[name] = np.array(inc)
+            if "base" in increments and self._tare is not None:
+                increments["base"] = increments["base"] + (self.robot._root_from_sensor[:3] @ self._tare.offset
+                                                           ) / self.config.call_hz
+            self._probe, self._probe_sums = None, []
+            self._build_kalman(noise_from_increments(self.robot, 1.0 / self.config.call_hz, increments,
+                                                     self._spec_noise))
 
     def _build_kalman(self, noise: FusionNoise) -> None:
         self._kalman = KalmanTipForce(self.robot, 1.0 / self.config.call_hz, noise)

@@ -169,12 +169,19 @@ def tare_window_noise(robot: Robot, dt: float, q, qd, base_wrench=None, tau_J=No
     """
     noise = noise or FusionNoise()
     y = KalmanTipForce(robot, dt, noise).measurements(q, qd, base_wrench, tau_J)
+    return noise_from_increments(robot, dt, {name: np.diff(v, axis=0) for name, v in y.items()}, noise)
+
+
+def noise_from_increments(robot: Robot, dt: float, increments: dict, noise: FusionNoise | None = None) -> FusionNoise:
+    """``tare_window_noise`` from the sensors' unexplained-momentum increments [N s] on the window,
+    {"base" | "joint": (n, 3)}: what a stream accumulates call by call (``TipForceEstimator``)."""
+    noise = noise or FusionNoise()
     cov = channel_covariances(robot, dt, noise)
     errors = {}
-    for name, v in y.items():
-        if len(v) < 3:
-            raise InputError(f"the tare window needs at least 3 samples, got {len(v)}")
-        d = np.diff(v, axis=0) / dt
+    for name, inc in increments.items():
+        if len(inc) < 2:
+            raise InputError(f"the tare window needs at least 3 samples, got {len(inc) + 1}")
+        d = np.asarray(inc, float) / dt
         measured = float(np.mean(d.var(axis=0) + d.mean(axis=0) ** 2))
         q_c, r_c = cov[name]
         predicted = (q_c + 2.0 * r_c) / dt**2
@@ -244,6 +251,12 @@ class KalmanTipForce:
     @property
     def force(self) -> np.ndarray:
         return self.state[2].copy()
+
+    @property
+    def sums(self) -> np.ndarray:
+        """The sensors' unexplained momenta y (2, 3) [N s] (rows: base, joint): between two calls at
+        which a sensor is present, its row grows by exactly that sensor's increment."""
+        return self._y
 
     # ------------------------------------------------------- measurements
     def _base_terms(self, q, qd, w):
