@@ -204,13 +204,17 @@ class Simulator:
             "tau_J": tau_J, "base_wrench": W_rec, "tip_force": f_tip,
         }
         qd_meas_fast = QD + n_qd
+        if cfg.qdd_source == "exact":
+            qdd = QDD_rec  # the seed's simulated data: the simulator's acceleration at the recorded step
+        else:
+            qdd = causal_acceleration(qd_meas_fast, cfg.dt, cfg.qdd_cutoff_hz)[rec]
         bias = np.concatenate([rng.uniform(-1, 1, 3) * noise.force_bias, rng.uniform(-1, 1, 3) * noise.torque_bias])
         w_std = np.array([noise.force] * 3 + [noise.torque] * 3)
         fields = {
             "t": truth["t"],
             "q": Q[rec] + n_q[rec],
             "qd": qd_meas_fast[rec],
-            "qdd": causal_acceleration(qd_meas_fast, cfg.dt, cfg.qdd_cutoff_hz)[rec],
+            "qdd": qdd,
             "tau_m": TAU[rec],
             "tau_J": tau_J + noise.tau_J * rng.standard_normal((R, nv)),
             "base_wrench": W_rec + bias + w_std * rng.standard_normal((R, 6)),
@@ -242,7 +246,8 @@ def simulate_reference(config: GeneratorConfig, t, q_ref, qd_ref, qdd_ref, seed:
     reference at rest. Returns fields at ``config.record_hz``:
 
     - ``q``, ``qd``: true state plus white noise (``config.noise``);
-    - ``qdd``: causal estimate from the measured qd (``sensors.py``), never DART's;
+    - ``qdd``: causal estimate from the measured qd (``sensors.py``), never DART's,
+      unless ``config.qdd_source == "exact"`` (``seed-sim``): then DART's acceleration;
     - ``tau_m``: the commanded motor torque (friction included, noise-free: it is
       what the controller sent); ``tau_J = tau_m - tau_f`` link side, plus noise;
     - ``base_wrench``: ground reaction in the plant's (possibly tilted) sensor
