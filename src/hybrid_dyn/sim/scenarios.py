@@ -250,8 +250,9 @@ _CONTACT_STEPS_SIZES = {
     "paper": dict(n_instances=100, trajectories=(5, 20)),
 }
 # seed-sim records at 20 Hz: the seed's 5-50 trajectories from `default` on (~200 s per instance,
-# ~3.9 k samples, as the seed's 3,919,800 / 1000). default: 40 instances, ~2.2 h simulated,
-# ~0.16 M samples, some 5-10 min on 2 cores; paper: the seed's 1000 instances, ~3.9 M samples.
+# ~4.1 k samples; the seed: 3,919,800 / 1000). default: 40 instances, ~2.3 h simulated,
+# ~0.16 M samples, ~5 min on 2 free cores (10 on a shared machine); paper: the seed's 1000 instances,
+# ~4 M samples (the seed: 3.9 M). quick: 6 instances of 5 trajectories, ~4.6 k samples, seconds.
 _SEED_SIM_SIZES = {
     "quick": dict(n_instances=6, trajectories=(5, 5)),
     "default": dict(n_instances=40, trajectories=(5, 50)),
