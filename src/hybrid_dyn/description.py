@@ -13,9 +13,12 @@ from __future__ import annotations
 
 from .errors import HybridDynError
 import importlib.metadata
+import dataclasses
+import functools
 import json
 import math
 import os
+import re
 import tomllib
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
@@ -175,6 +178,13 @@ class RobotSpec:
     default_params: str | None = None
     friction_files: dict = field(default_factory=dict)  # name -> JSON path
     source: Path | None = None
+    # The arm's last link, where a tool mounts, and the name of the tool the URDF
+    # itself carries there ("none": the URDF ends at the flange).
+    flange: str | None = None
+    default_tool: str = "none"
+    # The tool mounted instead of the URDF's own (a variant): None keeps the URDF's,
+    # "none" is the bare flange, a Path a tool URDF (see ``with_tool``).
+    tool: str | Path | None = None
 
     def friction(self, name: str = "gaz2019") -> GazFriction | None:
         """The named friction law, or None when this robot ships none."""
@@ -219,9 +229,13 @@ def load_spec(name_or_path: str | os.PathLike) -> RobotSpec:
         if key not in doc:
             raise RobotDescriptionError(f"{toml_path} lacks the key {key!r}")
     here = toml_path.parent
+    # example-robot-data first (the shipped descriptions), then beside the TOML (a user's own URDF).
     urdf = example_robot_data_dir() / doc["urdf"]
+    if not urdf.is_file() and (here / doc["urdf"]).is_file():
+        urdf = here / doc["urdf"]
     if not urdf.is_file():
-        raise RobotDescriptionError(f"{toml_path}: URDF {doc['urdf']!r} is not in example-robot-data ({urdf})")
+        raise RobotDescriptionError(f"{toml_path}: URDF {doc['urdf']!r} is neither in example-robot-data ({urdf}) "
+                                    f"nor beside the TOML ({here / doc['urdf']})")
     params = dict(doc.get("params", {}))
     default_params = params.pop("default", None)
     return RobotSpec(
@@ -238,6 +252,8 @@ def load_spec(name_or_path: str | os.PathLike) -> RobotSpec:
         default_params=default_params,
         friction_files={k: here / v for k, v in doc.get("friction", {}).items()},
         source=toml_path,
+        flange=doc.get("flange"),
+        default_tool=str(doc.get("tool", "none")),
     )
 
 
@@ -251,6 +267,8 @@ def build_urdf(spec: RobotSpec, params: str | os.PathLike | None = None, payload
     apply it, so friction is modelled explicitly instead (``GazFriction``).
     """
     root = ET.fromstring(spec.urdf_path.read_text())
+    # A variant's tool first, so that everything below treats its links like the arm's.
+    removed_links, removed_joints = _mount_tool(root, spec) if spec.tool is not None else (set(), set())
     links = {ln.get("name"): ln for ln in root.findall("link")}
     for tag in ("visual", "collision"):
         for ln in links.values():
@@ -268,6 +286,8 @@ def build_urdf(spec: RobotSpec, params: str | os.PathLike | None = None, payload
         for dyn in j.findall("dynamics"):
             j.remove(dyn)
     for jname, value in spec.locked_joints.items():
+        if jname in removed_joints:
+            continue  # a joint of the tool taken off (the Panda's fingers)
         if jname not in joints:
             raise RobotDescriptionError(f"locked joint {jname!r} of robot {spec.name!r} is not in the URDF")
         _lock_joint(joints[jname], value)
@@ -275,6 +295,8 @@ def build_urdf(spec: RobotSpec, params: str | os.PathLike | None = None, payload
     param_file = _resolve_params(spec, params)
     if param_file is not None:
         for li in read_param_file(param_file):
+            if li.name in removed_links:
+                continue  # the set's values for a tool that is not mounted
             if li.name not in links:
                 raise RobotDescriptionError(
                     f"parameter file {param_file} names link {li.name!r}, which robot {spec.name!r} does not have "
@@ -353,3 +375,371 @@ def _set_inertial(link_el, li: LinkInertial) -> None:
     ET.SubElement(inertial, "mass", value=repr(float(li.mass)))
     xx, xy, xz, yy, yz, zz = li.inertia
     ET.SubElement(inertial, "inertia", ixx=repr(xx), ixy=repr(xy), ixz=repr(xz), iyy=repr(yy), iyz=repr(yz), izz=repr(zz))
+
+
+# ------------------------------------------------------------ tools and variants
+def _subtree(root, link: str) -> tuple[set, set]:
+    """Names of the links and joints strictly below ``link`` in a URDF tree."""
+    below = {}
+    for j in root.findall("joint"):
+        below.setdefault(j.find("parent").get("link"), []).append(j)
+    links, joints, todo = set(), set(), [link]
+    while todo:
+        for j in below.get(todo.pop(), []):
+            child = j.find("child").get("link")
+            joints.add(j.get("name"))
+            links.add(child)
+            todo.append(child)
+    return links, joints
+
+
+@dataclass(frozen=True)
+class ToolUrdf:
+    """A tool to mount on a flange, read from a small URDF file.
+
+    Its links hang from one root link (mounted on the flange, frames aligned) by
+    fixed joints only; its one leaf link is the tool frame (the tool point).
+    """
+
+    path: Path
+    links: tuple
+    joints: tuple
+    root_link: str
+    tool_frame: str
+
+
+def read_tool(path: str | os.PathLike, arm_links=()) -> ToolUrdf:
+    """Read and check a tool URDF; ``arm_links``: names its links must not reuse."""
+    path = Path(path)
+    try:
+        root = ET.parse(path).getroot()
+    except (OSError, ET.ParseError) as err:
+        raise RobotDescriptionError(f"tool URDF {path} cannot be read: {err}") from err
+    links = root.findall("link")
+    joints = root.findall("joint")
+    names = [ln.get("name") for ln in links]
+    moving = [j.get("name") for j in joints if j.get("type") != "fixed"]
+    if moving:
+        raise RobotDescriptionError(f"tool URDF {path}: joints {moving} are not fixed (a tool is one rigid body; "
+                                    f"lock them at their positions)")
+    children = {j.find("child").get("link") for j in joints}
+    parents = {j.find("parent").get("link") for j in joints}
+    roots = [n for n in names if n not in children]
+    leaves = [n for n in names if n not in parents]
+    if len(roots) != 1 or len(leaves) != 1:
+        raise RobotDescriptionError(f"tool URDF {path} needs one root link (mounted on the flange) and one leaf link "
+                                    f"(the tool point); it has roots {roots} and leaves {leaves}")
+    clash = sorted(set(names) & set(arm_links))
+    if clash:
+        raise RobotDescriptionError(f"tool URDF {path} reuses the arm's link names {clash}: rename them")
+    return ToolUrdf(path, tuple(links), tuple(joints), roots[0], leaves[0])
+
+
+def _canonical_tool(spec: RobotSpec, tool) -> str | None:
+    """None (the URDF's own tool), "none" (the bare flange) or the absolute path of a tool URDF."""
+    if tool is None or str(tool) == spec.default_tool:
+        return None
+    if str(tool) == "none":
+        return "none"
+    if Path(tool).suffix == ".urdf":
+        p = Path(tool).resolve()
+        if not p.is_file():
+            raise RobotDescriptionError(f"tool URDF not found: {p}")
+        return str(p)
+    raise RobotDescriptionError(f"robot {spec.name!r} has no tool {str(tool)!r}: give {spec.default_tool!r} (the one "
+                                f"its URDF carries), 'none' (the bare flange) or the path of a tool .urdf")
+
+
+def with_tool(spec: RobotSpec, tool) -> RobotSpec:
+    """``spec`` with ``tool`` on its flange instead of the tool its URDF carries.
+
+    tool: None or ``spec.default_tool`` keeps the URDF's own; ``"none"`` takes it
+    off (the tool frame becomes the flange); a ``.urdf`` path mounts that tool
+    (:func:`read_tool`; its leaf link becomes the tool frame).
+    """
+    tool = _canonical_tool(spec, tool)
+    if tool is None:
+        return spec
+    where = spec.source or spec.urdf_path
+    if spec.flange is None:
+        raise RobotDescriptionError(f"robot {spec.name!r} names no flange, so a tool cannot be changed "
+                                    f"(add flange = \"<its last link>\" to {where})")
+    root = ET.fromstring(spec.urdf_path.read_text())
+    arm_links = {ln.get("name") for ln in root.findall("link")}
+    if spec.flange not in arm_links:
+        raise RobotDescriptionError(f"robot {spec.name!r}: flange {spec.flange!r} ({where}) is not a link of its URDF")
+    taken_links, taken_joints = _subtree(root, spec.flange)
+    tool_frame = spec.flange if tool == "none" else read_tool(tool, arm_links - taken_links).tool_frame
+    return dataclasses.replace(spec, tool=tool, tool_frame=tool_frame,
+                               locked_joints={k: v for k, v in spec.locked_joints.items() if k not in taken_joints})
+
+
+def _mount_tool(root, spec: RobotSpec) -> tuple[set, set]:
+    """In the URDF tree ``root``: take the URDF's own tool off the flange and mount
+    ``spec.tool`` there (see :func:`with_tool`). Returns the names of the links and
+    joints taken off."""
+    links, joints = _subtree(root, spec.flange)
+    for el in list(root):
+        if (el.tag == "link" and el.get("name") in links) or (el.tag == "joint" and el.get("name") in joints):
+            root.remove(el)
+    if spec.tool != "none":
+        tool = read_tool(spec.tool, {ln.get("name") for ln in root.findall("link")})
+        for el in tool.links + tool.joints:
+            root.append(el)
+        mount = ET.SubElement(root, "joint", name="hd_tool_mount", type="fixed")
+        ET.SubElement(mount, "parent", link=spec.flange)
+        ET.SubElement(mount, "child", link=tool.root_link)
+        ET.SubElement(mount, "origin", xyz="0 0 0", rpy="0 0 0")
+    return links, joints
+
+
+# --------------------------------------------------------- a URDF on its own
+def describe_urdf(path: str | os.PathLike, name: str | None = None) -> RobotSpec:
+    """A description read off a URDF alone, for a serial arm.
+
+    The base sensor's frame is the root link, the tool frame (and flange) the
+    arm's last link: ``tool0`` where the URDF has one (the ROS-Industrial flange
+    frame), else the one leaf after the last moving joint. Home is q = 0 (clipped
+    into the limits); velocity limits are the URDF's. An arm with a hand or
+    several chains needs a ``robots/<name>.toml`` (its locked joints, frames).
+    """
+    path = Path(path).resolve()
+    try:
+        root = ET.parse(path).getroot()
+    except (OSError, ET.ParseError) as err:
+        raise RobotDescriptionError(f"URDF {path} cannot be read: {err}") from err
+    links = [ln.get("name") for ln in root.findall("link")]
+    joint_to = {j.find("child").get("link"): j for j in root.findall("joint")}
+    roots = [n for n in links if n not in joint_to]
+    if len(roots) != 1:
+        raise RobotDescriptionError(f"URDF {path} has {len(roots)} root links {roots}, not one")
+
+    def chain(link):  # the moving joints from the root down to ``link``, root first
+        out = []
+        while link in joint_to:
+            j = joint_to[link]
+            if j.get("type") != "fixed":
+                out.append(j)
+            link = j.find("parent").get("link")
+        return out[::-1]
+
+    moving = [j for j in joint_to.values() if j.get("type") != "fixed"]
+    depth = {n: len(chain(n)) for n in links}
+    deepest = max(links, key=depth.get)
+    arm = chain(deepest)
+    if not moving:
+        raise RobotDescriptionError(f"URDF {path} has no moving joint")
+    off = sorted(j.get("name") for j in moving if j not in arm)
+    if off:
+        raise RobotDescriptionError(f"URDF {path} is not a serial arm: joints {off} branch off the chain to "
+                                    f"{deepest!r} (a hand, legs, a second arm?); describe it in a robots/<name>.toml "
+                                    f"that locks them (locked_joints)")
+    parents = {j.find("parent").get("link") for j in joint_to.values()}
+    ends = [n for n in links if depth[n] == len(arm) and n not in parents]
+    if "tool0" in ends:
+        tool = "tool0"
+    elif len(ends) == 1:
+        tool = ends[0]
+    else:
+        raise RobotDescriptionError(f"URDF {path}: which of the last links {ends} is the tool frame? Say it in a "
+                                    f"robots/<name>.toml (tool_frame)")
+    home, vmax = [], []
+    for j in arm:
+        lim = j.find("limit")
+        lo = float(lim.get("lower", "-inf")) if lim is not None and j.get("type") != "continuous" else -math.inf
+        hi = float(lim.get("upper", "inf")) if lim is not None and j.get("type") != "continuous" else math.inf
+        home.append(min(max(0.0, lo), hi))
+        vmax.append(float(lim.get("velocity")) if lim is not None and lim.get("velocity") else None)
+    return RobotSpec(
+        name=name or str(path), urdf_path=path, tool_frame=tool, base_sensor_frame=roots[0], home=tuple(home),
+        max_velocity=tuple(vmax) if None not in vmax else (), flange=tool, source=None,
+    )
+
+
+@functools.cache
+def _example_robot_data_urdfs() -> dict:
+    """name -> URDF paths of example-robot-data: a file's name, and that name less
+    ``_robot`` (``ur10`` is ``ur10_robot.urdf``). Files without links (ur3.urdf is an
+    empty xacro output) are left out."""
+    out = {}
+    for f in sorted(example_robot_data_dir().rglob("*.urdf")):
+        if "<link" not in f.read_text(errors="replace"):
+            continue
+        for name in {f.stem, f.stem.removesuffix("_robot")}:
+            out.setdefault(name, []).append(f)
+    return out
+
+
+def example_robot_data_arms() -> list[str]:
+    """The serial arms of example-robot-data that ``robots/`` does not describe
+    (loadable by name: ``load_robot("ur10")``)."""
+    return list(_example_robot_data_arms())
+
+
+@functools.cache
+def _example_robot_data_arms() -> tuple:
+    arms = {load_spec(n).urdf_path: n for n in available_robots()}  # described in robots/: listed there
+    for name, files in sorted(_example_robot_data_urdfs().items(), key=lambda kv: (len(kv[0]), kv[0])):
+        if len(files) == 1 and files[0] not in arms:  # one name per file, the shortest
+            try:
+                describe_urdf(files[0], name)
+            except RobotDescriptionError:
+                continue
+            arms[files[0]] = name
+    return tuple(sorted(set(arms.values()) - set(available_robots())))
+
+
+# ------------------------------------------------------------------ robot names
+@dataclass(frozen=True)
+class RobotVariant:
+    """What is mounted on the arm's flange: part of the robot's identity.
+
+    tool: None (the one its URDF carries), ``"none"`` (the bare flange) or the
+    absolute path of a tool URDF. payload: a point mass at the tool frame.
+    """
+
+    tool: str | None = None
+    payload: Payload | None = None
+
+    def suffix(self) -> str:
+        """The variant as a robot-name suffix: ``""``, ``"[tool=none]"``, ``"[tool=none;payload=0.5@0.0,0.0,0.05]"``."""
+        opts = []
+        if self.tool is not None:
+            opts.append(f"tool={self.tool}")
+        if self.payload is not None:
+            opts.append(f"payload={float(self.payload.mass)!r}@" + ",".join(repr(float(x)) for x in self.payload.offset))
+        return f"[{';'.join(opts)}]" if opts else ""
+
+
+@dataclass(frozen=True)
+class RobotRef:
+    """What a robot name stands for (:func:`resolve_robot`).
+
+    name: the canonical name, the one datasets and model files carry; spec: the
+    description with the variant's tool applied, or None for a name known for
+    data only (no URDF: only models without physics apply); source: where the
+    description comes from ("robots", "example-robot-data", "urdf", "data-only").
+    """
+
+    name: str
+    variant: RobotVariant
+    spec: RobotSpec | None
+    source: str
+
+    @property
+    def described(self) -> bool:
+        """True when the analytic model (and all that needs a URDF) applies."""
+        return self.spec is not None
+
+
+ROBOT_NAME_HELP = ("NAME, NAME[tool=none] (the bare flange), NAME[tool=/path/tool.urdf], NAME[payload=KG@X,Y,Z] "
+                   "(a point mass at the tool frame, offset in m), or both joined by ';'")
+
+
+def parse_robot_name(text: str) -> tuple[str, str | None, Payload | None]:
+    """Split ``"panda[tool=none;payload=0.5@0,0,0.05]"`` into base, tool and payload."""
+    m = re.fullmatch(r"([^\[\]]+?)(?:\[([^\[\]]*)\])?", str(text).strip())
+    if not m:
+        raise RobotDescriptionError(f"robot name {text!r} is not of the form {ROBOT_NAME_HELP}")
+    base, opts = m.group(1), m.group(2)
+    tool = payload = None
+    for opt in filter(None, (opts or "").split(";")):
+        key, eq, value = opt.partition("=")
+        key, value = key.strip(), value.strip()
+        if key == "tool" and eq:
+            tool = value
+        elif key == "payload" and eq:
+            payload = _parse_payload(value, text)
+        else:
+            raise RobotDescriptionError(f"robot name {text!r}: unknown option {opt!r}; the form is {ROBOT_NAME_HELP}")
+    return base, tool, payload
+
+
+def _parse_payload(value: str, text: str) -> Payload:
+    mass, _, offset = value.partition("@")
+    try:
+        xyz = tuple(float(x) for x in offset.split(",")) if offset else (0.0, 0.0, 0.0)
+        return as_payload((float(mass), xyz))
+    except ValueError as err:
+        raise RobotDescriptionError(f"robot name {text!r}: payload {value!r} is not KG or KG@X,Y,Z ({err})") from err
+
+
+def as_payload(payload) -> Payload | None:
+    """A :class:`Payload` from itself, ``(mass_kg, (dx, dy, dz))``, ``{"mass": .., "offset": [..]}`` or None;
+    None for zero mass (nothing mounted)."""
+    if payload is None:
+        return None
+    if isinstance(payload, dict):
+        unknown = sorted(set(payload) - {"mass", "offset"})
+        if unknown or "mass" not in payload:
+            raise RobotDescriptionError(f"payload {payload!r} needs mass [kg] and may have offset [m] (got {unknown})")
+        payload = (payload["mass"], payload.get("offset", (0.0, 0.0, 0.0)))
+    if not isinstance(payload, Payload):
+        mass, offset = payload
+        payload = Payload(float(mass), tuple(float(x) for x in offset))
+    if len(payload.offset) != 3 or not all(math.isfinite(x) for x in (payload.mass, *payload.offset)):
+        raise RobotDescriptionError(f"payload {payload}: mass [kg] and a 3-vector offset [m], all finite")
+    if payload.mass < 0:
+        raise RobotDescriptionError(f"payload mass must be >= 0 kg, got {payload.mass}")
+    return payload if payload.mass > 0 else None
+
+
+def _unknown_robot(base: str) -> RobotDescriptionError:
+    return RobotDescriptionError(
+        f"unknown robot {base!r}. A robot name is: a description in {robots_dir()} "
+        f"({', '.join(available_robots()) or 'none'}); an arm of example-robot-data "
+        f"({', '.join(example_robot_data_arms()) or 'none'}); a name known for data only "
+        f"({', '.join(data_only_robots()) or 'none'}; add yours to robots/data_only.toml); or the path of a .urdf "
+        f"or .toml file. A variant: {ROBOT_NAME_HELP}"
+    )
+
+
+def resolve_robot(name: str | os.PathLike, tool=None, payload=None) -> RobotRef:
+    """What the robot name ``name`` stands for; raises RobotDescriptionError for a name
+    the toolkit cannot serve, before any work. One answer for every caller.
+
+    name: see :data:`ROBOT_NAME_HELP`; ``tool`` and ``payload`` give the variant as
+    arguments instead (not both ways at once). The base name is looked up in this
+    order: a ``robots/<name>.toml``, robots/data_only.toml, an example-robot-data
+    URDF (``ur10``); a ``.toml`` or ``.urdf`` path is read as such.
+    """
+    text = os.fspath(name)
+    base, name_tool, name_payload = parse_robot_name(text)
+    payload = as_payload(payload)
+    if tool is not None and name_tool is not None and str(tool) != name_tool:
+        raise RobotDescriptionError(f"robot {text!r} names tool {name_tool!r}, and tool={str(tool)!r} was given too")
+    if payload is not None and name_payload is not None and payload != name_payload:
+        raise RobotDescriptionError(f"robot {text!r} names a payload, and payload={payload} was given too")
+    tool = tool if tool is not None else name_tool
+    payload = payload if payload is not None else name_payload
+
+    p = Path(base)
+    if p.suffix == ".toml":
+        source, spec = "robots", load_spec(p)
+    elif p.suffix == ".urdf":
+        if not p.is_file():
+            raise RobotDescriptionError(f"robot URDF not found: {p.resolve()}")
+        source, spec = "urdf", describe_urdf(p)
+    elif base in available_robots():
+        source, spec = "robots", load_spec(base)
+    elif base in data_only_robots():
+        if tool is not None or payload is not None:
+            raise RobotDescriptionError(f"robot {base!r} is known for data only (no URDF): it takes no tool or payload")
+        return RobotRef(base, RobotVariant(), None, "data-only")
+    elif base in _example_robot_data_urdfs():
+        files = _example_robot_data_urdfs()[base]
+        if len(files) > 1:
+            raise RobotDescriptionError(f"example-robot-data has {len(files)} URDFs named {base!r} "
+                                        f"({', '.join(map(str, files))}): give the path of one")
+        # One name per arm, so that its models and caches agree: the robots/ description of the
+        # same URDF ("ur5_robot" is "ur5"), else the shortest ("ur10", not "ur10_robot").
+        for described in available_robots():
+            if load_spec(described).urdf_path == files[0]:
+                return resolve_robot(described, tool=tool, payload=payload)
+        short = min((n for n, fs in _example_robot_data_urdfs().items() if fs == files), key=lambda n: (len(n), n))
+        source, spec = "example-robot-data", describe_urdf(files[0], short)
+    else:
+        raise _unknown_robot(base)
+    spec = with_tool(spec, tool)
+    variant = RobotVariant(spec.tool, payload)
+    return RobotRef(spec.name + variant.suffix(), variant, spec, source)

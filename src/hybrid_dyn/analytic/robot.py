@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from ..description import Payload, RobotDescriptionError, RobotSpec, build_urdf, load_spec
+from ..description import Payload, RobotDescriptionError, RobotSpec, RobotVariant, build_urdf, resolve_robot
 
 
 class InputError(HybridDynError, ValueError):
@@ -89,9 +89,13 @@ class Robot:
 
     def __init__(self, spec: RobotSpec, urdf_xml: str, params_name: str | None = None,
                  payload: Payload | None = None, sensor_mount: SensorMount | None = None,
-                 num_threads: int | None = None):
+                 num_threads: int | None = None, name: str | None = None):
         self.spec = spec
-        self.name = spec.name
+        # The robot's identity, its variant included ("panda[tool=none]"): what datasets,
+        # model files and caches key on. base_name is the description's ("panda").
+        self.name = name or spec.name
+        self.base_name = spec.name
+        self.variant = RobotVariant(spec.tool, payload)
         self.urdf_xml = urdf_xml
         self.params_name = params_name
         self.payload = payload
@@ -313,20 +317,27 @@ class Robot:
 
 
 def load_robot(name: str = "panda", params: str | os.PathLike | None = None, payload: Payload | tuple | None = None,
-               sensor_mount: SensorMount | None = None, num_threads: int | None = None) -> Robot:
-    """Load a robot by name (``robots/<name>.toml``) or TOML path.
+               sensor_mount: SensorMount | None = None, num_threads: int | None = None,
+               tool: str | os.PathLike | None = None) -> Robot:
+    """Load a robot by name; what a name may be is :func:`hybrid_dyn.description.resolve_robot`'s
+    (``robots/<name>.toml``, an example-robot-data arm such as ``"ur10"``, a ``.urdf`` or
+    ``.toml`` path, each with an optional variant: ``"panda[tool=none]"``).
 
     params: a named set of the robot (``"gaz2019"``, ``"franka_official"`` for the
     Panda), a path to a parameter JSON (``{"links": [...]}``, e.g. an identified
     set), or None for the robot's default (the URDF's own values).
     payload: a :class:`Payload` or ``(mass_kg, (dx, dy, dz))``: a point mass at an
-    offset [m] from the tool frame, in tool-frame axes.
+    offset [m] from the tool frame, in tool-frame axes. Part of the robot's name.
+    tool: ``"none"`` for the bare flange (the Panda without its hand), a tool
+    ``.urdf`` path, or None / the URDF's own (``"hand"``). Part of the robot's name.
     sensor_mount: the base sensor's true pose relative to its nominal frame.
     """
-    spec = load_spec(name)
-    if payload is not None and not isinstance(payload, Payload):
-        mass, offset = payload
-        payload = Payload(float(mass), tuple(float(x) for x in offset))
+    ref = resolve_robot(name, tool=tool, payload=payload)
+    if not ref.described:
+        raise RobotDescriptionError(f"robot {ref.name!r} is known for data only (robots/data_only.toml): it has no "
+                                    f"URDF, so no analytic model; models that need none (seed nets, DeLaN) apply")
+    spec, payload = ref.spec, ref.variant.payload
     urdf = build_urdf(spec, params=params, payload=payload)
     params_name = str(params) if params is not None else spec.default_params
-    return Robot(spec, urdf, params_name=params_name, payload=payload, sensor_mount=sensor_mount, num_threads=num_threads)
+    return Robot(spec, urdf, params_name=params_name, payload=payload, sensor_mount=sensor_mount,
+                 num_threads=num_threads, name=ref.name)

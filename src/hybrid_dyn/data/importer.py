@@ -135,6 +135,11 @@ class LogSpec:
     spec_file: str | None = None
 
     def __post_init__(self):
+        from ..description import resolve_robot
+
+        # The robot first, before anything is read: one RobotDescriptionError listing the names
+        # accepted; a variant's name is made canonical ("panda[tool=hand]" is "panda").
+        self.robot = resolve_robot(self.robot).name
         self.files = [Path(f) for f in ([self.files] if isinstance(self.files, (str, Path)) else self.files)]
         if isinstance(self.derivatives, dict):
             self.derivatives = DerivativeFilter(**self.derivatives)
@@ -180,7 +185,7 @@ class LogSpec:
 # The TOML spec
 
 _SPEC_LAYOUT = {
-    "": {"name", "robot", "notes", "source", "env_defaults", "time", "columns", "trajectories", "units",
+    "": {"name", "robot", "tool", "payload", "notes", "source", "env_defaults", "time", "columns", "trajectories", "units",
          "derivatives", "checks", "split"},
     "source": {"files", "format", "variables", "delimiter"},
     "time": {"column", "unit", "sample_rate_hz"},
@@ -235,9 +240,14 @@ def spec_from_dict(doc: dict, base_dir=".", spec_file=None) -> LogSpec:
     if files is None:
         raise LogSpecError(f"[source] files is missing{where}")
     split = doc.get("split", {})
+    robot = doc.get("robot", "unknown")
+    if "tool" in doc or "payload" in doc:  # the variant, folded into the robot's name
+        from ..description import resolve_robot
+
+        robot = resolve_robot(robot, tool=doc.get("tool"), payload=doc.get("payload")).name
     try:
         return LogSpec(
-            name=doc.get("name", ""), robot=doc.get("robot", "unknown"), notes=doc.get("notes", ""),
+            name=doc.get("name", ""), robot=robot, notes=doc.get("notes", ""),
             files=[expand(f) for f in ([files] if isinstance(files, str) else files)],
             format=src.get("format"), variables=src.get("variables"), delimiter=src.get("delimiter"),
             columns=dict(doc.get("columns", {})),
@@ -463,9 +473,9 @@ def _trajectories(spec: LogSpec, tables: list[LogTable]) -> list[tuple[str, LogT
 
 def _robot_limits(spec: LogSpec, nv: int):
     """Per-joint |q| bound [rad]: the robot's limits if it has a description."""
-    from ..description import available_robots
+    from ..description import resolve_robot
 
-    if spec.robot not in available_robots():
+    if not resolve_robot(spec.robot).described:
         return np.full(nv, spec.checks.q_abs_max)
     from ..analytic.robot import load_robot
 
