@@ -185,3 +185,21 @@ def test_an_import_spec_chooses_the_variant(tmp_path):
                     '[source]\nfiles = ["log.csv"]\n[time]\nsample_rate_hz = 100.0\n[columns]\nq = "1-7"\n'
                     'tau_m = "8-14"\n')
     assert read_spec(spec).robot == "panda[tool=none;payload=0.5@0.0,0.0,0.1]"
+
+
+def test_the_import_cli_chooses_the_tool(tmp_path):
+    """hybrid-dyn import --tool none: the dataset is the bare-flange Panda's, whatever the spec says."""
+    from hybrid_dyn.cli import main
+    from hybrid_dyn.data import load_dataset
+
+    t = np.arange(400) / 100.0
+    q = 0.2 * np.sin(np.outer(t, np.arange(1, 8) * 0.5)) + np.array(hd.load_robot("panda").spec.home)
+    tau = np.cos(np.outer(t, np.arange(1, 8)))
+    header = "t," + ",".join(f"q{i}" for i in range(1, 8)) + "," + ",".join(f"tau{i}" for i in range(1, 8))
+    np.savetxt(tmp_path / "log.csv", np.column_stack([t, q, tau]), delimiter=",", header=header, comments="")
+    spec = tmp_path / "spec.toml"
+    spec.write_text('name = "x"\nrobot = "panda"\n[source]\nfiles = ["log.csv"]\n[time]\ncolumn = "t"\n'
+                    '[trajectories]\nfrom = "blocks"\nn_blocks = 4\n[columns]\nq = ["q1", "q2", "q3", "q4", "q5", '
+                    '"q6", "q7"]\ntau_m = ["tau1", "tau2", "tau3", "tau4", "tau5", "tau6", "tau7"]\n')
+    assert main(["import", "--spec", str(spec), "--out", str(tmp_path / "ds"), "--tool", "none", "--json"]) == 0
+    assert load_dataset(tmp_path / "ds").meta["robot"] == "panda[tool=none]"

@@ -12,15 +12,26 @@ def register(sub) -> None:
                    help="replace an existing dataset at --out (only a hybrid-dyn dataset holding nothing but its own "
                         "files; anything else is refused)")
     p.add_argument("--strict", action="store_true", help="fail on any row problem instead of dropping the row")
+    p.add_argument("--robot", default=None,
+                   help="the logged robot, instead of the spec's: a robots/ name, an example-robot-data arm (ur10), "
+                        "a .urdf path, a data-only name; see docs/bring_your_own_log.md")
+    p.add_argument("--tool", default=None,
+                   help="what the arm carried, instead of the spec's: none (the bare flange), a tool .urdf, or the "
+                        "URDF's own (hand for the Panda)")
     p.add_argument("--report", action="store_true", help="print every row problem, not the first few per kind")
     p.add_argument("--json", action="store_true", help="print the report summary as JSON")
     p.set_defaults(func=cmd_import)
 
 
 def cmd_import(args) -> int:
-    from .importer import import_log
+    from ..description import parse_robot_name, resolve_robot
+    from .importer import import_log, read_spec
 
-    report = import_log(args.spec, args.out, overwrite=args.overwrite, strict=args.strict)
+    spec = read_spec(args.spec)
+    if args.robot is not None or args.tool is not None:  # the options replace the spec's robot or tool
+        base, tool, payload = parse_robot_name(args.robot or spec.robot)
+        spec.robot = resolve_robot(base, tool=args.tool if args.tool is not None else tool, payload=payload).name
+    report = import_log(spec, args.out, overwrite=args.overwrite, strict=args.strict)
     if args.json:
         print(json.dumps({"path": str(report.path), **report.summary()}, indent=1))
     else:

@@ -11,7 +11,8 @@ def register(sub) -> None:
     p.add_argument("--data", required=True, help="dataset directory (toolkit format)")
     p.add_argument("--method", choices=METHODS, default="consistent")
     p.add_argument("--out", required=True, help="parameter JSON to write (load_robot(..., params=OUT) reads it)")
-    p.add_argument("--robot", default=None, help="nominal robot (default: the dataset's)")
+    p.add_argument("--robot", default=None, help="nominal robot (default: the dataset's), e.g. panda[tool=none]")
+    p.add_argument("--tool", default=None, help="its tool: none (the bare flange), a tool .urdf, or the URDF's own")
     p.add_argument("--splits", default="train,val", help="splits to fit on, comma-separated (default train,val)")
     p.add_argument("--acceleration", choices=("measured", "zero-phase"), default="measured",
                    help="use the dataset's qdd or re-estimate it offline without delay")
@@ -33,7 +34,7 @@ def cmd_identify(args) -> int:
     from .model import identify
 
     ds = load_dataset(args.data)
-    robot = load_robot(args.robot or ds.meta.get("robot", "panda"))
+    robot = load_robot(args.robot or ds.meta.get("robot", "panda"), tool=args.tool)
     splits = tuple(s for s in args.splits.split(",") if s)
     model = identify(ds, args.method, robot, splits=splits, acceleration=args.acceleration)
     model.save(args.out)
