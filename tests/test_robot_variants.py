@@ -203,3 +203,17 @@ def test_the_import_cli_chooses_the_tool(tmp_path):
                     '"q6", "q7"]\ntau_m = ["tau1", "tau2", "tau3", "tau4", "tau5", "tau6", "tau7"]\n')
     assert main(["import", "--spec", str(spec), "--out", str(tmp_path / "ds"), "--tool", "none", "--json"]) == 0
     assert load_dataset(tmp_path / "ds").meta["robot"] == "panda[tool=none]"
+
+
+def test_spec_paths_of_robot_and_tool_are_relative_to_the_spec(tmp_path):
+    from hybrid_dyn.data.importer import read_spec
+
+    (tmp_path / "arm.urdf").write_text(PENDULUM.format(m=1.0, L=0.2, tip=0.4))
+    (tmp_path / "tool.urdf").write_text('<robot name="t"><link name="t_body"/><link name="t_tcp"/><joint name="tj" '
+                                        'type="fixed"><parent link="t_body"/><child link="t_tcp"/></joint></robot>')
+    spec = tmp_path / "spec.toml"
+    spec.write_text('name = "x"\nrobot = "arm.urdf"\ntool = "tool.urdf"\n[source]\nfiles = ["log.csv"]\n[time]\n'
+                    'sample_rate_hz = 100.0\n[columns]\nq = "1"\ntau_m = "2"\n')
+    robot = read_spec(spec).robot
+    assert robot == f"{tmp_path.resolve() / 'arm.urdf'}[tool={tmp_path.resolve() / 'tool.urdf'}]"
+    assert hd.load_robot(robot).spec.tool_frame == "t_tcp"

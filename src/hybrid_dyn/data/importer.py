@@ -240,11 +240,16 @@ def spec_from_dict(doc: dict, base_dir=".", spec_file=None) -> LogSpec:
     if files is None:
         raise LogSpecError(f"[source] files is missing{where}")
     split = doc.get("split", {})
-    robot = doc.get("robot", "unknown")
-    if "tool" in doc or "payload" in doc:  # the variant, folded into the robot's name
+    robot, tool = doc.get("robot", "unknown"), doc.get("tool")
+    # A robot's URDF and a tool's are files of the spec too: relative to it, ${VAR} expanded.
+    if isinstance(robot, str) and Path(robot).suffix in (".urdf", ".toml"):
+        robot = str(expand(robot))
+    if isinstance(tool, str) and Path(tool).suffix == ".urdf":
+        tool = str(expand(tool))
+    if tool is not None or "payload" in doc:  # the variant, folded into the robot's name
         from ..description import resolve_robot
 
-        robot = resolve_robot(robot, tool=doc.get("tool"), payload=doc.get("payload")).name
+        robot = resolve_robot(robot, tool=tool, payload=doc.get("payload")).name
     try:
         return LogSpec(
             name=doc.get("name", ""), robot=robot, notes=doc.get("notes", ""),
