@@ -459,6 +459,7 @@ def main() -> int:
 
     cases = matrix(args.quick)
     load_before = os.getloadavg()[0]
+    git = git_state()  # the code under test: the tree as the run starts
     print(f"kill-and-resume matrix: {len(cases)} cases; load average {load_before:.2f} on {os.cpu_count()} cores",
           flush=True)
     t_start = time.perf_counter()
@@ -496,7 +497,7 @@ def main() -> int:
     results = [c.result for c in cases]
     doc = {"command": "benchmarks/fault_injection.py" + (" --quick" if args.quick else ""),
            "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
-           "git": git_state(), "python": platform.python_version(), "cpu_count": os.cpu_count(),
+           "git": git, "python": platform.python_version(), "cpu_count": os.cpu_count(),
            "load_before": load_before, "load_after": os.getloadavg()[0],
            "wall_s": round(time.perf_counter() - t_start, 1), "grace_s": GRACE_S,
            "generator_sizes": {k: list(v) if isinstance(v, tuple) else v for k, v in GENERATOR_SIZES.items()},
