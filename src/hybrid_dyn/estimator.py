@@ -361,19 +361,15 @@ class TipForceEstimator:
     # --------------------------------------------------------------- state
     def reset(self) -> None:
         """Forget all history (filter, observer, window, tare); the next calls warm up again."""
-        self._qdd_filter.reset()
         if self._auto_cutoff:
             self._qdd_filter = CausalAccelerationFilter(self.robot.nv, self.config.call_hz, DEFAULT_QDD_CUTOFF_HZ)
             self.qdd_cutoff_hz = None
-        if self._observer is not None:
-            self._observer.reset()
-        if self.model is not None:
-            self.model.reset()
+        self._kalman = None
+        self._reset_dynamics()
         if self._tare is not None:
             self._tare.reset()
         self._calls = 0
         self._warmup_calls = self._warmup_initial
-        self._kalman = None
         self._probe = None  # kalman_fusion in the noise window: a specifications-only filter whose sums give
         self._probe_sums = []  # ... the sensors' increments call by call (no batch pass at the window's end)
         if self.method == "kalman_fusion":
@@ -642,15 +638,16 @@ class TipForceEstimator:
         settle = int(math.ceil(math.log(0.01) / math.log(rho))) if 0 < rho < 1 else 1
         self._warmup_calls = self._calls + settle
 
+    def _reset_dynamics(self) -> None:
+        """The qdd filter, the observers and a learned model's window back to rest."""
+        self._qdd_filter.reset()
+        for part in (self._observer, self._kalman, self.model):
+            if part is not None:
+                part.reset()
+
     def _restart_dynamics(self) -> None:
         """After a gap in a timed stream: the filter and observers restart; a finished tare is kept."""
-        self._qdd_filter.reset()
-        if self._observer is not None:
-            self._observer.reset()
-        if self._kalman is not None:
-            self._kalman.reset()
-        if self.model is not None:
-            self.model.reset()
+        self._reset_dynamics()
         self._warmup_calls = max(self._warmup_calls, self._calls + self._warmup_initial - self._window_calls)
 
 

@@ -132,14 +132,22 @@ def _momentum(robot, inst, ctx):
     return _momentum_at(robot, inst, ctx, _momentum_gain(ctx))
 
 
-def _momentum_single(robot, inst, k, ctx):
-    """One observer per scenario, stepped once per call, as a control loop runs it."""
-    obs = ctx.cache.get("momentum-observer")
-    if obs is None:
-        obs = ctx.cache["momentum-observer"] = MomentumObserver(robot, _momentum_gain(ctx),
-                                                                1.0 / ctx.dataset.meta["record_hz"])
-        obs.step(inst.q[0], inst.qd[0], inst.tau_J[0])
-    return obs.step_force(inst.q[k], inst.qd[k], inst.tau_J[k])
+def _observer_single(name: str, make, sensor):
+    """A row's timed single call: one observer per scenario (``make(robot, ctx)``), stepped once per
+    call on ``sensor(robot, inst, ctx)`` (its (T, k) input), as a control loop runs it."""
+    def single(robot, inst, k, ctx):
+        obs = ctx.cache.get(name)
+        if obs is None:
+            obs = ctx.cache[name] = make(robot, ctx)
+            obs.step(inst.q[0], inst.qd[0], sensor(robot, inst, ctx)[0])
+        return obs.step_force(inst.q[k], inst.qd[k], sensor(robot, inst, ctx)[k])
+
+    return single
+
+
+_momentum_single = _observer_single(
+    "momentum-observer", lambda robot, ctx: MomentumObserver(robot, _momentum_gain(ctx), 1.0 / ctx.dataset.meta["record_hz"]),
+    lambda robot, inst, ctx: inst.tau_J)
 
 
 def _tared(robot, inst, ctx) -> np.ndarray:
@@ -172,14 +180,10 @@ def _base_momentum(robot, inst, ctx):
     return _base_momentum_at(robot, inst, ctx, _base_momentum_gain(ctx))
 
 
-def _base_momentum_single(robot, inst, k, ctx):
-    """One observer per scenario, stepped once per call, as a control loop runs it."""
-    obs = ctx.cache.get("base-momentum")
-    if obs is None:
-        obs = ctx.cache["base-momentum"] = BaseMomentumObserver(robot, _base_momentum_gain(ctx),
-                                                                1.0 / ctx.dataset.meta["record_hz"])
-        obs.step(inst.q[0], inst.qd[0], _tared(robot, inst, ctx)[0])
-    return obs.step_force(inst.q[k], inst.qd[k], _tared(robot, inst, ctx)[k])
+_base_momentum_single = _observer_single(
+    "base-momentum",
+    lambda robot, ctx: BaseMomentumObserver(robot, _base_momentum_gain(ctx), 1.0 / ctx.dataset.meta["record_hz"]),
+    _tared)
 
 
 def _kalman_filter(robot, inst, ctx, force_rate=None) -> KalmanTipForce:
