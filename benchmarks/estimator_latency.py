@@ -52,6 +52,7 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--models", nargs="*", default=[], help="trained tip-force model directories")
     ap.add_argument("--calls", type=int, default=N_CALLS)
+    ap.add_argument("--out", default=None, help="also write the table to this markdown file (e.g. reports/estimator_latency.md)")
     args = ap.parse_args(argv)
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {0})
@@ -73,11 +74,23 @@ def main(argv=None) -> None:
         cases.append((f"{est.model.model.preset.name} [{est.model.runtime}]", est, 100.0, 500.0))
     print(f"{args.calls} calls each, one core")
     print(f"{'estimator':60s} {'median us':>10s} {'p99 us':>10s} {'max us':>10s}  floors")
+    table = ["| estimator | median [us] | p99 [us] | max [us] | floor |", "|---|---|---|---|---|"]
     for name, est, f_med, f_p99 in cases:
         med, p99, mx = measure(est, *data)
         verdict = "met" if med <= f_med and (f_p99 is None or p99 <= f_p99) else "NOT met"
         floor = f"median <= {f_med:g}" + (f", p99 <= {f_p99:g}" if f_p99 else "")
         print(f"{name:60s} {med:10.1f} {p99:10.1f} {mx:10.1f}  {floor}: {verdict}")
+        table.append(f"| {name} | {med:.1f} | {p99:.1f} | {mx:.1f} | {floor}: {verdict} |")
+    if args.out:
+        load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+        text = [f"# Streaming estimator latency (`benchmarks/estimator_latency.py`)", "",
+                f"{args.calls} calls per estimator at 1 kHz on one core (CPU 0), torch on one thread; "
+                f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, load average {load:.2f} at the end. "
+                "The max includes the call that closes the 0.5 s noise window (it builds the Kalman filter "
+                "or picks the qdd cutoff).", "", *table, ""]
+        from pathlib import Path
+
+        Path(args.out).write_text("\n".join(text))
 
 
 if __name__ == "__main__":
