@@ -70,6 +70,7 @@ batch form) is thread-safe: it keeps one robot model per thread.
 """
 from __future__ import annotations
 
+import functools
 import math
 import threading
 from dataclasses import dataclass
@@ -271,9 +272,17 @@ def auto_qdd_cutoff(robot: Robot, rate_hz: float, q, qd, sensor, kind: str) -> f
         raise ValueError(f"kind must be 'base_wrench' or 'tau_J', got {kind!r}")
     # RMS of the mapped noise per unit of g: sqrt(tr(A diag(s^2) A^T) / n_out).
     per_gain = float(np.sqrt(np.sum((mapping * s_qd) ** 2) / n_out))
+    grid, gains = cutoff_grid(rate_hz)
+    admissible = grid[np.sqrt(gains) * per_gain <= s_sensor]
+    return float(admissible[-1]) if len(admissible) else float(grid[0])
+
+
+@functools.lru_cache(maxsize=8)
+def cutoff_grid(rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    """The cutoffs auto_qdd_cutoff chooses from [Hz] (5 Hz to 0.45 x rate) and their noise gains [1/s^2]:
+    computed once per rate (the estimator does it when it is built, not in a control call)."""
     grid = np.geomspace(5.0, 0.45 * rate_hz, 48)
-    admissible = [fc for fc in grid if math.sqrt(qdd_noise_gain(rate_hz, fc)) * per_gain <= s_sensor]
-    return float(admissible[-1]) if admissible else float(grid[0])
+    return grid, np.array([qdd_noise_gain(rate_hz, float(fc)) for fc in grid])
 
 
 class TipForceEstimator:
@@ -292,6 +301,8 @@ class TipForceEstimator:
         self._qdd_filter = CausalAccelerationFilter(nv, c.call_hz, DEFAULT_QDD_CUTOFF_HZ if self._auto_cutoff
                                                     else c.qdd_cutoff_hz)
         self.qdd_cutoff_hz = None if self._auto_cutoff else float(c.qdd_cutoff_hz)  # the cutoff in use [Hz]
+        if self._auto_cutoff and method in NEEDS_QDD:
+            cutoff_grid(float(c.call_hz))  # now, not in the call that closes the noise window
         self._observer = (MomentumObserver(robot, gain=c.momentum_gain, dt=dt) if method == "momentum" else
                           BaseMomentumObserver(robot, gain=c.momentum_gain, dt=dt) if method == "base_momentum"
                           else None)

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 import pinocchio as pin
+from numba import njit
 
 from .robot import InputError, Robot, as_batch
 
@@ -79,13 +80,19 @@ class BaseMomentumObserver:
         self._qff = robot._qff.copy()
         self._vff = np.zeros(robot.model_ff.nv)
         self._mg_list = (robot.total_mass * robot.model_ff.gravity.linear).tolist()  # weight [N], root axes
+        self._mg = np.array(self._mg_list)
+        self._R = np.ascontiguousarray(robot._root_from_sensor)  # sensor -> root wrench map (6, 6)
+        self._state = np.zeros((4, 6))  # the compiled step's rows: H(0), integral, last u, wrench
+        self._started = np.zeros(1, dtype=np.bool_)
         self.reset()
+        # Compile (or load from numba's cache) now, not in the first control cycle.
+        _observer_step(self._state.copy(), self._started.copy(), np.zeros(3), np.zeros(3), np.zeros(3), self._mg,
+                       self._R, np.zeros(6), self.gain, self.dt)
 
     def reset(self) -> None:
         """Forget the history; the next step re-initialises H(0)."""
-        self._H0 = None
-        self._integral = np.zeros(6)
-        self._last_u = None
+        self._state[:] = 0.0
+        self._started[0] = False
         self.wrench = np.zeros(6)
 
     # ------------------------------------------------------------- physics
@@ -127,15 +134,18 @@ class BaseMomentumObserver:
         return self.step_unchecked(q, qd, w)
 
     def step_unchecked(self, q: np.ndarray, qd: np.ndarray, base_wrench: np.ndarray) -> np.ndarray:
-        """``step`` for inputs already validated as finite float arrays."""
-        H, w_grav = self.momentum_and_gravity(q, qd)
-        u = self.robot._root_from_sensor @ base_wrench + w_grav
-        if self._H0 is None:
-            self._H0, self._last_u = H, u
-            return self.wrench.copy()
-        self._integral += (u + self._last_u) * (0.5 * self.dt) + self.wrench * self.dt
-        self._last_u = u
-        self.wrench = self.gain * (H - self._H0 - self._integral)  # a fresh array: safe to hand out
+        """``step`` for inputs already validated as finite float arrays.
+
+        Pinocchio gives the centroidal momentum; the rest (H about O, the weight's
+        wrench, the trapezoid and the observer update) is one compiled kernel, the
+        same arithmetic as ``run`` (tested: streaming equals batch to 1e-9).
+        """
+        self._qff[7:] = q
+        self._vff[6:] = qd
+        hg = pin.computeCentroidalMomentum(self.robot.model_ff, self._data, self._qff, self._vff)
+        _observer_step(self._state, self._started, hg.linear, hg.angular, self._data.com[0], self._mg, self._R,
+                       base_wrench, self.gain, self.dt)
+        self.wrench = self._state[3].copy()  # a fresh array: safe to hand out
         return self.wrench
 
     def force(self, q, wrench: np.ndarray | None = None) -> np.ndarray:
@@ -200,3 +210,35 @@ def base_momentum_tip_force(robot: Robot, q, qd, tared_wrench, dt: float, gain: 
         obs = BaseMomentumObserver(robot, gain=gain, dt=dt, moment_weight=moment_weight)
         out[n_tare:] = obs.run(q[n_tare:], np.asarray(qd, float)[n_tare:], np.asarray(tared_wrench, float)[n_tare:])[0]
     return out
+
+
+@njit(cache=True)
+def _observer_step(state, started, h, l_com, c, mg, R, w, gain, dt):  # pragma: no cover (compiled)
+    """One observer update (``BaseMomentumObserver.step_unchecked``). state rows: H(0), the integral,
+    the last u = R w + W_grav, the wrench estimate r; H = [h; L_com + c x h], W_grav = [m g; c x m g]."""
+    H = np.empty(6)
+    u = np.empty(6)
+    H[0], H[1], H[2] = h[0], h[1], h[2]
+    H[3] = l_com[0] + c[1] * h[2] - c[2] * h[1]
+    H[4] = l_com[1] + c[2] * h[0] - c[0] * h[2]
+    H[5] = l_com[2] + c[0] * h[1] - c[1] * h[0]
+    grav = np.empty(6)
+    grav[0], grav[1], grav[2] = mg[0], mg[1], mg[2]
+    grav[3] = c[1] * mg[2] - c[2] * mg[1]
+    grav[4] = c[2] * mg[0] - c[0] * mg[2]
+    grav[5] = c[0] * mg[1] - c[1] * mg[0]
+    for i in range(6):
+        acc = grav[i]
+        for k in range(6):
+            acc += R[i, k] * w[k]
+        u[i] = acc
+    if not started[0]:
+        for i in range(6):
+            state[0, i] = H[i]
+            state[2, i] = u[i]
+        started[0] = True
+        return
+    for i in range(6):
+        state[1, i] += (u[i] + state[2, i]) * (0.5 * dt) + state[3, i] * dt
+        state[2, i] = u[i]
+        state[3, i] = gain * (H[i] - state[0, i] - state[1, i])
