@@ -347,7 +347,11 @@ class KalmanTipForce:
         The steady-state filter is linear and time-invariant: x_k = (I - K H) A x_k-1 + K y_k
         from x_-1 = 0 (y_0 = 0), run for each axis by ``SteadyStateKalman.filter``.
         """
-        y = self.measurements(q, qd, base_wrench, tau_J)
+        return self.filter_measurements(self.measurements(q, qd, base_wrench, tau_J))
+
+    def filter_measurements(self, y: dict) -> np.ndarray:
+        """``run`` on measurements already computed (``measurements``): the filter alone, so that
+        filters of other noise settings can share one pass over the dynamics."""
         if not y:
             raise InputError("KalmanTipForce.run needs base_wrench, tau_J or both")
         subset = tuple(c for c in SENSORS if c in y)

@@ -29,7 +29,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ..analytic.base_momentum import BaseMomentumObserver, base_momentum_tip_force
-from ..analytic.kalman import FusionNoise, KalmanTipForce, tare_window_noise
+from ..analytic.kalman import KalmanTipForce, tare_window_noise
 from ..analytic.momentum_observer import MomentumObserver
 from ..analytic.robot import Robot, load_robot
 from ..analytic.tare import TARE_SECONDS, tare_samples, tared_base_wrench
@@ -191,25 +191,36 @@ _base_momentum_single = _observer_single(
     _tared)
 
 
+def _kalman_inputs(robot, inst, ctx):
+    """What the fusion filter of one instance needs whatever its force rate, computed once per instance:
+    (the sensors' noise with the model errors measured on the contact-free tare window,
+    the unexplained momenta of the samples after the window)."""
+    key = ("kalman-inputs", inst.name)
+    if key not in ctx.cache:
+        hz = ctx.dataset.meta["record_hz"]
+        n = tare_samples(hz, TARE_SECONDS)
+        w = _tared(robot, inst, ctx)
+        noise = tare_window_noise(robot, 1.0 / hz, inst.q[:n], inst.qd[:n], w[:n], inst.tau_J[:n])
+        y = KalmanTipForce(robot, 1.0 / hz, noise).measurements(inst.q[n:], inst.qd[n:], w[n:], inst.tau_J[n:]) \
+            if n < len(inst) else None
+        ctx.cache[key] = (noise, y)
+    return ctx.cache[key]
+
+
 def _kalman_filter(robot, inst, ctx, force_rate=None) -> KalmanTipForce:
-    """The fusion filter of one instance: sensor specifications plus the model errors measured on
-    its contact-free tare window (``analytic/kalman.py``), at the force rate chosen on validation."""
-    hz = ctx.dataset.meta["record_hz"]
-    n = tare_samples(hz, TARE_SECONDS)
-    w = _tared(robot, inst, ctx)
+    """The fusion filter of one instance (``analytic/kalman.py``) at the force rate chosen on validation."""
+    noise = _kalman_inputs(robot, inst, ctx)[0]  # the model errors do not depend on the force rate
     rate = _kalman_force_rate(ctx) if force_rate is None else force_rate
-    noise = tare_window_noise(robot, 1.0 / hz, inst.q[:n], inst.qd[:n], w[:n], inst.tau_J[:n],
-                              FusionNoise(force_rate=rate))
-    return KalmanTipForce(robot, 1.0 / hz, noise)
+    return KalmanTipForce(robot, 1.0 / ctx.dataset.meta["record_hz"], dataclasses.replace(noise, force_rate=rate))
 
 
 def _kalman_at(robot, inst, ctx, force_rate):
     """The fusion filter started after the tare window, as TipForceEstimator starts it (0 before)."""
     n = tare_samples(ctx.dataset.meta["record_hz"], TARE_SECONDS)
     out = np.zeros((len(inst), 3))
-    if n < len(inst):
-        out[n:] = _kalman_filter(robot, inst, ctx, force_rate).run(inst.q[n:], inst.qd[n:],
-                                                                   _tared(robot, inst, ctx)[n:], inst.tau_J[n:])
+    y = _kalman_inputs(robot, inst, ctx)[1]
+    if y is not None:
+        out[n:] = _kalman_filter(robot, inst, ctx, force_rate).filter_measurements(y)
     return out
 
 
