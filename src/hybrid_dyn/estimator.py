@@ -136,7 +136,7 @@ class EstimatorConfig:
     from 1 / call_hz.
     fusion_force_rate: kalman_fusion's random-walk intensity of the tip force
     [N/sqrt(s)]: its bandwidth. The bench picks it per scenario on validation
-    data (0.6-5 there: slow bells at 100 Hz to 1 ms steps at 1 kHz); 2 is a middle
+    data (0.3-5 there: slow bells at 100 Hz to 1 ms steps at 1 kHz); 2 is a middle
     that follows a 1 s push without lag and keeps the noise near the sensor's.
     """
 
