@@ -29,8 +29,23 @@ def _ok(rows):
     return [r for r in rows if r.get("status") == "ok"]
 
 
+# Reference rows show the cost of a choice (a seed net on the raw, untared base sensor: its per-run
+# bias cannot be learned from a window), not a contender: labelled in the tables, never a family's best.
+REFERENCE_SUFFIXES = {"-raw": "raw sensor, untared: reference"}
+
+
+def reference_label(model: str) -> str | None:
+    """The label of a reference row (e.g. ``seed-tip-11-raw``), None for any other row."""
+    return next((label for suffix, label in REFERENCE_SUFFIXES.items() if str(model).endswith(suffix)), None)
+
+
+def _contenders(rows):
+    """The scored rows that may be a family's best: every ok row but the reference rows."""
+    return [r for r in _ok(rows) if reference_label(r["model"]) is None]
+
+
 def _best(rows, task, scenario, pred) -> dict | None:
-    cand = [r for r in _ok(rows) if r["task"] == task and r["scenario"] == scenario and pred(r)]
+    cand = [r for r in _contenders(rows) if r["task"] == task and r["scenario"] == scenario and pred(r)]
     return min(cand, key=lambda r: float(r["rmse"])) if cand else None
 
 
@@ -42,7 +57,8 @@ def _table(header: list, body: list) -> str:
 
 
 def _latex(header: list, body: list, caption: str) -> str:
-    esc = lambda s: str(s).replace("_", r"\_").replace("%", r"\%").replace("#", r"\#").replace("&", r"\&")
+    esc = lambda s: (str(s).replace("_", r"\_").replace("%", r"\%").replace("#", r"\#").replace("&", r"\&")
+                     .replace(CAP_MARK, r"$^\dagger$"))
     cols = "l" * 2 + "r" * (len(header) - 2)
     out = [r"\begin{table}[ht]", r"\centering", rf"\caption{{{esc(caption)}}}", rf"\begin{{tabular}}{{{cols}}}",
            r"\hline", " & ".join(esc(h) for h in header) + r" \\", r"\hline"]
@@ -52,11 +68,42 @@ def _latex(header: list, body: list, caption: str) -> str:
 
 
 TIP_HEADER = ["model", "family", "inputs", "val loss", "test loss", "RMSE [N]", "RMSE / noise", "RMSE x/y/z [N]",
-              "contact", "free", "max err", "train s", "us/sample", "us/call", "params",
+              "contact", "free", "max err", "train s", "us/sample", "us/call", "params", "epochs (stop)",
               "seed val loss*", "seed test loss*", "seed RMSE* [N]"]
 TAU_HEADER = ["model", "family", "inputs", "val loss", "test loss", "RMSE [Nm]", "RMSE per joint [Nm]",
-              "contact", "free", "max err", "train s", "us/sample", "us/call", "params",
+              "contact", "free", "max err", "train s", "us/sample", "us/call", "params", "epochs (stop)",
               "seed val loss*", "seed test loss*", "seed RMSE* [Nm]"]
+N_SEED_COLUMNS = 3  # the headers' last columns: the seed's published figures
+CAP_MARK = "†"  # a learned row stopped by the epoch cap while still improving (footnoted in each table)
+CAP_FOOTNOTE = (f"{CAP_MARK} Stopped by the epoch cap (`max_epochs`) while its validation loss was still improving: "
+                "this row may not have converged, so its error may overstate what the model can do. Its train and "
+                "validation loss per epoch are in `learning_curves_<scenario>.png`.")
+STOP_NOTE = ("'epochs (stop)': the epochs a learned row trained and why it stopped: `patience` (no validation "
+             "improvement for `patience` epochs), `lr-floor` (the learning rate reached its floor and plateaued "
+             f"there) or `epoch-cap` ({CAP_MARK}); it keeps the weights of its best validation epoch (`best_epoch` "
+             "in results.csv, 0-based; 'untrained kept': no epoch beat the untrained model, e.g. a residual that "
+             "never beat its physics part). The learning curves are in `learning_curves_<scenario>.png`.")
+
+
+def _is_capped(r) -> bool:
+    return r.get("stopped_by") == "epoch-cap"
+
+
+def _cap_mark(r) -> str:
+    return f" {CAP_MARK}" if _is_capped(r) else ""
+
+
+def _stop_cell(r) -> str:
+    """'12 (patience)', '30 (epoch-cap) †'; '-' for a row that did not train (analytic, identified)."""
+    if r.get("stopped_by") in (None, ""):
+        return "-"
+    kept = "; untrained kept" if str(r.get("best_epoch")) == "-1" else ""
+    return f"{r.get('epochs', '?')} ({r['stopped_by']}{kept}){_cap_mark(r)}"
+
+
+def _model_cell(r) -> str:
+    label = reference_label(r["model"])
+    return f"{r['model']} ({label})" if label else r["model"]
 
 
 def _row_cells(r, task, scenario):
@@ -68,15 +115,15 @@ def _row_cells(r, task, scenario):
         seed = SEED_TABLE3.get((r["model"], seed_dataset_label(scenario)))
     header = TIP_HEADER if task == "tip_force" else TAU_HEADER
     if r.get("status") != "ok":
-        return [r["model"], r.get("family", ""), r.get("inputs", ""), "FAILED: " + str(r.get("error", ""))[:80]] + \
+        return [_model_cell(r), r.get("family", ""), r.get("inputs", ""), "FAILED: " + str(r.get("error", ""))[:80]] + \
             ["-"] * (len(header) - 4)
     # Tip force: the RMSE as a multiple of the base sensor's per-axis noise RMS (the limit of a base-sensor method).
     over_noise = [_f(_ratio(r.get("rmse"), r.get("noise_rms")), 2)] if task == "tip_force" else []
-    return [r["model"], r["family"], r.get("inputs", ""), _f(r["val_loss"]), _f(r["test_loss"]), _f(r["rmse"]),
+    return [_model_cell(r), r["family"], r.get("inputs", ""), _f(r["val_loss"]), _f(r["test_loss"]), _f(r["rmse"]),
             *over_noise, per,
             _f(r.get("rmse_contact")), _f(r.get("rmse_free")), _f(r.get("max_error"), 2), _f(r.get("train_seconds"), 1),
             _f(r.get("infer_us_per_sample"), 2), _f(r.get("infer_us_per_call"), 1), r.get("n_params", "") or "0",
-            *(_f(s) for s in (seed or ("", "", "")))]
+            _stop_cell(r), *(_f(s) for s in (seed or ("", "", "")))]
 
 
 def _ratio(a, b) -> float:
@@ -99,12 +146,15 @@ def task_tables(rows, task: str) -> tuple[str, str]:
           "", f"\\* Columns marked * are the seed's published figures (Kruzic et al. 2021, {seed_tab}): "
           "**figures from another simulator** (CoppeliaSim, 50 ms steps) and another data set, shown for "
           "orientation only, not measured here. Beside the `real-*` scenarios they are the seed's *real Panda* "
-          "rows: **another robot** (the toolkit's real logs are of a KUKA LWR, a Baxter and a SARCOS arm).", ""]
+          "rows: **another robot** (the toolkit's real logs are of a KUKA LWR, a Baxter and a SARCOS arm).", "",
+          STOP_NOTE, ""]
     tex = []
     for scenario in dict.fromkeys(r["scenario"] for r in rows):
-        body = [_row_cells(r, task, scenario) for r in rows if r["task"] == task and r["scenario"] == scenario]
+        here = [r for r in rows if r["task"] == task and r["scenario"] == scenario]
+        body = [_row_cells(r, task, scenario) for r in here]
         if not body:
             continue
+        capped = [r["model"] for r in _ok(here) if _is_capped(r)]
         md += [f"## {scenario}", ""]
         noise = [float(r["noise_rms"]) for r in rows if r["task"] == task and r["scenario"] == scenario
                  and r.get("status") == "ok" and r.get("noise_rms") not in (None, "")]
@@ -112,7 +162,13 @@ def task_tables(rows, task: str) -> tuple[str, str]:
             md += [f"Base sensor noise RMS per force axis: {noise[0]:.4f} N (recorded minus noise-free force on the "
                    "test split, each run's bias removed); 'RMSE / noise' is each row's RMSE in that unit.", ""]
         md += [_table(header, body), ""]
-        tex.append(_latex(header[:6] + header[-3:], [b[:6] + b[-3:] for b in body], f"{title}, {scenario}"))
+        caption = f"{title}, {scenario}"
+        if capped:
+            md += [CAP_FOOTNOTE.replace("<scenario>", scenario) + f" Here: {', '.join(f'`{m}`' for m in capped)}.", ""]
+            caption += f"; {CAP_MARK} stopped by the epoch cap while still improving: may not have converged"
+        keep = 6  # model, family, inputs, losses, RMSE; then epochs (stop) and the seed's figures
+        tex.append(_latex(header[:keep] + header[-N_SEED_COLUMNS - 1:], [b[:keep] + b[-N_SEED_COLUMNS - 1:] for b in body],
+                          caption))
     if task == "tip_force":
         md += ["Seed Table 1 architectures: " + "; ".join(f"`{k}` {v}" for k, v in SEED_TABLE1.items()), ""]
     else:
@@ -184,14 +240,14 @@ def findings(rows) -> list[str]:
     for scenario in dict.fromkeys(r["scenario"] for r in rows):
         for task, unit in (("tip_force", "N"), ("joint_torque", "Nm")):
             fams = {}
-            for r in _ok(rows):
+            for r in _contenders(rows):
                 if r["task"] == task and r["scenario"] == scenario:
                     if r["family"] not in fams or float(r["rmse"]) < float(fams[r["family"]]["rmse"]):
                         fams[r["family"]] = r
             if not fams:
                 continue
             ranked = sorted(fams.values(), key=lambda r: float(r["rmse"]))
-            desc = ", ".join(f"{r['family']} ({r['model']}) {float(r['rmse']):.3f}" for r in ranked)
+            desc = ", ".join(f"{r['family']} ({r['model']}) {float(r['rmse']):.3f}{_cap_mark(r)}" for r in ranked)
             lines.append(f"- **{scenario}, {task.replace('_', ' ')}** — best per family, RMSE [{unit}]: {desc}.")
     return lines
 
@@ -204,7 +260,7 @@ def _figures(out_dir: Path, rows, contexts) -> list[str]:
     import matplotlib.pyplot as plt
 
     made = []
-    ok = _ok(rows)
+    ok = _contenders(rows)  # the figures compare families' best rows: reference rows are in the tables
     # RMSE bars: best model per family, per scenario and task.
     for task, unit in (("tip_force", "N"), ("joint_torque", "Nm")):
         scen = list(dict.fromkeys(r["scenario"] for r in ok if r["task"] == task))
@@ -290,6 +346,95 @@ def _figures(out_dir: Path, rows, contexts) -> list[str]:
     return made
 
 
+def learning_curve_figures(out_dir: Path, curves: dict) -> list[str]:
+    """``learning_curves_<scenario>.png``: one panel per learned row, train and validation loss per epoch.
+
+    ``curves`` is curves.json (``runner.write_curves``): scenario -> model -> {task, epochs, stopped_by,
+    best_epoch, history, initial_val_loss}. Losses are standardized MSE on a log axis; the star marks the
+    epoch whose weights were kept, the dotted line the untrained model's validation loss, and a title in
+    red a row stopped by the epoch cap (it may not have converged). The learning rate, where the history
+    has it, is the grey line on the right axis.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    made = []
+    for scenario, models in curves.items():
+        if not models:
+            continue
+        ncols = min(4, len(models))
+        nrows = -(-len(models) // ncols)
+        fig, axes = plt.subplots(nrows, ncols, figsize=(3.3 * ncols, 2.5 * nrows + 0.5), squeeze=False)
+        for ax in axes.flat[len(models):]:
+            ax.set_visible(False)
+        for ax, (model, c) in zip(axes.flat, models.items()):
+            hist = c.get("history") or []
+            epochs = np.arange(len(hist))
+            train = np.array([float(h["train_loss"]) for h in hist])
+            val = np.array([float(h["val_loss"]) for h in hist])
+            ax.semilogy(epochs, train, "-", color="tab:blue", lw=1.0, label="train")
+            ax.semilogy(epochs, val, "-", color="tab:orange", lw=1.2, label="validation")
+            initial = c.get("initial_val_loss")
+            if initial is not None and np.isfinite(float(initial)) and float(initial) > 0:
+                ax.axhline(float(initial), color="0.5", ls=":", lw=0.9, label="untrained (val)")
+            best = int(c.get("best_epoch", -1))
+            if 0 <= best < len(hist):
+                ax.plot([best], [val[best]], "*", color="tab:red", ms=9, label=f"kept: epoch {best}")
+            elif hist:
+                ax.text(0.03, 0.05, "no epoch beat the untrained model: it was kept", transform=ax.transAxes, fontsize=6)
+            lr = [h.get("lr") for h in hist]
+            if hist and all(v is not None for v in lr):
+                ax2 = ax.twinx()
+                ax2.semilogy(epochs, lr, "--", color="0.6", lw=0.7, drawstyle="steps-post", label="lr")
+                ax2.tick_params(labelsize=6, colors="0.4")
+                ax2.set_ylabel("lr", fontsize=6, color="0.4")
+            if not hist:
+                ax.text(0.5, 0.5, "no epoch trained", transform=ax.transAxes, ha="center", fontsize=8)
+            capped = c.get("stopped_by") == "epoch-cap"
+            label = reference_label(model)
+            ax.set_title(f"{model}{' (reference)' if label else ''}\n{c.get('epochs', len(hist))} epochs, "
+                         f"{c.get('stopped_by', '?')}{' ' + CAP_MARK if capped else ''}",
+                         fontsize=8, color="tab:red" if capped else "black")
+            ax.set_xlabel("epoch", fontsize=7)
+            ax.set_ylabel(f"{str(c.get('task', '')).replace('_', ' ')} loss", fontsize=7)
+            ax.tick_params(labelsize=6)
+            ax.legend(fontsize=5.5, loc="best")
+        fig.suptitle(f"{scenario}: learning curves (standardized MSE; star: the epoch kept)", fontsize=10)
+        fig.tight_layout()
+        name = f"learning_curves_{scenario}.png"
+        fig.savefig(out_dir / name, dpi=100)
+        plt.close(fig)
+        made.append(name)
+    return made
+
+
+def convergence_lines(rows, curve_figures: list[str]) -> list[str]:
+    """The README's convergence section: how each learned row stopped, the capped rows named."""
+    learned = [r for r in _ok(rows) if r.get("stopped_by") not in (None, "")]
+    if not learned:
+        return []
+    counts = {}
+    for r in learned:
+        counts[r["stopped_by"]] = counts.get(r["stopped_by"], 0) + 1
+    lines = ["", "## Convergence of the learned rows", "",
+             f"- stopped by: {', '.join(f'{k} {v}' for k, v in sorted(counts.items()))} (of {len(learned)} learned rows); "
+             "the `epochs (stop)` column of each table and `epochs`, `stopped_by`, `best_epoch` in results.csv"]
+    if curve_figures:
+        lines.append("- learning curves, train and validation loss per epoch with the kept epoch marked (from "
+                     "`curves.json`): " + ", ".join(f"`{f}`" for f in curve_figures))
+    capped = [r for r in learned if _is_capped(r)]
+    if capped:
+        lines.append(f"- {CAP_MARK} stopped by the epoch cap while still improving, so they may not have converged: "
+                     + ", ".join(f"{r['scenario']} `{r['model']}` ({r.get('epochs')} epochs)" for r in capped))
+    refs = sorted({r["model"] for r in learned if reference_label(r["model"])})
+    if refs:
+        lines.append("- reference rows, in the tables but never a family's best here: "
+                     + ", ".join(f"`{m}` ({reference_label(m)})" for m in refs))
+    return lines
+
+
 # --------------------------------------------------------------------- README
 def write_report(out_dir, rows, meta: dict, contexts: dict | None = None) -> None:
     out_dir = Path(out_dir)
@@ -298,6 +443,10 @@ def write_report(out_dir, rows, meta: dict, contexts: dict | None = None) -> Non
         (out_dir / f"{task}.md").write_text(md)
         (out_dir / f"{task}.tex").write_text(tex)
     figures = _figures(out_dir, rows, contexts or {}) if contexts else []
+    from .runner import CURVES_FILE, read_curves  # the runner writes curves.json row by row
+
+    curve_figures = learning_curve_figures(out_dir, read_curves(out_dir / CURVES_FILE))
+    figures += curve_figures
     checks = floor_checks(rows)
     failed = [r for r in rows if r.get("status") != "ok"]
     prof = meta.get("profile", {})
@@ -323,6 +472,10 @@ def write_report(out_dir, rows, meta: dict, contexts: dict | None = None) -> Non
     if notes:
         lines += ["", "## Method notes", ""] + [f"- {n}" for n in notes]
     lines += ["", "## Headline findings", ""] + findings(rows)
+    if any(_is_capped(r) for r in _contenders(rows)):
+        lines += ["", f"{CAP_MARK}: stopped by the epoch cap while still improving; it may not have converged "
+                      "(see the learning curves)."]
+    lines += convergence_lines(rows, curve_figures)
     lines += ["", "## Floors", ""]
     for text, met, nums in checks:
         verdict = "for reference" if met is None else ("met" if met else "**NOT met**")
@@ -333,5 +486,7 @@ def write_report(out_dir, rows, meta: dict, contexts: dict | None = None) -> Non
         lines += ["", "## Failed rows", ""] + [f"- {r['scenario']} {r['model']}: {r.get('error', '')}" for r in failed]
     lines += ["", "## Files", "", "- `results.csv`: one row per (task, scenario, model), stable columns",
               "- `tip_force.md`, `joint_torque.md` (+ `.tex`): tables in the seed's layout",
+              *([f"- `{CURVES_FILE}`: each learned row's loss per epoch, how it stopped and the epoch kept "
+                 "(the learning-curve figures are drawn from it)"] if curve_figures else []),
               *[f"- `{f}`" for f in figures], ""]
     (out_dir / "README.md").write_text("\n".join(lines))

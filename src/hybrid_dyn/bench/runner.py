@@ -45,7 +45,9 @@ COLUMNS = [
     "task", "scenario", "model", "family", "inputs", "status",
     "val_loss", "test_loss", "rmse", "nmse", "rmse_contact", "rmse_free", "max_error",
     "rmse_1", "rmse_2", "rmse_3", "rmse_4", "rmse_5", "rmse_6", "rmse_7", "noise_rms",
-    "train_seconds", "infer_us_per_sample", "infer_us_per_call", "n_params", "n_test_samples", "error",
+    "train_seconds", "infer_us_per_sample", "infer_us_per_call", "n_params", "n_test_samples",
+    "epochs", "stopped_by", "best_epoch",  # learned rows only (``training_summary``); empty for analytic rows
+    "error",
 ]
 
 
@@ -58,6 +60,7 @@ class Predictor:
     train_seconds: float = 0.0
     n_params: int = 0
     inputs: str = ""
+    training: dict | None = None  # learned rows: ``training_summary`` of the model's config
 
 
 @dataclass
@@ -295,9 +298,42 @@ def _learned(task: str, preset: str, family: str) -> RowSpec:
             train_seconds=float(train_seconds),
             n_params=int(model.n_params),
             inputs=", ".join(model.config.get("inputs", [])),
+            training=training_summary(model.config),
         )
 
     return RowSpec(task, preset, family, build)
+
+
+def training_summary(config: dict) -> dict:
+    """How a trained model's training ended, from its config.json: convergence shown, not claimed.
+
+    Returns ``epochs`` (epochs run), ``stopped_by`` ("patience": no validation
+    improvement for ``patience`` epochs; "lr-floor": the learning rate reached its
+    floor and plateaued there; "epoch-cap": ``max_epochs`` reached while still
+    improving, so the model may not have converged), ``best_epoch`` (0-based index
+    into ``history`` of the weights kept; -1: the untrained model was best, e.g. a
+    residual that never beat its physics part), ``initial_val_loss`` (the untrained
+    model's) and ``history`` (per epoch: ``epoch``, ``train_loss``, ``val_loss``,
+    standardized MSE, and ``lr`` when known).
+
+    Models trained before ``stopped_by`` and ``best_epoch`` were recorded get them
+    derived, as their training loop decided: stopped early means patience ran out;
+    the kept weights are the epoch of least validation loss, if it beat the
+    untrained model's ``initial_val_loss``.
+    """
+    history = [dict(h) for h in config.get("history", [])]
+    stopped_by = config.get("stopped_by")
+    if stopped_by is None:
+        stopped_by = "patience" if config.get("stopped_early") else "epoch-cap"
+    best_epoch = config.get("best_epoch")
+    if best_epoch is None:
+        val = [float(h["val_loss"]) for h in history]
+        val = [v if np.isfinite(v) else np.inf for v in val]  # a diverged epoch (NaN) is never the best
+        best = int(np.argmin(val)) if val else -1
+        initial = float(config.get("initial_val_loss", np.inf))
+        best_epoch = best if best >= 0 and val[best] < initial else -1
+    return {"epochs": int(config.get("epochs", len(history))), "stopped_by": str(stopped_by),
+            "best_epoch": int(best_epoch), "initial_val_loss": config.get("initial_val_loss"), "history": history}
 
 
 def _learned_single_call(model):
@@ -312,7 +348,7 @@ def _learned_single_call(model):
 
     def call(inst, k):
         if inst.name not in windows:
-            windows[inst.name] = (concat_fields([inst], model.inputs).astype(np.float64),
+            windows[inst.name] = (concat_fields(model.sensor_view([inst]), model.inputs).astype(np.float64),
                                   window_index([len(inst)], model.window))
         x_all, index = windows[inst.name]
         prior, w = None, None
@@ -381,6 +417,10 @@ def score_row(spec: RowSpec, ctx: BenchContext, norm: dict) -> dict:
         raise ValueError(f"the dataset has no {target!r} field")
     pred_obj = spec.build(ds, ctx)
     row.update(inputs=pred_obj.inputs, train_seconds=pred_obj.train_seconds, n_params=pred_obj.n_params)
+    if pred_obj.training is not None:
+        t = pred_obj.training
+        row.update(epochs=t["epochs"], stopped_by=t["stopped_by"], best_epoch=t["best_epoch"])
+        row["curve"] = {"task": spec.task, **t}  # not a results.csv column: the runner keeps it in curves.json
     mean, std = norm[target]
     losses = {}
     for split in ("val", "test"):
@@ -434,6 +474,26 @@ def write_results(path: Path, rows: list[dict]) -> None:
         for r in rows:
             w.writerow({k: _fmt(r.get(k, "")) for k in COLUMNS})
     os.replace(tmp, path)
+
+
+CURVES_FILE = "curves.json"  # beside results.csv: the learned rows' loss curves
+
+
+def write_curves(path: Path, rows: list[dict]) -> None:
+    """The learned rows' loss curves, ``{scenario: {model: {task, epochs, stopped_by, best_epoch,
+    initial_val_loss, history}}}`` (``training_summary``), written atomically, so the report's learning-curve
+    figures can be redrawn from files."""
+    curves: dict = {}
+    for r in rows:
+        if r.get("curve") is not None:
+            curves.setdefault(r["scenario"], {})[r["model"]] = r["curve"]
+    _write_json(Path(path), curves)
+
+
+def read_curves(path: Path) -> dict:
+    """curves.json as ``write_curves`` wrote it; {} when there is none (a report without learned rows)."""
+    path = Path(path)
+    return json.loads(path.read_text()) if path.is_file() else {}
 
 
 def read_results(path: Path) -> list[dict]:
@@ -596,6 +656,7 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, dataset_
                 log(f"[bench] {spec.model} FAILED: {err}\n{traceback.format_exc(limit=3)}")
             rows.append(row)
             write_results(out_dir / "results.csv", rows)
+            write_curves(out_dir / CURVES_FILE, rows)
             log(f"[bench] {scenario} {spec.task:12s} {spec.model:22s} rmse={row.get('rmse', float('nan')):.4g} "
                 f"({time.perf_counter() - t0:.1f} s)" if row["status"] == "ok" else
                 f"[bench] {scenario} {spec.model} failed")
