@@ -78,6 +78,7 @@ from enum import Enum
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 from scipy import signal
 
 from .analytic.base_momentum import BaseMomentumObserver
@@ -285,6 +286,37 @@ def cutoff_grid(rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
     return grid, np.array([qdd_noise_gain(rate_hz, float(fc)) for fc in grid])
 
 
+# _gate's answers: the sample is inside its box; an input is not a float64 1-D array of its length;
+# a value lies outside its box (or is NaN / inf).
+GATE_INSIDE, GATE_WRONG_LENGTH, GATE_OUTSIDE = 0, 1, 2
+_VEC = "float64[::1]"
+
+
+@njit(f"int64({_VEC}, {_VEC}, {_VEC}, int64[:, ::1], {_VEC}, {_VEC}, {_VEC}, {_VEC})", cache=True)
+def _gate(sample, lo, inv_width, slots, q, qd, base_wrench, tau_J):  # pragma: no cover (compiled)
+    """Copy one call's inputs into ``sample`` and check every value against its box (``_build_gate``).
+
+    slots[k] = (start in sample, length) of input k (q, qd, base_wrench, tau_J); start -1: not read.
+    The explicit signature means no argument of another type compiles anything: the dispatcher
+    raises TypeError instead, and ``_accept`` converts on its slow path.
+    """
+    inputs = (q, qd, base_wrench, tau_J)
+    for k in range(4):
+        start, size = slots[k, 0], slots[k, 1]
+        if start < 0:
+            continue
+        x = inputs[k]
+        if x.shape[0] != size:
+            return GATE_WRONG_LENGTH
+        for j in range(size):
+            sample[start + j] = x[j]
+    for i in range(sample.shape[0]):
+        u = (sample[i] - lo[i]) * inv_width[i]
+        if not (u >= 0.0 and u < 1.0):  # NaN compares False: outside too
+            return GATE_OUTSIDE
+    return GATE_INSIDE
+
+
 class TipForceEstimator:
     """Streaming tip-force estimator; see the module docstring."""
 
@@ -418,12 +450,10 @@ class TipForceEstimator:
         """Precompute the plausibility box [lo, hi] of every value a call brings (module docstring).
 
         All needed inputs are copied into one preallocated vector x and checked
-        at once, with no allocation: u = (x - lo) / (hi - lo) lies in [0, 1)
-        exactly when s = sign(floor(u)) is 0, so s . s counts the values outside
-        their box; NaN and inf make it NaN, so they fail too. The sign keeps the
-        dot product from overflowing (and warning) on absurd values; the dot is
-        one BLAS call, ~3 us cheaper than a max() reduction. An unbounded value
-        (no limit in the description) gets lo = 1/(hi - lo) = 0: u = 0 when finite.
+        at once, with no allocation, by the compiled :func:`_gate`: a value is
+        inside when u = (x - lo) / (hi - lo) lies in [0, 1); NaN and inf make u
+        NaN (or inf), so they fail too. An unbounded value (no limit in the
+        description) gets lo = 1/(hi - lo) = 0: u = 0 when finite.
         """
         r, c, nv = self.robot, self.config, self.robot.nv
         v_max = np.asarray(r.spec.max_velocity or r.model.velocityLimit, float)
@@ -454,17 +484,21 @@ class TipForceEstimator:
         self._box_lo = np.where(bounded, lo, 0.0)
         self._box_inv_width = np.where(bounded, 1.0 / np.where(bounded, width, 1.0), 0.0)
         self._sample = np.empty(len(lo))  # the accepted sample: q, qd[, base_wrench][, tau_J]
-        self._work = np.empty(len(lo))
         self._slots, start = [], 0
+        self._gate_slots = np.full((4, 2), -1, dtype=np.int64)  # per input (q, qd, base_wrench, tau_J): start, size
+        self._absent = [None] * 4  # kalman_fusion's stand-in for a sensor a call lacks: zeros, inside its box
         for name, index, b_lo, _, unit, why in boxes:
             n = len(b_lo)
             self._slots.append((name, index, self._sample[start:start + n], unit, why, start))
+            self._gate_slots[index] = start, n
+            if name in self._optional:
+                self._absent[index] = np.zeros(n)  # every box is symmetric about 0
             start += n
         views = [None] * 4  # q, qd, base_wrench, tau_J: what _accept hands on
         for _, index, view, *_ in self._slots:
             views[index] = view
         self._views = tuple(views)
-        self._copy_in = [(index, view, name, unit) for name, index, view, unit, *_ in self._slots]
+        self._unused = np.zeros(0)  # the gate's argument for an input this estimator does not read
         self._period = 1.0 / c.call_hz
         self._period_tol = c.rate_tolerance * self._period
         self._max_force_sq = c.max_tip_force ** 2
@@ -476,30 +510,24 @@ class TipForceEstimator:
         preallocated sample vector (None where this estimator does not use them),
         t as a float or None. Raises EstimatorInputError naming the argument.
         """
-        given = [q, qd, base_wrench, tau_J]
-        for index, view, name, unit in self._copy_in:
-            x = given[index]
-            if x is None:
-                if name in self._optional:  # kalman_fusion: this call lacks the sensor (inside the box)
-                    view[...] = 0.0  # every box is symmetric about 0
-                    continue
-                raise EstimatorInputError(f"this estimator needs {name} ({view.size},) [{unit}]")
-            try:
-                x = np.asarray(x, dtype=float)
-            except (TypeError, ValueError) as err:
-                raise EstimatorInputError(f"{name} must be {view.size} numbers [{unit}], got a "
-                                          f"{type(x).__name__}: {err}") from None
-            if x.shape != view.shape:
-                raise EstimatorInputError(f"{name} must have shape ({view.size},), got {x.shape}")
-            view[...] = x
-        u = self._work  # sign(floor((x - lo) / (hi - lo))): all zero inside the box (see _build_gate)
-        np.subtract(self._sample, self._box_lo, out=u)
-        np.multiply(u, self._box_inv_width, out=u)
-        np.floor(u, out=u)
-        np.sign(u, out=u)
-        if not u.dot(u) == 0.0:  # NaN compares False: rejected too
+        # The fast path: float64 1-D arrays go straight into the compiled gate (copy-in and box check in
+        # one call); anything else (lists, other dtypes, wrong shapes, None) is converted and named by
+        # _converted, then gated the same way. An input the estimator does not read is never looked at.
+        w = base_wrench if self._needs_wrench else self._unused
+        tau = tau_J if self._needs_tau else self._unused
+        if self._optional:
+            w = self._absent[2] if w is None else w
+            tau = self._absent[3] if tau is None else tau
+        try:
+            code = _gate(self._sample, self._box_lo, self._box_inv_width, self._gate_slots, q, qd, w, tau)
+        except (TypeError, ValueError):  # no compiled signature matches these arguments
+            code = GATE_WRONG_LENGTH
+        if code == GATE_WRONG_LENGTH:
+            code = _gate(self._sample, self._box_lo, self._box_inv_width, self._gate_slots,
+                         *self._converted(q, qd, base_wrench, tau_J))
+        if code != GATE_INSIDE:  # NaN and inf fail the box too
             raise EstimatorInputError(self._implausible())
-        if self._optional and given[2] is None and given[3] is None:
+        if self._optional and base_wrench is None and tau_J is None:
             raise EstimatorInputError("kalman_fusion needs base_wrench (6,) [N, Nm], tau_J (nv,) [Nm] or both")
         resumed = False
         if t is None:
@@ -530,11 +558,32 @@ class TipForceEstimator:
                             f"{100 * self.config.rate_tolerance:g} %: a wrong call_hz, or a gap in the stream "
                             "(it resumes one period after this sample)")
         self._gap_t = None
-        q, qd, base_wrench, tau_J = self._views
+        q, qd, views_w, views_tau = self._views
         if self._optional:  # an absent sensor stays None
-            base_wrench = base_wrench if given[2] is not None else None
-            tau_J = tau_J if given[3] is not None else None
-        return q, qd, base_wrench, tau_J, t, resumed
+            return q, qd, None if base_wrench is None else views_w, None if tau_J is None else views_tau, t, resumed
+        return q, qd, views_w, views_tau, t, resumed
+
+    def _converted(self, q, qd, base_wrench, tau_J) -> list:
+        """_accept's slow path: each input this estimator reads as a fresh float64 array of its shape
+        (a copy, so contiguous and writable whatever was given), or EstimatorInputError naming it."""
+        given = [q, qd, base_wrench, tau_J]
+        out = [self._unused] * 4
+        for name, index, view, unit, *_ in self._slots:
+            x = given[index]
+            if x is None:
+                if name in self._optional:  # kalman_fusion: this call lacks the sensor
+                    out[index] = self._absent[index]
+                    continue
+                raise EstimatorInputError(f"this estimator needs {name} ({view.size},) [{unit}]")
+            try:
+                x = np.array(x, dtype=float)
+            except (TypeError, ValueError) as err:
+                raise EstimatorInputError(f"{name} must be {view.size} numbers [{unit}], got a "
+                                          f"{type(x).__name__}: {err}") from None
+            if x.shape != view.shape:
+                raise EstimatorInputError(f"{name} must have shape ({view.size},), got {x.shape}")
+            out[index] = x
+        return out
 
     def _implausible(self) -> str:
         """The message for a sample outside its box (the slow path: only on rejection)."""
