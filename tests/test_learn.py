@@ -128,7 +128,8 @@ def test_save_load_predict_is_bit_identical(tip11, friction_set):
 def test_predict_window_matches_batched_predict(tip11, friction_set, tmp_path):
     inst = friction_set.split("test")[0]
     pred = tip11.predict([inst])[0]
-    x = concat_fields([inst], tip11.inputs).astype(np.float64)
+    assert tip11.sensor_tare_seconds > 0  # predict_window is given the wrench as the net sees it: tared
+    x = concat_fields(tip11.sensor_view([inst]), tip11.inputs).astype(np.float64)
     for k in (0, 3, 60, len(inst) - 1):  # edge-padded start, mid-run, end
         rows = np.clip(np.arange(k - tip11.window + 1, k + 1), 0, None)
         np.testing.assert_allclose(tip11.predict_window(x[rows]), pred[k], atol=2e-5 * np.abs(pred).max())
@@ -141,7 +142,7 @@ def test_predict_window_matches_batched_predict_other_families(name, friction_se
     model = train_model(friction_set, name, tmp_path / name, TrainConfig(max_epochs=1, max_batches_per_epoch=3, **QUICK))
     inst = friction_set.split("test")[0]
     pred = model.predict([inst])[0]
-    x = concat_fields([inst], model.inputs).astype(np.float64)
+    x = concat_fields(model.sensor_view([inst]), model.inputs).astype(np.float64)
     tared = model.prior is not None and model.prior.tare_seconds > 0
     prior = model.prior.compute({f: inst[f] for f in model.prior.fields}) if tared else None
     for k in (0, 40):
@@ -277,7 +278,12 @@ def test_unknown_or_other_robot_is_refused(tip11, friction_set, tmp_path):
         return d
 
     # A data-only model needs no description of its robot: it loads under any name.
-    assert load_model(relabel(tip11.path, tmp_path / "m"), robot="r2d2").config["robot"] == "r2d2"
+    tau = train_model(friction_set, "seed-tau-mlp", tmp_path / "tau",
+                      TrainConfig(max_epochs=1, max_batches_per_epoch=2, **QUICK))
+    assert load_model(relabel(tau.path, tmp_path / "m"), robot="r2d2").config["robot"] == "r2d2"
+    # A net on the tared base sensor does: the tare subtracts the robot's model wrench.
+    with pytest.raises(ModelError, match="sensor tare"):
+        load_model(relabel(tip11.path, tmp_path / "m11"), robot="r2d2")
     # One with an analytic part does.
     res = train_model(friction_set, "residual-basewrench", tmp_path / "res",
                       TrainConfig(max_epochs=1, max_batches_per_epoch=2, **QUICK))

@@ -154,11 +154,15 @@ def test_robot_and_widths_are_checked_before_training(ds_path, tmp_path):
         train_model(_relabelled(ds_path, "r2d2"), "residual-basewrench", tmp_path / "res",
                     TrainConfig(max_epochs=1, **QUICK))
     assert not (tmp_path / "res").exists()
+    # So does a net on the tared base sensor (the tare subtracts the robot's model wrench).
+    with pytest.raises(ModelError, match="tared with the model of robot 'r2d2'"):
+        train_model(_relabelled(ds_path, "r2d2"), "seed-tip-1", tmp_path / "tip", TrainConfig(max_epochs=1, **QUICK))
+    assert not (tmp_path / "tip").exists()
 
 
 def test_a_data_only_model_of_an_unnamed_arm_trains_and_loads(ds_path, tmp_path):
     cfg = TrainConfig(max_epochs=1, max_batches_per_epoch=2, **QUICK)
-    model = train_model(_relabelled(ds_path, "r2d2"), "seed-tip-1", tmp_path / "m", cfg)
+    model = train_model(_relabelled(ds_path, "r2d2"), "seed-tau-mlp", tmp_path / "m", cfg)
     again = load_model(tmp_path / "m", robot="r2d2")
     assert again.config["robot"] == "r2d2" and again.val_loss == model.val_loss
     with pytest.raises(ModelError, match="'r2d2', not 'panda'"):

@@ -89,3 +89,45 @@ class StreamingTare:
             raise ValueError(f"a base-sensor offset is 6 finite values [N, Nm], got {offset!r}")
         self.offset = offset.copy()
         self.count = self.n_calls
+
+
+class TaredRun:
+    """A run (a dataset Instance, or anything indexable by field name with ``len``) whose
+    ``base_wrench`` reads tared on its first ``n_tare`` samples; every other field, and
+    every attribute (``name``, ``truth``, ...), is the run's own.
+
+    The tare is computed on first use, from the run's q, qd, qdd and base wrench.
+    """
+
+    def __init__(self, run, robot, n_tare: int):
+        self._run, self._robot, self._n_tare = run, robot, int(n_tare)
+        self._tared = None
+
+    @property
+    def base_wrench(self) -> np.ndarray:
+        if self._tared is None:
+            r = self._run
+            self._tared = tared_base_wrench(self._robot, r["q"], r["qd"], r["qdd"], r["base_wrench"], self._n_tare)
+        return self._tared
+
+    def __getitem__(self, key: str):
+        return self.base_wrench if key == "base_wrench" else self._run[key]
+
+    def __getattr__(self, key: str):  # only for what this class does not define
+        if key.startswith("_"):
+            raise AttributeError(key)
+        return getattr(self._run, key)
+
+    def __len__(self) -> int:
+        return len(self._run)
+
+
+def tared_runs(runs, robot, record_hz: float, tare_seconds: float = TARE_SECONDS) -> list:
+    """The runs with their base sensor tared on each one's first ``tare_seconds`` [s] (0: unchanged).
+
+    The one definition of the tare that every row's inputs go through: the analytic rows,
+    the residual nets' physics part and the learned rows' own inputs.
+    """
+    runs = list(runs)
+    n = tare_samples(record_hz, tare_seconds)
+    return runs if n == 0 else [TaredRun(r, robot, n) for r in runs]

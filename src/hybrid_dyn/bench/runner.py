@@ -348,7 +348,7 @@ def _learned_single_call(model):
 
     def call(inst, k):
         if inst.name not in windows:
-            windows[inst.name] = (concat_fields([inst], model.inputs).astype(np.float64),
+            windows[inst.name] = (concat_fields(model.sensor_view([inst]), model.inputs).astype(np.float64),
                                   window_index([len(inst)], model.window))
         x_all, index = windows[inst.name]
         prior, w = None, None

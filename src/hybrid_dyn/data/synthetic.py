@@ -21,11 +21,13 @@ def make_synthetic_dataset(path, robot, n_instances: int = 6, n_samples: int = 2
 
     base_offset: bound [N] of a per-instance base-sensor force offset, uniform
     per axis (a tenth of it in Nm on the moments), added to the measured wrench
-    only. contact_free_s: no tip force on [0, contact_free_s) [s]; the bell is centred
+    only, from a generator of its own: the same seed with and without an offset gives
+    the same runs, the offset aside. contact_free_s: no tip force on [0, contact_free_s) [s]; the bell is centred
     3 sigma or more after it.
     """
     path = Path(path)
     rng = np.random.default_rng(seed)
+    offset_rng = np.random.default_rng([seed, 1])
     nv = robot.nv
     lo = np.maximum(robot.q_lower, -np.pi) + 0.2
     hi = np.minimum(robot.q_upper, np.pi) - 0.2
@@ -58,7 +60,7 @@ def make_synthetic_dataset(path, robot, n_instances: int = 6, n_samples: int = 2
         truth = {"t": t, "q": q, "qd": qd, "qdd": qdd, "tau_m": tau_m, "tau_J": tau_J, "base_wrench": wrench, "tip_force": f}
         fields = {k: (v + noise * rng.normal(size=v.shape) if (noise and k != "t") else v) for k, v in truth.items()}
         if base_offset:
-            fields["base_wrench"] = fields["base_wrench"] + rng.uniform(-1, 1, 6) * base_offset * np.repeat([1.0, 0.1], 3)
+            fields["base_wrench"] = fields["base_wrench"] + offset_rng.uniform(-1, 1, 6) * base_offset * np.repeat([1.0, 0.1], 3)
         name = f"inst_{k:05d}"
         sha = write_instance(path / "instances" / f"{name}.h5", fields, truth)
         records.append({"name": name, "file": f"instances/{name}.h5", "sha256": sha, "n_samples": n_samples})

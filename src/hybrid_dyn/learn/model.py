@@ -41,6 +41,7 @@ from ..errors import HybridDynError
 from .delan import DeepLagrangianNetwork, LearnedGazFriction
 from .nets import build_net
 from .presets import Preset
+from ..analytic.tare import tared_runs
 from .priors import AnalyticPrior
 
 MODEL_FORMAT = "hybrid_dyn.model"
@@ -252,10 +253,28 @@ class TrainedModel:
             return None
         if self._prior is None:
             described = self.config.get("prior") or {}
-            self._prior = AnalyticPrior(self.preset.prior, self.robot, self.config.get("record_hz"),
-                                        self.config.get("observer_gain", 20.0),
-                                        described.get("tare_seconds", 0.0))  # models saved before the tare had none
+            # The friction as trained, from the config (models saved before it had none); the
+            # inertials from the parameter file, which must be the one trained on.
+            prior = AnalyticPrior(self.preset.prior, self.robot, self.config.get("record_hz"),
+                                  self.config.get("observer_gain", 20.0),
+                                  described.get("tare_seconds", 0.0),  # models saved before the tare had none
+                                  friction=described.get("friction"))
+            if described.get("params_sha256") and prior.params_sha256 != described["params_sha256"]:
+                raise ModelError(f"model {self.path}: its analytic part was trained on the parameter file "
+                                 f"{self.config.get('analytic_params')} with sha256 {described['params_sha256'][:12]}..., "
+                                 f"and that file now has {str(prior.params_sha256)[:12]}...: restore it or retrain")
+            self._prior = prior
         return self._prior
+
+    @property
+    def sensor_tare_seconds(self) -> float:
+        """The contact-free start [s] of each run on which the net's base-wrench input is tared
+        (0: the raw sensor; models saved before issue 14 read it raw)."""
+        return float(self.config.get("sensor_tare_seconds", 0.0))
+
+    def sensor_view(self, instances) -> list:
+        """The instances as the net's inputs see them: the base sensor tared as in training."""
+        return tared_runs(instances, self.robot, self.config.get("record_hz"), self.sensor_tare_seconds)
 
     # ----------------------------------------------------------- prediction
     def _check_instances(self, instances) -> None:
@@ -271,7 +290,7 @@ class TrainedModel:
         self._check_instances(instances)
         if not instances:
             return []
-        x_all = concat_fields(instances, self.inputs)
+        x_all = concat_fields(self.sensor_view(instances), self.inputs)
         lengths = [len(i) for i in instances]
         index = window_index(lengths, self.window)
         prior_all = None
@@ -304,7 +323,8 @@ class TrainedModel:
 
         x holds the model's input fields side by side (``model.inputs``, widths in
         ``model.config["widths"]``), oldest sample first, in physical units; pad
-        the start of a run with its first sample, as training did.
+        the start of a run with its first sample, as training did. A model with
+        ``sensor_tare_seconds > 0`` expects the base wrench tared (``StreamingTare``).
         prior: the analytic part (n_out,) at the window's last sample. Optional for
         the per-sample priors (computed here from the last row, which holds every
         field they need); required for ``momentum`` (a filter with state: pass
@@ -421,11 +441,17 @@ def load_model(model_dir, robot=None, device: str = "cpu") -> TrainedModel:
     if meta["tensors_sha256"] != tensors_digest(tensors):
         raise ModelError(f"{wpath}: its tensors do not match the sha256 saved with them (corrupted or edited); "
                          f"refusing to load; retrain or restore the file")
-    from ..description import available_robots
+    from ..description import RobotDescriptionError, available_robots, resolve_robot
 
-    if Preset.from_dict(config["preset"]).prior is not None and config["robot"] not in available_robots():
-        raise ModelError(f"model {model_dir} needs a description of robot {config['robot']!r} for its analytic "
-                         f"part, and this toolkit has none (available: {', '.join(available_robots())})")
+    if Preset.from_dict(config["preset"]).prior is not None or config.get("sensor_tare_seconds", 0) > 0:
+        try:  # the analytic part, and the base sensor's tare, need the robot's model
+            described = resolve_robot(config["robot"]).described
+        except RobotDescriptionError:
+            described = False
+        if not described:
+            raise ModelError(f"model {model_dir} needs a description of robot {config['robot']!r} for its analytic "
+                             f"part or its sensor tare, and this toolkit has none "
+                             f"(available: {', '.join(available_robots())})")
     if robot is not None:
         name = robot if isinstance(robot, str) else robot.name
         if name != config["robot"]:

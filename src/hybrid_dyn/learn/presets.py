@@ -48,6 +48,9 @@ class Preset:
       "basewrench"      F = tip_force_from_base_wrench(q, qd, qdd, base_wrench)
       "momentum"        F = MomentumObserver(q, qd, tau_J) at dt = 1 / record_hz
       "base-momentum"   F = base momentum observer(q, qd, tared base_wrench) at dt = 1 / record_hz
+    raw_sensor: read the base wrench untared (a labelled reference row: what the
+    sensor's per-run offset costs); by default every preset reads it tared, as
+    every analytic row does (``learn/train.py``).
     delan_*: DeLaN's hidden layers for L(q) and V(q); friction: learn a Gaz
     sigmoid friction per joint; residual: add a residual network of the other
     fields (kind of the residual net: residual_kind, with its own window).
@@ -66,6 +69,7 @@ class Preset:
     conv_kernel: int = 3
     prior: str | None = None
     description: str = ""
+    raw_sensor: bool = False
     # DeLaN only
     delan_hidden: tuple = (64, 64)
     delan_eps: float = 1e-3
@@ -141,6 +145,10 @@ def _build_registry() -> dict:
         _tip(9, "lstm", True, 16, 5),
         _tip(10, "lstm", False, 16, 10, front=(32, 32)),
         _tip(11, "lstm", True, 8, 10, front=(32, 32)),
+        # Reference row: #11 on the raw base sensor, its per-run offset left in (issue 14).
+        _tip(11, "lstm", True, 8, 10, front=(32, 32)).replace(
+            name="seed-tip-11-raw", raw_sensor=True,
+            description="seed Table 1 #11 on the raw (untared) base sensor: a reference row for the offset's cost"),
         Preset("seed-tau-mlp", "mlp", tuple(STATE), ("tau_m",), fc_units=32,
                description="seed Table 3 MLP (widths as Table 1 #1)"),
         Preset("seed-tau-conv", "conv", tuple(STATE), ("tau_m",), window=10, front_units=(16,),

@@ -30,7 +30,7 @@ import torch
 
 from ..analytic.base_momentum import BaseMomentumObserver
 from ..analytic.momentum_observer import MomentumObserver
-from ..analytic.tare import StreamingTare, tare_samples
+from ..analytic.tare import StreamingTare, tare_samples, tared_runs
 from ..analytic.tip_force import base_wrench_force_core
 from ..data.windows import window_index
 from .model import ModelError, TrainedModel, load_model
@@ -176,9 +176,13 @@ class StreamingModel:
             self._observer = MomentumObserver(self.robot, gain=gain, dt=1.0 / call_hz)
         elif self.model.preset.prior == "base-momentum":
             self._observer = BaseMomentumObserver(self.robot, gain=gain, dt=1.0 / call_hz)
+        # One tare for the net's base-wrench input and the prior's (the same contact-free start).
         self._tare = None
-        if self.model.prior is not None and self.model.prior.tare_seconds > 0:
-            self._tare = StreamingTare(self.robot, tare_samples(call_hz, self.model.prior.tare_seconds))
+        tare_seconds = max(self.model.sensor_tare_seconds,
+                           self.model.prior.tare_seconds if self.model.prior is not None else 0.0)
+        if tare_seconds > 0:
+            self._tare = StreamingTare(self.robot, tare_samples(call_hz, tare_seconds))
+        self._tare_input = self.model.sensor_tare_seconds > 0
         self.reset()
 
     def warmup_calls(self, call_hz: float) -> int:
@@ -212,13 +216,11 @@ class StreamingModel:
             self.step(q, z, z, w, z, None)
         self.reset()
 
-    def _prior_at(self, q, qd, qdd, base_wrench, tau_J):
+    def _prior_at(self, q, qd, qdd, base_wrench, tau_J, in_tare):
+        """The analytic part at this sample; base_wrench already tared (when the prior tares)."""
         kind = self._prior_kind
         if kind is None:
             return None
-        in_tare = self._tare is not None and not self._tare.done
-        if self._tare is not None:
-            base_wrench = self._tare.update(q, qd, qdd, base_wrench)
         if kind == "base-momentum":  # 0 in the tare window, then the observer from a fresh start
             return np.zeros(3) if in_tare else self._observer.step_force(q, qd, base_wrench)
         if kind == "basewrench":
@@ -230,7 +232,10 @@ class StreamingModel:
     # ------------------------------------------------------------------ step
     def step(self, q, qd, qdd, base_wrench, tau_J, t) -> tuple[np.ndarray, bool]:
         """One validated sample in; (tip force (3,) [N], inside the training range?) out."""
-        values = {"q": q, "qd": qd, "qdd": qdd, "base_wrench": base_wrench, "tau_J": tau_J}
+        in_tare = self._tare is not None and not self._tare.done
+        w_tared = base_wrench if self._tare is None else self._tare.update(q, qd, qdd, base_wrench)
+        values = {"q": q, "qd": qd, "qdd": qdd, "base_wrench": w_tared if self._tare_input else base_wrench,
+                  "tau_J": tau_J}
         row = self._row
         for name, a, b in self._slices:
             row[a:b] = values[name]
@@ -244,7 +249,7 @@ class StreamingModel:
             self._head = (self._head + 1) % n
             self._ring[self._head] = row
         x = self._ring[(self._head - self._offsets) % n]
-        prior = self._prior_at(q, qd, qdd, base_wrench, tau_J)
+        prior = self._prior_at(q, qd, qdd, w_tared, tau_J, in_tare)
         if self._fast is not None:
             f = self._y_std * self._fast(x)
             f += self._y_mean if prior is None else prior
@@ -263,7 +268,8 @@ class StreamingModel:
         inst = _ArrayInstance({"q": q, "qd": qd, "qdd": qdd, "base_wrench": base_wrench, "tau_J": tau_J})
         self.model._check_instances([inst])
         module64 = copy.deepcopy(self.model.module).double()
-        x_all = np.concatenate([inst[f].reshape(len(inst), -1) for f in self.inputs], axis=1)
+        seen = tared_runs([inst], self.robot, self.call_hz, self.model.sensor_tare_seconds)[0]
+        x_all = np.concatenate([np.asarray(seen[f], float).reshape(len(inst), -1) for f in self.inputs], axis=1)
         index = window_index([len(inst)], self.window)
         prior = None
         if self.model.prior is not None:

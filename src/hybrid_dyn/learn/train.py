@@ -1,17 +1,39 @@
-"""Training: the seed's recipe (Adam, MSE, early stopping), deterministic and resumable.
+"""Training: Adam on standardized MSE, a learning-rate schedule, early stopping; deterministic and resumable.
 
-Recipe (seed 3.2): Glorot-uniform initialization, Adam at lr 1e-3, MSE loss on
-standardized targets, training until the validation loss has not improved for
-5 consecutive epochs. The weights of the best validation epoch are kept (as
-Keras' ``restore_best_weights``; the seed does not say, and the best epoch is
-what early stopping is for); the untrained model counts as epoch "0", so a
-residual model that never beats its physics part on validation stays it. Choices the seed leaves open: batch size 256, at
-most 200 epochs (see ``docs/models.md``).
+Two recipes (:data:`RECIPES`, ``--recipe``):
+
+- ``seed`` (seed 3.2, exactly): Glorot-uniform initialization, Adam at lr 1e-3,
+  MSE loss on standardized targets, a constant learning rate, and training
+  until the validation loss has not improved for 5 consecutive epochs.
+- ``default`` (this toolkit's): the same, plus what an expert adds so that a
+  net is trained to convergence rather than to its first plateau: the
+  learning rate is cut by ``lr_factor`` after ``lr_patience`` epochs without
+  improvement (reduce-on-plateau) down to a floor ``min_lr``; early stopping
+  waits ``patience`` = 10 epochs, so a cut rate gets time to pay off; the
+  gradient norm of recurrent nets is clipped at ``grad_clip`` (LSTMs on
+  standardized inputs can take an exploding step early on). Batch size: see
+  ``docs/models.md`` (a measured sweep, ``benchmarks/learn_speed.py --sweep``).
+
+Both keep the weights of the best validation epoch (as Keras'
+``restore_best_weights``); the untrained model counts as epoch "-1", so a
+residual model that never beats its physics part on validation stays it.
+A run ends for one of three reasons, recorded as ``stopped_by`` in the model's
+config with ``best_epoch``: ``patience`` (no improvement for ``patience``
+epochs), ``lr-floor`` (the rate sits at its floor and has plateaued there) or
+``epoch-cap`` (``max_epochs`` ran out first: the net may not have converged).
+
+Inputs: a preset that reads the base wrench reads it *tared* (``analytic/tare.py``:
+the sensor offset estimated on each run's contact-free first ``tare_seconds``
+and removed), as every analytic row does: taring is a sensor step, not a model
+feature. A preset with ``raw_sensor=True`` (the labelled reference rows, e.g.
+``seed-tip-11-raw``) reads the untared sensor. The model's config records it
+(``sensor_tare_seconds``), and prediction and the streaming estimator apply the
+same tare.
 
 Determinism: the initial weights come from ``torch.manual_seed(seed)``, the
 shuffling of epoch e from a generator seeded with (seed, e), and PyTorch runs
 with deterministic algorithms; a run resumed from its checkpoint continues
-exactly as if it had never stopped.
+exactly as if it had never stopped (the schedule's state is in the checkpoint).
 
 Checkpoints (every epoch, atomically): ``checkpoint.safetensors`` (weights,
 best weights, Adam state, torch's generator state for dropout) and ``checkpoint.json`` (epoch, history, counters,
@@ -41,7 +63,7 @@ from safetensors import safe_open
 from safetensors.torch import save_file
 from tqdm.auto import tqdm
 
-from ..analytic.tare import TARE_SECONDS
+from ..analytic.tare import TARE_SECONDS, tared_runs
 from ..data import Dataset, load_dataset
 from ..data.windows import WindowedSplit, concat_fields
 from ..errors import UsageError
@@ -56,11 +78,16 @@ STD_FLOOR = 1e-6  # a (nearly) constant column is scaled by 1, not blown up
 
 @dataclass
 class TrainConfig:
-    """How to train. Defaults follow the seed where it speaks (lr, patience).
+    """How to train: the ``default`` recipe (see the module docstring; ``TrainConfig.recipe("seed")``
+    gives the seed's).
 
     seed: weights and shuffling. batch_size: samples per Adam step.
     max_epochs: upper bound; early stopping usually ends sooner.
     patience: epochs without validation improvement before stopping (seed: 5).
+    lr: Adam's initial learning rate. lr_schedule: "plateau" (cut the rate by
+    lr_factor after lr_patience epochs without improvement, never below min_lr)
+    or "none" (constant, the seed's).
+    grad_clip: largest gradient norm of a net with an LSTM (None: no clipping).
     max_batches_per_epoch: cap an epoch's batches (quick runs, tuning); None = all.
     analytic_params: parameter set of the residual models' analytic part
     (None: the robot's nominal URDF; a set name or a JSON path, e.g. identified).
@@ -75,9 +102,14 @@ class TrainConfig:
     seed: int = 0
     batch_size: int = 256
     max_epochs: int = 200
-    patience: int = 5
+    patience: int = 10
     min_delta: float = 0.0
     lr: float = 1e-3
+    lr_schedule: str = "plateau"
+    lr_factor: float = 0.3
+    lr_patience: int = 3
+    min_lr: float = 1e-5
+    grad_clip: float | None = 1.0
     max_batches_per_epoch: int | None = None
     analytic_params: str | None = None
     observer_gain: float = 20.0
@@ -89,6 +121,13 @@ class TrainConfig:
     def __post_init__(self):
         self.validate()
 
+    @classmethod
+    def recipe(cls, name: str = "default", **overrides) -> "TrainConfig":
+        """The named recipe of :data:`RECIPES`, with any field overridden."""
+        if name not in RECIPES:
+            raise UsageError(f"unknown training recipe {name!r}; known: {', '.join(RECIPES)}")
+        return cls(**{**RECIPES[name], **overrides})
+
     def validate(self) -> None:
         """Refuse values out of range with a one-line UsageError naming the field and the CLI flag.
 
@@ -96,7 +135,8 @@ class TrainConfig:
         otherwise save an untrained model, a bad device end in a traceback.
         """
         for name, least, optional in (("seed", 0, False), ("batch_size", 1, False), ("max_epochs", 1, False),
-                                      ("patience", 1, False), ("max_batches_per_epoch", 1, True),
+                                      ("patience", 1, False), ("lr_patience", 1, False),
+                                      ("max_batches_per_epoch", 1, True),
                                       ("num_threads", 1, True)):
             v = getattr(self, name)
             if v is None and optional:
@@ -110,6 +150,17 @@ class TrainConfig:
             if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v) or v < 0 \
                     or (positive and v == 0):
                 raise UsageError(f"{_option(name)} must be a finite number {'> 0' if positive else '>= 0'}, got {v!r}")
+        if self.lr_schedule not in LR_SCHEDULES:
+            raise UsageError(f"{_option('lr_schedule')} must be one of {', '.join(LR_SCHEDULES)}, "
+                             f"got {self.lr_schedule!r}")
+        for name in ("lr_factor", "min_lr") + (("grad_clip",) if self.grad_clip is not None else ()):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v) or v <= 0:
+                raise UsageError(f"{_option(name)} must be a finite number > 0, got {v!r}")
+        if not self.lr_factor < 1:
+            raise UsageError(f"{_option('lr_factor')} must be < 1 (it cuts the rate), got {self.lr_factor!r}")
+        if self.min_lr > self.lr:
+            raise UsageError(f"{_option('min_lr')} ({self.min_lr}) must not exceed {_option('lr')} ({self.lr})")
         if not isinstance(self.device, str) or not re.fullmatch(r"auto|cpu|cuda(:\d+)?", self.device):
             raise UsageError(f"{_option('device')} must be auto, cpu, cuda or cuda:N, got {self.device!r}")
         if self.analytic_params is not None and not isinstance(self.analytic_params, (str, os.PathLike)):
@@ -123,6 +174,17 @@ class TrainConfig:
         return d
 
 
+LR_SCHEDULES = ("plateau", "none")
+STOP_REASONS = ("patience", "lr-floor", "epoch-cap")
+
+# Named training recipes (TrainConfig fields). "seed": the seed's 3.2 exactly (constant rate,
+# patience 5, no clipping); "default": the TrainConfig defaults (module docstring).
+RECIPES = {
+    "default": {},
+    "seed": dict(lr_schedule="none", patience=5, grad_clip=None, batch_size=256, max_epochs=200),
+}
+
+
 def _option(field: str) -> str:
     """A TrainConfig field as the user wrote it: the field and, where there is one, its CLI flag."""
     flag = _CLI_FLAGS.get(field)
@@ -131,7 +193,8 @@ def _option(field: str) -> str:
 
 _CLI_FLAGS = {"seed": "--seed", "batch_size": "--batch-size", "max_epochs": "--epochs", "patience": "--patience",
               "max_batches_per_epoch": "--max-batches-per-epoch", "num_threads": "--threads",
-              "device": "--device", "analytic_params": "--analytic-params"}
+              "device": "--device", "analytic_params": "--analytic-params", "lr": "--lr",
+              "lr_schedule": "--lr-schedule", "grad_clip": "--grad-clip", "min_lr": "--min-lr"}
 
 
 def _device(name: str) -> torch.device:
@@ -363,14 +426,20 @@ def _train_locked(ds: Dataset, preset: Preset, out_dir: Path, config: TrainConfi
     if missing:
         raise ModelError(f"dataset {ds.path} lacks fields {missing} that preset {preset.name!r} needs")
     robot = None
-    if robot_name in available_robots():
+    sensor_tare = sensor_tare_seconds(preset, config)
+    if _described(robot_name):
         from ..analytic.robot import load_robot
 
-        robot = load_robot(robot_name, params=config.analytic_params if preset.prior is not None else None)
+        # The robot of the prior and of the sensor tare: what TrainedModel.robot loads again.
+        robot = load_robot(robot_name, params=config.analytic_params)
     elif preset.prior is not None:
         raise ModelError(f"preset {preset.name!r} needs a description of robot {robot_name!r} (dataset {ds.path}) "
                          f"for its analytic part, and there is none (available: {', '.join(available_robots())}); "
                          f"a data-only preset (seed nets, DeLaN) needs none")
+    elif sensor_tare > 0:
+        raise ModelError(f"preset {preset.name!r} reads the base wrench, tared with the model of robot "
+                         f"{robot_name!r} (dataset {ds.path}), and this toolkit has no description of it: give a URDF "
+                         f"(see docs/bring_your_own_log.md) or train on the raw sensor with tare_seconds=0")
 
     prior = None
     if preset.prior is not None:
@@ -388,12 +457,13 @@ def _train_locked(ds: Dataset, preset: Preset, out_dir: Path, config: TrainConfi
 
     def split_data(instances):
         extra = None
-        if prior is not None:
+        if prior is not None:  # the prior tares its own copy of the wrench (the same definition)
             extra = {"prior": prior.compute_instances(instances, out_dir / "analytic_cache", ds.checksum)}
-        return WindowedSplit(instances, preset.window, list(preset.inputs), list(preset.targets), extra=extra)
+        seen = tared_runs(instances, robot, ds.meta.get("record_hz"), sensor_tare)
+        return WindowedSplit(seen, preset.window, list(preset.inputs), list(preset.targets), extra=extra)
 
     ws_train, ws_val = split_data(train), split_data(val)
-    x_mean, x_std = _stats(concat_fields(train, list(preset.inputs)))
+    x_mean, x_std = _stats(ws_train.x)
     y_mean, y_std = _stats(ws_train.y)
 
     with _deterministic(config.num_threads):
@@ -402,7 +472,8 @@ def _train_locked(ds: Dataset, preset: Preset, out_dir: Path, config: TrainConfi
         module.set_normalization(x_mean, x_std, y_mean, y_std)
         module.to(device)
         opt = torch.optim.Adam(module.parameters(), lr=config.lr)
-        return _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint, widths, prior, device)
+        return _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint, widths, prior, device,
+                    sensor_tare)
 
 
 def _batches(ws: WindowedSplit, idx: np.ndarray, device):
@@ -426,12 +497,46 @@ def evaluate_split(module: HybridModel, ws: WindowedSplit, device, batch_size: i
     return total / max(n, 1)
 
 
-def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint, widths, prior, device):
+def _described(robot_name: str) -> bool:
+    """Whether the robot has a model (a URDF): what the analytic part and the sensor tare need.
+    A name this toolkit cannot resolve is a data-only arm here (its joint fields are checked alone)."""
+    from ..description import RobotDescriptionError, resolve_robot
+
+    try:
+        return resolve_robot(robot_name).described
+    except RobotDescriptionError:
+        return False
+
+
+def sensor_tare_seconds(preset: Preset, config: TrainConfig) -> float:
+    """The contact-free start [s] on which the net's base-wrench input is tared (0: raw sensor)."""
+    if "base_wrench" not in preset.inputs or preset.raw_sensor:
+        return 0.0
+    return float(config.tare_seconds)
+
+
+def _is_recurrent(preset: Preset) -> bool:
+    """Whether the net has an LSTM (front or residual branch): the nets whose gradients are clipped."""
+    return preset.kind == "lstm" or preset.residual_kind == "lstm"
+
+
+def _stop_reason(config: TrainConfig, bad_epochs: int, lr_bad_epochs: int, lr: float) -> str | None:
+    """Why training stops after this epoch (None: it goes on). ``epoch-cap`` is decided by the loop."""
+    if bad_epochs >= config.patience:
+        return "patience"
+    if config.lr_schedule == "plateau" and lr <= config.min_lr and lr_bad_epochs >= config.lr_patience:
+        return "lr-floor"  # the rate cannot be cut again, and it has plateaued at the floor
+    return None
+
+
+def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint, widths, prior, device, sensor_tare):
     n = len(ws_train)
     n_batches = -(-n // config.batch_size)
     if config.max_batches_per_epoch:
         n_batches = min(n_batches, config.max_batches_per_epoch)
-    history, bad_epochs, start_epoch, seconds = [], 0, 0, 0.0
+    history, bad_epochs, lr_bad_epochs, start_epoch, seconds = [], 0, 0, 0, 0.0
+    best_epoch, stopped_by = -1, None
+    clip = config.grad_clip if _is_recurrent(preset) else None
     # The untrained model is the first candidate: a residual model starts as its physics
     # part (zero-initialized branch), and keeps it when training never beats it on validation.
     best_state = {k: v.detach().clone() for k, v in module.state_dict().items()}
@@ -448,7 +553,8 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
             torch.cuda.set_rng_state(tensors["rng.cuda"], device)
         history, best_val, bad_epochs = info["history"], info["best_val"], info["bad_epochs"]
         start_epoch, seconds = info["epoch"] + 1, info["train_seconds"]
-    stopped = bad_epochs >= config.patience
+        lr_bad_epochs, best_epoch, stopped_by = info["lr_bad_epochs"], info["best_epoch"], info["stopped_by"]
+    stopped = stopped_by is not None
     bar = tqdm(total=config.max_epochs * n_batches, initial=start_epoch * n_batches, disable=not config.progress,
                desc=f"{preset.name}", unit="batch", dynamic_ncols=True)
     module.train()
@@ -465,23 +571,35 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
                 opt.zero_grad(set_to_none=True)
                 loss = module.standardized_loss(module(x, p), y)
                 loss.backward()
+                if clip is not None:
+                    torch.nn.utils.clip_grad_norm_(module.parameters(), clip)
                 opt.step()
                 losses.append(float(loss.detach()))
                 bar.update(1)
             val = evaluate_split(module, ws_val, device)
             seconds += time.perf_counter() - t0
-            history.append({"epoch": epoch, "train_loss": float(np.mean(losses)), "val_loss": val})
+            lr = opt.param_groups[0]["lr"]  # the rate this epoch trained with
+            history.append({"epoch": epoch, "train_loss": float(np.mean(losses)), "val_loss": val, "lr": lr})
             if val < best_val - config.min_delta:
-                best_val, bad_epochs = val, 0
+                best_val, bad_epochs, lr_bad_epochs, best_epoch = val, 0, 0, epoch
                 best_state = {k: v.detach().clone() for k, v in module.state_dict().items()}
             else:
                 bad_epochs += 1
-            stopped = bad_epochs >= config.patience
+                lr_bad_epochs += 1
+            stopped_by = _stop_reason(config, bad_epochs, lr_bad_epochs, lr)
+            if stopped_by is None and config.lr_schedule == "plateau" and lr_bad_epochs >= config.lr_patience:
+                for group in opt.param_groups:  # reduce on plateau, floored
+                    group["lr"] = max(group["lr"] * config.lr_factor, config.min_lr)
+                lr_bad_epochs = 0
+            if stopped_by is None and epoch + 1 == config.max_epochs:
+                stopped_by = "epoch-cap"
+            stopped = stopped_by is not None
             bar.set_description(f"{preset.name} epoch {epoch + 1}/{config.max_epochs}")
             bar.set_postfix(train=f"{history[-1]['train_loss']:.4f}", val=f"{val:.4f}", best=f"{best_val:.4f}")
             _save_checkpoint(out_dir, module, best_state, opt, {
                 "fingerprint": fingerprint, "epoch": epoch, "history": history, "best_val": best_val,
-                "bad_epochs": bad_epochs, "train_seconds": seconds})
+                "bad_epochs": bad_epochs, "lr_bad_epochs": lr_bad_epochs, "best_epoch": best_epoch,
+                "stopped_by": stopped_by, "train_seconds": seconds})
     finally:
         bar.close()
 
@@ -493,10 +611,12 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
         "window": preset.window, "widths": widths, "robot": ds.meta["robot"],
         "analytic_params": config.analytic_params, "observer_gain": config.observer_gain,
         "record_hz": ds.meta.get("record_hz"), "prior": None if prior is None else prior.describe(),
+        "sensor_tare_seconds": sensor_tare,
         "normalization": {k: getattr(module, k).cpu().double().tolist() for k in ("x_mean", "x_std", "y_mean", "y_std")},
         "dataset": {"path": str(ds.path), "checksum": ds.checksum, "scenario": ds.meta.get("scenario")},
         "train_config": asdict(config), "fingerprint": fingerprint, "history": history,
-        "epochs": len(history), "stopped_early": bool(stopped), "val_loss": best_val, "initial_val_loss": initial_val,
+        "epochs": len(history), "stopped_by": stopped_by, "best_epoch": best_epoch,
+        "stopped_early": stopped_by in ("patience", "lr-floor"), "val_loss": best_val, "initial_val_loss": initial_val,
         "n_params": sum(p.numel() for p in module.parameters()),
         "train_samples": len(ws_train), "torch": torch.__version__,
     }  # no wall-clock figures: they would make two identical runs' files differ (timing.json has them)
