@@ -16,6 +16,7 @@ body to the joint's own link and lists the other links with mass 0 and
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import tempfile
@@ -29,6 +30,7 @@ import pinocchio as pin
 from ..analytic.robot import InputError, Robot, as_batch, load_robot
 from ..description import GazFriction, RobotDescriptionError
 from ..errors import UsageError
+from ..outputs import unique_temp
 from . import estimators as est
 from .parameters import N_BODY_PARAMS, check_consistency, to_urdf_form
 from .regressor import (DEFAULT_COULOMB_EPS, BaseParameters, base_parameters, friction_regressor,
@@ -87,6 +89,31 @@ def friction_from_file(path) -> LinearFriction | GazFriction:
     if not isinstance(doc, dict) or "friction" not in doc:
         raise RobotDescriptionError(f"{path} has no friction section")
     return friction_from_dict(doc["friction"], str(path))
+
+
+def read_identified_file(params) -> tuple[dict, str] | None:
+    """(document, sha256 of its bytes) of an identified parameter file, or None when
+    ``params`` is not one: None, a set name (``"gaz2019"``), or a JSON file of another
+    kind (a nominal parameter set, with or without a friction section).
+
+    Only a file :meth:`IdentifiedModel.save` wrote is a whole identified model (its
+    inertials and the friction fitted with them); the residual priors take its
+    friction (:class:`hybrid_dyn.learn.priors.AnalyticPrior`) and key their caches on
+    the digest, so a file rewritten in place never serves a stale prior.
+    """
+    if params is None or Path(params).suffix != ".json" or not Path(params).is_file():
+        return None
+    path = Path(params)
+    try:
+        raw = path.read_bytes()
+        doc = json.loads(raw)
+    except (OSError, ValueError) as err:
+        raise RobotDescriptionError(f"cannot read parameter file {path}: {err}") from err
+    if not isinstance(doc, dict) or doc.get("format") != FILE_FORMAT:
+        return None
+    if not isinstance(doc.get("friction"), dict):
+        raise RobotDescriptionError(f"{path}: an identified parameter file needs its friction section")
+    return doc, hashlib.sha256(raw).hexdigest()
 
 
 # -------------------------------------------------------------------------- data
@@ -198,12 +225,16 @@ class IdentifiedModel:
         }
 
     def save(self, path) -> Path:
-        """Write the parameter file atomically (temp file, then rename)."""
+        """Write the parameter file atomically (a per-run temporary, then rename: two runs
+        writing the same file never mix their bytes)."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(path.suffix + ".partial")
-        tmp.write_text(json.dumps(self.to_dict(), indent=1))
-        os.replace(tmp, path)
+        tmp = unique_temp(path)
+        try:
+            tmp.write_text(json.dumps(self.to_dict(), indent=1))
+            os.replace(tmp, path)
+        finally:
+            tmp.unlink(missing_ok=True)
         return path
 
     @classmethod
@@ -235,6 +266,9 @@ class IdentifiedModel:
             raise RobotDescriptionError(
                 f"{self.method} parameters give non-positive mass to the bodies of {bad}: no URDF can hold them "
                 f"(use the 'consistent' or 'sigmoid-friction' method)")
+        # The variant's tool too (panda[tool=none]: without it the hand would come back at its
+        # nominal mass); not its payload, which the joint-7 body already holds.
+        kwargs.setdefault("tool", self.robot.spec.tool)
         with tempfile.TemporaryDirectory() as tmp:
             path = self.save(Path(tmp) / "identified.json")
             return load_robot(self.robot.spec.source or self.robot.name, params=path, **kwargs)

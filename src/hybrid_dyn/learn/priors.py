@@ -4,14 +4,24 @@ A residual model predicts ``prior + network``; the prior is one of the
 toolkit's analytic models on the *nominal* robot (or another parameter set, e.g.
 an identified one):
 
-- ``rnea``            tau = RNEA(q, qd, qdd)                         [Nm] (nv)
-- ``rnea-basewrench`` tau = RNEA(q, qd, qdd) - J_v^T F_bw            [Nm] (nv)
+- ``rnea``            tau = RNEA(q, qd, qdd) [+ tau_f(qd)]           [Nm] (nv)
+- ``rnea-basewrench`` tau = RNEA(q, qd, qdd) [+ tau_f(qd)] - J_v^T F_bw [Nm] (nv)
   with F_bw the base-wrench tip-force estimate: physics-informed torque models
   may use the base sensor (PROTOCOL 4), which sees the external force.
 - ``basewrench``      F = tip_force_from_base_wrench(q, qd, qdd, w)  [N] (3)
 - ``momentum``        F = MomentumObserver(q, qd, tau_J), dt = 1 / record_hz [N] (3)
 - ``base-momentum``   F = the base momentum observer (q, qd, tared base wrench) [N] (3),
   0 in the tare window and started after it (``analytic.base_momentum_tip_force``)
+
+On an identified parameter file (``hybrid-dyn identify``; ``TrainConfig.analytic_params``)
+the two torque priors are the identified model itself: its inertials and the
+friction tau_f fitted with them, so that the motor torque tau_m is predicted as
+``IdentifiedModel.predict_torque`` does (an untrained residual equals it). A nominal
+set (a name, or a file that ``identify`` did not write, with or without a friction
+section) is rigid body only, as the nominal prior has always been. The tip-force
+priors take the file's inertials and no friction: the base sensor sees the whole
+robot, in which joint friction is internal, and the momentum observer reads tau_J,
+the torque after friction.
 
 The two observers are filters with state, so their value at a sample depends
 on the whole instance before it; the others are per sample.
@@ -49,6 +59,7 @@ PRIOR_FIELDS = {
     "base-momentum": ("q", "qd", "qdd", "base_wrench"),  # qdd: only for the tare
 }
 STATEFUL_PRIORS = ("momentum", "base-momentum")
+FRICTION_PRIORS = ("rnea", "rnea-basewrench")  # predict the motor torque: rigid body + friction
 
 
 class AnalyticPrior:
@@ -59,10 +70,14 @@ class AnalyticPrior:
     observer_gain: the momentum observer's bandwidth K [1/s].
     tare_seconds: base-wrench priors only: the contact-free start of each
     instance used to tare the base sensor [s]; 0 = no tare.
+    friction: the joint friction added to the torque priors (``rnea``,
+    ``rnea-basewrench``), as a parameter file's ``friction`` section (dict) or None;
+    ``"auto"``: the friction of the robot's parameter set when that is an identified
+    file, else none (module docstring). A loaded model passes what its config holds.
     """
 
     def __init__(self, kind: str, robot, record_hz: float | None = None, observer_gain: float = 20.0,
-                 tare_seconds: float = 0.0):
+                 tare_seconds: float = 0.0, friction: dict | str | None = "auto"):
         if kind not in PRIOR_FIELDS:
             raise ValueError(f"unknown analytic prior {kind!r}; known: {sorted(PRIOR_FIELDS)}")
         if kind in STATEFUL_PRIORS and not record_hz:
@@ -76,13 +91,35 @@ class AnalyticPrior:
         self.observer_gain = float(observer_gain)
         self.fields = PRIOR_FIELDS[kind]
         self._single = None
+        from ..identify.model import friction_from_dict, read_identified_file
+
+        identified = None if str(robot.params_name) in robot.spec.param_sets else read_identified_file(robot.params_name)
+        # The identified file's digest: its inertials are in the prior's values, and the path alone
+        # would let a file rewritten in place serve a stale cache or a mismatched loaded model.
+        self.params_sha256 = identified[1] if identified else None
+        if isinstance(friction, str) and friction == "auto":
+            friction = identified[0]["friction"] if identified and kind in FRICTION_PRIORS else None
+        if friction is not None and kind not in FRICTION_PRIORS:
+            raise ValueError(f"the {kind} prior takes no joint friction (only {', '.join(FRICTION_PRIORS)} do)")
+        if friction is not None and not isinstance(friction, dict):
+            raise ValueError(f"friction must be a parameter file's friction section (dict), 'auto' or None, "
+                             f"got {friction!r}")
+        self.friction = friction
+        self._friction = friction_from_dict(friction, f"the {kind} prior's friction") if friction else None
 
     def describe(self) -> dict:
         """What identifies this prior's values (part of the cache key and the model config)."""
         return {"kind": self.kind, "robot": self.robot.name, "params": self.robot.params_name,
                 "payload": repr(self.robot.payload), "sensor_mount": repr(self.robot.sensor_mount),
                 "record_hz": self.record_hz, "observer_gain": self.observer_gain,
-                "tare_seconds": self.tare_seconds}
+                "tare_seconds": self.tare_seconds,
+                # Only where present, so that no cache key or config of a nominal prior moves.
+                **({"params_sha256": self.params_sha256} if self.params_sha256 else {}),
+                **({"friction": self.friction} if self.friction else {})}
+
+    def friction_torque(self, qd) -> np.ndarray | float:
+        """The prior's joint friction [Nm] at qd [rad/s] ((nv,) or (N, nv)); 0.0 without one."""
+        return 0.0 if self._friction is None else self._friction(np.asarray(qd, float))
 
     # ------------------------------------------------------------ evaluation
     def compute(self, fields: dict) -> np.ndarray:
@@ -94,7 +131,7 @@ class AnalyticPrior:
             return obs.run(q, qd, fields["tau_J"])[0]
         qdd = fields["qdd"]
         if self.kind == "rnea":
-            return np.atleast_2d(r.inverse_dynamics(q, qd, qdd))
+            return np.atleast_2d(r.inverse_dynamics(q, qd, qdd) + self.friction_torque(qd))
         w = fields["base_wrench"]
         n_tare = tare_samples(self.record_hz, self.tare_seconds) if self.tare_seconds > 0 else 0
         if n_tare:
@@ -104,7 +141,8 @@ class AnalyticPrior:
         f_bw = np.atleast_2d(tip_force_from_base_wrench(r, q, qd, qdd, w))
         if self.kind == "basewrench":
             return f_bw
-        return np.atleast_2d(r.inverse_dynamics(q, qd, qdd)) - contact_joint_torques(r, np.atleast_2d(q), f_bw)
+        return np.atleast_2d(r.inverse_dynamics(q, qd, qdd) + self.friction_torque(qd)) \
+            - contact_joint_torques(r, np.atleast_2d(q), f_bw)
 
     def single(self, sample: dict) -> np.ndarray:
         """The prior at one sample (fields -> 1-D arrays); not for the stateful momentum observer.
@@ -121,12 +159,12 @@ class AnalyticPrior:
         s = self._single
         q, qd, qdd = (np.asarray(sample[k], float) for k in ("q", "qd", "qdd"))
         if self.kind == "rnea":
-            return pin.rnea(s.model, s.data, q, qd, qdd).copy()
+            return pin.rnea(s.model, s.data, q, qd, qdd) + self.friction_torque(qd)
         f_bw = s.basewrench_force(q, qd, qdd, np.asarray(sample["base_wrench"], float))
         if self.kind == "basewrench":
             return f_bw
         jv = pin.computeFrameJacobian(s.model, s.data, q, s.tool, pin.LOCAL_WORLD_ALIGNED)[:3]
-        return pin.rnea(s.model, s.data, q, qd, qdd) - jv.T @ f_bw
+        return pin.rnea(s.model, s.data, q, qd, qdd) + self.friction_torque(qd) - jv.T @ f_bw
 
     def compute_instances(self, instances, cache_dir=None, dataset_checksum: str | None = None) -> list[np.ndarray]:
         """The prior for every instance; cached under ``cache_dir`` when a dataset checksum is given."""
