@@ -1,10 +1,19 @@
-"""Identified-model rows of the benchmark (issue 7): the strongest analytic baseline.
+"""Identified-model rows of the benchmark (issues 7 and 15): the strongest analytic
+baseline, and the residual nets on it.
 
-Per scenario, as on a real robot: an excitation trajectory (Fourier series
-designed for the regressor's condition number, once per robot) is run on the
-scenario's own plant with the external pulses off; the parameters are
-identified from that run alone and then scored on the scenario's test split
-like every other row. Design, identification run and fits are cached.
+Where the parameters are identified from, per scenario:
+- a simulated scenario (:func:`has_simulated_plant`): as on a real robot, an
+  excitation trajectory (Fourier series designed for the regressor's condition
+  number, once per robot) is run on the scenario's own plant with the external
+  pulses off, and the parameters are identified from that run alone;
+- any other dataset (an imported log, which has no plant to run): its own train
+  and val splits, through the code of ``hybrid-dyn identify`` with its defaults
+  (``identify(ds, method, robot)``: the logged qdd); its test split stays held out.
+Either way the rows are scored on the scenario's test split like every other row.
+The design and the identification run are cached in the data root; each fit is
+written once to the bench's work dir as ``identified/<method>-<digest>.json``
+(named by a digest of what it was fitted on: robot names such as
+``panda[tool=none]`` hold brackets) and read back on a rerun.
 
 Rows:
   joint torque  identified-ols, identified-consistent, identified-sigmoid-friction,
@@ -13,10 +22,18 @@ Rows:
                 base-wrench-identified-tared: the contact torque removed with the base sensor)
   tip force     base-wrench-identified (the base-wrench method on the consistent set),
                 base-wrench-identified-tared (the same on a base sensor tared per run)
+  residual      residual-rnea-identified, residual-rnea-bw-identified: the presets residual-rnea
+                and residual-rnea-bw with their prior on the consistent model, its inertials and
+                its friction (TrainConfig.analytic_params = its file; learn/priors.py); untrained,
+                residual-rnea-identified is identified-consistent
 """
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import json
+import re
+import time
 from pathlib import Path
 
 import numpy as np
@@ -24,24 +41,100 @@ import numpy as np
 from ..analytic.tare import TARE_SECONDS, tare_samples, tared_base_wrench
 from ..analytic.tip_force import contact_joint_torques, tip_force_from_base_wrench
 from ..data import DatasetError, load_dataset
+from ..outputs import unique_temp
 
 EXCITATION_ITERATIONS = {"quick": 30, "default": 150, "paper": 150}
+LOG_SPLITS = ("train", "val")  # what an imported log's identification sees; never its test split
+RESIDUAL_PRIOR_METHOD = "consistent"  # the identified model the residual rows sit on
+RESIDUAL_ROWS = {"residual-rnea-identified": "residual-rnea", "residual-rnea-bw-identified": "residual-rnea-bw"}
 
 
-def _identified(ctx) -> dict:
-    """The fitted models of this scenario, computed once (cached in memory and on disk)."""
-    if "identified" in ctx.cache:
-        return ctx.cache["identified"]
+def has_simulated_plant(ds) -> bool:
+    """Whether the dataset was simulated on one of :data:`~hybrid_dyn.sim.scenarios.SCENARIOS`'
+    plants, on which an excitation run can be recorded (an imported log has none)."""
+    from ..sim.scenarios import SCENARIOS
+
+    return ds.meta.get("generator_version") is not None and ds.meta.get("scenario") in SCENARIOS
+
+
+def file_safe_name(name: str) -> str:
+    """``name`` as a file-name part: itself when plain (``panda``), else its safe characters and a
+    digest (``panda[tool=none]`` -> ``panda_tool_none_-1c2b...``), so that variants never share a file."""
+    safe = re.sub(r"[^A-Za-z0-9._-]+", "_", name)
+    return safe if safe == name else f"{safe}-{hashlib.sha256(name.encode()).hexdigest()[:8]}"
+
+
+def identified_row_needs(name: str) -> tuple:
+    """The dataset fields an identified row reads (beyond a URDF for the dataset's robot)."""
+    from .profiles import ANALYTIC_NEEDS
+
+    if name in RESIDUAL_ROWS:
+        from ..learn.presets import get_preset
+
+        preset = get_preset(RESIDUAL_ROWS[name])
+        return tuple(preset.inputs) + tuple(preset.targets)
+    return ANALYTIC_NEEDS.get(name, ("q", "qd", "qdd", "tau_m"))
+
+
+def _identification_data(ctx) -> tuple:
+    """(dataset, identify() keywords, what it is): what this scenario's parameters are fitted on."""
+    if "identification-data" not in ctx.cache:
+        if has_simulated_plant(ctx.dataset):
+            ident = _excitation_dataset(ctx)
+            ctx.cache["identification-data"] = (ident, dict(splits=("train",), acceleration="zero-phase"),
+                                                f"the excitation run {Path(ident.path).name}")
+        else:
+            # The CLI's defaults (identify/cli.py): train + val, the logged qdd.
+            ctx.cache["identification-data"] = (ctx.dataset, dict(splits=LOG_SPLITS, acceleration="measured"),
+                                                "the dataset's train + val splits")
+    return ctx.cache["identification-data"]
+
+
+def _identified(ctx, method: str):
+    """(IdentifiedModel, its file) of this scenario for ``method``: fitted once, then read from the work dir."""
+    key = ("identified", method)
+    if key in ctx.cache:
+        return ctx.cache[key]
+    from ..identify.estimators import ConsistentConfig
+    from ..identify.model import IdentifiedModel, identify
+
+    data, kwargs, what = _identification_data(ctx)
+    robot = ctx.robot
+    digest = hashlib.sha256(json.dumps(
+        {"data": data.checksum, "robot": robot.name, "params": robot.params_name, "method": method,
+         "config": dataclasses.asdict(ConsistentConfig()), **kwargs}, sort_keys=True, default=str).encode()).hexdigest()
+    path = Path(ctx.work_dir) / "identified" / f"{method}-{digest[:16]}.json"
+    if path.is_file():
+        model = IdentifiedModel.load(path, robot=robot)
+    else:
+        ctx.log(f"[bench] {ctx.scenario}: identifying ({method}) on {what}")
+        model = identify(data, method, robot, **kwargs)
+        model.save(path)
+    ctx.cache[key] = (model, path)
+    return ctx.cache[key]
+
+
+class _Models:
+    """method -> IdentifiedModel of this scenario, each fitted when a row first asks for it."""
+
+    def __init__(self, ctx):
+        self.ctx = ctx
+
+    def __getitem__(self, method: str):
+        return _identified(self.ctx, method)[0]
+
+
+def _excitation_dataset(ctx):
+    """The identification run on the scenario's plant (designed and simulated once, cached in the data root)."""
     from ..identify.excitation import ExcitationConfig, FourierTrajectory, design_excitation
     from ..identify.experiment import record_excitation_dataset
-    from ..identify.model import identify
     from ..sim.scenarios import scenario_config
 
     prof = ctx.profile
     root = Path(ctx.data_root)
     root.mkdir(parents=True, exist_ok=True)
     ex_cfg = ExcitationConfig(max_iter=EXCITATION_ITERATIONS.get(prof.generator_profile, 150), seed=prof.seed)
-    traj_file = root / f"excitation-{ctx.robot.name}-{ex_cfg.max_iter}it-seed{prof.seed}.json"
+    traj_file = root / f"excitation-{file_safe_name(ctx.robot.name)}-{ex_cfg.max_iter}it-seed{prof.seed}.json"
     if traj_file.is_file():
         d = json.loads(traj_file.read_text())
         traj = FourierTrajectory(np.array(d["q0"]), np.array(d["a"]), np.array(d["b"]), float(d["f0"]))
@@ -49,7 +142,7 @@ def _identified(ctx) -> dict:
         ctx.log(f"[bench] designing the excitation trajectory ({ex_cfg.max_iter} IPOPT iterations)")
         traj, report = design_excitation(ctx.robot, ex_cfg)
         ctx.log(f"[bench] excitation: cond {report['condition_start']:.1f} -> {report['condition']:.1f}")
-        tmp = traj_file.with_suffix(".partial")
+        tmp = unique_temp(traj_file)
         tmp.write_text(json.dumps(traj.to_dict()))
         tmp.replace(traj_file)
     cfg = scenario_config(ctx.scenario, prof.generator_profile, seed=prof.seed, **prof.generator_overrides)
@@ -60,17 +153,14 @@ def _identified(ctx) -> dict:
         ctx.log(f"[bench] {ctx.scenario}: simulating the identification run")
         ident = load_dataset(record_excitation_dataset(ident_dir, cfg, traj, n_instances=2, periods=2.0,
                                                        seed=prof.seed, progress=False))
-    models = {m: identify(ident, m, ctx.robot, splits=("train",), acceleration="zero-phase")
-              for m in ("ols", "consistent", "sigmoid-friction")}
-    ctx.cache["identified"] = models
-    return models
+    return ident
 
 
 def _row(task, name, predict_instance, inputs, single=None):
     from .runner import Predictor, RowSpec
 
     def build(ds, ctx):
-        models = _identified(ctx)
+        models = _Models(ctx)
         return Predictor(predict=lambda insts: [predict_instance(models, ctx, i) for i in insts],
                          single_call=(lambda inst, k: single(models, ctx, inst, k)) if single else None,
                          inputs=inputs)
@@ -123,6 +213,28 @@ def _friction_only(models, ctx, q, qd, qdd):
     return ctx.robot.inverse_dynamics(q, qd, qdd) + models["sigmoid-friction"].friction(qd)
 
 
+def _residual_row(name: str, preset: str):
+    """A residual net (``preset``) on the identified model, inertials and friction, trained like the learned rows."""
+    from .runner import Predictor, RowSpec, _learned_single_call
+
+    def build(ds, ctx):
+        from ..learn import train_model
+
+        _, path = _identified(ctx, RESIDUAL_PRIOR_METHOD)
+        config = dataclasses.replace(ctx.profile.train_config(), analytic_params=str(Path(path).resolve()))
+        # The folder is named by the parameter file's content: a refit never meets a model of the old one.
+        out = Path(ctx.work_dir) / "models" / f"{name}-{hashlib.sha256(Path(path).read_bytes()).hexdigest()[:12]}"
+        t0 = time.perf_counter()
+        model = train_model(ds, preset, out, config=config)
+        train_seconds = getattr(model, "train_seconds", None) or (time.perf_counter() - t0)
+        return Predictor(predict=model.predict, single_call=_learned_single_call(model),
+                         train_seconds=float(train_seconds), n_params=int(model.n_params),
+                         inputs=", ".join(model.config.get("inputs", []))
+                         + f"; prior on identified-{RESIDUAL_PRIOR_METHOD} (inertials + friction)")
+
+    return RowSpec("joint_torque", name, "identified", build)
+
+
 def identified_row_specs(profile) -> list:
     return [
         _torque_row("identified-ols", "ols"),
@@ -137,6 +249,7 @@ def identified_row_specs(profile) -> list:
              single=lambda m, c, i, k: _tared_force_identified(m, c, i, k)),
         _row("joint_torque", "identified-bw-tared", _identified_bw_torque, TARED_INPUTS,
              single=lambda m, c, i, k: _identified_bw_torque(m, c, i, k)),
+        *(_residual_row(name, preset) for name, preset in RESIDUAL_ROWS.items()),
     ]
 
 
