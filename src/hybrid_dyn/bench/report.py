@@ -253,6 +253,16 @@ def findings(rows) -> list[str]:
 
 
 # -------------------------------------------------------------------- figures
+def _save(fig, out_dir: Path, name: str, dpi: int) -> str:
+    """Lay out, write ``out_dir/name`` and close ``fig``; returns the file's name for the README."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    fig.savefig(out_dir / name, dpi=dpi)
+    plt.close(fig)
+    return name
+
+
 def _figures(out_dir: Path, rows, contexts) -> list[str]:
     import matplotlib
 
@@ -278,11 +288,7 @@ def _figures(out_dir: Path, rows, contexts) -> list[str]:
             ax.set_title(s)
             ax.set_ylabel(f"test RMSE [{unit}]")
             ax.tick_params(axis="x", labelsize=7, rotation=30)
-        fig.tight_layout()
-        name = f"rmse_by_family_{task}.png"
-        fig.savefig(out_dir / name, dpi=110)
-        plt.close(fig)
-        made.append(name)
+        made.append(_save(fig, out_dir, f"rmse_by_family_{task}.png", dpi=110))
 
     for scenario, ctx in contexts.items():
         test = ctx.dataset.split("test")
@@ -313,11 +319,7 @@ def _figures(out_dir: Path, rows, contexts) -> list[str]:
             axes[0, 0].legend(fontsize=7, ncol=3, loc="upper right")
             axes[-1, 0].set_xlabel("t [s]")
             fig.suptitle(f"{scenario}, test instance {inst.name}: {task.replace('_', ' ')}", fontsize=10)
-            fig.tight_layout()
-            name = f"traces_{task}_{scenario}.png"
-            fig.savefig(out_dir / name, dpi=100)
-            plt.close(fig)
-            made.append(name)
+            made.append(_save(fig, out_dir, f"traces_{task}_{scenario}.png", dpi=100))
         # Error vs contact force magnitude, tip force (where tip-force rows ran).
         if any(r["task"] == "tip_force" and r["scenario"] == scenario for r in ok):
             f_true = np.concatenate([i.truth.get("tip_force", i["tip_force"]) for i in test])
@@ -338,11 +340,7 @@ def _figures(out_dir: Path, rows, contexts) -> list[str]:
             ax.set_ylabel("RMS of |error| [N]")
             ax.set_title(f"{scenario}: tip-force error vs contact force")
             ax.legend(fontsize=8)
-            fig.tight_layout()
-            name = f"error_vs_force_{scenario}.png"
-            fig.savefig(out_dir / name, dpi=110)
-            plt.close(fig)
-            made.append(name)
+            made.append(_save(fig, out_dir, f"error_vs_force_{scenario}.png", dpi=110))
     return made
 
 
@@ -402,11 +400,7 @@ def learning_curve_figures(out_dir: Path, curves: dict) -> list[str]:
             ax.tick_params(labelsize=6)
             ax.legend(fontsize=5.5, loc="best")
         fig.suptitle(f"{scenario}: learning curves (standardized MSE; star: the epoch kept)", fontsize=10)
-        fig.tight_layout()
-        name = f"learning_curves_{scenario}.png"
-        fig.savefig(out_dir / name, dpi=100)
-        plt.close(fig)
-        made.append(name)
+        made.append(_save(fig, out_dir, f"learning_curves_{scenario}.png", dpi=100))
     return made
 
 
