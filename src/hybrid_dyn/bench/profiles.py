@@ -16,7 +16,6 @@ from ..data import DatasetError, load_dataset
 from ..errors import UsageError
 
 SEED_TIP_NETS = tuple(f"seed-tip-{i}" for i in range(1, 12))
-RAW_REFERENCE = ("seed-tip-11-raw",)  # the seed's #11 on the untared sensor: what the per-run offset costs
 SEED_TAU_NETS = ("seed-tau-mlp", "seed-tau-conv", "seed-tau-lstm", "seed-tau-lstm-opt")
 RESIDUAL_TIP = ("residual-basewrench", "residual-momentum", "residual-base-momentum")
 RESIDUAL_TAU = ("residual-rnea", "residual-rnea-bw")
@@ -48,11 +47,10 @@ class BenchProfile:
     scenarios: tuple
     generator_profile: str = "quick"
     analytic_rows: tuple = ANALYTIC
-    tip_models: tuple = SEED_TIP_NETS + RAW_REFERENCE + RESIDUAL_TIP
+    tip_models: tuple = SEED_TIP_NETS + RESIDUAL_TIP
     torque_models: tuple = SEED_TAU_NETS + RESIDUAL_TAU + DELAN
     identified: bool = True
-    recipe: str = "default"  # learn.train.RECIPES
-    train: dict = field(default_factory=dict)  # TrainConfig fields on top of the recipe
+    train: dict = field(default_factory=dict)  # TrainConfig fields
     generator_overrides: dict = field(default_factory=dict)
     workers: int = 2
     torch_threads: int = 1  # see runner.run_bench: one thread is fastest for these nets
@@ -64,7 +62,7 @@ class BenchProfile:
     def train_config(self):
         from ..learn import TrainConfig
 
-        return TrainConfig.recipe(self.recipe, **{"seed": self.seed, **self.train})
+        return TrainConfig(**{"seed": self.seed, **self.train})
 
     def extra_rows(self) -> list:
         """Identified-model rows (issue 7), when that module is present."""
@@ -175,18 +173,6 @@ PROFILES = {
                "Training: up to 300 epochs, patience 25 (validation trajectories lie partly outside the training "
                "range, so the seed's patience of 5 stopped after a handful of epochs). `tau-mlp-wide` (2 x 128, "
                "dropout 0.2) is not a seed model: it was chosen on the validation split for these small sets."),
-    ),
-    # The seed's own data conditions (its 3.1): 20 Hz, exact states, no sensor noise or bias.
-    "seed-sim": BenchProfile(
-        name="seed-sim", scenarios=("seed-sim",), generator_profile="default",
-        notes=("seed-sim reproduces the seed's data conditions (its section 3.1): recorded every 50 ms (20 Hz), "
-               "q, qd, qdd exact from the simulator, no sensor noise and no bias, the same bell pulses and "
-               "trajectory rules, 5-50 trajectories per instance.",
-               "Training: the default recipe (Adam 1e-3, reduce-on-plateau x0.3 after 3 epochs down to 1e-5, "
-               "early stopping with patience 10, LSTM gradient norm clipped at 1, batch 256, full epochs). The "
-               "seed's recipe (constant rate, patience 5) is `--recipe seed`.",
-               "Sequence models are scored on every sample: the first L-1 windows of each instance are edge-padded "
-               "with its first sample, as a streaming estimator starts up; all rows see the same test samples."),
     ),
     "paper": BenchProfile(
         name="paper", scenarios=("paper-noext", "paper-ext", "mismatch-ext"), generator_profile="paper",
