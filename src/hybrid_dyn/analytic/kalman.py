@@ -233,12 +233,13 @@ class KalmanTipForce:
         self._mg3 = robot.total_mass * np.asarray(robot.model_ff.gravity.linear, float)
         self._zero3, self._zero6, self._zero_nv = np.zeros(3), np.zeros(6), np.zeros(robot.nv)
         self._zero_jac = np.zeros((6, robot.nv))
+        self._zero_c = np.zeros((robot.nv, robot.nv))
         self.reset()
         # Compile (or load from numba's cache) now, not in the first control cycle: one call on copies.
         _fusion_step(self.state.copy(), self._y.copy(), self._last_base.copy(), self._last_joint.copy(),
                      self._has_last.copy(), self._gain_table, True, self._zero3, self._R3, self._zero6, self._mg3,
-                     True, self._zero_nv, self._zero_nv, self._zero_nv, self._zero_jac, self.dt,
-                     SINGULAR_REGION, MAX_DAMPING)
+                     True, self._zero_nv, self._zero_nv, self._zero_nv, self._zero_c, self._zero_nv, self._zero_jac,
+                     self.dt, SINGULAR_REGION, MAX_DAMPING)
 
     def reset(self) -> None:
         """Forget the history: F = 0 and both sensors re-anchor at their next sample."""
@@ -301,14 +302,16 @@ class KalmanTipForce:
         else:
             h, w = self._zero3, self._zero6
         if has_joint:
-            beta, p = self._joint._beta_and_p(q, qd)
+            # The terms behind MomentumObserver._beta_and_p; the kernel forms p = M qd and beta = C^T qd - g,
+            # since each small numpy operation here would cost more than its arithmetic.
+            g, m_qd_g, C = self._joint._dynamics_terms(q, qd)
             jv = pin.computeFrameJacobian(robot.model, self._jdata, q, robot.tool_frame_id, pin.LOCAL_WORLD_ALIGNED)
             tau = tau_J
         else:
-            beta = p = tau = self._zero_nv
-            jv = self._zero_jac
+            qd = m_qd_g = g = tau = self._zero_nv
+            C, jv = self._zero_c, self._zero_jac
         _fusion_step(self.state, self._y, self._last_base, self._last_joint, self._has_last, self._gain_table,
-                     has_base, h, self._R3, w, self._mg3, has_joint, p, beta, tau, jv, self.dt,
+                     has_base, h, self._R3, w, self._mg3, has_joint, qd, m_qd_g, g, C, tau, jv, self.dt,
                      SINGULAR_REGION, MAX_DAMPING)
         return self.state[2].copy()
 
@@ -363,10 +366,12 @@ class KalmanTipForce:
 
 @njit(cache=True)
 def _fusion_step(x, y, last_base, last_joint, has_last, gain_table, has_base, h, R3, w, mg3,
-                 has_joint, p, beta, tau, jac, dt, singular_region, max_damping):  # pragma: no cover (compiled)
+                 has_joint, qd, m_qd_g, g, C, tau, jac, dt, singular_region, max_damping):  # pragma: no cover
     """One predict-update of ``KalmanTipForce`` after the dynamics terms (see ``step_unchecked``).
 
     x (3, 3): s_base, s_joint, F by axis; y (2, 3): the sensors' unexplained momenta.
+    The joint terms come as Pinocchio gives them: m_qd_g = M qd + g, the gravity torque g and the
+    Coriolis matrix C, so p = M qd and beta = C^T qd - g are formed here.
     A sensor with no previous sample re-anchors (y = its prediction, no update from it).
     The joint increment is projected to the tool by the damped least squares of
     ``tip_force.damped_force_single``, written out here in the same closed form.
@@ -396,7 +401,15 @@ def _fusion_step(x, y, last_base, last_joint, has_last, gain_table, has_base, h,
     else:
         has_last[0] = False
     if has_joint:
-        nv = p.shape[0]
+        nv = qd.shape[0]
+        p = np.empty(nv)
+        beta = np.empty(nv)
+        for k in range(nv):
+            p[k] = m_qd_g[k] - g[k]
+            acc = -g[k]
+            for i in range(nv):
+                acc += qd[i] * C[i, k]
+            beta[k] = acc
         if has_last[1]:
             d = np.empty(nv)
             for k in range(nv):

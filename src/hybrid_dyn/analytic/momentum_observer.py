@@ -54,15 +54,19 @@ class MomentumObserver:
         self._last_integrand = None
         self.residual = np.zeros(self.robot.nv)
 
-    def _beta_and_p(self, q, qd):
-        """(C^T qd - g, p = M qd). M qd comes from RNEA with v = 0, a = qd (minus g),
-        which avoids forming and symmetrising M."""
+    def _dynamics_terms(self, q, qd):
+        """Pinocchio's terms behind beta and p: (g [Nm], M qd + g [N m s], C (nv, nv)). M qd + g is
+        RNEA with v = 0, a = qd, which avoids forming and symmetrising M."""
         model = self.robot.model
         # One Data per quantity: each function returns a view into its Data, so no copies.
         g = pin.computeGeneralizedGravity(model, self._data_g, q)
-        p = pin.rnea(model, self._data, q, self._zero, qd) - g
-        C = pin.computeCoriolisMatrix(model, self._data_c, q, qd)
-        return qd @ C - g, p
+        m_qd_g = pin.rnea(model, self._data, q, self._zero, qd)
+        return g, m_qd_g, pin.computeCoriolisMatrix(model, self._data_c, q, qd)
+
+    def _beta_and_p(self, q, qd):
+        """(C^T qd - g, p = M qd)."""
+        g, m_qd_g, C = self._dynamics_terms(q, qd)
+        return qd @ C - g, m_qd_g - g
 
     def step(self, q, qd, tau) -> np.ndarray:
         """Advance one sample; returns the external joint torque estimate r [Nm] (nv,)."""
