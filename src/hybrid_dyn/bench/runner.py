@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import hashlib
 import json
 import os
 import time
@@ -634,7 +635,10 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, dataset_
         from ..description import available_robots
 
         robot = load_robot(ds.meta["robot"]) if ds.meta.get("robot") in available_robots() else None
-        ctx = BenchContext(profile, scenario, ds, robot, work_root / scenario / ds.checksum[:12], data_root, log=log)
+        # One model cache per dataset and training recipe: a run with another recipe never meets these models.
+        recipe = hashlib.sha256(json.dumps(profile.train_config().fingerprint_fields(), sort_keys=True).encode()).hexdigest()[:8]
+        ctx = BenchContext(profile, scenario, ds, robot, work_root / scenario / f"{ds.checksum[:12]}-train-{recipe}",
+                           data_root, log=log)
         contexts[scenario] = ctx
         norm = train_split_stats(ds)
         specs = [s for s in row_specs(profile) if TASK_TARGET[s.task] in ds.fields and profile.applies(s, ds)]

@@ -56,7 +56,7 @@ def seed_dataset_label(scenario: str) -> str | None:
     """Which seed data set a toolkit scenario mirrors (PROTOCOL 2)."""
     if scenario == "paper-noext":
         return "sim-noext"
-    if scenario in ("paper-ext", "mismatch-ext"):
+    if scenario in ("paper-ext", "mismatch-ext", "seed-sim"):
         return "sim-ext"
     if scenario.startswith("real"):
         return "real"

@@ -41,10 +41,15 @@ def register(sub) -> None:
 
 
 def _train_options(p) -> None:
+    p.add_argument("--recipe", default="default", help="training recipe: default (reduce-on-plateau, patience 10, "
+                   "LSTM gradients clipped) or seed (the seed's: constant rate, patience 5); the options below "
+                   "override it")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--epochs", type=int, default=200, help="maximum epochs (early stopping ends sooner)")
-    p.add_argument("--patience", type=int, default=5, help="epochs without validation improvement before stopping")
-    p.add_argument("--batch-size", type=int, default=256)
+    p.add_argument("--epochs", type=int, default=None, help="maximum epochs (early stopping ends sooner; default 200)")
+    p.add_argument("--patience", type=int, default=None, help="epochs without validation improvement before stopping")
+    p.add_argument("--batch-size", type=int, default=None)
+    p.add_argument("--lr", type=float, default=None, help="initial learning rate (default 1e-3)")
+    p.add_argument("--lr-schedule", default=None, choices=["plateau", "none"])
     p.add_argument("--max-batches-per-epoch", type=int, default=None)
     p.add_argument("--analytic-params", default=None, help="parameter set or JSON for residual models' analytic part")
     p.add_argument("--device", default="auto", help="auto, cpu or cuda")
@@ -55,9 +60,11 @@ def _train_options(p) -> None:
 def _config(args):
     from .train import TrainConfig
 
-    return TrainConfig(seed=args.seed, max_epochs=args.epochs, patience=args.patience, batch_size=args.batch_size,
-                       max_batches_per_epoch=args.max_batches_per_epoch, analytic_params=args.analytic_params,
-                       device=args.device, num_threads=args.threads, progress=not args.quiet)
+    given = {"max_epochs": args.epochs, "patience": args.patience, "batch_size": args.batch_size, "lr": args.lr,
+             "lr_schedule": args.lr_schedule}
+    return TrainConfig.recipe(args.recipe, seed=args.seed, max_batches_per_epoch=args.max_batches_per_epoch,
+                              analytic_params=args.analytic_params, device=args.device, num_threads=args.threads,
+                              progress=not args.quiet, **{k: v for k, v in given.items() if v is not None})
 
 
 def cmd_presets(args) -> int:
@@ -72,7 +79,8 @@ def cmd_train(args) -> int:
     from .train import train_model
 
     model = train_model(args.data, args.preset, args.out, _config(args))
-    print(f"{args.preset}: val loss {model.val_loss:.4f} (standardized MSE), {len(model.history)} epochs, "
+    print(f"{args.preset}: val loss {model.val_loss:.4f} (standardized MSE), {len(model.history)} epochs "
+          f"(stopped by {model.config.get('stopped_by')}, best epoch {model.config.get('best_epoch')}), "
           f"{model.n_params} parameters, {model.train_seconds:.1f} s -> {args.out}")
     return 0
 
