@@ -215,7 +215,7 @@ def _friction_only(models, ctx, q, qd, qdd):
 
 def _residual_row(name: str, preset: str):
     """A residual net (``preset``) on the identified model, inertials and friction, trained like the learned rows."""
-    from .runner import Predictor, RowSpec, _learned_single_call
+    from .runner import Predictor, RowSpec, _learned_single_call, training_summary
 
     def build(ds, ctx):
         from ..learn import train_model
@@ -230,7 +230,8 @@ def _residual_row(name: str, preset: str):
         return Predictor(predict=model.predict, single_call=_learned_single_call(model),
                          train_seconds=float(train_seconds), n_params=int(model.n_params),
                          inputs=", ".join(model.config.get("inputs", []))
-                         + f"; prior on identified-{RESIDUAL_PRIOR_METHOD} (inertials + friction)")
+                         + f"; prior on identified-{RESIDUAL_PRIOR_METHOD} (inertials + friction)",
+                         training=training_summary(model.config))  # a learned row: its curve is reported
 
     return RowSpec("joint_torque", name, "identified", build)
 
