@@ -18,25 +18,47 @@ from .nets import ConvNet, LSTMNet, MLPNet
 _ACT = {nn.ReLU: 1, nn.Tanh: 2}
 
 
+@njit(cache=True, inline="always")
+def _tanh(x):
+    """tanh(x) = 2 sigmoid(2x) - 1 through one exp: within 4e-16 of np.tanh (absolute), and about
+    3.5x faster than libm's tanh, which set the cost of an LSTM window (two per unit and step)."""
+    return 2.0 / (1.0 + np.exp(-2.0 * x)) - 1.0
+
+
 @njit(cache=True)
-def _lstm_layer(x, w_ih, w_hh, b):
-    """One LSTM layer over x (T, F); gate order i, f, g, o (PyTorch). Returns (T, H)."""
-    T = x.shape[0]
-    H = w_hh.shape[1]
-    pre = x @ w_ih.T
-    h = np.zeros(H)
+def _lstm_layer(x, w_ih_t, w_hh_t, b):
+    """One LSTM layer over x (T, F); gate order i, f, g, o (PyTorch). Returns (T, H).
+
+    w_ih_t (F, 4H) and w_hh_t (H, 4H) are the weights transposed, so that every inner
+    loop runs along one contiguous row of the 4H gates: an axpy, which the compiler
+    vectorises (a matrix-vector product per step through BLAS costs more in calls
+    than in arithmetic at these sizes).
+    """
+    T, F = x.shape
+    H = w_hh_t.shape[0]
+    G = 4 * H
+    gates = np.empty(G)
     c = np.zeros(H)
     out = np.empty((T, H))
     for t in range(T):
-        g = pre[t] + b + w_hh @ h
+        for j in range(G):
+            gates[j] = b[j]
+        for f in range(F):
+            xf = x[t, f]
+            for j in range(G):
+                gates[j] += xf * w_ih_t[f, j]
+        if t > 0:  # h = 0 before the first step
+            for k in range(H):
+                hk = out[t - 1, k]
+                for j in range(G):
+                    gates[j] += hk * w_hh_t[k, j]
         for j in range(H):
-            i_g = 1.0 / (1.0 + np.exp(-g[j]))
-            f_g = 1.0 / (1.0 + np.exp(-g[H + j]))
-            c_g = np.tanh(g[2 * H + j])
-            o_g = 1.0 / (1.0 + np.exp(-g[3 * H + j]))
+            i_g = 1.0 / (1.0 + np.exp(-gates[j]))
+            f_g = 1.0 / (1.0 + np.exp(-gates[H + j]))
+            c_g = _tanh(gates[2 * H + j])
+            o_g = 1.0 / (1.0 + np.exp(-gates[3 * H + j]))
             c[j] = f_g * c[j] + i_g * c_g
-            h[j] = o_g * np.tanh(c[j])
-        out[t] = h
+            out[t, j] = o_g * _tanh(c[j])
     return out
 
 
@@ -58,15 +80,31 @@ def _conv_relu_flat(x, w, b):
 
 
 @njit(cache=True)
-def _dense_stack(h, weights, biases, acts):
-    """Fully connected layers; acts[i]: 0 none, 1 relu, 2 tanh."""
-    for i in range(len(weights)):
-        h = weights[i] @ h + biases[i]
-        if acts[i] == 1:
-            h = np.maximum(h, 0.0)
-        elif acts[i] == 2:
-            h = np.tanh(h)
-    return h
+def _dense_stack(h, params, layout, acts):
+    """Fully connected layers on h (n_in,); returns a fresh (n_out,) array.
+
+    Layer i's weight (n_out, n_in), then its bias (n_out,), lie row-major in the flat
+    ``params`` from layout[i] = (offset, n_out, n_in); acts[i]: 0 none, 1 relu, 2 tanh.
+    One flat array, not a typed list of matrices: unboxing a list per call cost more
+    than the arithmetic of the whole head.
+    """
+    x = h
+    for i in range(layout.shape[0]):
+        off, n_out, n_in = layout[i, 0], layout[i, 1], layout[i, 2]
+        y = np.empty(n_out)
+        for r in range(n_out):
+            acc = 0.0
+            row = off + r * n_in
+            for k in range(n_in):
+                acc += params[row + k] * x[k]
+            acc += params[off + n_out * n_in + r]
+            if acts[i] == 1:
+                acc = max(acc, 0.0)
+            elif acts[i] == 2:
+                acc = np.tanh(acc)
+            y[r] = acc
+        x = y
+    return x
 
 
 class FastNet:
@@ -76,36 +114,39 @@ class FastNet:
         f64 = lambda t: np.ascontiguousarray(t.detach().cpu().double().numpy())  # noqa: E731
         self.kind = type(net).__name__
         if isinstance(net, LSTMNet):
-            self.lstm = [(f64(m.weight_ih_l0), f64(m.weight_hh_l0), f64(m.bias_ih_l0 + m.bias_hh_l0)) for m in net.lstms]
+            self.lstm = [(f64(m.weight_ih_l0.T), f64(m.weight_hh_l0.T), f64(m.bias_ih_l0 + m.bias_hh_l0))
+                         for m in net.lstms]  # transposed: see _lstm_layer
         elif isinstance(net, ConvNet):
             self.conv = (f64(net.conv.weight), f64(net.conv.bias))
         elif not isinstance(net, MLPNet):
             raise TypeError(f"no fast path for {type(net).__name__}")
-        weights, biases, acts = [], [], []
+        params, layout, acts = [], [], []  # the head, flat (see _dense_stack)
         mods = list(net.head)
+        offset = 0
         for i, m in enumerate(mods):
             if isinstance(m, nn.Linear):
-                weights.append(f64(m.weight))
-                biases.append(f64(m.bias))
+                w, b = f64(m.weight), f64(m.bias)
+                params += [w.ravel(), b]
+                layout.append((offset, w.shape[0], w.shape[1]))
+                offset += w.size + b.size
                 nxt = mods[i + 1] if i + 1 < len(mods) else None
                 acts.append(_ACT.get(type(nxt), 0))
-        from numba.typed import List
-
-        self.weights, self.biases = List(weights), List(biases)
+        self.head = np.concatenate(params)
+        self.layout = np.array(layout, dtype=np.int64).reshape(-1, 3)
         self.acts = np.array(acts, dtype=np.int64)
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         """x: standardized window (L, F) float64; returns the network output (n_out,)."""
         if self.kind == "LSTMNet":
             h = x
-            for w_ih, w_hh, b in self.lstm:
-                h = _lstm_layer(h, w_ih, w_hh, b)
+            for w_ih_t, w_hh_t, b in self.lstm:
+                h = _lstm_layer(h, w_ih_t, w_hh_t, b)
             h = h[-1]
         elif self.kind == "ConvNet":
             h = _conv_relu_flat(x, *self.conv)
         else:
             h = x[-1]
-        return _dense_stack(np.ascontiguousarray(h), self.weights, self.biases, self.acts)
+        return _dense_stack(np.ascontiguousarray(h), self.head, self.layout, self.acts)
 
 
 def _softplus(x):
