@@ -8,10 +8,26 @@ the PyTorch path beside it. Medians of repeated measurements in this one run.
 Floor (issue 4): single-call seed-tip-11 and residual-basewrench <= 200 us median.
 
     .venv/bin/python benchmarks/learn_speed.py [--data DIR] [--threads 1]
+
+``--sweep`` (issue 14, item 2): the batch-size sweep behind the training recipe's
+batch size. One preset per trained family (MLP, conv, LSTM, residual LSTM, DeLaN),
+each batch size, trained to convergence with the ``default`` recipe on one torch
+thread, same seed; per (preset, batch) it prints the measured training throughput,
+epochs, why training stopped, the wall time, the best validation loss (standardized
+MSE) and the test RMSE, then applies the choice rule (:func:`pick_batch`) and states
+the pick. Data: ``--data DIR``, or by default a small ``seed-sim`` set generated once
+into ``--data-root`` (12 instances of 5-20 trajectories, 20 Hz). Each run trains into
+its own folder under ``--work``, so a killed sweep continues where it stopped.
+
+    taskset -c 1 .venv/bin/python benchmarks/learn_speed.py --sweep --out runs/batch-sweep.md
 """
 from __future__ import annotations
 
 import argparse
+import datetime
+import hashlib
+import os
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -20,10 +36,12 @@ import numpy as np
 import torch
 
 import hybrid_dyn as hd
-from hybrid_dyn.data import load_dataset
+from hybrid_dyn.data import DatasetError, load_dataset
 from hybrid_dyn.data.synthetic import make_synthetic_dataset
 from hybrid_dyn.data.windows import concat_fields
 from hybrid_dyn.learn import TrainConfig, train_model
+from hybrid_dyn.learn.model import canonical_json
+from hybrid_dyn.learn.presets import get_preset
 
 PRESETS = ["seed-tip-1", "seed-tip-11", "seed-tau-lstm-opt", "residual-basewrench", "residual-rnea", "delan",
            "delan-friction"]
@@ -42,13 +60,168 @@ def median_us(fn, n: int, warmup: int = 50) -> float:
     return float(np.median(ts) * 1e6)
 
 
+# --------------------------------------------------------------------------- batch-size sweep
+# One preset of each family that trains (family: what the row's net is).
+SWEEP_PRESETS = {"seed-tau-mlp": "MLP", "seed-tip-5": "conv", "seed-tip-7": "LSTM", "residual-rnea": "residual LSTM",
+                 "delan-friction": "DeLaN"}
+SWEEP_BATCHES = (64, 128, 256, 512, 1024)
+SWEEP_DATA = dict(scenario="seed-sim", profile="quick", n_instances=12, trajectories=(5, 20))
+
+
+def sweep_dataset(args):
+    """The sweep's dataset: ``--data``, or a small simulated set generated once and cached by its
+    config hash under ``--data-root`` (as the bench caches its scenarios)."""
+    if args.data:
+        return load_dataset(args.data)
+    from hybrid_dyn.sim.generator import generate_dataset
+    from hybrid_dyn.sim.scenarios import scenario_config
+
+    cfg = scenario_config(SWEEP_DATA["scenario"], SWEEP_DATA["profile"], seed=args.seed,
+                          n_instances=args.instances, trajectories=tuple(args.trajectories))
+    path = Path(args.data_root) / f"{cfg.scenario}-{cfg.profile}-{cfg.config_hash()}"
+    try:
+        return load_dataset(path)
+    except DatasetError:
+        print(f"[sweep] generating {cfg.scenario}: {cfg.n_instances} instances of {cfg.trajectories[0]}-"
+              f"{cfg.trajectories[1]} trajectories into {path}", flush=True)
+        generate_dataset(cfg, path, workers=1)  # byte-identical for any worker count; one core here
+        return load_dataset(path)
+
+
+def sweep_work_dir(work_root: Path, ds, config: TrainConfig) -> Path:
+    """One folder per dataset and recipe (batch size aside: that is what varies inside), so a
+    changed recipe or dataset never meets models of another sweep."""
+    fields = {k: v for k, v in config.fingerprint_fields().items() if k != "batch_size"}
+    recipe = hashlib.sha256(canonical_json(fields).encode()).hexdigest()[:8]
+    return Path(work_root) / f"{ds.checksum[:12]}-train-{recipe}"
+
+
+def sweep_row(ds, preset: str, batch: int, config: TrainConfig, work: Path) -> dict:
+    """Train (or reuse) one (preset, batch) run to convergence and measure it.
+
+    samples/s: training samples over the training loop's own time (``model.train_seconds``:
+    every epoch, its validation pass included), so a resumed run is timed over all its epochs.
+    """
+    model = train_model(ds, preset, work / f"{preset}-b{batch}", config)
+    n_train = model.config["train_samples"]
+    epochs = model.config["epochs"]
+    seconds = model.train_seconds
+    test = model.evaluate(ds.split("test"))
+    return {"preset": preset, "family": SWEEP_PRESETS.get(preset, get_preset(preset).kind), "batch": batch,
+            "samples_per_s": epochs * n_train / seconds, "epochs": epochs, "stopped_by": model.config["stopped_by"],
+            "best_epoch": model.config["best_epoch"], "wall_s": seconds, "val_loss": model.val_loss,
+            "test_rmse": test["rmse"], "unit": "N" if model.targets == ["tip_force"] else "Nm"}
+
+
+def pick_batch(rows: list[dict], tolerance: float) -> tuple[int | None, dict]:
+    """The choice rule: a batch size is *admissible* when, for every preset, its best validation
+    loss is within ``tolerance`` of that preset's best over all batch sizes (quality first: no
+    family may pay for the choice). Among the admissible sizes the pick is the one whose runs take
+    the least wall time in total (the cost of training every family to convergence).
+
+    Returns the pick (None: no size is admissible) and, per batch size, its worst val-loss ratio,
+    total wall time and admissibility.
+    """
+    presets = sorted({r["preset"] for r in rows})
+    batches = sorted({r["batch"] for r in rows})
+    best = {p: min(r["val_loss"] for r in rows if r["preset"] == p) for p in presets}
+    summary = {}
+    for b in batches:
+        mine = [r for r in rows if r["batch"] == b]
+        if {r["preset"] for r in mine} != set(presets):
+            continue  # a batch size not run for every preset cannot be judged
+        worst = max(r["val_loss"] / best[r["preset"]] for r in mine)
+        summary[b] = {"worst_ratio": worst, "wall_s": sum(r["wall_s"] for r in mine),
+                      "admissible": worst <= 1 + tolerance}
+    admissible = [b for b, s in summary.items() if s["admissible"]]
+    pick = min(admissible, key=lambda b: summary[b]["wall_s"]) if admissible else None
+    return pick, summary
+
+
+def sweep_table(rows: list[dict], pick: int | None, summary: dict, tolerance: float, header: list[str]) -> str:
+    best = {p: min(r["val_loss"] for r in rows if r["preset"] == p) for p in {r["preset"] for r in rows}}
+    lines = header + ["",
+                      "| preset | family | batch | train samples/s | epochs | stopped_by | best epoch | wall s "
+                      "| best val loss | / preset's best | test RMSE |",
+                      "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['preset']} | {r['family']} | {r['batch']} | {r['samples_per_s']:.0f} | {r['epochs']} "
+                     f"| {r['stopped_by']} | {r['best_epoch']} | {r['wall_s']:.1f} | {r['val_loss']:.5f} "
+                     f"| {r['val_loss'] / best[r['preset']]:.3f} | {r['test_rmse']:.4f} {r['unit']} |")
+    lines += ["", "| batch | worst val loss / preset's best | total wall s | admissible |", "|---|---|---|---|"]
+    for b, s in summary.items():
+        lines.append(f"| {b} | {s['worst_ratio']:.3f} | {s['wall_s']:.1f} | {'yes' if s['admissible'] else 'no'} |")
+    largest = max((b for b, s in summary.items() if s["admissible"]), default=None)
+    lines += ["", f"Rule: a batch size is admissible when every preset's best validation loss at it is within "
+                  f"{tolerance:.0%} of that preset's best over all sizes; the pick is the admissible size with the "
+                  f"least total wall time.",
+              f"Pick: **{pick}**" + (f" (largest admissible: {largest})." if pick is not None else
+                                     " (no batch size is admissible).")]
+    return "\n".join(lines) + "\n"
+
+
+def sweep(args) -> int:
+    torch.set_num_threads(1)
+    ds = sweep_dataset(args)
+    sizes = {s: sum(len(i) for i in ds.split(s)) for s in ("train", "val", "test")}
+    base = TrainConfig.recipe(args.recipe, seed=args.seed, num_threads=1, progress=False)
+    work = sweep_work_dir(Path(args.work), ds, base)
+    cpus = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else "?"
+    meta = ds.meta.get("config", {})
+    data = (f"`{ds.path.name}`: scenario {ds.meta.get('scenario')}, {meta.get('n_instances', '?')} instances of "
+            f"{meta.get('trajectories', '?')} trajectories, {ds.meta.get('record_hz')} Hz; samples train/val/test "
+            f"{sizes['train']}/{sizes['val']}/{sizes['test']}")
+    header = ["# Batch-size sweep (`benchmarks/learn_speed.py --sweep`)", "",
+              f"`{' '.join(sys.argv)}`, {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC.", "",
+              f"Data: {data}. Recipe `{args.recipe}` (batch size varied), seed {args.seed}, one torch thread, "
+              f"torch {torch.__version__}, CPUs {cpus}. Models in `{work}`.",
+              "Wall s: the training loop's time (every epoch with its validation pass), from which samples/s is "
+              "derived. The machine is shared: wall times and throughput are indicative (load moves them by up "
+              "to 2x); losses and epochs are deterministic."]
+    print("\n".join(header), flush=True)
+    rows = []
+    for preset in args.presets:
+        for batch in args.batch_sizes:
+            t0 = time.perf_counter()
+            row = sweep_row(ds, preset, batch, TrainConfig.recipe(args.recipe, seed=args.seed, num_threads=1,
+                                                                  progress=False, batch_size=batch), work)
+            rows.append(row)
+            print(f"[sweep] {preset:16s} batch {batch:5d}: {row['samples_per_s']:8.0f} samples/s, "
+                  f"{row['epochs']:3d} epochs ({row['stopped_by']}, best {row['best_epoch']}), "
+                  f"{row['wall_s']:7.1f} s, val {row['val_loss']:.5f}, test RMSE {row['test_rmse']:.4f} "
+                  f"{row['unit']} ({time.perf_counter() - t0:.0f} s this call)", flush=True)
+    pick, summary = pick_batch(rows, args.tolerance)
+    text = sweep_table(rows, pick, summary, args.tolerance, header)
+    print(text)
+    if args.out:
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).write_text(text)
+    return 0
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", default=None, help="dataset directory (default: a synthetic Panda set)")
+    ap.add_argument("--data", default=None, help="dataset directory (default: a synthetic Panda set; "
+                                                   "--sweep: a small seed-sim set, generated once)")
     ap.add_argument("--threads", type=int, default=1, help="torch threads for training and batched inference")
     ap.add_argument("--epochs", type=int, default=2)
     ap.add_argument("--calls", type=int, default=2000, help="single calls timed per preset")
+    sw = ap.add_argument_group("batch-size sweep (--sweep)")
+    sw.add_argument("--sweep", action="store_true", help="run the batch-size sweep instead of the speed table")
+    sw.add_argument("--presets", nargs="+", default=list(SWEEP_PRESETS), metavar="PRESET")
+    sw.add_argument("--batch-sizes", nargs="+", type=int, default=list(SWEEP_BATCHES), metavar="N")
+    sw.add_argument("--recipe", default="default", help="training recipe (TrainConfig.recipe)")
+    sw.add_argument("--seed", type=int, default=0, help="training seed (and the generated data's)")
+    sw.add_argument("--instances", type=int, default=SWEEP_DATA["n_instances"], help="generated set: instances")
+    sw.add_argument("--trajectories", type=int, nargs=2, default=list(SWEEP_DATA["trajectories"]),
+                    metavar=("LO", "HI"), help="generated set: trajectories per instance")
+    sw.add_argument("--data-root", default="data", help="where the generated set is cached")
+    sw.add_argument("--work", default="runs/batch-sweep", help="model folders, one per (preset, batch)")
+    sw.add_argument("--tolerance", type=float, default=0.05, help="admissible val-loss excess over a preset's best")
+    sw.add_argument("--out", default=None, help="write the sweep's markdown table to this file")
     args = ap.parse_args()
+    if args.sweep:
+        return sweep(args)
 
     with tempfile.TemporaryDirectory() as tmp:
         if args.data:
