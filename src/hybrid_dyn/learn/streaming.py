@@ -221,12 +221,15 @@ class StreamingModel:
         kind = self._prior_kind
         if kind is None:
             return None
+        # The sample is validated (``step``): the observers' unchecked steps, as the estimator's own methods.
         if kind == "base-momentum":  # 0 in the tare window, then the observer from a fresh start
-            return np.zeros(3) if in_tare else self._observer.step_force(q, qd, base_wrench)
+            if in_tare:
+                return np.zeros(3)
+            return self._observer.force(q, self._observer.step_unchecked(q, qd, base_wrench))
         if kind == "basewrench":
             return base_wrench_force_core(self.robot, q, qd, qdd, base_wrench)
         if kind == "momentum":
-            return self._observer.step_force(q, qd, tau_J)
+            return self._observer.force(q, self._observer.step_unchecked(q, qd, tau_J))
         return self.model.prior.single({"q": q, "qd": qd, "qdd": qdd, "base_wrench": base_wrench})
 
     # ------------------------------------------------------------------ step
