@@ -128,7 +128,6 @@ def _excitation_dataset(ctx):
     """The identification run on the scenario's plant (designed and simulated once, cached in the data root)."""
     from ..identify.excitation import ExcitationConfig, FourierTrajectory, design_excitation
     from ..identify.experiment import record_excitation_dataset
-    from ..sim.scenarios import scenario_config
 
     prof = ctx.profile
     root = Path(ctx.data_root)
@@ -145,7 +144,7 @@ def _excitation_dataset(ctx):
         tmp = unique_temp(traj_file)
         tmp.write_text(json.dumps(traj.to_dict()))
         tmp.replace(traj_file)
-    cfg = scenario_config(ctx.scenario, prof.generator_profile, seed=prof.seed, **prof.generator_overrides)
+    cfg = prof.scenario_config(ctx.scenario)
     ident_dir = root / f"{ctx.scenario}-identification-{cfg.config_hash()}-{traj_file.stem}"
     try:
         ident = load_dataset(ident_dir)

@@ -617,11 +617,18 @@ def _write_json(path: Path, obj: dict) -> None:
     os.replace(tmp, path)
 
 
+def work_dir(profile: BenchProfile, scenario: str, ds: Dataset, work_root: Path) -> Path:
+    """Where a profile's models of one scenario are cached: one folder per dataset and training
+    recipe, so a run with another recipe never meets these models."""
+    recipe = hashlib.sha256(json.dumps(profile.train_config().fingerprint_fields(), sort_keys=True).encode())
+    return Path(work_root) / profile.name / scenario / f"{ds.checksum[:12]}-train-{recipe.hexdigest()[:8]}"
+
+
 def _run_bench_locked(profile, out_dir, previous, data_root, work_root, dataset_provider, log) -> list[dict]:
     from .report import write_report
 
     data_root = Path(data_root or os.environ.get("HYBRID_DYN_DATA", "data"))
-    work_root = Path(work_root or os.environ.get("HYBRID_DYN_RUNS", "runs")) / profile.name
+    work_root = Path(work_root or os.environ.get("HYBRID_DYN_RUNS", "runs"))
     provider = dataset_provider or (lambda scenario, prof: prof.dataset(scenario, data_root, log=log))
     rows: list[dict] = []
     datasets = {}
@@ -635,9 +642,7 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, dataset_
         from ..description import available_robots
 
         robot = load_robot(ds.meta["robot"]) if ds.meta.get("robot") in available_robots() else None
-        # One model cache per dataset and training recipe: a run with another recipe never meets these models.
-        recipe = hashlib.sha256(json.dumps(profile.train_config().fingerprint_fields(), sort_keys=True).encode()).hexdigest()[:8]
-        ctx = BenchContext(profile, scenario, ds, robot, work_root / scenario / f"{ds.checksum[:12]}-train-{recipe}",
+        ctx = BenchContext(profile, scenario, ds, robot, work_dir(profile, scenario, ds, work_root),
                            data_root, log=log)
         contexts[scenario] = ctx
         norm = train_split_stats(ds)

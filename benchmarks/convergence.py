@@ -1,0 +1,103 @@
+"""Convergence check of a bench report's learned rows (issue 14): does more patience still pay?
+
+For the best row of each learned family and task (lowest test RMSE among the rows that
+trained, reference rows aside) of every scenario of a report, retrain the same preset on
+the same data with the same recipe but ``--factor`` (4) times the early-stopping patience,
+and compare the best validation loss (standardized MSE) of the two runs:
+
+    gain = (val_loss(patience P) - val_loss(patience 4P)) / val_loss(patience P)
+
+A row counts as converged when the gain is below ``--tolerance`` (5 %). The bench's own
+model is reused from its cache (nothing is retrained for it); the longer runs train into
+``<work dir>/convergence/<preset>-patience<4P>`` and are reused on a rerun, so a killed
+check resumes. Deterministic given the profile's seed.
+
+Run (after the bench, with the same data and model caches):
+    .venv/bin/python benchmarks/convergence.py --report reports/seed-sim --out reports/seed-sim/convergence.md
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import datetime
+import json
+import sys
+import time
+from pathlib import Path
+
+from hybrid_dyn.bench.profiles import BenchProfile, get_profile
+from hybrid_dyn.bench.runner import read_results, work_dir
+from hybrid_dyn.learn import PRESETS, train_model
+
+REFERENCE_SUFFIX = "-raw"  # labelled reference rows are not a family's best
+
+
+def best_rows(rows: list[dict]) -> list[dict]:
+    """The lowest-RMSE trained row per (scenario, task, family), among rows that are presets trained on
+    the profile's config (a residual on an identified model trains on its own parameter file: not here)."""
+    best: dict = {}
+    for r in rows:
+        if r.get("status") != "ok" or not r.get("stopped_by") or r["model"].endswith(REFERENCE_SUFFIX) \
+                or r["model"] not in PRESETS:
+            continue
+        key = (r["scenario"], r["task"], r["family"])
+        if key not in best or float(r["rmse"]) < float(best[key]["rmse"]):
+            best[key] = r
+    return [best[k] for k in sorted(best)]
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--report", required=True, help="a bench report folder (results.csv, run.json)")
+    ap.add_argument("--data-root", default="data")
+    ap.add_argument("--work-root", default="runs")
+    ap.add_argument("--factor", type=int, default=4, help="patience multiple of the longer run")
+    ap.add_argument("--tolerance", type=float, default=0.05, help="largest relative val-loss gain that counts as converged")
+    ap.add_argument("--out", default=None, help="write the table to this markdown file")
+    args = ap.parse_args()
+
+    report = Path(args.report)
+    run = json.loads((report / "run.json").read_text())
+    profile = get_profile(run["profile"]["name"])
+    if profile.to_dict() != run["profile"]:  # the report must be of this code's profile, or its models differ
+        profile = BenchProfile(**{k: tuple(v) if isinstance(v, list) else v for k, v in run["profile"].items()})
+    config = profile.train_config()
+    longer = dataclasses.replace(config, patience=config.patience * args.factor)
+    lines = [f"# Convergence check of `{report}`", "",
+             f"`{' '.join(sys.argv)}`, {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC.", "",
+             f"The best trained row of each family and task (lowest test RMSE), retrained with patience "
+             f"{longer.patience} instead of {config.patience}, everything else equal (recipe `{profile.recipe}`). "
+             f"Gain: the relative drop of the best validation loss; converged when below {args.tolerance:.0%}.", "",
+             "| scenario | task | family | model | epochs (stop) | val loss | epochs (stop), patience "
+             f"{longer.patience} | val loss | gain | converged |", "|---|---|---|---|---|---|---|---|---|---|"]
+    failures = 0
+    datasets = {}
+    for r in best_rows(read_results(report / "results.csv")):
+        scenario = r["scenario"]
+        if scenario not in datasets:
+            datasets[scenario] = profile.dataset(scenario, Path(args.data_root))
+        ds = datasets[scenario]
+        wd = work_dir(profile, scenario, ds, Path(args.work_root))
+        base = train_model(ds, r["model"], wd / "models" / r["model"], config)  # the bench's own model
+        t0 = time.perf_counter()
+        print(f"[convergence] {scenario} {r['family']} {r['model']}: patience {longer.patience}", flush=True)
+        long = train_model(ds, r["model"], wd / "convergence" / f"{r['model']}-patience{longer.patience}", longer)
+        # A loss at round-off (physics exact on noise-free data) has nothing left to gain.
+        gain = (base.val_loss - long.val_loss) / base.val_loss if base.val_loss > 1e-12 else 0.0
+        ok = gain < args.tolerance
+        failures += not ok
+        lines.append(f"| {scenario} | {r['task']} | {r['family']} | {r['model']} | {base.config['epochs']} "
+                     f"({base.config.get('stopped_by')}) | {base.val_loss:.5f} | {long.config['epochs']} "
+                     f"({long.config.get('stopped_by')}) | {long.val_loss:.5f} | {gain:+.1%} | "
+                     f"{'yes' if ok else 'NO'} |")
+        print(lines[-1], f"({time.perf_counter() - t0:.0f} s)", flush=True)
+    lines += ["", f"{failures} row(s) not converged by this test."]
+    text = "\n".join(lines) + "\n"
+    print(text)
+    if args.out:
+        Path(args.out).write_text(text)
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
