@@ -171,6 +171,8 @@ class StreamingModel:
         self.call_hz = call_hz
         self._ring = np.empty(((self.window - 1) * self.stride + 1, len(self._row)))
         self._offsets = np.arange(self.window - 1, -1, -1) * self.stride  # oldest first
+        n = len(self._ring)  # the ring rows of the window ending at each head: one take per call
+        self._window_rows = (np.arange(n)[:, None] - self._offsets) % n
         gain = self.model.config.get("observer_gain", 20.0)
         if self.model.preset.prior == "momentum":
             self._observer = MomentumObserver(self.robot, gain=gain, dt=1.0 / call_hz)
@@ -251,7 +253,7 @@ class StreamingModel:
         else:
             self._head = (self._head + 1) % n
             self._ring[self._head] = row
-        x = self._ring[(self._head - self._offsets) % n]
+        x = self._ring.take(self._window_rows[self._head], axis=0)  # = ring[(head - offsets) % n]
         prior = self._prior_at(q, qd, qdd, w_tared, tau_J, in_tare)
         if self._fast is not None:
             f = self._y_std * self._fast(x)
