@@ -1,11 +1,13 @@
-"""Learned models: the seed's networks, residual nets on physics, DeLaN, tuning.
+"""Learned models: the seed's networks, residual nets on physics, DeLaN, tuning, and
+Gaussian-process regression (scikit-learn; the one family that is not PyTorch).
 
 Entry points: :func:`train_model`, :func:`load_model`, the preset registry
-:data:`PRESETS`; see ``docs/models.md``.
+:data:`PRESETS`, :func:`train_gp`, :func:`load_gp`; see ``docs/models.md``.
 """
+from .gp import GPConfig, GPModel, load_gp, train_gp
 from .model import HybridModel, ModelError, TrainedModel, load_model
 from .presets import PRESETS, Preset, get_preset
 from .train import TrainConfig, train_model
 
-__all__ = ["PRESETS", "HybridModel", "ModelError", "Preset", "TrainConfig", "TrainedModel", "get_preset",
-           "load_model", "train_model"]
+__all__ = ["PRESETS", "GPConfig", "GPModel", "HybridModel", "ModelError", "Preset", "TrainConfig", "TrainedModel",
+           "get_preset", "load_gp", "load_model", "train_gp", "train_model"]

@@ -1,0 +1,497 @@
+"""Gaussian-process regression of the joint torques: the first model family that is not PyTorch.
+
+One exact GP per joint maps the state x = [q, qd, qdd] to that joint's torque tau_m
+(Rasmussen & Williams 2006, ch. 2; ch. 8 uses it on the SARCOS arm). The choices are
+those of ``benchmarks/real_baselines.py``, where it beat every bench model on SARCOS:
+
+- inputs standardized by the training split's mean and standard deviation;
+- kernel k(x, x') = c * exp(-|(x - x') / l|^2 / 2) + s * [x == x'], an ARD squared
+  exponential (one length scale l_i per input; a large l_i switches input i off) plus
+  white noise s, with c in [1e-2, 1e2], l_i in [1e-2, 1e3], s in [1e-6, 1], on targets
+  standardized per joint (scikit-learn's ``normalize_y``);
+- hyperparameters (c, l, s) by maximum marginal likelihood on ``hyper_rows`` random
+  training rows (scikit-learn's L-BFGS, from c = 1, l = 1, s = 1e-2);
+- the GP then conditioned on at most ``rows`` random training rows (a subset-of-data GP:
+  the cost is O(rows^3) to fit, O(rows) per predicted sample).
+
+The posterior mean at x is  y_mean + y_std * k(x, Z)^T alpha,  alpha = (K(Z, Z) + s I)^-1 y_std_train
+(scikit-learn's ``alpha_``, jitter 1e-10 included). A model file stores exactly the arrays
+that formula needs, so prediction rebuilds the kernel from them with numpy and SciPy; no
+scikit-learn object is ever serialized. scikit-learn is needed to fit, not to predict.
+
+On disk (``model_dir``): ``config.json`` (the :class:`GPConfig`, robot, fields, widths,
+the fitted kernels in words, dataset checksum) and ``model.safetensors`` (the tensors,
+float64: ``x_mean``, ``x_std`` (d,); ``z_train`` (n, d), the standardized conditioning
+inputs; ``alpha`` (nv, n); ``constant`` (nv,), ``length_scale`` (nv, d), ``noise_level``
+(nv,); ``y_mean``, ``y_std`` (nv,)), whose metadata holds the sha256 of the canonical
+config and of the tensors, as for the PyTorch models (``learn/model.py``); ``timing.json``
+holds the wall-clock training time outside both digests. Loading refuses a file that does
+not match its digests, a model of another family, or arrays of inconsistent shapes.
+Nothing is unpickled.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+import time
+import warnings
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+
+import numpy as np
+import torch
+from safetensors import safe_open
+from safetensors.numpy import save_file
+from scipy.spatial.distance import cdist
+
+from ..data.dataset import Dataset, load_dataset
+from ..errors import UsageError
+from ..outputs import output_lock, refuse_foreign, unique_temp
+from .model import (METADATA_KEY, TIMING_FORMAT, ModelError, _read_timing, canonical_json, check_instances,
+                    config_digest, read_file_metadata, tensors_digest)
+
+GP_FORMAT = "hybrid_dyn.gp"
+GP_FORMAT_VERSION = 1
+TENSORS = ("x_mean", "x_std", "z_train", "alpha", "constant", "length_scale", "noise_level", "y_mean", "y_std")
+STD_EPS = 1e-9  # added to each input's standard deviation: a constant input must not divide by zero
+PREDICT_CHUNK = 1024  # samples per kernel block: 1024 x rows x 8 bytes (64 MB at 8000 rows)
+
+
+@dataclass
+class GPConfig:
+    """How a GP model is fitted (defaults: ``benchmarks/real_baselines.py``'s).
+
+    hyper_rows: training rows the hyperparameters are fitted on (O(n^3) per L-BFGS step).
+    rows: training rows the GP is conditioned on, at most (memory 8 rows^2 bytes).
+    seed: picks both row subsets; the same seed, data and config give the same model.
+    inputs, target: dataset fields (target: per-joint torques, Nm).
+    """
+
+    hyper_rows: int = 600
+    rows: int = 8000
+    seed: int = 0
+    inputs: tuple = ("q", "qd", "qdd")
+    target: str = "tau_m"
+    constant_bounds: tuple = (1e-2, 1e2)
+    length_scale_bounds: tuple = (1e-2, 1e3)  # standardized inputs: 1e3 switches an input off
+    noise_bounds: tuple = (1e-6, 1.0)
+    noise_init: float = 1e-2
+
+    def __post_init__(self):
+        self.inputs = tuple(self.inputs)
+        for name in ("constant_bounds", "length_scale_bounds", "noise_bounds"):
+            setattr(self, name, tuple(float(b) for b in getattr(self, name)))
+        self.validate()
+
+    def validate(self) -> None:
+        problems = [f"{k} must be an integer >= 1, got {getattr(self, k)!r}" for k in ("hyper_rows", "rows")
+                    if not (isinstance(getattr(self, k), int) and getattr(self, k) >= 1)]
+        if not self.inputs:
+            problems.append("inputs must name at least one field")
+        for name in ("constant_bounds", "length_scale_bounds", "noise_bounds"):
+            lo, hi = getattr(self, name)
+            if not 0 < lo < hi:
+                problems.append(f"{name} must be (low, high) with 0 < low < high, got {(lo, hi)}")
+        if not self.noise_bounds[0] <= self.noise_init <= self.noise_bounds[1]:
+            problems.append(f"noise_init {self.noise_init} must lie in noise_bounds {self.noise_bounds}")
+        if problems:
+            raise UsageError("invalid GPConfig: " + "; ".join(problems))
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in d.items()}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "GPConfig":
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(d) - known)
+        if unknown:
+            raise ModelError(f"unknown GPConfig keys {unknown}; known: {sorted(known)}")
+        return cls(**d)
+
+
+# --------------------------------------------------------------------------- fitting (arrays)
+
+@dataclass
+class GPHyperparameters:
+    """Fitted kernel hyperparameters, one entry per output column (joint), on standardized inputs."""
+
+    constant: np.ndarray      # (nv,) signal variance c
+    length_scale: np.ndarray  # (nv, d) ARD length scales l
+    noise_level: np.ndarray   # (nv,) white-noise variance s
+    log_marginal_likelihood: list
+
+
+def _rows(n_total: int, n: int, seed) -> np.ndarray:
+    """At most ``n`` of ``n_total`` row indices, chosen at random by ``seed``, in their original order."""
+    return np.sort(np.random.default_rng(seed).permutation(n_total)[:n])
+
+
+def _standardization(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    return x.mean(0), x.std(0) + STD_EPS
+
+
+def _sklearn_kernel(config: GPConfig, d: int, constant=1.0, length_scale=None, noise_level=None):
+    from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
+
+    ls = np.ones(d) if length_scale is None else np.asarray(length_scale, np.float64)
+    return (ConstantKernel(float(constant), config.constant_bounds) * RBF(ls, config.length_scale_bounds)
+            + WhiteKernel(config.noise_init if noise_level is None else float(noise_level), config.noise_bounds))
+
+
+def fit_gp_hyperparameters(x: np.ndarray, y: np.ndarray, config: GPConfig | None = None) -> GPHyperparameters:
+    """Per column of ``y`` (N, nv), the kernel's hyperparameters by maximum marginal likelihood
+    on ``config.hyper_rows`` random rows of ``x`` (N, d), standardized by all of ``x``'s rows."""
+    from sklearn.exceptions import ConvergenceWarning
+    from sklearn.gaussian_process import GaussianProcessRegressor
+
+    config = config or GPConfig()
+    x, y = _check_xy(x, y)
+    mx, sx = _standardization(x)
+    rows = _rows(len(x), config.hyper_rows, config.seed)
+    z = (x[rows] - mx) / sx
+    out = {"constant": [], "length_scale": [], "noise_level": [], "log_marginal_likelihood": []}
+    for j in range(y.shape[1]):
+        gp = GaussianProcessRegressor(_sklearn_kernel(config, x.shape[1]), normalize_y=True, random_state=config.seed)
+        with warnings.catch_warnings():
+            # A length scale at its upper bound is ARD switching an input off, which sklearn
+            # reports as a ConvergenceWarning: expected, not a failure.
+            warnings.filterwarnings("ignore", message=".*close to the specified upper bound",
+                                    category=ConvergenceWarning)
+            gp.fit(z, y[rows, j])
+        k = gp.kernel_
+        out["constant"].append(k.k1.k1.constant_value)
+        out["length_scale"].append(np.broadcast_to(k.k1.k2.length_scale, (x.shape[1],)))
+        out["noise_level"].append(k.k2.noise_level)
+        out["log_marginal_likelihood"].append(float(gp.log_marginal_likelihood_value_))
+    return GPHyperparameters(np.array(out["constant"], np.float64), np.array(out["length_scale"], np.float64),
+                             np.array(out["noise_level"], np.float64), out["log_marginal_likelihood"])
+
+
+def condition_gp(x: np.ndarray, y: np.ndarray, hyper: GPHyperparameters, config: GPConfig | None = None,
+                 meta: dict | None = None) -> "GPModel":
+    """The GP with fixed ``hyper`` conditioned on at most ``config.rows`` random rows of (x, y),
+    inputs standardized by all of ``x``'s rows. ``meta``: extra config entries (fields, robot)."""
+    from sklearn.gaussian_process import GaussianProcessRegressor
+
+    config = config or GPConfig()
+    x, y = _check_xy(x, y)
+    if hyper.length_scale.shape != (y.shape[1], x.shape[1]):
+        raise UsageError(f"hyperparameters for {hyper.length_scale.shape} (outputs, inputs) do not fit data with "
+                         f"{y.shape[1]} outputs and {x.shape[1]} inputs")
+    mx, sx = _standardization(x)
+    rows = _rows(len(x), config.rows, config.seed + 1)
+    z = (x[rows] - mx) / sx
+    alpha, y_mean, y_std = [], [], []
+    for j in range(y.shape[1]):
+        kernel = _sklearn_kernel(config, x.shape[1], hyper.constant[j], hyper.length_scale[j], hyper.noise_level[j])
+        gp = GaussianProcessRegressor(kernel, optimizer=None, normalize_y=True).fit(z, y[rows, j])
+        alpha.append(gp.alpha_)
+        y_mean.append(gp._y_train_mean)  # sklearn's normalize_y statistics: the posterior mean's affine map
+        y_std.append(gp._y_train_std)
+    tensors = {"x_mean": mx, "x_std": sx, "z_train": np.array(z), "alpha": np.array(alpha),
+               "constant": hyper.constant, "length_scale": hyper.length_scale, "noise_level": hyper.noise_level,
+               "y_mean": np.array(y_mean, np.float64), "y_std": np.array(y_std, np.float64)}
+    config_doc = {"format": GP_FORMAT, "format_version": GP_FORMAT_VERSION, "family": "gp", "gp": config.to_dict(),
+                  "n_rows": int(len(rows)), "kernels": _describe(tensors),
+                  "log_marginal_likelihood": list(hyper.log_marginal_likelihood), **(meta or {})}
+    return GPModel({k: np.ascontiguousarray(v, np.float64) for k, v in tensors.items()}, config_doc)
+
+
+def _check_xy(x, y) -> tuple[np.ndarray, np.ndarray]:
+    x, y = np.asarray(x, np.float64), np.asarray(y, np.float64)
+    if y.ndim == 1:
+        y = y[:, None]
+    if x.ndim != 2 or y.ndim != 2 or len(x) != len(y) or len(x) < 2:
+        raise UsageError(f"a GP needs x (N, d) and y (N, nv) with N >= 2 rows alike; got {x.shape} and {y.shape}")
+    if not (np.isfinite(x).all() and np.isfinite(y).all()):
+        raise UsageError("a GP's training data hold NaN or inf")
+    return x, y
+
+
+def _describe(tensors: dict) -> list[str]:
+    """Each joint's fitted kernel in words (for the config and the report; not used to predict)."""
+    return [f"{c:.4g} * RBF(length_scale=[{', '.join(f'{v:.3g}' for v in ls)}]) + WhiteKernel({s:.3g})"
+            for c, ls, s in zip(tensors["constant"], tensors["length_scale"], tensors["noise_level"])]
+
+
+# --------------------------------------------------------------------------- the model
+
+class GPModel:
+    """A fitted GP with the API of the PyTorch models (``TrainedModel``).
+
+    ``predict(instances)``: one (T, nv) array per instance [Nm], every sample.
+    ``predict_rows(x)``: (N, d) raw inputs -> (N, nv). ``config``: the dict in config.json.
+    """
+
+    window = 1
+
+    def __init__(self, tensors: dict, config: dict, path: Path | None = None, train_seconds: float | None = None):
+        _check_tensors(tensors, path or "GP model")
+        self.tensors = tensors
+        self.config = config
+        self.path = path
+        self._train_seconds = train_seconds
+        # Training inputs divided by each joint's length scales, once (as the kernel divides them).
+        self._z_scaled = [tensors["z_train"] / ls for ls in tensors["length_scale"]]
+
+    @property
+    def gp_config(self) -> GPConfig:
+        return GPConfig.from_dict(self.config["gp"])
+
+    @property
+    def inputs(self) -> list:
+        return list(self.config["gp"]["inputs"])
+
+    @property
+    def targets(self) -> list:
+        return [self.config["gp"]["target"]]
+
+    @property
+    def n_params(self) -> int:
+        """Stored numbers the prediction uses (the training inputs and alpha dominate)."""
+        return int(sum(t.size for t in self.tensors.values()))
+
+    @property
+    def train_seconds(self) -> float:
+        """Wall-clock training time [s] (timing.json; NaN when it is not known)."""
+        return float("nan") if self._train_seconds is None else float(self._train_seconds)
+
+    @property
+    def val_loss(self) -> float:
+        return float(self.config.get("val_loss", float("nan")))
+
+    @property
+    def history(self) -> list:
+        return []  # no epochs: a GP is fitted, not trained in steps
+
+    def predict_rows(self, x: np.ndarray) -> np.ndarray:
+        """Posterior mean (N, nv) [target units] at raw inputs x (N, d), in blocks of PREDICT_CHUNK rows."""
+        t = self.tensors
+        x = np.asarray(x, np.float64)
+        if x.ndim != 2 or x.shape[1] != t["x_mean"].shape[0]:
+            raise ModelError(f"GP model expects inputs of width {t['x_mean'].shape[0]}, got shape {x.shape}")
+        z = (x - t["x_mean"]) / t["x_std"]
+        out = np.empty((len(z), t["alpha"].shape[0]))
+        for s in range(0, len(z), PREDICT_CHUNK):
+            zc = z[s:s + PREDICT_CHUNK]
+            for j, (ls, zs) in enumerate(zip(t["length_scale"], self._z_scaled)):
+                # k(x, Z) = c exp(-|(x - z)/l|^2 / 2); the white-noise term is zero between distinct points.
+                k = t["constant"][j] * np.exp(-0.5 * cdist(zc / ls, zs, metric="sqeuclidean"))
+                out[s:s + PREDICT_CHUNK, j] = t["y_std"][j] * (k @ t["alpha"][j]) + t["y_mean"][j]
+        return out
+
+    def predict(self, instances) -> list[np.ndarray]:
+        """Predictions (T, nv) float64 [target units] for each instance."""
+        instances = list(instances)
+        if not instances:
+            return []
+        check_instances(instances, self.inputs, self.config.get("widths", {}), "GP model")
+        x = np.concatenate([_inputs(inst, self.inputs) for inst in instances])
+        return np.split(self.predict_rows(x), np.cumsum([len(i) for i in instances])[:-1])
+
+    def evaluate(self, instances) -> dict:
+        """RMSE [target units] and standardized MSE (by the training targets' std) on instances."""
+        instances = list(instances)
+        pred = np.concatenate(self.predict(instances))
+        y = np.concatenate([_inputs(inst, self.targets) for inst in instances])
+        err = pred - y
+        scale = np.asarray(self.config.get("train_target_std", np.ones(y.shape[1])), np.float64)
+        return {"loss": float(np.mean((err / scale) ** 2)), "rmse": float(np.sqrt(np.mean(err ** 2))),
+                "rmse_per_component": np.sqrt(np.mean(err ** 2, axis=0)).tolist(),
+                "max_abs_error": float(np.abs(err).max()), "n_samples": len(y)}
+
+    def save(self, model_dir) -> None:
+        save_gp(self, model_dir)
+
+
+def _inputs(inst, names) -> np.ndarray:
+    return np.concatenate([np.asarray(inst[n], np.float64).reshape(len(inst), -1) for n in names], axis=1)
+
+
+def _xy(instances, config: GPConfig) -> tuple[np.ndarray, np.ndarray]:
+    return (np.concatenate([_inputs(i, config.inputs) for i in instances]),
+            np.concatenate([_inputs(i, [config.target]) for i in instances]))
+
+
+def _check_tensors(tensors: dict, where) -> None:
+    """The tensors a GP file must hold, with consistent shapes (n rows, d inputs, nv outputs)."""
+    missing = sorted(set(TENSORS) - set(tensors))
+    extra = sorted(set(tensors) - set(TENSORS))
+    if missing or extra:
+        raise ModelError(f"{where}: not a GP model file (missing tensors {missing}, unexpected {extra})")
+    n, d = tensors["z_train"].shape if tensors["z_train"].ndim == 2 else (-1, -1)
+    nv = tensors["alpha"].shape[0] if tensors["alpha"].ndim == 2 else -1
+    expect = {"x_mean": (d,), "x_std": (d,), "z_train": (n, d), "alpha": (nv, n), "constant": (nv,),
+              "length_scale": (nv, d), "noise_level": (nv,), "y_mean": (nv,), "y_std": (nv,)}
+    wrong = [f"{k} {tuple(tensors[k].shape)} (expected {v})" for k, v in expect.items() if tuple(tensors[k].shape) != v]
+    if wrong or min(n, d, nv) < 1:
+        raise ModelError(f"{where}: GP tensors of inconsistent shapes: {', '.join(wrong) or 'empty'}")
+
+
+# --------------------------------------------------------------------------- files
+
+def _metadata(config: dict, tensors: dict) -> dict:
+    """safetensors metadata: one canonical-JSON key, as ``learn.model.file_metadata`` writes for nets."""
+    return {METADATA_KEY: canonical_json({"format": GP_FORMAT, "format_version": GP_FORMAT_VERSION,
+                                          "config_sha256": config_digest(config),
+                                          "tensors_sha256": _digest(tensors)})}
+
+
+def _digest(tensors: dict) -> str:
+    """The tensor digest of ``learn.model.tensors_digest`` (name, dtype, shape, bytes), on numpy arrays."""
+    return tensors_digest({k: torch.from_numpy(np.ascontiguousarray(v)) for k, v in tensors.items()})
+
+
+def save_gp(model: GPModel, model_dir, train_seconds: float | None = None) -> None:
+    """Write model.safetensors, timing.json (when ``train_seconds``) and config.json, each through a
+    per-run temporary and renamed into place; config.json last, so a folder with it is complete."""
+    model_dir = Path(model_dir)
+    model_dir.mkdir(parents=True, exist_ok=True)
+    wpath, cpath, tpath = model_dir / "model.safetensors", model_dir / "config.json", model_dir / "timing.json"
+    wtmp, ctmp = unique_temp(wpath), unique_temp(cpath)
+    save_file(model.tensors, str(wtmp), metadata=_metadata(model.config, model.tensors))
+    ctmp.write_text(json.dumps(model.config, indent=1, sort_keys=True))
+    os.replace(wtmp, wpath)
+    if train_seconds is not None:
+        ttmp = unique_temp(tpath)
+        ttmp.write_text(json.dumps({"format": TIMING_FORMAT, "config_sha256": config_digest(model.config),
+                                    "train_seconds": float(train_seconds)}, indent=1))
+        os.replace(ttmp, tpath)
+    os.replace(ctmp, cpath)
+
+
+def load_gp(model_dir) -> GPModel:
+    """Open a GP model folder. Refuses a missing or partial folder, a model of another family,
+    a config.json or tensors that do not match the digests saved with them."""
+    model_dir = Path(model_dir)
+    cpath, wpath = model_dir / "config.json", model_dir / "model.safetensors"
+    if not cpath.is_file() or not wpath.is_file():
+        raise ModelError(f"{model_dir} is not a finished GP model (needs config.json and model.safetensors)")
+    try:
+        config = json.loads(cpath.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
+        raise ModelError(f"{cpath} is corrupt: {err}") from err
+    if not isinstance(config, dict) or config.get("format") != GP_FORMAT:
+        found = config.get("format") if isinstance(config, dict) else type(config).__name__
+        raise ModelError(f"{model_dir} is not a GP model ({cpath} has format {found!r}, expected {GP_FORMAT!r}); "
+                         f"a PyTorch model ('hybrid_dyn.model') loads with hybrid_dyn.learn.load_model")
+    if config.get("format_version", 0) > GP_FORMAT_VERSION:
+        raise ModelError(f"{cpath}: GP format version {config.get('format_version')} is newer than this toolkit's "
+                         f"({GP_FORMAT_VERSION})")
+    try:
+        with safe_open(str(wpath), framework="np") as f:
+            meta = read_file_metadata(f.metadata() or {})
+            tensors = {k: f.get_tensor(k) for k in f.keys()}
+    except Exception as err:  # safetensors raises its own error types
+        raise ModelError(f"{wpath} is corrupt: {err}") from err
+    if meta.get("format") != GP_FORMAT:
+        raise ModelError(f"{wpath} is not a GP model file (its metadata has format {meta.get('format')!r})")
+    if meta.get("config_sha256") != config_digest(config):
+        raise ModelError(f"{cpath} does not match the tensors it was saved with (edited or tampered); refusing to load")
+    if meta.get("tensors_sha256") != _digest(tensors):
+        raise ModelError(f"{wpath}: its tensors do not match the sha256 saved with them (corrupted or edited); "
+                         f"refusing to load; refit or restore the file")
+    bad = sorted(k for k, v in tensors.items() if v.dtype != np.float64 or not np.isfinite(v).all())
+    if bad:
+        raise ModelError(f"{wpath}: tensors {bad} are not finite float64")
+    return GPModel(tensors, config, path=model_dir, train_seconds=_read_timing(model_dir / "timing.json",
+                                                                               config_digest(config)))
+
+
+# --------------------------------------------------------------------------- training on a dataset
+
+def gp_fingerprint(config: GPConfig, dataset_checksum: str) -> str:
+    return hashlib.sha256(canonical_json({"format_version": GP_FORMAT_VERSION, "gp": config.to_dict(),
+                                          "dataset": dataset_checksum}).encode()).hexdigest()
+
+
+def train_gp(dataset, out_dir, config: GPConfig | None = None) -> GPModel:
+    """Fit a GP on ``dataset``'s train split (a Dataset or its path) and write it to ``out_dir``.
+
+    A finished model of the same run there is returned as is; anything else there (another
+    run, another model, files the toolkit did not write) is refused: nothing is overwritten.
+    One run per folder: ``output_lock(out_dir)`` is held while fitting.
+    """
+    config = config or GPConfig()
+    config.validate()
+    ds: Dataset = dataset if isinstance(dataset, Dataset) else load_dataset(dataset)
+    out_dir = Path(out_dir)
+    fingerprint = gp_fingerprint(config, ds.checksum)
+    if (out_dir / "config.json").is_file():  # a finished model is never written again
+        return _reuse(out_dir, fingerprint)
+    with output_lock(out_dir, "GP model folder"):
+        if (out_dir / "config.json").is_file():  # finished by another run between the check and the lock
+            return _reuse(out_dir, fingerprint)
+        _refuse_foreign_files(out_dir)
+        return _fit_locked(ds, out_dir, config, fingerprint)
+
+
+def _fit_locked(ds: Dataset, out_dir: Path, config: GPConfig, fingerprint: str) -> GPModel:
+    train, val = ds.split("train"), ds.split("val")
+    if not train:
+        raise UsageError(f"dataset {ds.path} has no training instances to fit a GP on")
+    names = list(config.inputs) + [config.target]
+    missing = sorted(set(names) - set(ds.fields))
+    if missing:
+        raise UsageError(f"dataset {ds.path} lacks fields {missing} that the GP needs (it has {sorted(ds.fields)})")
+    widths = {n: int(np.asarray(train[0][n]).reshape(len(train[0]), -1).shape[1]) for n in names}
+    check_instances(train + val, names, widths, "GP model")
+    start = time.perf_counter()
+    x, y = _xy(train, config)
+    hyper = fit_gp_hyperparameters(x, y, config)
+    meta = {"robot": ds.meta.get("robot", "unknown"), "scenario": ds.meta.get("scenario"), "widths": widths,
+            "dataset_checksum": ds.checksum, "fingerprint": fingerprint, "n_train_samples": int(len(x)),
+            "train_target_std": y.std(0).tolist()}
+    model = condition_gp(x, y, hyper, config, meta)
+    if val:
+        ev = model.evaluate(val)
+        model.config.update(val_loss=ev["loss"], val_rmse=ev["rmse"])
+    save_gp(model, out_dir, time.perf_counter() - start)
+    return load_gp(out_dir)  # what the caller gets is what the file holds
+
+
+def _reuse(out_dir: Path, fingerprint: str) -> GPModel:
+    model = load_gp(out_dir)
+    if model.config.get("fingerprint") != fingerprint:
+        raise ModelError(f"{out_dir} holds a finished GP model of another run (other config or data); "
+                         "choose another output folder or delete it")
+    return model
+
+
+# What a GP fit writes into its folder: the three files and their per-run temporaries.
+_OWN_TEMPORARY = re.compile(r"(model\.safetensors|config\.json|timing\.json)\.partial\.\d+\.[0-9a-f]{8}")
+
+
+def _is_own(path: Path) -> bool:
+    """Whether ``path`` (in a GP folder without config.json) is something a GP fit wrote: proof by content."""
+    if not path.is_file():
+        return False
+    if _OWN_TEMPORARY.fullmatch(path.name):
+        return True
+    if path.name == "model.safetensors":  # killed between writing the tensors and the config
+        try:
+            with safe_open(str(path), framework="np") as f:
+                return read_file_metadata(f.metadata() or {}).get("format") == GP_FORMAT
+        except Exception:  # unreadable is simply not ours
+            return False
+    if path.name == "timing.json":
+        try:
+            return json.loads(path.read_text()).get("format") == TIMING_FORMAT
+        except (OSError, ValueError, AttributeError):
+            return False
+    return False
+
+
+def _refuse_foreign_files(out_dir: Path) -> None:
+    """An output folder must be missing, empty, or hold only what a GP fit writes."""
+    if out_dir.exists() and not out_dir.is_dir():
+        refuse_foreign(out_dir, "GP model folder", "it is a file, not a folder")
+    if not out_dir.is_dir():
+        return
+    foreign = sorted(p.name for p in out_dir.iterdir() if not _is_own(p))
+    if foreign:
+        refuse_foreign(out_dir, "GP model folder", f"it holds {', '.join(foreign[:5])}"
+                                                   f"{' ...' if len(foreign) > 5 else ''} but no config.json")
