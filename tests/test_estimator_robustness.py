@@ -240,3 +240,25 @@ def test_a_force_beyond_the_bound_is_out_of_range_and_not_held(panda):
     held = est.estimate_tip_force(**dict(good[2], t="abc"))
     assert est.last_status is EstimatorStatus.INPUT_REJECTED
     np.testing.assert_array_equal(held, f1)  # the last estimate within the bound
+
+
+def test_any_numeric_layout_gives_what_float64_arrays_give(panda):
+    """The compiled gate takes float64 1-D contiguous arrays; every other numeric form of the same values
+    (a list, a read-only, strided or big-endian array, a kalman_fusion call without one sensor) goes the
+    converting path and must give exactly the same estimates and statuses."""
+    def variants(x):
+        ro = x.copy()
+        ro.flags.writeable = False
+        return [list(x), ro, np.repeat(x, 2)[::2], x.astype(">f8")]
+
+    good = stream(panda, 6)
+    for method in ("base_wrench", "kalman_fusion"):
+        for v in range(4):
+            plain = TipForceEstimator.analytic(panda, method, call_hz=HZ, tare_seconds=0.0)
+            other = TipForceEstimator.analytic(panda, method, call_hz=HZ, tare_seconds=0.0)
+            for k, s in enumerate(good):
+                if method == "kalman_fusion" and k == 3:
+                    s = dict(s, tau_J=None)
+                odd = {n: (variants(x)[v] if isinstance(x, np.ndarray) else x) for n, x in s.items()}
+                np.testing.assert_array_equal(other.estimate_tip_force(**odd), plain.estimate_tip_force(**s))
+                assert other.last_status is plain.last_status
