@@ -1,10 +1,16 @@
-"""The three shipped real-robot logs (KUKA LWR, Baxter, SARCOS) as toolkit datasets.
+"""The real-robot logs (KUKA LWR, Baxter, SARCOS, a Franka Panda) as toolkit datasets.
 
 Their import specs live in ``benchmarks/real/*.toml`` of the repository (or in
-the folder named by ``HYBRID_DYN_REAL_SPECS``); the logs themselves ship
-beside them in ``benchmarks/real/logs`` (4.7 MB; ``HYBRID_DYN_REAL_LOGS`` overrides). :func:`real_dataset` imports a set once and caches it under a
-key made of the spec, the importer version and the log files' checksums, so a
-changed spec or log is re-imported and an unchanged one is not.
+the folder named by ``HYBRID_DYN_REAL_SPECS``). The KUKA, Baxter and SARCOS logs
+ship beside them in ``benchmarks/real/logs`` (4.7 MB). The Panda log does not ship
+(its source repository is GPL-3.0): it is read from ``../shared/data/real`` beside
+the repository. ``HYBRID_DYN_REAL_LOGS`` (a folder) overrides where the logs are.
+:func:`real_dataset` imports a set once and caches it under a key made of the spec,
+the importer version and the log files' checksums, so a changed spec or log is
+re-imported and an unchanged one is not. A set whose log is absent raises
+:class:`RealLogMissingError`, whose message says where to get it;
+:func:`missing_real_log` gives that message without importing anything (the bench
+skips such a scenario with it).
 """
 from __future__ import annotations
 
@@ -17,7 +23,28 @@ import numpy as np
 from .dataset import DatasetError, load_dataset
 from .importer import import_log, read_spec, spec_checksum
 
-REAL_SETS = {"real-kuka": "kuka.toml", "real-baxter": "baxter.toml", "real-sarcos": "sarcos.toml"}
+REAL_SETS = {"real-kuka": "kuka.toml", "real-baxter": "baxter.toml", "real-sarcos": "sarcos.toml",
+             "real-panda": "panda.toml"}
+
+# Where each set's log comes from, for the message when it is absent.
+_SHIPPED = "they ship in benchmarks/real/logs of the repository"
+REAL_LOG_SOURCES = {
+    "real-kuka": _SHIPPED, "real-baxter": _SHIPPED, "real-sarcos": _SHIPPED,
+    "real-panda": ("it does not ship with the repository (its source is GPL-3.0): it is the project's shared data "
+                   "file ../shared/data/real/panda_gaz_exciting_traj1.csv beside the repository, or build it from "
+                   "https://github.com/marcocognetti/FrankaEmikaPandaDynModel, folder "
+                   "matlab/data/Exciting_Traj/Trajectory_1/rbt_log/ (its four text files side by side as columns "
+                   "t, q1..q7, qd1..qd7, tau1..tau7 with that header; ../shared/data/real/README.md)"),
+}
+
+
+class RealLogMissingError(DatasetError):
+    """A real set's log file is not where its spec looks: the scenario cannot run (the bench skips it)."""
+
+    def __init__(self, name: str, missing: list):
+        self.scenario, self.missing = name, list(missing)
+        super().__init__(f"{name}: log file(s) {self.missing} not found; {REAL_LOG_SOURCES.get(name, _SHIPPED)}; "
+                         f"or set HYBRID_DYN_REAL_LOGS to the folder that holds them")
 
 
 def real_specs_dir() -> Path:
@@ -36,19 +63,25 @@ def real_spec_path(name: str) -> Path:
     return path
 
 
+def missing_real_log(name: str) -> str | None:
+    """Why the real set ``name`` cannot be imported here (its log is absent, and where to get it), or None."""
+    spec = read_spec(real_spec_path(name))
+    missing = [str(f) for f in spec.files if not Path(f).is_file()]
+    return str(RealLogMissingError(name, missing)) if missing else None
+
+
 def real_dataset(name: str, cache_dir, /, log=None, **spec_overrides) -> Path:
-    """The dataset directory of the real set ``name`` ("real-kuka", "real-baxter",
-    "real-sarcos"), imported into ``cache_dir`` on first use and reused after.
+    """The dataset directory of the real set ``name`` (a key of :data:`REAL_SETS`),
+    imported into ``cache_dir`` on first use and reused after.
 
     ``spec_overrides``: fields of its :class:`LogSpec` to change for this import
     (e.g. ``trajectories="blocks", n_blocks=4``, or another ``name`` for its
-    manifest); they enter the cache key.
+    manifest); they enter the cache key. An absent log raises :class:`RealLogMissingError`.
     """
     spec = replace(read_spec(real_spec_path(name)), **spec_overrides)
     missing = [str(f) for f in spec.files if not Path(f).is_file()]
     if missing:
-        raise DatasetError(f"{name}: log file(s) {missing} not found; they ship in benchmarks/real/logs, or set "
-                           f"HYBRID_DYN_REAL_LOGS to the folder that holds them")
+        raise RealLogMissingError(name, missing)
     path = Path(cache_dir) / f"{name}-{spec_checksum(spec)[:16]}"
     if (path / "manifest.json").is_file():
         try:
