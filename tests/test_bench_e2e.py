@@ -14,8 +14,9 @@ def test_tiny_bench_writes_every_row_and_column(tmp_path):
     tiny = dataclasses.replace(
         quick, name="tiny",
         generator_overrides=dict(n_instances=3, trajectories=(1, 1)),
-        tip_models=("seed-tip-1", "seed-tip-11", "residual-basewrench", "residual-momentum"),
-        torque_models=("seed-tau-lstm", "residual-rnea", "residual-rnea-bw", "delan", "delan-friction", "delan-residual"),
+        families=("analytic", "identified"),
+        rows=("seed-tip-1", "seed-tip-11", "residual-basewrench", "residual-momentum",
+              "seed-tau-lstm", "residual-rnea", "residual-rnea-bw", "delan", "delan-friction", "delan-residual"),
         train=dict(max_epochs=1, max_batches_per_epoch=2, batch_size=64, progress=False),
         workers=2,  # exercises the parallel generator and the training pool
     )
@@ -25,8 +26,8 @@ def test_tiny_bench_writes_every_row_and_column(tmp_path):
         written = list(csv.DictReader(f))
     assert list(written[0]) == COLUMNS
     names = {(r["task"], r["model"]) for r in written}
-    expected = {("tip_force", m) for m in ("torques-pinv", "base-wrench", "momentum-observer", *tiny.tip_models)}
-    expected |= {("joint_torque", m) for m in ("rnea", "rnea-bw", *tiny.torque_models)}
+    expected = {("tip_force", m) for m in ("torques-pinv", "base-wrench", "momentum-observer", *tiny.rows[:4])}
+    expected |= {("joint_torque", m) for m in ("rnea", "rnea-bw", *tiny.rows[4:])}
     assert expected <= names
     failed = [(r["model"], r["error"]) for r in written if r["status"] != "ok"]
     assert not failed

@@ -6,8 +6,9 @@ import json
 import pytest
 
 from hybrid_dyn.bench.report import CAP_MARK, write_report
-from hybrid_dyn.bench.runner import (COLUMNS, CURVES_FILE, learned_family, read_curves, read_results,
-                                     training_summary, write_curves, write_results)
+from hybrid_dyn.bench.catalog import ROWS, reference_label
+from hybrid_dyn.bench.learned_rows import training_summary
+from hybrid_dyn.bench.runner import COLUMNS, CURVES_FILE, read_curves, read_results, write_curves, write_results
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -40,7 +41,9 @@ def test_summary_carries_what_the_model_config_says():
 
 
 def test_raw_sensor_reference_row_stays_in_the_seed_family():
-    assert learned_family("seed-tip-11-raw") == "seed-net"
+    assert ROWS["seed-tip-11-raw"].family == "seed-net"
+    assert reference_label("seed-tip-11-raw") == "raw sensor, untared: reference"
+    assert reference_label("seed-tip-11") is None
 
 
 # ------------------------------------------------------------------ the report, from files
@@ -116,8 +119,8 @@ def test_tiny_bench_carries_the_model_config_into_the_report(tmp_path, panda):
 
     ds = load_dataset(make_synthetic_dataset(tmp_path / "d", panda, n_instances=4, n_samples=60, seed=3))
     profile = dataclasses.replace(
-        PROFILES["quick"], name="tiny", scenarios=("synthetic",), analytic_rows=("base-wrench",),
-        tip_models=("seed-tip-1",), torque_models=(), identified=False, workers=1,
+        PROFILES["quick"], name="tiny", scenarios=("synthetic",), families=(), rows=("base-wrench", "seed-tip-1"),
+        workers=1,
         train=dict(max_epochs=1, batch_size=64, progress=False))  # one epoch, still improving: the cap stops it
     run_bench(profile, tmp_path / "report", work_root=tmp_path / "runs", dataset_provider=lambda s, p: ds,
               log=lambda m: None)

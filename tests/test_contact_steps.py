@@ -64,14 +64,13 @@ def test_default_profile_runs_only_the_analytic_rows_on_contact_steps():
     from types import SimpleNamespace
 
     from hybrid_dyn.bench.profiles import get_profile
-    from hybrid_dyn.bench.runner import row_specs
 
     prof = get_profile("default")
     cfg = scenario_config("contact-steps", "default")
     ds = SimpleNamespace(fields=["t", "q", "qd", "qdd", "tau_m", "tau_J", "base_wrench", "tip_force"],
                          meta={"scenario": "contact-steps", "robot": "panda", "config": cfg.to_dict(),
                                "generator_version": 1})
-    applied = {s.family for s in row_specs(prof) if prof.applies(s, ds)}
+    applied = {s.family for s in prof.selected_rows() if prof.applies(s, ds)}
     assert applied == {"analytic"}
-    tip_rows = {s.model for s in row_specs(prof) if prof.applies(s, ds) and s.task == "tip_force"}
+    tip_rows = {s.name for s in prof.selected_rows() if prof.applies(s, ds) and s.task == "tip_force"}
     assert "base-wrench-tared" in tip_rows  # the force exists: tip rows run although there are no bell pulses

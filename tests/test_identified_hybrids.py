@@ -124,13 +124,13 @@ def test_untrained_residual_on_an_identified_file_is_the_identified_model(log_li
 
 @pytest.mark.slow  # training and numba compilation: ~8 s
 def test_bench_identifies_an_imported_log_on_train_and_val_and_scores_on_test(panda, log_like, tmp_path):
-    from hybrid_dyn.bench.identified_rows import identified_row_specs
+    from hybrid_dyn.bench.catalog import select_rows
     from hybrid_dyn.bench.profiles import BenchProfile
     from hybrid_dyn.bench.runner import BenchContext, score_row, train_split_stats
 
     ds, model, _ = log_like
     profile = BenchProfile(name="t", scenarios=("log",), train=TINY_TRAINING, workers=1)
-    specs = {s.model: s for s in identified_row_specs(profile)}
+    specs = {s.name: s for s in select_rows(families=("identified",))}
     for name in ("identified-consistent", "base-wrench-identified", "residual-rnea-identified",
                  "residual-rnea-bw-identified"):
         assert profile.applies(specs[name], ds), name

@@ -42,6 +42,8 @@ from ..analytic.tare import TARE_SECONDS, tare_samples, tared_base_wrench
 from ..analytic.tip_force import contact_joint_torques, tip_force_from_base_wrench
 from ..data import DatasetError, load_dataset
 from ..outputs import unique_temp
+from .learned_rows import learned_predictor
+from .rows import Predictor, Row, declare
 
 EXCITATION_ITERATIONS = {"quick": 30, "default": 150, "paper": 150}
 LOG_SPLITS = ("train", "val")  # what an imported log's identification sees; never its test split
@@ -64,16 +66,10 @@ def file_safe_name(name: str) -> str:
     return safe if safe == name else f"{safe}-{hashlib.sha256(name.encode()).hexdigest()[:8]}"
 
 
-def identified_row_needs(name: str) -> tuple:
-    """The dataset fields an identified row reads (beyond a URDF for the dataset's robot)."""
-    from .profiles import ANALYTIC_NEEDS
-
-    if name in RESIDUAL_ROWS:
-        from ..learn.presets import get_preset
-
-        preset = get_preset(RESIDUAL_ROWS[name])
-        return tuple(preset.inputs) + tuple(preset.targets)
-    return ANALYTIC_NEEDS.get(name, ("q", "qd", "qdd", "tau_m"))
+def fit_needs(ds) -> tuple:
+    """What an identified row needs of ``ds`` beyond its own fields: on a dataset with no simulated
+    plant the parameters are fitted on its own train + val splits, whose motor torques the fit reads."""
+    return () if has_simulated_plant(ds) else ("q", "qd", "qdd", "tau_m")
 
 
 def _identification_data(ctx) -> tuple:
@@ -155,16 +151,15 @@ def _excitation_dataset(ctx):
     return ident
 
 
-def _row(task, name, predict_instance, inputs, single=None):
-    from .runner import Predictor, RowSpec
-
+def _row(task, name, needs, predict_instance, inputs, single=None) -> Row:
+    """Declare an identified row: predict_instance(models, ctx, inst) and single(models, ctx, inst, k)."""
     def build(ds, ctx):
         models = _Models(ctx)
         return Predictor(predict=lambda insts: [predict_instance(models, ctx, i) for i in insts],
                          single_call=(lambda inst, k: single(models, ctx, inst, k)) if single else None,
                          inputs=inputs)
 
-    return RowSpec(task, name, "identified", build)
+    return declare(Row(name, task, "identified", needs=needs, needs_urdf=True, build=build, more_needs=fit_needs))
 
 
 def _identified_robot(models, ctx):
@@ -204,17 +199,17 @@ def _identified_bw_torque(models, ctx, inst, k=None):
 
 def _torque_row(name: str, method: str):
     """A row predicting with one identified model; per call: the same function on one sample."""
-    return _row("joint_torque", name, lambda m, c, i: m[method].predict_torque(i.q, i.qd, i.qdd), "q, qd, qdd",
-                single=lambda m, c, i, k: m[method].predict_torque(i.q[k], i.qd[k], i.qdd[k]))
+    return _row("joint_torque", name, TORQUE_NEEDS, lambda m, c, i: m[method].predict_torque(i.q, i.qd, i.qdd),
+                "q, qd, qdd", single=lambda m, c, i, k: m[method].predict_torque(i.q[k], i.qd[k], i.qdd[k]))
 
 
 def _friction_only(models, ctx, q, qd, qdd):
     return ctx.robot.inverse_dynamics(q, qd, qdd) + models["sigmoid-friction"].friction(qd)
 
 
-def _residual_row(name: str, preset: str):
+def _residual_row(name: str, preset: str) -> Row:
     """A residual net (``preset``) on the identified model, inertials and friction, trained like the learned rows."""
-    from .runner import Predictor, RowSpec, _learned_single_call, training_summary
+    from ..learn.presets import get_preset
 
     def build(ds, ctx):
         from ..learn import train_model
@@ -226,31 +221,31 @@ def _residual_row(name: str, preset: str):
         t0 = time.perf_counter()
         model = train_model(ds, preset, out, config=config)
         train_seconds = getattr(model, "train_seconds", None) or (time.perf_counter() - t0)
-        return Predictor(predict=model.predict, single_call=_learned_single_call(model),
-                         train_seconds=float(train_seconds), n_params=int(model.n_params),
-                         inputs=", ".join(model.config.get("inputs", []))
-                         + f"; prior on identified-{RESIDUAL_PRIOR_METHOD} (inertials + friction)",
-                         training=training_summary(model.config))  # a learned row: its curve is reported
+        # A learned row: its curve is reported, its single call is the user's (learned_rows.py).
+        return learned_predictor(model, train_seconds, inputs=", ".join(model.config.get("inputs", []))
+                                 + f"; prior on identified-{RESIDUAL_PRIOR_METHOD} (inertials + friction)")
 
-    return RowSpec("joint_torque", name, "identified", build)
-
-
-def identified_row_specs(profile) -> list:
-    return [
-        _torque_row("identified-ols", "ols"),
-        _torque_row("identified-consistent", "consistent"),
-        _torque_row("identified-sigmoid-friction", "sigmoid-friction"),
-        _row("joint_torque", "rnea+identified-friction", lambda m, c, i: _friction_only(m, c, i.q, i.qd, i.qdd),
-             "q, qd, qdd", single=lambda m, c, i, k: _friction_only(m, c, i.q[k], i.qd[k], i.qdd[k])),
-        _row("tip_force", "base-wrench-identified", _base_wrench_identified, "q, qd, qdd, base_wrench",
-             single=lambda m, c, i, k: tip_force_from_base_wrench(_identified_robot(m, c), i.q[k], i.qd[k], i.qdd[k],
-                                                                  i.base_wrench[k])),
-        _row("tip_force", "base-wrench-identified-tared", _tared_force_identified, TARED_INPUTS,
-             single=lambda m, c, i, k: _tared_force_identified(m, c, i, k)),
-        _row("joint_torque", "identified-bw-tared", _identified_bw_torque, TARED_INPUTS,
-             single=lambda m, c, i, k: _identified_bw_torque(m, c, i, k)),
-        *(_residual_row(name, preset) for name, preset in RESIDUAL_ROWS.items()),
-    ]
+    p = get_preset(preset)
+    return declare(Row(name, "joint_torque", "identified", needs=tuple(p.inputs) + tuple(p.targets), needs_urdf=True,
+                       build=build, trains=True, more_needs=fit_needs))
 
 
+# ------------------------------------------------------------------ the rows
+TORQUE_NEEDS = ("q", "qd", "qdd", "tau_m")
+TIP_NEEDS = ("q", "qd", "qdd", "base_wrench", "tip_force")
 TARED_INPUTS = "q, qd, qdd, base_wrench (tared on the first 0.5 s)"
+
+_torque_row("identified-ols", "ols")
+_torque_row("identified-consistent", "consistent")
+_torque_row("identified-sigmoid-friction", "sigmoid-friction")
+_row("joint_torque", "rnea+identified-friction", TORQUE_NEEDS, lambda m, c, i: _friction_only(m, c, i.q, i.qd, i.qdd),
+     "q, qd, qdd", single=lambda m, c, i, k: _friction_only(m, c, i.q[k], i.qd[k], i.qdd[k]))
+_row("tip_force", "base-wrench-identified", TIP_NEEDS, _base_wrench_identified, "q, qd, qdd, base_wrench",
+     single=lambda m, c, i, k: tip_force_from_base_wrench(_identified_robot(m, c), i.q[k], i.qd[k], i.qdd[k],
+                                                          i.base_wrench[k]))
+_row("tip_force", "base-wrench-identified-tared", TIP_NEEDS, _tared_force_identified, TARED_INPUTS,
+     single=lambda m, c, i, k: _tared_force_identified(m, c, i, k))
+_row("joint_torque", "identified-bw-tared", ("q", "qd", "qdd", "base_wrench", "tau_m"), _identified_bw_torque,
+     TARED_INPUTS, single=lambda m, c, i, k: _identified_bw_torque(m, c, i, k))
+for _name, _preset in RESIDUAL_ROWS.items():
+    _residual_row(_name, _preset)

@@ -14,43 +14,27 @@ from pathlib import Path
 
 from ..data import DatasetError, load_dataset
 from ..errors import UsageError
+from .catalog import select_rows
+from .rows import Row
 
-SEED_TIP_NETS = tuple(f"seed-tip-{i}" for i in range(1, 12))
-RAW_REFERENCE = ("seed-tip-11-raw",)  # the seed's #11 on the untared sensor: what the per-run offset costs
-SEED_TAU_NETS = ("seed-tau-mlp", "seed-tau-conv", "seed-tau-lstm", "seed-tau-lstm-opt")
-RESIDUAL_TIP = ("residual-basewrench", "residual-momentum", "residual-base-momentum")
-RESIDUAL_TAU = ("residual-rnea", "residual-rnea-bw")
-DELAN = ("delan", "delan-friction", "delan-residual")
-ANALYTIC = ("torques-pinv", "base-wrench", "base-wrench-tared", "momentum-observer", "base-momentum",
-            "kalman-fusion", "rnea", "rnea-bw", "rnea-bw-tared")
-
-# The fields each analytic row reads (beyond a URDF for the dataset's robot).
-ANALYTIC_NEEDS = {
-    "torques-pinv": ("q", "qd", "qdd", "tau_J", "tip_force"),
-    "base-wrench": ("q", "qd", "qdd", "base_wrench", "tip_force"),
-    "momentum-observer": ("q", "qd", "tau_J", "tip_force"),
-    "rnea": ("q", "qd", "qdd", "tau_m"),
-    "rnea-bw": ("q", "qd", "qdd", "base_wrench", "tau_m"),
-    "base-wrench-tared": ("q", "qd", "qdd", "base_wrench", "tip_force"),
-    # qdd only for the tare (analytic/tare.py); the estimators themselves need none.
-    "base-momentum": ("q", "qd", "qdd", "base_wrench", "tip_force"),
-    "kalman-fusion": ("q", "qd", "qdd", "base_wrench", "tau_J", "tip_force"),
-    "rnea-bw-tared": ("q", "qd", "qdd", "base_wrench", "tau_m"),
-    "base-wrench-identified": ("q", "qd", "qdd", "base_wrench", "tip_force"),
-    "base-wrench-identified-tared": ("q", "qd", "qdd", "base_wrench", "tip_force"),
-    "identified-bw-tared": ("q", "qd", "qdd", "base_wrench", "tau_m"),
-}
+# Every family but the other black-box nets (tau-mlp-wide is for small real sets).
+STUDY_FAMILIES = ("analytic", "seed-net", "residual", "delan", "identified")
 
 
 @dataclass(frozen=True)
 class BenchProfile:
+    """A benchmark: scenarios, the rows to run on them, how to train.
+
+    Rows are named by family (``families``, keys of ``rows.FAMILIES``) and by name
+    (``rows``, rows declared in ``rows.ROWS``); they run in declaration order, each
+    where it applies (:meth:`applies`).
+    """
+
     name: str
     scenarios: tuple
     generator_profile: str = "quick"
-    analytic_rows: tuple = ANALYTIC
-    tip_models: tuple = SEED_TIP_NETS + RAW_REFERENCE + RESIDUAL_TIP
-    torque_models: tuple = SEED_TAU_NETS + RESIDUAL_TAU + DELAN
-    identified: bool = True
+    families: tuple = STUDY_FAMILIES
+    rows: tuple = ()
     recipe: str = "default"  # learn.train.RECIPES
     train: dict = field(default_factory=dict)  # TrainConfig fields on top of the recipe
     generator_overrides: dict = field(default_factory=dict)  # GeneratorConfig fields, every scenario
@@ -62,49 +46,29 @@ class BenchProfile:
     scenario_families: dict = field(default_factory=dict)
     seed: int = 0
 
+    def __post_init__(self):
+        self.selected_rows()  # an unknown row or family is refused now, not after the data are made
+
     def train_config(self):
         from ..learn import TrainConfig
 
         return TrainConfig.recipe(self.recipe, **{"seed": self.seed, **self.train})
 
-    def extra_rows(self) -> list:
-        """Identified-model rows (issue 7), when that module is present."""
-        if not self.identified:
-            return []
-        try:
-            from .identified_rows import identified_row_specs
-        except ImportError:
-            return []
-        return identified_row_specs(self)
+    def selected_rows(self) -> list[Row]:
+        """The rows this profile runs (where they apply), in declaration order."""
+        return select_rows(names=self.rows, families=self.families)
 
-    def applies(self, spec, ds) -> bool:
-        """Whether a row can run on a dataset: its fields exist, and a URDF where it needs one."""
-        fields = set(ds.fields)
+    def applies(self, row: Row, ds) -> bool:
+        """Whether a row can run on a dataset: the fields it declares exist, and a URDF where it needs one."""
         only = self.scenario_families.get(ds.meta.get("scenario"))
-        if only is not None and spec.family not in only:
+        if only is not None and row.family not in only:
             return False
         config = ds.meta.get("config", {})
-        if spec.task == "tip_force" and "pulses" in config and config["pulses"] is None \
+        if row.task == "tip_force" and "pulses" in config and config["pulses"] is None \
                 and config.get("contact_steps") is None:
             return False  # no external force in this scenario: nothing to estimate at the tip
-        if spec.family == "identified":
-            # Identified on an excitation run of the scenario's plant when it is simulated, else on
-            # the dataset's own train + val splits, whose motor torques the fit then needs too.
-            from .identified_rows import has_simulated_plant, identified_row_needs
-
-            needs = identified_row_needs(spec.model)
-            if not has_simulated_plant(ds):
-                needs = needs + ("q", "qd", "qdd", "tau_m")
-            return set(needs) <= fields and _has_robot(ds)
-        if spec.family in ("analytic", "identified"):
-            needs = ANALYTIC_NEEDS.get(spec.model, ("q", "qd", "qdd", "tau_m"))
-            return set(needs) <= fields and _has_robot(ds)
-        from ..learn.presets import get_preset
-
-        preset = get_preset(spec.model)
-        if not set(preset.inputs) | set(preset.targets) <= fields:
-            return False
-        return preset.prior is None or _has_robot(ds)
+        needs = set(row.needs) | set(row.more_needs(ds) if row.more_needs else ())
+        return needs <= set(ds.fields) and (not row.needs_urdf or _has_robot(ds))
 
     def dataset(self, scenario: str, data_root: Path, log=print):
         """The scenario's dataset, generated once and cached by its config hash
@@ -175,10 +139,11 @@ PROFILES = {
     # only the joint-torque models that need neither (PROTOCOL 2, issue 8).
     "real": BenchProfile(
         name="real", scenarios=("real-kuka", "real-baxter", "real-sarcos"), generator_profile="real",
-        analytic_rows=(), tip_models=(), torque_models=SEED_TAU_NETS + ("tau-mlp-wide", "delan", "delan-friction"),
+        families=(), rows=("seed-tau-mlp", "seed-tau-conv", "seed-tau-lstm", "seed-tau-lstm-opt", "tau-mlp-wide",
+                           "delan", "delan-friction"),
         # Patience 25: the validation trajectories lie partly outside the training range, so
         # validation loss is noisy and the seed's patience of 5 stops after a handful of epochs.
-        identified=False, train=dict(max_epochs=300, batch_size=256, patience=25),
+        train=dict(max_epochs=300, batch_size=256, patience=25),
         notes=("KUKA and Baxter: one instance per logged trajectory (10 each), split by trajectory 6/2/2; "
                "SARCOS: its 4,449-row test file is not one continuous trajectory, so it is cut into 10 contiguous "
                "blocks, split 6/2/2 (benchmarks/real/*.toml).",

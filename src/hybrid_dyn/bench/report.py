@@ -12,9 +12,10 @@ from pathlib import Path
 import numpy as np
 
 from ..data import package_versions
+from .catalog import reference_label
+from .results import CURVES_FILE, read_curves
+from .rows import PHYSICS_INFORMED
 from .seed_reference import GAZ2019_VALIDATION_RMSE, SEED_TABLE1, SEED_TABLE2, SEED_TABLE3, seed_dataset_label
-
-PHYSICS_TORQUE = ("residual-rnea", "residual-rnea-bw", "delan", "delan-friction", "delan-residual")
 
 
 def _f(x, nd=4) -> str:
@@ -31,14 +32,7 @@ def _ok(rows):
 
 # Reference rows show the cost of a choice (a seed net on the raw, untared base sensor: its per-run
 # bias cannot be learned from a window), not a contender: labelled in the tables, never a family's best.
-REFERENCE_SUFFIXES = {"-raw": "raw sensor, untared: reference"}
-
-
-def reference_label(model: str) -> str | None:
-    """The label of a reference row (e.g. ``seed-tip-11-raw``), None for any other row."""
-    return next((label for suffix, label in REFERENCE_SUFFIXES.items() if str(model).endswith(suffix)), None)
-
-
+# Which rows they are, and their labels, is declared with the row (``rows.Row.reference``).
 def _contenders(rows):
     """The scored rows that may be a family's best: every ok row but the reference rows."""
     return [r for r in _ok(rows) if reference_label(r["model"]) is None]
@@ -198,7 +192,7 @@ def floor_checks(rows) -> list[tuple[str, bool | None, str]]:
         ratio = float(hyb["rmse"]) / float(bwt["rmse"])
         out.append(("(no floor) tip force, mismatch-ext: best residual vs the tared base-wrench method", None,
                     f"{hyb['model']} {float(hyb['rmse']):.4f} N / base-wrench-tared {float(bwt['rmse']):.4f} N = {ratio:.3f}"))
-    phys = _best(rows, "joint_torque", "paper-ext", lambda r: r["model"] in PHYSICS_TORQUE)
+    phys = _best(rows, "joint_torque", "paper-ext", lambda r: r["family"] in PHYSICS_INFORMED)
     seedt = _best(rows, "joint_torque", "paper-ext", lambda r: r["family"] == "seed-net")
     if phys and seedt:
         ratio = float(phys["rmse"]) / float(seedt["rmse"])
@@ -437,8 +431,6 @@ def write_report(out_dir, rows, meta: dict, contexts: dict | None = None) -> Non
         (out_dir / f"{task}.md").write_text(md)
         (out_dir / f"{task}.tex").write_text(tex)
     figures = _figures(out_dir, rows, contexts or {}) if contexts else []
-    from .runner import CURVES_FILE, read_curves  # the runner writes curves.json row by row
-
     curve_figures = learning_curve_figures(out_dir, read_curves(out_dir / CURVES_FILE))
     figures += curve_figures
     checks = floor_checks(rows)

@@ -31,7 +31,12 @@ from pathlib import Path, PurePosixPath
 import h5py
 import numpy as np
 
-from .store import is_url
+
+def is_url(location) -> bool:
+    """Whether a dataset location is an fsspec URL (``s3://...``) rather than a local path (``data/store.py``
+    writes to either; it imports this module, never the reverse)."""
+    return isinstance(location, str) and "://" in location
+
 
 FORMAT = "hybrid_dyn.dataset"
 FORMAT_VERSION = 1

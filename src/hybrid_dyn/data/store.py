@@ -26,11 +26,11 @@ import shutil
 import tempfile
 from pathlib import Path
 
+from ..errors import MissingDependencyError, UsageError
 from ..outputs import unique_temp
+from .dataset import DatasetError, check_manifest, is_url, sha256_file, sha256_stream  # dataset never imports store
 
-
-def is_url(location) -> bool:
-    return isinstance(location, str) and "://" in location
+__all__ = ["DatasetStore", "fetch_dataset", "is_url"]
 
 
 class DatasetStore:
@@ -42,8 +42,6 @@ class DatasetStore:
             try:
                 import fsspec
             except ImportError as err:  # pragma: no cover - fsspec comes with torch
-                from ..errors import MissingDependencyError
-
                 raise MissingDependencyError("writing to a URL needs fsspec: pip install fsspec") from err
             self.fs, self.root = fsspec.core.url_to_fs(self.location)
             self.local = None
@@ -81,8 +79,6 @@ class DatasetStore:
             return f.read()
 
     def sha256(self, rel: str) -> str:
-        from .dataset import sha256_file, sha256_stream
-
         if self.local is not None:
             return sha256_file(self.local / rel)
         with self.fs.open(self._p(rel), "rb") as f:
@@ -152,16 +148,10 @@ def fetch_dataset(url: str, local_dir) -> Path:
 
     store = DatasetStore(url)
     if store.local is not None:
-        from ..errors import UsageError
-
         raise UsageError(f"{url} is a local path, not a URL: load it with load_dataset directly")
     if not store.exists("manifest.json"):
-        from .dataset import DatasetError
-
         raise DatasetError(f"{url} has no manifest.json: not a dataset, or its generation never finished")
     meta = json.loads(store.read_text("manifest.json"))
-    from .dataset import check_manifest
-
     check_manifest(meta, f"{url}/manifest.json")  # before copying: a file must not land outside local_dir
     local = Path(local_dir)
     (local / "instances").mkdir(parents=True, exist_ok=True)

@@ -1,0 +1,166 @@
+"""The learned rows of the benchmark: one per preset of ``learn/presets.py``.
+
+A preset already says what a row reads (its inputs and targets), whether it
+needs a URDF (an analytic prior) and, by ``raw_sensor``, whether it is a
+reference row; what it does not say is its family, declared once in
+:data:`PRESET_FAMILIES`. A preset missing there is refused when this module is
+imported, naming it (a new network type: its net, its preset, and its line here).
+
+Rows are declared tip-force presets first, then joint-torque presets, each in
+the order of ``PRESETS``: the order results.csv lists them in.
+
+A row's timed single call is the code a user runs: a tip-force model through
+``StreamingModel.step`` (what ``TipForceEstimator.load`` drives), fed the run's
+samples in order; a joint-torque model (no streaming class) through its
+single-window path ``TrainedModel.predict_window`` with the prior from
+``AnalyticPrior``.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..analytic.tare import tare_samples, tared_base_wrench
+from ..errors import UsageError
+from ..learn.presets import PRESETS
+from .rows import Predictor, Row, declare
+
+PRESET_FAMILIES = {
+    "seed-net": ("seed-tip-1", "seed-tip-2", "seed-tip-3", "seed-tip-4", "seed-tip-5", "seed-tip-6", "seed-tip-7",
+                 "seed-tip-8", "seed-tip-9", "seed-tip-10", "seed-tip-11", "seed-tip-11-raw",
+                 "seed-tau-mlp", "seed-tau-conv", "seed-tau-lstm", "seed-tau-lstm-opt"),
+    "residual": ("residual-basewrench", "residual-momentum", "residual-base-momentum", "residual-rnea",
+                 "residual-rnea-bw", "delan-residual"),
+    "delan": ("delan", "delan-friction"),
+    "learned": ("tau-mlp-wide",),
+}
+RAW_SENSOR_LABEL = "raw sensor, untared: reference"  # a preset with raw_sensor=True (what the offset costs)
+TASK_OF_TARGETS = {("tip_force",): "tip_force", ("tau_m",): "joint_torque"}
+PRESET_ROWS: set = set()  # the rows declared here, one per preset (the runner trains them in parallel first)
+
+
+def preset_family(name: str) -> str:
+    """The family :data:`PRESET_FAMILIES` declares for preset ``name``."""
+    for family, names in PRESET_FAMILIES.items():
+        if name in names:
+            return family
+    raise UsageError(f"preset {name!r} has no bench family: add it to PRESET_FAMILIES in "
+                     f"hybrid_dyn/bench/learned_rows.py (one of {', '.join(PRESET_FAMILIES)})")
+
+
+def training_summary(config: dict) -> dict:
+    """How a trained model's training ended, from its config.json: convergence shown, not claimed.
+
+    Returns ``epochs`` (epochs run), ``stopped_by`` ("patience": no validation
+    improvement for ``patience`` epochs; "lr-floor": the learning rate reached its
+    floor and plateaued there; "epoch-cap": ``max_epochs`` reached while still
+    improving, so the model may not have converged), ``best_epoch`` (0-based index
+    into ``history`` of the weights kept; -1: the untrained model was best, e.g. a
+    residual that never beat its physics part), ``initial_val_loss`` (the untrained
+    model's) and ``history`` (per epoch: ``epoch``, ``train_loss``, ``val_loss``,
+    standardized MSE, and ``lr`` when known).
+
+    Models trained before ``stopped_by`` and ``best_epoch`` were recorded get them
+    derived, as their training loop decided: stopped early means patience ran out;
+    the kept weights are the epoch of least validation loss, if it beat the
+    untrained model's ``initial_val_loss``.
+    """
+    history = [dict(h) for h in config.get("history", [])]
+    stopped_by = config.get("stopped_by")
+    if stopped_by is None:
+        stopped_by = "patience" if config.get("stopped_early") else "epoch-cap"
+    best_epoch = config.get("best_epoch")
+    if best_epoch is None:
+        val = [float(h["val_loss"]) for h in history]
+        val = [v if np.isfinite(v) else np.inf for v in val]  # a diverged epoch (NaN) is never the best
+        best = int(np.argmin(val)) if val else -1
+        initial = float(config.get("initial_val_loss", np.inf))
+        best_epoch = best if best >= 0 and val[best] < initial else -1
+    return {"epochs": int(config.get("epochs", len(history))), "stopped_by": str(stopped_by),
+            "best_epoch": int(best_epoch), "initial_val_loss": config.get("initial_val_loss"), "history": history}
+
+
+def learned_predictor(model, train_seconds: float, inputs: str | None = None) -> Predictor:
+    """The row of a trained model: batch predictions, the user's single call, how training ended."""
+    single, warmup = user_single_call(model)
+    return Predictor(predict=model.predict, single_call=single, warmup_calls=warmup,
+                     train_seconds=float(train_seconds), n_params=int(model.n_params),
+                     inputs=", ".join(model.config.get("inputs", [])) if inputs is None else inputs,
+                     training=training_summary(model.config))
+
+
+def user_single_call(model):
+    """(call(inst, k), warm-up calls): the per-sample path a user runs with this model."""
+    if list(model.targets) == ["tip_force"]:
+        return _streaming_call(model)
+    return _window_call(model), 1
+
+
+def _streaming_call(model):
+    """``StreamingModel.step`` at the model's record rate, restarted at each run's first sample
+    (k = 0) and fed it in order, as ``TipForceEstimator`` feeds it (the sample already validated)."""
+    from ..learn.streaming import StreamingModel
+
+    stream = StreamingModel(model, call_hz=float(model.config["record_hz"]))
+
+    def call(inst, k):
+        if k == 0:
+            stream.reset()
+        return stream.step(inst.q[k], inst.qd[k], inst.qdd[k],
+                           inst.base_wrench[k] if "base_wrench" in inst.fields else None,
+                           inst.tau_J[k] if "tau_J" in inst.fields else None, None)[0]
+
+    return call, stream.warmup_calls(stream.call_hz)
+
+
+def _window_call(model):
+    """``TrainedModel.predict_window`` on the run's edge-padded window ending at sample k, with the
+    prior from ``AnalyticPrior.single`` (on the base wrench tared on the run's start, where it tares)."""
+    from ..data.windows import concat_fields, window_index
+
+    windows, tared = {}, {}
+
+    def call(inst, k):
+        if inst.name not in windows:
+            windows[inst.name] = (concat_fields(model.sensor_view([inst]), model.inputs).astype(np.float64),
+                                  window_index([len(inst)], model.window))
+        x_all, index = windows[inst.name]
+        prior, p = None, model.prior
+        if p is not None and p.tare_seconds > 0:
+            if inst.name not in tared:  # the tare is per run: its offset comes from the run's start
+                tared[inst.name] = tared_base_wrench(p.robot, inst.q, inst.qd, inst.qdd, inst.base_wrench,
+                                                     tare_samples(p.record_hz, p.tare_seconds))
+            prior = p.single({"q": inst.q[k], "qd": inst.qd[k], "qdd": inst.qdd[k], "base_wrench": tared[inst.name][k]})
+        return model.predict_window(x_all[index[k]], prior=prior)
+
+    return call
+
+
+def _build(preset: str):
+    def build(ds, ctx):
+        from ..learn import train_model
+
+        t0 = time.perf_counter()
+        model = train_model(ds, preset, ctx.work_dir / "models" / preset, config=ctx.profile.train_config())
+        return learned_predictor(model, getattr(model, "train_seconds", None) or (time.perf_counter() - t0))
+
+    return build
+
+
+def _declare_presets() -> None:
+    presets = list(PRESETS.values())
+    for task in ("tip_force", "joint_torque"):
+        for p in presets:
+            if TASK_OF_TARGETS.get(tuple(p.targets)) != task:
+                continue
+            declare(Row(p.name, task, preset_family(p.name), needs=tuple(p.inputs) + tuple(p.targets),
+                        needs_urdf=p.prior is not None, build=_build(p.name), trains=True,
+                        reference=RAW_SENSOR_LABEL if p.raw_sensor else None))
+            PRESET_ROWS.add(p.name)
+    odd = [p.name for p in presets if tuple(p.targets) not in TASK_OF_TARGETS]
+    if odd:
+        raise UsageError(f"presets {odd} predict neither the tip force nor tau_m: no bench task for them")
+
+
+_declare_presets()

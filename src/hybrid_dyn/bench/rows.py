@@ -1,0 +1,125 @@
+"""The bench's rows, each declared once: what it is, what it needs, how it is built.
+
+A :class:`Row` is everything the harness, the report and the tests know about
+one model row: its name (the ``model`` column of results.csv), its task, its
+family, the dataset fields it reads, whether it needs a URDF of the dataset's
+robot, whether it trains, whether it is a labelled reference (never a family's
+best), and ``build(ds, ctx) -> Predictor``. Rows are declared with
+:func:`declare` into :data:`ROWS`, in the order the results list them:
+
+- ``analytic_rows.py``   physics on the nominal model (nothing trained)
+- ``learned_rows.py``    one row per preset of ``learn/presets.py`` (its family declared there)
+- ``identified_rows.py`` physics on identified parameters, and residual nets on them
+
+``catalog.py`` imports the three, so that :data:`ROWS` is complete; profiles
+name rows by name or by family (``profiles.py``). There are no defaults for
+what a row reads: a row declared without its fields is refused here.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ..data.dataset import FIELD_UNITS
+from ..errors import UsageError
+
+# task -> the logged field its rows are scored against (PROTOCOL 4: the commanded motor torque).
+TASK_TARGET = {"tip_force": "tip_force", "joint_torque": "tau_m"}
+
+# The families, in the order the report's figures list them; a row belongs to exactly one.
+FAMILIES = {
+    "analytic": "physics on the nominal model, nothing trained",
+    "seed-net": "the seed's networks (Kruzic et al. 2021, Tables 1 and 3)",
+    "residual": "a network that corrects an analytic part (physics-informed)",
+    "delan": "Deep Lagrangian networks (physics-informed)",
+    "identified": "physics on parameters identified from data, and the residual nets on them",
+    "learned": "other black-box networks",
+}
+PHYSICS_INFORMED = ("residual", "delan")  # learned families with physics inside (the report's torque floor)
+
+
+@dataclass
+class Predictor:
+    """What the harness needs from any model: batch predictions per instance and one timed single call."""
+
+    predict: Callable[[list], list]  # instances -> list of (T, C) arrays in physical units
+    # The call a user makes per sample: single_call(instance, k) -> (C,). The harness feeds one run's
+    # samples in order from its start (k = 0, 1, 2, ...: an observer or a streaming model must see the
+    # run as a control loop does) and times the calls after the first ``warmup_calls``.
+    single_call: Callable[[object, int], np.ndarray] | None = None
+    train_seconds: float = 0.0
+    n_params: int = 0
+    inputs: str = ""
+    training: dict | None = None  # learned rows: ``training_summary`` of the model's config
+    warmup_calls: int = 1  # untimed calls first (lazy allocations, a stream's window and tare)
+
+
+@dataclass(frozen=True)
+class Row:
+    """One bench row, declared once.
+
+    name: the row's name in results.csv and the tables. task: a key of :data:`TASK_TARGET`.
+    family: a key of :data:`FAMILIES`. needs: the dataset fields the row reads, its target
+    included (no default: a row must say). needs_urdf: whether it needs a description of the
+    dataset's robot. build(ds, ctx) -> :class:`Predictor`. trains: a learned row (trained, with
+    a loss curve). reference: the label of a reference row (in the tables, never a family's
+    best), None for a contender. more_needs(ds) -> fields: what it needs beyond ``needs`` on that
+    dataset (identified rows fit on an imported log's own torques).
+    """
+
+    name: str
+    task: str
+    family: str
+    needs: tuple
+    needs_urdf: bool
+    build: Callable
+    trains: bool = False
+    reference: str | None = None
+    more_needs: Callable | None = None
+
+    def __post_init__(self):
+        where = f"bench row {self.name!r}"
+        if self.task not in TASK_TARGET:
+            raise UsageError(f"{where}: task must be one of {', '.join(TASK_TARGET)}, got {self.task!r}")
+        if self.family not in FAMILIES:
+            raise UsageError(f"{where}: family must be one of {', '.join(FAMILIES)}, got {self.family!r}")
+        if not isinstance(self.needs, (tuple, list)) or not self.needs:
+            raise UsageError(f"{where}: declare the dataset fields it reads (needs), got {self.needs!r}")
+        unknown = [f for f in self.needs if f not in FIELD_UNITS]
+        if unknown:
+            raise UsageError(f"{where}: needs unknown fields {unknown}; known: {', '.join(FIELD_UNITS)}")
+        if TASK_TARGET[self.task] not in self.needs:
+            raise UsageError(f"{where}: needs must hold its target {TASK_TARGET[self.task]!r}, got {tuple(self.needs)}")
+        if not isinstance(self.needs_urdf, bool):
+            raise UsageError(f"{where}: needs_urdf must be True or False, got {self.needs_urdf!r}")
+        if not callable(self.build):
+            raise UsageError(f"{where}: build must be a callable (ds, ctx) -> Predictor")
+        object.__setattr__(self, "needs", tuple(self.needs))
+
+
+ROWS: dict[str, Row] = {}
+
+
+def declare(row: Row) -> Row:
+    """Add ``row`` to :data:`ROWS` (results list rows in declaration order); a name is declared once."""
+    if row.name in ROWS:
+        raise UsageError(f"bench row {row.name!r} is declared twice")
+    ROWS[row.name] = row
+    return row
+
+
+@dataclass
+class BenchContext:
+    """What a row's build sees of its scenario (one per scenario of a run)."""
+
+    profile: object  # profiles.BenchProfile
+    scenario: str
+    dataset: object  # data.Dataset
+    robot: object | None  # the nominal analytic.Robot every analytic part uses (None: no URDF for this arm)
+    work_dir: Path
+    data_root: Path = Path("data")
+    log: Callable[[str], None] = print
+    cache: dict = field(default_factory=dict)

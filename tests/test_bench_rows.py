@@ -1,0 +1,108 @@
+"""The bench's row registry (issue 15, item 5): a row is declared once and the runner, the report and
+the profiles read that declaration; a declaration without what the row reads is refused."""
+import ast
+import csv
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hybrid_dyn.bench.catalog import ROWS, select_rows
+from hybrid_dyn.bench.profiles import PROFILES, BenchProfile
+from hybrid_dyn.bench.rows import Predictor, Row, declare
+from hybrid_dyn.errors import UsageError
+
+
+@pytest.fixture
+def toy_row():
+    """An analytic 'zero force' row, declared in one statement (and withdrawn after the test)."""
+    row = declare(Row("zero-force", "tip_force", "analytic", needs=("q", "tip_force"), needs_urdf=False,
+                      build=lambda ds, ctx: Predictor(predict=lambda insts: [np.zeros((len(i), 3)) for i in insts],
+                                                      single_call=lambda inst, k: np.zeros(3), inputs="nothing")))
+    yield row
+    del ROWS[row.name]
+
+
+@pytest.mark.slow  # ~3-5 s: a whole (tiny) bench run, report and figures included
+def test_a_row_declared_once_runs_and_is_reported(toy_row, tmp_path, panda):
+    from hybrid_dyn.bench.runner import run_bench
+    from hybrid_dyn.data import load_dataset
+    from hybrid_dyn.data.synthetic import make_synthetic_dataset
+
+    ds = load_dataset(make_synthetic_dataset(tmp_path / "d", panda, n_instances=3, n_samples=40, seed=1))
+    profile = dataclasses.replace(PROFILES["quick"], name="toy", scenarios=("synthetic",), families=(),
+                                  rows=("zero-force",), workers=1)
+    run_bench(profile, tmp_path / "report", work_root=tmp_path / "runs", dataset_provider=lambda s, p: ds,
+              log=lambda m: None)
+    with open(tmp_path / "report" / "results.csv", newline="") as f:
+        row, = csv.DictReader(f)
+    assert (row["model"], row["family"], row["inputs"], row["status"]) == ("zero-force", "analytic", "nothing", "ok")
+    truth = np.concatenate([i["tip_force"] for i in ds.split("test")])
+    assert float(row["rmse"]) == pytest.approx(np.sqrt(np.mean(truth ** 2)), rel=1e-5)  # the error of predicting 0
+    md = (tmp_path / "report" / "tip_force.md").read_text()
+    assert "| zero-force | analytic | nothing |" in md
+    assert "analytic (zero-force)" in (tmp_path / "report" / "README.md").read_text()
+
+
+def test_a_row_without_its_needs_is_refused():
+    build = lambda ds, ctx: None  # noqa: E731
+    with pytest.raises(UsageError, match="declare the dataset fields"):
+        Row("no-needs", "tip_force", "analytic", needs=(), needs_urdf=True, build=build)
+    with pytest.raises(TypeError):  # needs and needs_urdf have no default
+        Row("no-needs", "tip_force", "analytic", build=build)
+    with pytest.raises(UsageError, match="its target 'tau_m'"):
+        Row("no-target", "joint_torque", "analytic", needs=("q",), needs_urdf=True, build=build)
+    with pytest.raises(UsageError, match="unknown fields \\['qddd'\\]"):
+        Row("typo", "tip_force", "analytic", needs=("qddd", "tip_force"), needs_urdf=True, build=build)
+    with pytest.raises(UsageError, match="family must be one of"):
+        Row("odd", "tip_force", "physics", needs=("tip_force",), needs_urdf=True, build=build)
+    with pytest.raises(UsageError, match="declared twice"):
+        declare(ROWS["base-wrench"])
+
+
+def test_profiles_name_declared_rows_and_families_only():
+    with pytest.raises(UsageError, match="unknown bench rows \\['no-such-row'\\]"):
+        BenchProfile(name="t", scenarios=("s",), rows=("no-such-row",))
+    with pytest.raises(UsageError, match="unknown bench families"):
+        BenchProfile(name="t", scenarios=("s",), families=("nets",))
+    # The reference row comes with its family; the real profile's rows by name.
+    assert "seed-tip-11-raw" in [r.name for r in select_rows(families=("seed-net",))]
+    assert [r.name for r in PROFILES["real"].selected_rows()] == list(PROFILES["real"].rows)
+
+
+def test_every_preset_is_a_row_with_the_preset_s_needs():
+    from hybrid_dyn.learn.presets import PRESETS
+
+    for p in PRESETS.values():
+        row = ROWS[p.name]
+        assert row.trains and set(row.needs) == set(p.inputs) | set(p.targets), p.name
+        assert row.needs_urdf == (p.prior is not None), p.name
+        assert (row.reference is not None) == p.raw_sensor, p.name
+
+
+def test_the_timed_single_call_sees_the_run_in_order_from_its_start():
+    from hybrid_dyn.bench.runner import _median_call_us
+
+    seen = []
+    inst = np.zeros((30, 1))
+    _median_call_us(lambda i, k: seen.append(k), inst, warmup_calls=12, n_calls=10)
+    assert seen == list(range(22))  # 12 untimed calls, then 10 timed, never a sample skipped
+
+
+def test_no_import_cycles_in_bench_and_between_dataset_and_store():
+    root = Path(__file__).resolve().parents[1] / "src" / "hybrid_dyn"
+    for pkg in ("bench", "data"):
+        mods = {p.stem for p in (root / pkg).glob("*.py")} - {"__init__"}
+        graph = {}
+        for m in mods:
+            deps = set()
+            for node in ast.walk(ast.parse((root / pkg / f"{m}.py").read_text())):  # function-level imports too
+                if isinstance(node, ast.ImportFrom) and node.level == 1:
+                    deps |= {node.module.split(".")[0]} if node.module else {a.name for a in node.names}
+            graph[m] = deps & mods
+
+        def reaches(a, b, seen):
+            return any(n == b or (n not in seen and reaches(n, b, seen | {n})) for n in graph[a])
+
+        assert not [m for m in sorted(mods) if reaches(m, m, set())], pkg
