@@ -1,19 +1,20 @@
-"""Baselines and diagnostics of the three real-robot sets: why is nMSE where it is?
+"""Baselines and diagnostics of the real-robot sets: why is nMSE where it is?
 
-For each set (real-kuka, real-baxter, real-sarcos) this reports, with the bench's
-split (by trajectory; SARCOS by contiguous blocks) and nMSE = per-joint test MSE
-/ per-joint test-target variance, averaged over joints:
+For each set (real-kuka, real-baxter, real-sarcos, real-panda; a set whose log is absent
+is skipped, saying where to get it) this reports, with the bench's split (by trajectory;
+SARCOS and the Panda by contiguous blocks) and nMSE = per-joint test MSE / per-joint
+test-target variance, averaged over joints:
 
 - predicting the training mean (nMSE ~ 1 by construction);
 - a linear least-squares fit on [q, qd, qdd, sin q, cos q, 1] (rigid-body dynamics is
   linear in its parameters, not in these features: a rough check);
 - a small MLP (2 x 64 tanh, Adam 1e-3, batch 256, early stop after 5 epochs without
   validation improvement);
-- Gaussian-process regression (scikit-learn; one GP per joint, ARD squared-exponential
-  kernel plus white noise), the reference method of the SARCOS set (Rasmussen &
-  Williams 2006, ch. 8). Its hyperparameters are fitted by marginal likelihood on
-  ``--gp-hyper`` random training rows; it is then conditioned on at most ``--gp-rows``
-  random training rows (a subset-of-data GP, to bound the O(n^3) cost);
+- Gaussian-process regression (``hybrid_dyn.learn.gp``, fitted with scikit-learn; one GP
+  per joint, ARD squared-exponential kernel plus white noise), the reference method of the
+  SARCOS set (Rasmussen & Williams 2006, ch. 8). Its hyperparameters are fitted by marginal
+  likelihood on ``--gp-hyper`` random training rows; it is then conditioned on at most
+  ``--gp-rows`` random training rows (a subset-of-data GP, to bound the O(n^3) cost);
 - the bench's ``tau-mlp-wide`` (its best model on KUKA), trained as the ``real``
   bench profile trains it;
 
@@ -22,14 +23,14 @@ and three diagnostics:
 - **interpolation control**: the GP (same hyperparameters) and ``tau-mlp-wide`` again,
   on a second import of the same log whose instances are contiguous chunks of every
   trajectory (KUKA, Baxter: 4 per trajectory, about 5 s each; SARCOS: 40 blocks of
-  about 111 rows) split 64/16/20 at random with the spec's seed. Test states then lie
-  among training states of the same trajectories, and neighbouring chunks share their
-  boundary states, so this control is optimistic by design. (The importer derives
+  about 111 rows; the Panda: 40 blocks of about 0.5 s) split 64/16/20 at random with the
+  spec's seed. Test states then lie among training states of the same trajectories, and
+  neighbouring chunks share their boundary states, so this control is optimistic by design. (The importer derives
   accelerations per instance, so a chunk's first and last samples carry the filter's
   edge effects; that part makes the control slightly harder, not easier.) It is NOT the benchmark's
   protocol: the gap between it and the trajectory split measures how much of the error
   is generalisation to unseen trajectories rather than model capacity or sensor noise;
-- **torque content above 5 Hz** (KUKA, Baxter: their rows are continuous in time): the
+- **torque content above 5 Hz** (KUKA, Baxter, the Panda: their rows are continuous in time): the
   test variance left after a zero-phase 4th-order Butterworth low-pass, as a fraction of
   the variance; an estimate of the measurement-noise share of nMSE;
 - **coverage**: per joint, the share of test rows whose q lies outside the training
@@ -52,8 +53,9 @@ import numpy as np
 
 from hybrid_dyn.bench import get_profile
 from hybrid_dyn.data import REAL_SETS, load_dataset, real_dataset
-from hybrid_dyn.data.real import nmse_per_joint, target_statistics
+from hybrid_dyn.data.real import missing_real_log, nmse_per_joint, target_statistics
 from hybrid_dyn.learn import TrainConfig, train_model
+from hybrid_dyn.learn.gp import GPConfig, condition_gp, fit_gp_hyperparameters
 
 
 def features(x, nv):
@@ -100,48 +102,6 @@ def xy(insts):
     """Inputs [q, qd, qdd] and torque targets of a list of instances."""
     x = np.concatenate([np.concatenate([i.q, i.qd, i.qdd], axis=1) for i in insts])
     return x, np.concatenate([i.tau_m for i in insts])
-
-
-def fit_gp_hyper(xtr, ytr, n_rows, seed=0):
-    """Per joint, GP hyperparameters by marginal likelihood on ``n_rows`` random rows:
-    an ARD squared-exponential kernel (one length scale per input) plus white noise,
-    on standardised inputs and targets. Returns the fitted kernels."""
-    import warnings
-
-    from sklearn.exceptions import ConvergenceWarning
-    from sklearn.gaussian_process import GaussianProcessRegressor
-    from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
-
-    mx, sx = xtr.mean(0), xtr.std(0) + 1e-9
-    rows = np.random.default_rng(seed).permutation(len(xtr))[:n_rows]
-    kernels = []
-    # A length scale at its upper bound (1e3 on standardised inputs) is ARD switching an
-    # input off, which sklearn reports as a ConvergenceWarning: expected, not a failure.
-    warnings.filterwarnings("ignore", message=".*close to the specified upper bound", category=ConvergenceWarning)
-    for j in range(ytr.shape[1]):
-        kernel = (ConstantKernel(1.0, (1e-2, 1e2)) * RBF(np.ones(xtr.shape[1]), (1e-2, 1e3))
-                  + WhiteKernel(1e-2, (1e-6, 1.0)))
-        gp = GaussianProcessRegressor(kernel, normalize_y=True, random_state=seed)
-        gp.fit((xtr[rows] - mx) / sx, ytr[rows, j])
-        kernels.append(gp.kernel_)
-    return kernels
-
-
-def fit_gp(xtr, ytr, kernels, n_rows, seed=0):
-    """Condition one GP per joint (fixed ``kernels``) on at most ``n_rows`` random
-    training rows; returns predict(x) -> (N, nv) torques."""
-    from sklearn.gaussian_process import GaussianProcessRegressor
-
-    mx, sx = xtr.mean(0), xtr.std(0) + 1e-9
-    rows = np.random.default_rng(seed + 1).permutation(len(xtr))[:n_rows]
-    gps = [GaussianProcessRegressor(k, optimizer=None, normalize_y=True).fit((xtr[rows] - mx) / sx, ytr[rows, j])
-           for j, k in enumerate(kernels)]
-
-    def predict(x):
-        z = (x - mx) / sx
-        return np.stack([gp.predict(z) for gp in gps], axis=1)
-
-    return predict
 
 
 def train_bench_model(ds, preset: str, out_dir):
@@ -195,8 +155,8 @@ def render_markdown(results: dict) -> str:
 
 # Sets whose rows are continuous in time (SARCOS's rows are not: benchmarks/real/sarcos.toml),
 # and the chunks per trajectory of their interpolation control.
-CONTINUOUS = {"real-kuka": True, "real-baxter": True, "real-sarcos": False}
-CONTROL_BLOCKS = {"real-kuka": 4, "real-baxter": 4, "real-sarcos": 40}
+CONTINUOUS = {"real-kuka": True, "real-baxter": True, "real-sarcos": False, "real-panda": True}
+CONTROL_BLOCKS = {"real-kuka": 4, "real-baxter": 4, "real-sarcos": 40, "real-panda": 40}
 
 
 def main(argv=None) -> int:
@@ -216,7 +176,12 @@ def main(argv=None) -> int:
         return 0
     np.set_printoptions(precision=4, suppress=True, linewidth=160)
     results = {"command": "benchmarks/real_baselines.py", "args": vars(args), "sets": {}}
+    gp_config = GPConfig(hyper_rows=args.gp_hyper, rows=args.gp_rows)
     for name in args.sets:
+        absent = missing_real_log(name)
+        if absent:
+            print(f"\n{name}: skipped: {absent}")
+            continue
         ds = load_dataset(real_dataset(name, args.cache))
         stats = target_statistics(ds, "tau_m", "test")
         xtr, ytr = xy(ds.split("train"))
@@ -243,8 +208,9 @@ def main(argv=None) -> int:
         t0 = time.perf_counter()
         record("MLP 2x64 tanh", fit_mlp(xtr, ytr, xva, yva, args.epochs)(xte), time.perf_counter() - t0)
         t0 = time.perf_counter()
-        kernels = fit_gp_hyper(xtr, ytr, args.gp_hyper)
-        record("GP (trajectory split)", fit_gp(xtr, ytr, kernels, args.gp_rows)(xte), time.perf_counter() - t0)
+        hyper = fit_gp_hyperparameters(xtr, ytr, gp_config)
+        record("GP (trajectory split)", condition_gp(xtr, ytr, hyper, gp_config).predict_rows(xte),
+               time.perf_counter() - t0)
 
         t0 = time.perf_counter()
         record("tau-mlp-wide (bench model)",
@@ -264,7 +230,9 @@ def main(argv=None) -> int:
 
         t0 = time.perf_counter()
         # Conditioned on no more rows than the trajectory split's GP, so that only the split differs.
-        record("GP", fit_gp(cx, cy, kernels, min(args.gp_rows, len(xtr)))(tx), time.perf_counter() - t0, control=True)
+        control_config = GPConfig(hyper_rows=args.gp_hyper, rows=min(args.gp_rows, len(xtr)))
+        record("GP", condition_gp(cx, cy, hyper, control_config).predict_rows(tx), time.perf_counter() - t0,
+               control=True)
         t0 = time.perf_counter()
         record("tau-mlp-wide (bench model)",
                train_bench_model(ctrl, "tau-mlp-wide", Path(args.cache) / "models" / f"{name}-chunks")(
