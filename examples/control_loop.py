@@ -21,7 +21,7 @@ import numpy as np
 import pinocchio as pin
 
 import hybrid_dyn as hd
-from hybrid_dyn.estimator import METHODS, TipForceEstimator
+from hybrid_dyn.estimator import METHOD_ALIASES, METHODS, TipForceEstimator
 from hybrid_dyn.sim.plant import DartPlant
 
 DT = 1e-3
@@ -29,7 +29,8 @@ DT = 1e-3
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--method", default="base_wrench", choices=list(METHODS))
+    ap.add_argument("--method", default="base-wrench", choices=list(METHODS) + list(METHOD_ALIASES),
+                    help=f"{', '.join(METHODS)} (older spellings accepted)")
     ap.add_argument("--model", default=None, help="a trained tip-force model directory instead of an analytic method")
     ap.add_argument("--seconds", type=float, default=10.0)
     args = ap.parse_args(argv)

@@ -143,7 +143,7 @@ def test_batch_form_is_thread_safe(recorded):
 
 
 def test_unknown_method():
-    with pytest.raises(ValueError, match="method must be one of"):
+    with pytest.raises(ValueError, match="unknown estimator method 'kalman'"):
         TipForceEstimator.analytic("panda", "kalman")
 
 

@@ -2,7 +2,7 @@
 
 Control engineers call :class:`TipForceEstimator` once per tick of a 1 kHz loop::
 
-    est = TipForceEstimator.analytic("panda", method="base_wrench")
+    est = TipForceEstimator.analytic("panda", method="base-wrench")
     F = est.estimate_tip_force(q, qd, base_wrench=w, t=t)   # (3,) N, base frame
     est.last_status                                         # EstimatorStatus.OK, ...
 
@@ -44,8 +44,8 @@ What happens in one call:
    model keeps the cutoff it was trained with.
 3. The chosen method gives the force: the base-wrench method, the torque
    method, the joint-torque momentum observer, the base momentum observer
-   (``base_momentum``: Newton's law for the whole robot, no qdd), the Kalman
-   filter that fuses the base sensor and the joint torques (``kalman_fusion``:
+   (``base-momentum``: Newton's law for the whole robot, no qdd), the Kalman
+   filter that fuses the base sensor and the joint torques (``kalman-fusion``:
    a call may bring either sensor or both), or a learned model (see ``load``).
    The two base-sensor observers start after the tare window, the Kalman filter
    with the sensors' model errors measured on it (``analytic/kalman.py``).
@@ -87,14 +87,18 @@ from .analytic.momentum_observer import MomentumObserver
 from .analytic.robot import InputError, Robot, load_robot
 from .analytic.tare import TARE_SECONDS, StreamingTare, tare_samples, tared_base_wrench
 from .analytic.tip_force import base_wrench_force_core, tip_force_from_base_wrench, tip_force_from_torques
+from .analytic.estimators import ALIASES, estimator_name
 from .errors import UsageError
 
-# The analytic methods and the sensors each reads (beyond q, qd). kalman_fusion reads
-# whichever of the two a call brings (at least one), the others need all they name.
-METHODS = ("base_wrench", "torques", "momentum", "base_momentum", "kalman_fusion")
-METHOD_SENSORS = {"base_wrench": ("base_wrench",), "torques": ("tau_J",), "momentum": ("tau_J",),
-                  "base_momentum": ("base_wrench",), "kalman_fusion": ("base_wrench", "tau_J")}
-NEEDS_QDD = ("base_wrench", "torques", "learned")  # the others need none (but a tare window does)
+# The analytic methods, by the estimators' one name (analytic/estimators.py; the older spellings
+# base_wrench, torques, momentum, base_momentum, kalman_fusion are accepted), and the sensors each
+# reads (beyond q, qd). kalman-fusion reads whichever of the two a call brings (at least one), the
+# others need all they name.
+METHODS = ("base-wrench", "torques-pinv", "momentum-observer", "base-momentum", "kalman-fusion")
+METHOD_ALIASES = {a: c for a, c in ALIASES.items() if c in METHODS}
+METHOD_SENSORS = {"base-wrench": ("base_wrench",), "torques-pinv": ("tau_J",), "momentum-observer": ("tau_J",),
+                  "base-momentum": ("base_wrench",), "kalman-fusion": ("base_wrench", "tau_J")}
+NEEDS_QDD = ("base-wrench", "torques-pinv", "learned")  # the others need none (but a tare window does)
 
 
 class EstimatorInputError(InputError):
@@ -139,7 +143,7 @@ class EstimatorConfig:
     base-wrench bound. Raise it for a stronger arm.
     rate_tolerance: the fraction by which a timed stream's step may differ
     from 1 / call_hz.
-    fusion_force_rate: kalman_fusion's random-walk intensity of the tip force
+    fusion_force_rate: kalman-fusion's random-walk intensity of the tip force
     [N/sqrt(s)]: its bandwidth. The bench picks it per scenario on validation
     data (0.3-5 there: slow bells at 100 Hz to 1 ms steps at 1 kHz); 2 is a middle
     that follows a 1 s push without lag and keeps the noise near the sensor's.
@@ -342,6 +346,8 @@ class TipForceEstimator:
 
     def __init__(self, robot: Robot, method: str, config: EstimatorConfig | None = None, model=None):
         self.robot = robot
+        if method != "learned":
+            method = estimator_name(method, METHODS, "estimator method")
         self.method = method
         self.config = config or EstimatorConfig()
         self.model = model
@@ -356,8 +362,8 @@ class TipForceEstimator:
         self.qdd_cutoff_hz = None if self._auto_cutoff else float(c.qdd_cutoff_hz)  # the cutoff in use [Hz]
         if self._auto_cutoff and method in NEEDS_QDD:
             cutoff_grid(float(c.call_hz))  # now, not in the call that closes the noise window
-        self._observer = (MomentumObserver(robot, gain=c.momentum_gain, dt=dt) if method == "momentum" else
-                          BaseMomentumObserver(robot, gain=c.momentum_gain, dt=dt) if method == "base_momentum"
+        self._observer = (MomentumObserver(robot, gain=c.momentum_gain, dt=dt) if method == "momentum-observer" else
+                          BaseMomentumObserver(robot, gain=c.momentum_gain, dt=dt) if method == "base-momentum"
                           else None)
         # A learned model needs its network's inputs and its analytic prior's.
         model_fields = () if model is None else tuple(model.inputs) + tuple(
@@ -365,23 +371,23 @@ class TipForceEstimator:
         sensors = METHOD_SENSORS.get(method, ())
         self._needs_wrench = "base_wrench" in sensors or "base_wrench" in model_fields
         self._needs_tau = "tau_J" in sensors or "tau_J" in model_fields
-        # kalman_fusion degrades to the sensor a call brings; every other method needs all it reads.
-        self._optional = frozenset(sensors) if method == "kalman_fusion" else frozenset()
+        # kalman-fusion degrades to the sensor a call brings; every other method needs all it reads.
+        self._optional = frozenset(sensors) if method == "kalman-fusion" else frozenset()
         self._build_gate()
         self._tare = None
-        if method in ("base_wrench", "base_momentum", "kalman_fusion") and c.tare_seconds > 0:
+        if method in ("base-wrench", "base-momentum", "kalman-fusion") and c.tare_seconds > 0:
             self._tare = StreamingTare(robot, tare_samples(c.call_hz, c.tare_seconds))
         # The first tare_seconds of calls are the noise window: the tare's, the Kalman filter's
         # model errors and the automatic qdd cutoff are all measured on it (module docstring).
         self._window_calls = tare_samples(c.call_hz, c.tare_seconds) if (
             self._tare is not None or (self._auto_cutoff and method in NEEDS_QDD)) else 0
         self._observer_calls = int(math.ceil(5.0 / c.momentum_gain * c.call_hz))  # 5/K s: error < 1 %
-        if method == "momentum":
+        if method == "momentum-observer":
             self._warmup_calls = self._observer_calls
-        elif method == "base_momentum":
+        elif method == "base-momentum":
             # The observer starts when the tare is done, so no pre-tare offset lingers in it.
             self._warmup_calls = self._window_calls + self._observer_calls
-        elif method == "kalman_fusion":
+        elif method == "kalman-fusion":
             self._warmup_calls = self._window_calls + 1  # raised to the filter's settling once it is built
         elif self._window_calls:
             self._warmup_calls = max(2, self._window_calls)
@@ -395,12 +401,13 @@ class TipForceEstimator:
 
     # ------------------------------------------------------------ factories
     @classmethod
-    def analytic(cls, robot: str | Robot = "panda", method: str = "base_wrench", params=None,
+    def analytic(cls, robot: str | Robot = "panda", method: str = "base-wrench", params=None,
                  **config) -> "TipForceEstimator":
-        """A model-free estimator: method "base_wrench", "torques" (needs tau_J), "momentum" (needs tau_J),
-        "base_momentum" (needs base_wrench) or "kalman_fusion" (base_wrench, tau_J or both per call)."""
-        if method not in METHODS:
-            raise UsageError(f"method must be one of {METHODS}, got {method!r}")
+        """A model-free estimator: method "base-wrench", "torques-pinv" (needs tau_J), "momentum-observer"
+        (needs tau_J), "base-momentum" (needs base_wrench) or "kalman-fusion" (base_wrench, tau_J or both
+        per call): the estimators' one name (``analytic/estimators.py``); the older spellings
+        (``METHOD_ALIASES``: "base_wrench", "torques", "momentum", "base_momentum", "kalman_fusion") mean the same."""
+        method = estimator_name(method, METHODS, "estimator method")
         if not isinstance(robot, Robot):
             robot = load_robot(robot, params=params, num_threads=1)
         return cls(robot, method, EstimatorConfig(**config))
@@ -434,9 +441,9 @@ class TipForceEstimator:
             self._tare.reset()
         self._calls = 0
         self._warmup_calls = self._warmup_initial
-        self._probe = None  # kalman_fusion in the noise window: a specifications-only filter whose sums give
+        self._probe = None  # kalman-fusion in the noise window: a specifications-only filter whose sums give
         self._probe_sums = []  # ... the sensors' increments call by call (no batch pass at the window's end)
-        if self.method == "kalman_fusion":
+        if self.method == "kalman-fusion":
             if self._tare is None:
                 self._build_kalman(self._spec_noise)  # no noise window: the sensors' specifications
             else:
@@ -507,7 +514,7 @@ class TipForceEstimator:
         self._sample = np.empty(len(lo))  # the accepted sample: q, qd[, base_wrench][, tau_J]
         self._slots, start = [], 0
         self._gate_slots = np.full((4, 2), -1, dtype=np.int64)  # per input (q, qd, base_wrench, tau_J): start, size
-        self._absent = [None] * 4  # kalman_fusion's stand-in for a sensor a call lacks: zeros, inside its box
+        self._absent = [None] * 4  # kalman-fusion's stand-in for a sensor a call lacks: zeros, inside its box
         for name, index, b_lo, _, unit, why in boxes:
             n = len(b_lo)
             self._slots.append((name, index, self._sample[start:start + n], unit, why, start))
@@ -549,7 +556,7 @@ class TipForceEstimator:
         if code != GATE_INSIDE:  # NaN and inf fail the box too
             raise EstimatorInputError(self._implausible())
         if self._optional and base_wrench is None and tau_J is None:
-            raise EstimatorInputError("kalman_fusion needs base_wrench (6,) [N, Nm], tau_J (nv,) [Nm] or both")
+            raise EstimatorInputError("kalman-fusion needs base_wrench (6,) [N, Nm], tau_J (nv,) [Nm] or both")
         resumed = False
         if t is None:
             if self._last_t is not None:
@@ -592,7 +599,7 @@ class TipForceEstimator:
         for name, index, view, unit, *_ in self._slots:
             x = given[index]
             if x is None:
-                if name in self._optional:  # kalman_fusion: this call lacks the sensor
+                if name in self._optional:  # kalman-fusion: this call lacks the sensor
                     out[index] = self._absent[index]
                     continue
                 raise EstimatorInputError(f"this estimator needs {name} ({view.size},) [{unit}]")
@@ -655,16 +662,16 @@ class TipForceEstimator:
         if in_window and self._calls == self._window_calls:
             self._close_window()
         # The inputs are validated above: call the unchecked cores.
-        if self.method == "base_wrench":
+        if self.method == "base-wrench":
             f = base_wrench_force_core(self.robot, q, qd, qdd, tared)
-        elif self.method == "torques":
+        elif self.method == "torques-pinv":
             f = tip_force_from_torques(self.robot, q, qd, qdd, tau_J)
-        elif self.method == "momentum":
+        elif self.method == "momentum-observer":
             f = self._observer.force(q, self._observer.step_unchecked(q, qd, tau_J))
-        elif self.method == "base_momentum":
+        elif self.method == "base-momentum":
             # Stepped from the first sample after the tare window: a running offset would linger as e^-Kt.
             f = self._last_good if in_window else self._observer.force(q, self._observer.step_unchecked(q, qd, tared))
-        elif self.method == "kalman_fusion":
+        elif self.method == "kalman-fusion":
             # The base sensor enters the filter only once it is tared (a sensor absent from the window tares late).
             w = tared if self._tare is None or self._tare.done else None
             f = self._last_good if self._kalman is None or in_window else self._kalman.step_unchecked(q, qd, w, tau_J)
@@ -689,9 +696,9 @@ class TipForceEstimator:
         if self._auto_cutoff and self.method in NEEDS_QDD:
             q = np.array([x[0] for x in window])
             qd = np.array([x[1] for x in window])
-            signal_ = np.array([x[2] if self.method == "base_wrench" else x[3] for x in window])
+            signal_ = np.array([x[2] if self.method == "base-wrench" else x[3] for x in window])
             self.qdd_cutoff_hz = auto_qdd_cutoff(self.robot, self.config.call_hz, q, qd, signal_,
-                                                 "base_wrench" if self.method == "base_wrench" else "tau_J")
+                                                 "base_wrench" if self.method == "base-wrench" else "tau_J")
             # Replay the window through the new filter, so its state is as if it had run from the start.
             self._qdd_filter = CausalAccelerationFilter(self.robot.nv, self.config.call_hz, self.qdd_cutoff_hz)
             for x in window:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
 
+from ..analytic.estimators import estimator_name
 from ..errors import UsageError
 
 STATE = ["q", "qd", "qdd"]
@@ -26,7 +27,12 @@ TIP_INPUTS = ["base_wrench", "q", "qd", "qdd"]
 TIP_INPUTS_TAU = TIP_INPUTS + ["tau_J"]
 
 KINDS = ("mlp", "conv", "lstm", "delan")
-PRIORS = (None, "rnea", "rnea-basewrench", "basewrench", "momentum", "base-momentum")
+# The analytic estimators a residual can sit on, by their one name (analytic/estimators.py).
+PRIORS = (None, "rnea", "rnea-bw", "base-wrench", "momentum-observer", "base-momentum")
+# How model files (config.json) and training fingerprints spell each prior: as they always have,
+# so that every saved model and every cached training run stays valid (read: either spelling).
+PRIOR_FILE_SPELLING = {"rnea": "rnea", "rnea-bw": "rnea-basewrench", "base-wrench": "basewrench",
+                       "momentum-observer": "momentum", "base-momentum": "base-momentum"}
 
 
 @dataclass(frozen=True)
@@ -42,12 +48,13 @@ class Preset:
     linear output layer. activation: of the FC layers ("relu" or "tanh").
     dropout: probability of dropping an FC hidden unit in training (0: none;
     inference never drops).
-    prior: the analytic part the network corrects (None: a plain network):
-      "rnea"            tau = RNEA(q, qd, qdd)
-      "rnea-basewrench" tau = RNEA(q, qd, qdd) - J_v^T F_bw (F_bw: base-wrench method)
-      "basewrench"      F = tip_force_from_base_wrench(q, qd, qdd, base_wrench)
-      "momentum"        F = MomentumObserver(q, qd, tau_J) at dt = 1 / record_hz
-      "base-momentum"   F = base momentum observer(q, qd, tared base_wrench) at dt = 1 / record_hz
+    prior: the analytic part the network corrects (None: a plain network), by the estimator's
+    one name (older spellings, in brackets, are accepted and mean the same):
+      "rnea"              tau = RNEA(q, qd, qdd)
+      "rnea-bw"           tau = RNEA(q, qd, qdd) - J_v^T F_bw (F_bw: base-wrench method) ("rnea-basewrench")
+      "base-wrench"       F = tip_force_from_base_wrench(q, qd, qdd, base_wrench) ("basewrench")
+      "momentum-observer" F = MomentumObserver(q, qd, tau_J) at dt = 1 / record_hz ("momentum")
+      "base-momentum"     F = base momentum observer(q, qd, tared base_wrench) at dt = 1 / record_hz
     raw_sensor: read the base wrench untared (a labelled reference row: what the
     sensor's per-run offset costs); by default every preset reads it tared, as
     every analytic row does (``learn/train.py``).
@@ -79,8 +86,8 @@ class Preset:
     def __post_init__(self):
         if self.kind not in KINDS:
             raise ValueError(f"preset {self.name!r}: kind must be one of {KINDS}, got {self.kind!r}")
-        if self.prior not in PRIORS:
-            raise ValueError(f"preset {self.name!r}: prior must be one of {PRIORS}, got {self.prior!r}")
+        if self.prior is not None:  # one name per estimator; a saved model's older spelling is read as it
+            object.__setattr__(self, "prior", estimator_name(self.prior, PRIORS[1:], f"prior of preset {self.name!r}"))
         if self.activation not in ("relu", "tanh"):
             raise ValueError(f"preset {self.name!r}: activation must be relu or tanh, got {self.activation!r}")
         if self.window < 1:
@@ -99,10 +106,13 @@ class Preset:
         return self.window > 1
 
     def to_dict(self) -> dict:
+        """The preset as model files store it (the prior in its file spelling, :data:`PRIOR_FILE_SPELLING`)."""
         d = asdict(self)
         for k, v in d.items():
             if isinstance(v, tuple):
                 d[k] = list(v)
+        if self.prior is not None:
+            d["prior"] = PRIOR_FILE_SPELLING[self.prior]
         return d
 
     @classmethod
@@ -166,12 +176,12 @@ def _build_registry() -> dict:
         Preset("residual-rnea", "lstm", tuple(STATE), ("tau_m",), window=10, front_units=(32,),
                prior="rnea", description="tau = RNEA_nominal(q, qd, qdd) + LSTM(window of q, qd, qdd)"),
         Preset("residual-rnea-bw", "lstm", tuple(STATE + ["base_wrench"]), ("tau_m",), window=10,
-               front_units=(32,), prior="rnea-basewrench",
+               front_units=(32,), prior="rnea-bw",
                description="tau = RNEA - J_v^T F_basewrench + LSTM(window of q, qd, qdd, base_wrench)"),
         Preset("residual-basewrench", "lstm", tuple(TIP_INPUTS), ("tip_force",), window=10, front_units=(32,),
-               prior="basewrench", description="F = base-wrench method + LSTM(window of base_wrench, q, qd, qdd)"),
+               prior="base-wrench", description="F = base-wrench method + LSTM(window of base_wrench, q, qd, qdd)"),
         Preset("residual-momentum", "lstm", tuple(STATE + ["tau_J"]), ("tip_force",), window=10,
-               front_units=(32,), prior="momentum",
+               front_units=(32,), prior="momentum-observer",
                description="F = momentum observer(q, qd, tau_J) + LSTM(window of q, qd, qdd, tau_J)"),
         Preset("residual-base-momentum", "lstm", tuple(TIP_INPUTS), ("tip_force",), window=10, front_units=(32,),
                prior="base-momentum",

@@ -4,14 +4,19 @@ A residual model predicts ``prior + network``; the prior is one of the
 toolkit's analytic models on the *nominal* robot (or another parameter set, e.g.
 an identified one):
 
-- ``rnea``            tau = RNEA(q, qd, qdd) [+ tau_f(qd)]           [Nm] (nv)
-- ``rnea-basewrench`` tau = RNEA(q, qd, qdd) [+ tau_f(qd)] - J_v^T F_bw [Nm] (nv)
+- ``rnea``              tau = RNEA(q, qd, qdd) [+ tau_f(qd)]           [Nm] (nv)
+- ``rnea-bw``           tau = RNEA(q, qd, qdd) [+ tau_f(qd)] - J_v^T F_bw [Nm] (nv)
   with F_bw the base-wrench tip-force estimate: physics-informed torque models
   may use the base sensor (PROTOCOL 4), which sees the external force.
-- ``basewrench``      F = tip_force_from_base_wrench(q, qd, qdd, w)  [N] (3)
-- ``momentum``        F = MomentumObserver(q, qd, tau_J), dt = 1 / record_hz [N] (3)
-- ``base-momentum``   F = the base momentum observer (q, qd, tared base wrench) [N] (3),
+- ``base-wrench``       F = tip_force_from_base_wrench(q, qd, qdd, w)  [N] (3)
+- ``momentum-observer`` F = MomentumObserver(q, qd, tau_J), dt = 1 / record_hz [N] (3)
+- ``base-momentum``     F = the base momentum observer (q, qd, tared base wrench) [N] (3),
   0 in the tare window and started after it (``analytic.base_momentum_tip_force``)
+
+The kinds are the estimators' one name (``analytic/estimators.py``); the older
+spellings ``rnea-basewrench``, ``basewrench`` and ``momentum`` are accepted, and
+model files keep writing them (``presets.PRIOR_FILE_SPELLING``), so every saved
+model loads, and predicts, as before.
 
 On an identified parameter file (``hybrid-dyn identify``; ``TrainConfig.analytic_params``)
 the two torque priors are the identified model itself: its inertials and the
@@ -47,39 +52,40 @@ import numpy as np
 import pinocchio as pin
 
 from ..analytic.base_momentum import base_momentum_tip_force
+from ..analytic.estimators import estimator_name
 from ..analytic.momentum_observer import MomentumObserver
 from ..analytic.tare import tare_samples, tared_base_wrench
 from ..analytic.tip_force import base_wrench_force_core, contact_joint_torques, tip_force_from_base_wrench
+from .presets import PRIOR_FILE_SPELLING
 
 PRIOR_FIELDS = {
     "rnea": ("q", "qd", "qdd"),
-    "rnea-basewrench": ("q", "qd", "qdd", "base_wrench"),
-    "basewrench": ("q", "qd", "qdd", "base_wrench"),
-    "momentum": ("q", "qd", "tau_J"),
+    "rnea-bw": ("q", "qd", "qdd", "base_wrench"),
+    "base-wrench": ("q", "qd", "qdd", "base_wrench"),
+    "momentum-observer": ("q", "qd", "tau_J"),
     "base-momentum": ("q", "qd", "qdd", "base_wrench"),  # qdd: only for the tare
 }
-STATEFUL_PRIORS = ("momentum", "base-momentum")
-FRICTION_PRIORS = ("rnea", "rnea-basewrench")  # predict the motor torque: rigid body + friction
+STATEFUL_PRIORS = ("momentum-observer", "base-momentum")
+FRICTION_PRIORS = ("rnea", "rnea-bw")  # predict the motor torque: rigid body + friction
 
 
 class AnalyticPrior:
     """One analytic model, evaluated on instances or on a single sample.
 
-    kind: a key of :data:`PRIOR_FIELDS`. robot: the nominal :class:`Robot`.
+    kind: a key of :data:`PRIOR_FIELDS` (or an older spelling of one). robot: the nominal :class:`Robot`.
     record_hz: the dataset's sample rate (the momentum observer's dt is 1/record_hz).
     observer_gain: the momentum observer's bandwidth K [1/s].
     tare_seconds: base-wrench priors only: the contact-free start of each
     instance used to tare the base sensor [s]; 0 = no tare.
     friction: the joint friction added to the torque priors (``rnea``,
-    ``rnea-basewrench``), as a parameter file's ``friction`` section (dict) or None;
+    ``rnea-bw``), as a parameter file's ``friction`` section (dict) or None;
     ``"auto"``: the friction of the robot's parameter set when that is an identified
     file, else none (module docstring). A loaded model passes what its config holds.
     """
 
     def __init__(self, kind: str, robot, record_hz: float | None = None, observer_gain: float = 20.0,
                  tare_seconds: float = 0.0, friction: dict | str | None = "auto"):
-        if kind not in PRIOR_FIELDS:
-            raise ValueError(f"unknown analytic prior {kind!r}; known: {sorted(PRIOR_FIELDS)}")
+        kind = estimator_name(kind, among=PRIOR_FIELDS, what="analytic prior")
         if kind in STATEFUL_PRIORS and not record_hz:
             raise ValueError(f"the {kind} prior needs the dataset's record_hz")
         self.tare_seconds = float(tare_seconds) if "base_wrench" in PRIOR_FIELDS[kind] else 0.0
@@ -109,7 +115,7 @@ class AnalyticPrior:
 
     def describe(self) -> dict:
         """What identifies this prior's values (part of the cache key and the model config)."""
-        return {"kind": self.kind, "robot": self.robot.name, "params": self.robot.params_name,
+        return {"kind": PRIOR_FILE_SPELLING[self.kind], "robot": self.robot.name, "params": self.robot.params_name,
                 "payload": repr(self.robot.payload), "sensor_mount": repr(self.robot.sensor_mount),
                 "record_hz": self.record_hz, "observer_gain": self.observer_gain,
                 "tare_seconds": self.tare_seconds,
@@ -126,7 +132,7 @@ class AnalyticPrior:
         """The prior over one instance: fields name -> (T, k) arrays; returns (T, n_out)."""
         r = self.robot
         q, qd = fields["q"], fields["qd"]
-        if self.kind == "momentum":
+        if self.kind == "momentum-observer":
             obs = MomentumObserver(r, gain=self.observer_gain, dt=1.0 / self.record_hz)
             return obs.run(q, qd, fields["tau_J"])[0]
         qdd = fields["qdd"]
@@ -139,7 +145,7 @@ class AnalyticPrior:
         if self.kind == "base-momentum":
             return base_momentum_tip_force(r, q, qd, w, 1.0 / self.record_hz, self.observer_gain, n_tare)
         f_bw = np.atleast_2d(tip_force_from_base_wrench(r, q, qd, qdd, w))
-        if self.kind == "basewrench":
+        if self.kind == "base-wrench":
             return f_bw
         return np.atleast_2d(r.inverse_dynamics(q, qd, qdd) + self.friction_torque(qd)) \
             - contact_joint_torques(r, np.atleast_2d(q), f_bw)
@@ -161,7 +167,7 @@ class AnalyticPrior:
         if self.kind == "rnea":
             return pin.rnea(s.model, s.data, q, qd, qdd) + self.friction_torque(qd)
         f_bw = s.basewrench_force(q, qd, qdd, np.asarray(sample["base_wrench"], float))
-        if self.kind == "basewrench":
+        if self.kind == "base-wrench":
             return f_bw
         jv = pin.computeFrameJacobian(s.model, s.data, q, s.tool, pin.LOCAL_WORLD_ALIGNED)[:3]
         return pin.rnea(s.model, s.data, q, qd, qdd) + self.friction_torque(qd) - jv.T @ f_bw
@@ -172,7 +178,7 @@ class AnalyticPrior:
         if cache_dir is not None and dataset_checksum:
             key = hashlib.sha256(json.dumps({"dataset": dataset_checksum, **self.describe()},
                                             sort_keys=True).encode()).hexdigest()[:20]
-            cache = Path(cache_dir) / f"prior-{self.kind}-{key}.h5"
+            cache = Path(cache_dir) / f"prior-{PRIOR_FILE_SPELLING[self.kind]}-{key}.h5"
         names = [inst.name for inst in instances]
         if cache is not None and cache.is_file():
             try:

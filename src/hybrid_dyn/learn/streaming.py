@@ -174,7 +174,7 @@ class StreamingModel:
         n = len(self._ring)  # the ring rows of the window ending at each head: one take per call
         self._window_rows = (np.arange(n)[:, None] - self._offsets) % n
         gain = self.model.config.get("observer_gain", 20.0)
-        if self.model.preset.prior == "momentum":
+        if self.model.preset.prior == "momentum-observer":
             self._observer = MomentumObserver(self.robot, gain=gain, dt=1.0 / call_hz)
         elif self.model.preset.prior == "base-momentum":
             self._observer = BaseMomentumObserver(self.robot, gain=gain, dt=1.0 / call_hz)
@@ -228,9 +228,9 @@ class StreamingModel:
             if in_tare:
                 return np.zeros(3)
             return self._observer.force(q, self._observer.step_unchecked(q, qd, base_wrench))
-        if kind == "basewrench":
+        if kind == "base-wrench":
             return base_wrench_force_core(self.robot, q, qd, qdd, base_wrench)
-        if kind == "momentum":
+        if kind == "momentum-observer":
             return self._observer.force(q, self._observer.step_unchecked(q, qd, tau_J))
         return self.model.prior.single({"q": q, "qd": qd, "qdd": qdd, "base_wrench": base_wrench})
 
@@ -278,7 +278,7 @@ class StreamingModel:
         index = window_index([len(inst)], self.window)
         prior = None
         if self.model.prior is not None:
-            if self.model.preset.prior == "momentum":
+            if self.model.preset.prior == "momentum-observer":
                 obs = MomentumObserver(self.robot, gain=self._observer.gain[0], dt=1.0 / self.call_hz)
                 prior = torch.from_numpy(obs.run(inst["q"], inst["qd"], inst["tau_J"])[0])
             else:
