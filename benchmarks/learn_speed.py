@@ -12,15 +12,17 @@ Floor (issue 4): single-call seed-tip-11 and residual-basewrench <= 200 us media
 ``--sweep`` (issue 14, item 2): the batch-size sweep behind the training recipe's
 batch size. One preset per trained family (MLP, conv, LSTM, residual LSTM, DeLaN),
 each batch size, trained to convergence with the ``default`` recipe on one torch
-thread, same seed; per (preset, batch) it prints the measured training throughput,
-epochs, why training stopped, the wall time, the best validation loss (standardized
-MSE) and the test RMSE, then applies the choice rule (:func:`pick_batch`) and states
-the pick. Data: ``--data DIR``, or by default a ``seed-sim`` set (20 Hz, exact states,
-noise-free) of 12 instances of 5-20 trajectories, generated once into ``--data-root``;
-``--scenario``, ``--instances`` and ``--trajectories`` change it. Each run trains into
-its own folder under ``--work``, so a killed sweep continues where it stopped.
+thread, the same seeds (``--seeds``) for every run. Per (preset, batch, seed) it
+prints the measured training throughput, epochs, why training stopped, the wall
+time, the best validation loss (standardized MSE) and the test RMSE; then it applies
+the choice rule (:func:`pick_batch`, on the loss averaged over the seeds) and states
+the pick. Data: ``--data DIR``, or by default a ``seed-sim`` set (20 Hz, exact
+states, noise-free) of 12 instances of 5-20 trajectories, generated once into
+``--data-root``; ``--scenario``, ``--instances`` and ``--trajectories`` change it.
+Each run trains into its own folder under ``--work``, so a killed sweep continues
+where it stopped.
 
-    taskset -c 1 .venv/bin/python benchmarks/learn_speed.py --sweep --out runs/batch-sweep.md
+    taskset -c 1 .venv/bin/python benchmarks/learn_speed.py --sweep --seeds 0 1 --out runs/batch-sweep.md
 """
 from __future__ import annotations
 
@@ -114,16 +116,32 @@ def sweep_row(ds, preset: str, batch: int, config: TrainConfig, work: Path) -> d
     seconds = model.train_seconds
     test = model.evaluate(ds.split("test"))
     return {"preset": preset, "family": SWEEP_PRESETS.get(preset, get_preset(preset).kind), "batch": batch,
+            "seed": config.seed,
             "samples_per_s": epochs * n_train / seconds, "epochs": epochs, "stopped_by": model.config["stopped_by"],
             "best_epoch": model.config["best_epoch"], "wall_s": seconds, "val_loss": model.val_loss,
             "test_rmse": test["rmse"], "unit": "N" if model.targets == ["tip_force"] else "Nm"}
 
 
+def mean_over_seeds(rows: list[dict]) -> list[dict]:
+    """One row per (preset, batch): the best validation loss averaged over the seeds that ran, the
+    wall time summed (what training them all costs). Seed-to-seed spread of the loss is often as
+    large as the batch size's effect, so the rule is applied to the mean."""
+    keys = list(dict.fromkeys((r["preset"], r["batch"]) for r in rows))
+    out = []
+    for preset, batch in keys:
+        mine = [r for r in rows if r["preset"] == preset and r["batch"] == batch]
+        out.append({"preset": preset, "batch": batch, "n_seeds": len(mine),
+                    "val_loss": float(np.mean([r["val_loss"] for r in mine])),
+                    "wall_s": float(sum(r["wall_s"] for r in mine))})
+    return out
+
+
 def pick_batch(rows: list[dict], tolerance: float) -> tuple[int | None, dict, float]:
     """The choice rule, quality first, then cost.
 
-    A size's *worst ratio* r(b) is the largest, over presets, of its best validation loss over
-    that preset's best at any size (1: best for every family). r* = min_b r(b) is the best any
+    ``rows``: one per (preset, batch), as :func:`mean_over_seeds` gives them. A size's *worst
+    ratio* r(b) is the largest, over presets, of its best validation loss over that preset's best
+    at any size (1: best for every family). r* = min_b r(b) is the best any
     one size can do for all families at once. A size is *admissible* when r(b) <= r* + tolerance:
     no family pays more than ``tolerance`` beyond what the best compromise costs it (when one size
     is best everywhere, r* = 1 and this is "within ``tolerance`` of the best for every family").
@@ -154,22 +172,35 @@ def pick_batch(rows: list[dict], tolerance: float) -> tuple[int | None, dict, fl
 
 def sweep_table(rows: list[dict], pick: int | None, summary: dict, r_star: float, tolerance: float,
                 header: list[str]) -> str:
-    best = {p: min(r["val_loss"] for r in rows if r["preset"] == p) for p in {r["preset"] for r in rows}}
+    best = {(p, sd): min(r["val_loss"] for r in rows if (r["preset"], r["seed"]) == (p, sd))
+            for p, sd in {(r["preset"], r["seed"]) for r in rows}}
     lines = header + ["",
-                      "| preset | family | batch | train samples/s | epochs | stopped_by | best epoch | wall s "
-                      "| best val loss | / preset's best | test RMSE |",
-                      "|---|---|---|---|---|---|---|---|---|---|---|"]
+                      "| preset | family | seed | batch | train samples/s | epochs | stopped_by | best epoch | wall s "
+                      "| best val loss | / preset's best (this seed) | test RMSE |",
+                      "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r['preset']} | {r['family']} | {r['batch']} | {r['samples_per_s']:.0f} | {r['epochs']} "
-                     f"| {r['stopped_by']} | {r['best_epoch']} | {r['wall_s']:.1f} | {r['val_loss']:.5f} "
-                     f"| {r['val_loss'] / best[r['preset']]:.3f} | {r['test_rmse']:.4f} {r['unit']} |")
-    lines += ["", "| batch | worst val loss / preset's best | total wall s | admissible |", "|---|---|---|---|"]
+        lines.append(f"| {r['preset']} | {r['family']} | {r['seed']} | {r['batch']} | {r['samples_per_s']:.0f} "
+                     f"| {r['epochs']} | {r['stopped_by']} | {r['best_epoch']} | {r['wall_s']:.1f} "
+                     f"| {r['val_loss']:.5f} | {r['val_loss'] / best[(r['preset'], r['seed'])]:.3f} "
+                     f"| {r['test_rmse']:.4f} {r['unit']} |")
+    means = mean_over_seeds(rows)
+    presets = list(dict.fromkeys(r["preset"] for r in means))
+    batches = sorted({r["batch"] for r in means})
+    mean_of = {(r["preset"], r["batch"]): r for r in means}
+    lines += ["", "Best validation loss, mean over seeds (seeds run), and its ratio to the preset's best mean:", "",
+              "| preset | " + " | ".join(str(b) for b in batches) + " |", "|---|" + "---|" * len(batches)]
+    for p in presets:
+        lo = min(r["val_loss"] for r in means if r["preset"] == p)
+        cells = [f"{mean_of[p, b]['val_loss']:.4f} ({mean_of[p, b]['n_seeds']}) x{mean_of[p, b]['val_loss'] / lo:.3f}"
+                 if (p, b) in mean_of else "-" for b in batches]
+        lines.append(f"| {p} | " + " | ".join(cells) + " |")
+    lines += ["", "| batch | worst mean val loss / preset's best | total wall s | admissible |", "|---|---|---|---|"]
     for b, s in summary.items():
         lines.append(f"| {b} | {s['worst_ratio']:.3f} | {s['wall_s']:.1f} | {'yes' if s['admissible'] else 'no'} |")
     largest = max((b for b, s in summary.items() if s["admissible"]), default=None)
     strict = [b for b, s in summary.items() if s["worst_ratio"] <= 1 + tolerance]
-    lines += ["", f"Rule: worst ratio r(b) = the largest, over presets, of the best validation loss at batch b "
-                  f"over that preset's best at any size; r* = min r(b) = {r_star:.3f}. Admissible: r(b) <= r* + "
+    lines += ["", f"Rule: worst ratio r(b) = the largest, over presets, of the mean best validation loss at batch "
+                  f"b over that preset's best mean at any size; r* = min r(b) = {r_star:.3f}. Admissible: r(b) <= r* + "
                   f"{tolerance:.2f} (no family pays more than {tolerance:.0%} beyond the best compromise); the pick "
                   f"is the admissible size with the least total wall time.",
               f"Pick: **{pick}** (admissible: {', '.join(str(b) for b, s in summary.items() if s['admissible'])}; "
@@ -182,33 +213,37 @@ def sweep(args) -> int:
     torch.set_num_threads(1)
     ds = sweep_dataset(args)
     sizes = {s: sum(len(i) for i in ds.split(s)) for s in ("train", "val", "test")}
-    base = TrainConfig.recipe(args.recipe, seed=args.seed, num_threads=1, progress=False)
-    work = sweep_work_dir(Path(args.work), ds, base)
     cpus = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else "?"
     meta = ds.meta.get("config", {})
     data = (f"`{ds.path.name}`: scenario {ds.meta.get('scenario')}, {meta.get('n_instances', '?')} instances of "
             f"{meta.get('trajectories', '?')} trajectories, {ds.meta.get('record_hz')} Hz; samples train/val/test "
             f"{sizes['train']}/{sizes['val']}/{sizes['test']}")
+    seeds = ", ".join(map(str, args.seeds))
+    if args.one_seed:
+        seeds += f" ({', '.join(args.one_seed)}: seed {args.seeds[0]} only)"
     header = ["# Batch-size sweep (`benchmarks/learn_speed.py --sweep`)", "",
               f"`{' '.join(sys.argv)}`, {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC.", "",
-              f"Data: {data}. Recipe `{args.recipe}` (batch size varied), seed {args.seed}, one torch thread, "
-              f"torch {torch.__version__}, CPUs {cpus}. Models in `{work}`.",
+              f"Data: {data}. Recipe `{args.recipe}` (batch size varied), seeds {seeds}, one torch thread, "
+              f"torch {torch.__version__}, CPUs {cpus}. Models under `{args.work}` (one folder per dataset, "
+              f"recipe and seed).",
               "Wall s: the training loop's time (every epoch with its validation pass), from which samples/s is "
-              "derived. The machine is shared: wall times and throughput are indicative (load moves them by up "
-              "to 2x); losses and epochs are deterministic."]
+              "derived. On a shared machine wall times and throughput are indicative (other jobs' load moves "
+              "them several-fold); losses and epochs are deterministic for a given seed and machine."]
     print("\n".join(header), flush=True)
     rows = []
     for preset in args.presets:
         for batch in args.batch_sizes:
-            t0 = time.perf_counter()
-            row = sweep_row(ds, preset, batch, TrainConfig.recipe(args.recipe, seed=args.seed, num_threads=1,
-                                                                  progress=False, batch_size=batch), work)
-            rows.append(row)
-            print(f"[sweep] {preset:16s} batch {batch:5d}: {row['samples_per_s']:8.0f} samples/s, "
-                  f"{row['epochs']:3d} epochs ({row['stopped_by']}, best {row['best_epoch']}), "
-                  f"{row['wall_s']:7.1f} s, val {row['val_loss']:.5f}, test RMSE {row['test_rmse']:.4f} "
-                  f"{row['unit']} ({time.perf_counter() - t0:.0f} s this call)", flush=True)
-    pick, summary, r_star = pick_batch(rows, args.tolerance)
+            seeds = args.seeds if preset not in args.one_seed else args.seeds[:1]
+            for seed in seeds:
+                t0 = time.perf_counter()
+                config = TrainConfig.recipe(args.recipe, seed=seed, num_threads=1, progress=False, batch_size=batch)
+                row = sweep_row(ds, preset, batch, config, sweep_work_dir(Path(args.work), ds, config))
+                rows.append(row)
+                print(f"[sweep] {preset:16s} batch {batch:5d} seed {seed}: {row['samples_per_s']:8.0f} samples/s, "
+                      f"{row['epochs']:3d} epochs ({row['stopped_by']}, best {row['best_epoch']}), "
+                      f"{row['wall_s']:7.1f} s, val {row['val_loss']:.5f}, test RMSE {row['test_rmse']:.4f} "
+                      f"{row['unit']} ({time.perf_counter() - t0:.0f} s this call)", flush=True)
+    pick, summary, r_star = pick_batch(mean_over_seeds(rows), args.tolerance)
     text = sweep_table(rows, pick, summary, r_star, args.tolerance, header)
     print(text)
     if args.out:
@@ -229,7 +264,10 @@ def main() -> int:
     sw.add_argument("--presets", nargs="+", default=list(SWEEP_PRESETS), metavar="PRESET")
     sw.add_argument("--batch-sizes", nargs="+", type=int, default=list(SWEEP_BATCHES), metavar="N")
     sw.add_argument("--recipe", default="default", help="training recipe (TrainConfig.recipe)")
-    sw.add_argument("--seed", type=int, default=0, help="training seed (weights and shuffling)")
+    sw.add_argument("--seeds", type=int, nargs="+", default=[0], metavar="SEED",
+                    help="training seeds (weights and shuffling); the rule uses the mean over them")
+    sw.add_argument("--one-seed", nargs="+", default=[], metavar="PRESET",
+                    help="presets trained on the first seed only (the costly ones, when time is short)")
     sw.add_argument("--data-seed", type=int, default=SWEEP_DATA["seed"], help="generated set: seed")
     sw.add_argument("--scenario", default=SWEEP_DATA["scenario"], help="generated set: scenario")
     sw.add_argument("--instances", type=int, default=SWEEP_DATA["n_instances"], help="generated set: instances")
