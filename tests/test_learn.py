@@ -226,7 +226,7 @@ def test_sigkilled_training_resumes_to_the_same_model(friction_set, tmp_path):
     import time
 
     args = ["--epochs", "40", "--batch-size", "16", "--threads", "1", "--quiet"]
-    cfg = TrainConfig(max_epochs=40, batch_size=16, patience=5, progress=False, num_threads=1)
+    cfg = TrainConfig.recipe("default", max_epochs=40, batch_size=16, progress=False, num_threads=1)  # the CLI's
     out = tmp_path / "killed"
     proc = subprocess.Popen([sys.executable, "-m", "hybrid_dyn.cli", "train", "--data", str(friction_set.path),
                              "--preset", "seed-tip-5", "--out", str(out)] + args)
