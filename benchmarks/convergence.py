@@ -91,6 +91,9 @@ def main() -> int:
                      f"({long.config.get('stopped_by')}) | {long.val_loss:.5f} | {gain:+.1%} | "
                      f"{'yes' if ok else 'NO'} |")
         print(lines[-1], f"({time.perf_counter() - t0:.0f} s)", flush=True)
+        if args.out:  # after every row: an interrupted check keeps what it measured
+            Path(args.out).write_text("\n".join(lines + ["", "(incomplete: the check is still running or was "
+                                                          "interrupted)"]) + "\n")
     lines += ["", f"{failures} row(s) not converged by this test."]
     text = "\n".join(lines) + "\n"
     print(text)
