@@ -140,7 +140,7 @@ def _excitation_dataset(ctx):
         tmp = unique_temp(traj_file)
         tmp.write_text(json.dumps(traj.to_dict()))
         tmp.replace(traj_file)
-    cfg = prof.scenario_config(ctx.scenario)
+    cfg = prof.generator_config(ctx.source or ctx.scenario, ctx.dataset)  # a --data dataset: its manifest's
     ident_dir = root / f"{ctx.scenario}-identification-{cfg.config_hash()}-{traj_file.stem}"
     try:
         ident = load_dataset(ident_dir)

@@ -6,9 +6,17 @@ paper    the study's scale (1000 instances per scenario)
 real     the joint-torque models that need no URDF on the three real-robot logs
          (KUKA and Baxter split by trajectory; SARCOS, one test file of 4,449
          rows, split by contiguous blocks: see benchmarks/real/sarcos.toml)
+
+A profile is data: it names datasets (``scenarios``) and rows. A scenario is a
+name (a simulated scenario of ``sim/scenarios.py``, generated and cached, or a
+real set of ``data/real.py``, imported and cached) or the path of any dataset
+in the toolkit's format, which is read as it is (:func:`profile_for_data`:
+``hybrid-dyn bench --data DIR``). Each row runs where it applies; every other
+row is skipped with its reason (:meth:`BenchProfile.skip_reason`).
 """
 from __future__ import annotations
 
+import os
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -45,34 +53,70 @@ class BenchProfile:
     # Scenarios that run only some families (scenario -> families); the rest run every row.
     scenario_families: dict = field(default_factory=dict)
     seed: int = 0
+    # The analytic model (None: each dataset's own robot, the robot's default parameters, its own tool).
+    robot: str | None = None  # a robot name for every dataset (description.ROBOT_NAME_HELP)
+    params: str | None = None  # nominal parameter set (a name or a JSON path): analytic rows and residual priors
+    tool: str | None = None  # the tool of every dataset's robot ("none": the bare flange)
 
     def __post_init__(self):
         self.selected_rows()  # an unknown row or family is refused now, not after the data are made
+        if self.robot is not None:
+            self.resolve_robot(self.robot)  # a name the toolkit cannot serve is refused now, with the accepted ones
 
     def train_config(self):
         from ..learn import TrainConfig
 
-        return TrainConfig.recipe(self.recipe, **{"seed": self.seed, **self.train})
+        # --params is the nominal model: the residual rows' priors sit on it too (identified rows replace it).
+        nominal = {"analytic_params": self.params} if self.params is not None else {}
+        return TrainConfig.recipe(self.recipe, **{"seed": self.seed, **nominal, **self.train})
 
     def selected_rows(self) -> list[Row]:
         """The rows this profile runs (where they apply), in declaration order."""
         return select_rows(names=self.rows, families=self.families)
 
     def applies(self, row: Row, ds) -> bool:
-        """Whether a row can run on a dataset: the fields it declares exist, and a URDF where it needs one."""
+        """Whether a row can run on a dataset (:meth:`skip_reason` is None)."""
+        return self.skip_reason(row, ds) is None
+
+    def skip_reason(self, row: Row, ds) -> str | None:
+        """Why ``row`` does not run on ``ds`` (e.g. "needs base_wrench", "needs a URDF for robot 'x'"),
+        or None when it runs: the fields it declares exist, and a URDF where it needs one."""
         only = self.scenario_families.get(ds.meta.get("scenario"))
         if only is not None and row.family not in only:
-            return False
+            return f"this profile runs only the {', '.join(only)} rows on {ds.meta.get('scenario')}"
         config = ds.meta.get("config", {})
         if row.task == "tip_force" and "pulses" in config and config["pulses"] is None \
                 and config.get("contact_steps") is None:
-            return False  # no external force in this scenario: nothing to estimate at the tip
-        needs = set(row.needs) | set(row.more_needs(ds) if row.more_needs else ())
-        return needs <= set(ds.fields) and (not row.needs_urdf or _has_robot(ds))
+            return "no external force in this scenario: nothing to estimate at the tip"
+        needs = tuple(row.needs) + tuple(row.more_needs(ds) if row.more_needs else ())
+        missing = [f for f in dict.fromkeys(needs) if f not in ds.fields]
+        if missing:
+            return f"needs {', '.join(missing)}"
+        if row.needs_urdf and not self.robot_ref(ds).described:
+            return f"needs a URDF for robot {self.robot_ref(ds).name!r} (known for data only)"
+        return None
+
+    def resolve_robot(self, name: str):
+        """``description.resolve_robot`` of ``name`` with this profile's tool (replacing the name's own tool)."""
+        from ..description import parse_robot_name, resolve_robot
+
+        if self.tool is None:
+            return resolve_robot(name)
+        base, _, payload = parse_robot_name(name)
+        return resolve_robot(base, tool=self.tool, payload=payload)
+
+    def robot_ref(self, ds):
+        """What the analytic model of ``ds`` is: this profile's ``robot``, else the dataset's own, with ``tool``."""
+        name = self.robot or ds.meta.get("robot")
+        if not name:
+            raise DatasetError(f"dataset {ds.path} does not name its robot (manifest key 'robot'); give one (--robot)")
+        return self.resolve_robot(name)
 
     def dataset(self, scenario: str, data_root: Path, log=print):
-        """The scenario's dataset, generated once and cached by its config hash
-        (real-robot logs: imported once, cached by spec and file checksums)."""
+        """The scenario's dataset: a dataset path is read as it is; a simulated scenario is generated once
+        and cached by its config hash (real-robot logs: imported once, cached by spec and file checksums)."""
+        if is_dataset_path(scenario):
+            return load_dataset(scenario)
         if scenario.startswith("real-"):
             from ..data.real import real_dataset
 
@@ -88,6 +132,15 @@ class BenchProfile:
             generate_dataset(cfg, path, workers=self.workers)
             return load_dataset(path)
 
+    def generator_config(self, scenario: str, ds):
+        """The generator config that simulated ``ds``: a named scenario's (:meth:`scenario_config`), or for a
+        dataset path the config its manifest records (the plant an identification run is recorded on)."""
+        if is_dataset_path(scenario):
+            from ..sim.scenarios import GeneratorConfig
+
+            return GeneratorConfig.from_dict(ds.meta["config"])
+        return self.scenario_config(scenario)
+
     def scenario_config(self, scenario: str):
         """The generator config of one of this profile's simulated scenarios."""
         from ..sim.scenarios import scenario_config
@@ -99,10 +152,35 @@ class BenchProfile:
         return asdict(self)
 
 
-def _has_robot(ds) -> bool:
-    from ..description import available_robots
+def is_dataset_path(scenario: str) -> bool:
+    """Whether a profile's scenario entry is a dataset path (anything but a simulated scenario's or a
+    real set's name)."""
+    from ..data.real import REAL_SETS
+    from ..sim.scenarios import SCENARIOS
 
-    return ds.meta.get("robot") in available_robots()
+    return str(scenario) not in SCENARIOS and str(scenario) not in REAL_SETS
+
+
+def scenario_label(scenario: str, ds) -> str:
+    """The scenario's name in results.csv and the tables: a named scenario's name; for a dataset path,
+    its manifest's ``scenario``, or the folder's name."""
+    if not is_dataset_path(scenario):
+        return scenario
+    return str(ds.meta.get("scenario") or Path(os.path.abspath(scenario)).name)
+
+
+def profile_for_data(paths, robot: str | None = None, params: str | None = None, tool: str | None = None,
+                     recipe: str = "default", name: str = "data", **fields) -> BenchProfile:
+    """The profile of ``hybrid-dyn bench --data DIR ...``: every declared row on the datasets at ``paths``,
+    each where it applies. ``robot``, ``params``, ``tool``, ``recipe``: see :class:`BenchProfile`;
+    ``fields``: any other of its fields (``train``, ``workers``, ``families``, ...)."""
+    from .rows import FAMILIES
+
+    paths = tuple(str(p) for p in ([paths] if isinstance(paths, (str, os.PathLike)) else paths))
+    if not paths:
+        raise UsageError("give at least one dataset (--data DIR)")
+    fields.setdefault("families", tuple(FAMILIES))
+    return BenchProfile(name=name, scenarios=paths, robot=robot, params=params, tool=tool, recipe=recipe, **fields)
 
 
 PROFILES = {

@@ -1,7 +1,11 @@
 """The benchmark report: tables laid out like the seed's, LaTeX, figures, README.
 
-Everything here is derived from the rows that ``runner.run_bench`` scored; the
-headline findings and floor checks are computed from those numbers, never typed.
+Everything here is drawn from the bench's files in the report folder, never from
+a live run: results.csv (``results.py``), curves.json, run.json and predictions.h5
+(``predictions.py``), so ``hybrid-dyn report DIR`` redraws the same report without
+retraining or re-simulating. The headline findings are computed from those numbers,
+never typed. The project's own acceptance floors are not here: they are a benchmark
+of their own (``benchmarks/acceptance.py``), since they mean nothing on a user's data.
 """
 from __future__ import annotations
 
@@ -13,8 +17,8 @@ import numpy as np
 
 from ..data import package_versions
 from .catalog import reference_label
+from .predictions import PREDICTIONS_FILE, Predictions, PredictionsError
 from .results import CURVES_FILE, read_curves
-from .rows import PHYSICS_INFORMED
 from .seed_reference import GAZ2019_VALIDATION_RMSE, SEED_TABLE1, SEED_TABLE2, SEED_TABLE3, seed_dataset_label
 
 
@@ -41,6 +45,9 @@ def _contenders(rows):
 def _best(rows, task, scenario, pred) -> dict | None:
     cand = [r for r in _contenders(rows) if r["task"] == task and r["scenario"] == scenario and pred(r)]
     return min(cand, key=lambda r: float(r["rmse"])) if cand else None
+
+
+best_row = _best  # public: (rows, task, scenario, pred) -> the least-RMSE contender, or None
 
 
 # --------------------------------------------------------------------- tables
@@ -171,63 +178,7 @@ def task_tables(rows, task: str) -> tuple[str, str]:
     return "\n".join(md), "\n".join(tex)
 
 
-# --------------------------------------------------------------------- floors
-def floor_checks(rows) -> list[tuple[str, bool | None, str]]:
-    """The issue-5 floors, evaluated on these rows: (statement, met?, numbers)."""
-    out = []
-    s = "mismatch-ext"
-    hyb = _best(rows, "tip_force", s, lambda r: r["family"] == "residual")
-    seed = _best(rows, "tip_force", s, lambda r: r["family"] == "seed-net")
-    bw = _best(rows, "tip_force", s, lambda r: r["model"] == "base-wrench")
-    if hyb and seed:
-        ratio = float(hyb["rmse"]) / float(seed["rmse"])
-        out.append(("tip force, mismatch-ext: best residual <= 0.5 x best seed net", ratio <= 0.5,
-                    f"{hyb['model']} {float(hyb['rmse']):.4f} N / {seed['model']} {float(seed['rmse']):.4f} N = {ratio:.3f}"))
-    if hyb and bw:
-        ratio = float(hyb["rmse"]) / float(bw["rmse"])
-        out.append(("tip force, mismatch-ext: best residual <= 0.5 x base-wrench method", ratio <= 0.5,
-                    f"{hyb['model']} {float(hyb['rmse']):.4f} N / base-wrench {float(bw['rmse']):.4f} N = {ratio:.3f}"))
-    bwt = _best(rows, "tip_force", s, lambda r: r["model"] == "base-wrench-tared")
-    if hyb and bwt:  # not a floor: the stronger baseline a user who tares the sensor has
-        ratio = float(hyb["rmse"]) / float(bwt["rmse"])
-        out.append(("(no floor) tip force, mismatch-ext: best residual vs the tared base-wrench method", None,
-                    f"{hyb['model']} {float(hyb['rmse']):.4f} N / base-wrench-tared {float(bwt['rmse']):.4f} N = {ratio:.3f}"))
-    phys = _best(rows, "joint_torque", "paper-ext", lambda r: r["family"] in PHYSICS_INFORMED)
-    seedt = _best(rows, "joint_torque", "paper-ext", lambda r: r["family"] == "seed-net")
-    if phys and seedt:
-        ratio = float(phys["rmse"]) / float(seedt["rmse"])
-        out.append(("joint torque, paper-ext: best physics-informed <= 0.5 x best seed net", ratio <= 0.5,
-                    f"{phys['model']} {float(phys['rmse']):.4f} Nm / {seedt['model']} {float(seedt['rmse']):.4f} Nm = {ratio:.3f}"))
-    best = _best(rows, "joint_torque", s, lambda r: r["model"] != "rnea")
-    rnea = _best(rows, "joint_torque", s, lambda r: r["model"] == "rnea")
-    if best and rnea:
-        ratio = float(best["rmse"]) / float(rnea["rmse"])
-        out.append(("joint torque, mismatch-ext: best model <= 0.3 x nominal RNEA", ratio <= 0.3,
-                    f"{best['model']} {float(best['rmse']):.4f} Nm / rnea {float(rnea['rmse']):.4f} Nm = {ratio:.3f}"))
-    # Issue 7: identified-consistent vs nominal RNEA on mismatch-ext, over all samples and in free
-    # motion (no model of q, qd, qdd can know the contact force that the torques carry in contact).
-    ident = _best(rows, "joint_torque", s, lambda r: r["model"] == "identified-consistent")
-    if ident and rnea:
-        for col, label in (("rmse", "all samples"), ("rmse_free", "free motion, |F| < 1 N")):
-            ratio = float(ident[col]) / float(rnea[col])
-            out.append((f"joint torque, mismatch-ext: identified-consistent <= 0.5 x nominal RNEA ({label})", ratio <= 0.5,
-                        f"{float(ident[col]):.4f} Nm / {float(rnea[col]):.4f} Nm = {ratio:.3f}"))
-    # Issue 8, real logs: best nMSE <= 0.05, DeLaN-friction within 1.5x of the best.
-    for scenario in dict.fromkeys(r["scenario"] for r in rows if r["scenario"].startswith("real-")):
-        cand = [r for r in _ok(rows) if r["scenario"] == scenario and r["task"] == "joint_torque"]
-        if not cand:
-            continue
-        best = min(cand, key=lambda r: float(r["nmse"]))
-        out.append((f"{scenario}: best model nMSE <= 0.05", float(best["nmse"]) <= 0.05,
-                    f"{best['model']} nMSE {float(best['nmse']):.4f}"))
-        df = [r for r in cand if r["model"] == "delan-friction"]
-        if df:
-            ratio = float(df[0]["nmse"]) / float(best["nmse"])
-            out.append((f"{scenario}: delan-friction nMSE within 1.5x of the best", ratio <= 1.5,
-                        f"delan-friction {float(df[0]['nmse']):.4f} / {best['model']} {float(best['nmse']):.4f} = {ratio:.2f}"))
-    return out
-
-
+# ------------------------------------------------------------------- findings
 def findings(rows) -> list[str]:
     """Headline sentences, each computed from the rows."""
     lines = []
@@ -257,7 +208,9 @@ def _save(fig, out_dir: Path, name: str, dpi: int) -> str:
     return name
 
 
-def _figures(out_dir: Path, rows, contexts) -> list[str]:
+def _figures(out_dir: Path, rows, preds: Predictions | None, seed: int = 0) -> list[str]:
+    """The RMSE bars (from the rows) and, where ``preds`` (predictions.h5) holds them, the traces and the
+    error-vs-force figures; ``seed`` picks the traced test instance (the profile's seed)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -284,23 +237,23 @@ def _figures(out_dir: Path, rows, contexts) -> list[str]:
             ax.tick_params(axis="x", labelsize=7, rotation=30)
         made.append(_save(fig, out_dir, f"rmse_by_family_{task}.png", dpi=110))
 
-    for scenario, ctx in contexts.items():
-        test = ctx.dataset.split("test")
+    for scenario in (preds.scenarios() if preds is not None else []):
+        test = preds.test(scenario)
         if not test:
             continue
-        k = int(np.random.default_rng(ctx.profile.seed).integers(len(test)))
+        k = int(np.random.default_rng(seed).integers(len(test)))
         inst = test[k]
         for task, target, unit in (("tip_force", "tip_force", "N"), ("joint_torque", "tau_m", "Nm")):
             models = [r for r in ok if r["task"] == task and r["scenario"] == scenario]
-            if not models or target not in ctx.dataset.fields:
+            if not models or target not in inst:
                 continue
             picks = {}
             for fam in ("analytic", "seed-net", "residual", "delan", "identified"):
                 b = _best(models, task, scenario, lambda r, fam=fam: r["family"] == fam)
                 if b:
-                    picks[b["model"]] = ctx.cache.get((task, b["model"]))
+                    picks[b["model"]] = preds.get(scenario, task, b["model"])
             y = inst[target]
-            t = inst.t - inst.t[0]
+            t = inst["t"] - inst["t"][0]
             n = y.shape[1]
             fig, axes = plt.subplots(n, 1, figsize=(9, 1.6 * n + 0.6), sharex=True, squeeze=False)
             for j in range(n):
@@ -312,21 +265,21 @@ def _figures(out_dir: Path, rows, contexts) -> list[str]:
                 ax.set_ylabel(f"{'xyz'[j] if n == 3 else f'joint {j + 1}'} [{unit}]", fontsize=8)
             axes[0, 0].legend(fontsize=7, ncol=3, loc="upper right")
             axes[-1, 0].set_xlabel("t [s]")
-            fig.suptitle(f"{scenario}, test instance {inst.name}: {task.replace('_', ' ')}", fontsize=10)
+            fig.suptitle(f"{scenario}, test instance {inst['name']}: {task.replace('_', ' ')}", fontsize=10)
             made.append(_save(fig, out_dir, f"traces_{task}_{scenario}.png", dpi=100))
         # Error vs contact force magnitude, tip force (where tip-force rows ran).
-        if any(r["task"] == "tip_force" and r["scenario"] == scenario for r in ok):
-            f_true = np.concatenate([i.truth.get("tip_force", i["tip_force"]) for i in test])
+        if any(r["task"] == "tip_force" and r["scenario"] == scenario for r in ok) and "tip_force" in inst:
+            f_true = np.concatenate([i.get("tip_force_truth", i["tip_force"]) for i in test])
             mag = np.linalg.norm(f_true, axis=1)
             bins = np.array([0, 1, 5, 10, 15, 20, np.inf])
             which = np.digitize(mag, bins) - 1
             fig, ax = plt.subplots(figsize=(6.5, 3.8))
             for fam in ("analytic", "seed-net", "residual"):
                 b = _best(ok, "tip_force", scenario, lambda r, fam=fam: r["family"] == fam)
-                preds = ctx.cache.get(("tip_force", b["model"])) if b else None
-                if preds is None:
+                fam_preds = preds.get(scenario, "tip_force", b["model"]) if b else None
+                if fam_preds is None:
                     continue
-                err = np.linalg.norm(np.concatenate(preds) - np.concatenate([i["tip_force"] for i in test]), axis=1)
+                err = np.linalg.norm(np.concatenate(fam_preds) - np.concatenate([i["tip_force"] for i in test]), axis=1)
                 vals = [np.sqrt(np.mean(err[which == i] ** 2)) if (which == i).any() else np.nan for i in range(len(bins) - 1)]
                 ax.plot(range(len(vals)), vals, "o-", label=f"{fam}: {b['model']}")
             ax.set_xticks(range(len(bins) - 1), ["0-1", "1-5", "5-10", "10-15", "15-20", ">20"])
@@ -424,36 +377,66 @@ def convergence_lines(rows, curve_figures: list[str]) -> list[str]:
 
 
 # --------------------------------------------------------------------- README
-def write_report(out_dir, rows, meta: dict, contexts: dict | None = None) -> None:
+def machine_info() -> dict:
+    """What run.json records of the machine a bench ran on (the README quotes it)."""
+    return {"machine": platform.machine(), "processor": platform.processor() or platform.system(),
+            "python": platform.python_version(), "packages": package_versions()}
+
+
+def _command(prof: dict) -> str:
+    """The command line that wrote a report, from its profile (run.json)."""
+    from .profiles import is_dataset_path
+
+    scenarios = prof.get("scenarios") or []
+    if prof.get("name") == "data" and scenarios and all(is_dataset_path(s) for s in scenarios):
+        return "hybrid-dyn bench " + " ".join(f"--data {s}" for s in scenarios)
+    return f"hybrid-dyn bench --profile {prof.get('name', '?')}"
+
+
+def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
+    """Write the tables (``.md``, ``.tex``), the figures and README.md into ``out_dir`` from ``rows`` (as
+    results.csv holds them: ``results.read_results``), ``meta`` (run.json), curves.json and predictions.h5
+    there. Returns the notes on what could not be drawn (a figure without its predictions), also logged."""
     out_dir = Path(out_dir)
     for task in ("tip_force", "joint_torque"):
         md, tex = task_tables(rows, task)
         (out_dir / f"{task}.md").write_text(md)
         (out_dir / f"{task}.tex").write_text(tex)
-    figures = _figures(out_dir, rows, contexts or {}) if contexts else []
+    notes_out = []
+    try:
+        preds = Predictions(out_dir / PREDICTIONS_FILE)
+    except PredictionsError as err:
+        preds = None
+        notes_out.append(f"traces and error-vs-force figures not drawn: {err}")
+    prof = meta.get("profile", {})
+    figures = _figures(out_dir, rows, preds, seed=int(prof.get("seed") or 0))
     curve_figures = learning_curve_figures(out_dir, read_curves(out_dir / CURVES_FILE))
     figures += curve_figures
-    checks = floor_checks(rows)
     failed = [r for r in rows if r.get("status") != "ok"]
-    prof = meta.get("profile", {})
+    machine = meta.get("machine")
+    labels = meta.get("scenarios") or {s: s for s in prof.get("scenarios", [])}
+    command = _command(prof)
     lines = [
         f"# Benchmark report: profile `{prof.get('name', '?')}`", "",
-        "Produced by `hybrid-dyn bench --profile " + str(prof.get("name", "?")) + "`; every number below and in the "
+        f"Produced by `{command}`; every number below and in the "
         "tables was computed by that command on this data. Seed (Kruzic et al. 2021) figures in the tables come "
         "from another simulator and are labelled as such.", "",
         "## What was run", "",
-        f"- scenarios: {', '.join(prof.get('scenarios', []))}; generator profile `{prof.get('generator_profile')}`; "
+        f"- scenarios: {', '.join(labels)}; generator profile `{prof.get('generator_profile')}`; "
         f"seed {prof.get('seed')}; training {json.dumps(prof.get('train', {}))}",
+        *([f"- analytic model: " + ", ".join(f"{k} `{prof[k]}`" for k in ("robot", "params", "tool") if prof.get(k))]
+          if any(prof.get(k) for k in ("robot", "params", "tool")) else []),
         f"- wall time of this invocation: {meta.get('wall_seconds', float('nan')) / 60:.1f} min (datasets and trained "
         "models found in the caches are reused; each row's `train_seconds` is its own training time)"
         + ("; all invocations [min]: " + ", ".join(f"{(i.get('wall_seconds') or float('nan')) / 60:.1f}"
                                                  for i in meta.get("invocations", [])) if len(meta.get("invocations", [])) > 1 else ""),
-        f"- machine: {platform.machine()}, {platform.processor() or platform.system()}, "
-        f"Python {platform.python_version()}; packages: "
-        + ", ".join(f"{k} {v}" for k, v in package_versions().items()),
+        (f"- machine: {machine['machine']}, {machine['processor']}, Python {machine['python']}; packages: "
+         + ", ".join(f"{k} {v}" for k, v in machine["packages"].items())) if machine else
+        "- machine: not recorded in run.json (a report written before it was)",
     ]
     for s, d in meta.get("datasets", {}).items():
-        lines.append(f"- data `{s}`: config hash `{d.get('config_hash')}`, data checksum `{str(d.get('checksum'))[:16]}`")
+        lines.append(f"- data `{s}`: config hash `{d.get('config_hash')}`, data checksum `{str(d.get('checksum'))[:16]}`"
+                     + (f", read from `{d['path']}`, robot `{d['robot']}`" if d.get("robot") else ""))
     notes = prof.get("notes") or []
     if notes:
         lines += ["", "## Method notes", ""] + [f"- {n}" for n in notes]
@@ -462,17 +445,46 @@ def write_report(out_dir, rows, meta: dict, contexts: dict | None = None) -> Non
         lines += ["", f"{CAP_MARK}: stopped by the epoch cap while still improving; it may not have converged "
                       "(see the learning curves)."]
     lines += convergence_lines(rows, curve_figures)
-    lines += ["", "## Floors", ""]
-    for text, met, nums in checks:
-        verdict = "for reference" if met is None else ("met" if met else "**NOT met**")
-        lines.append(f"- {verdict}: {text} ({nums})")
-    if not checks:
-        lines.append("- not applicable to this profile's scenarios")
+    skipped = meta.get("skipped") or []
+    if skipped:
+        lines += ["", "## Rows not run", "", "Each row the profile names that does not apply to a dataset, and why:", ""]
+        lines += [f"- {k['scenario']}: " + (f"`{k['model']}` ({k['task'].replace('_', ' ')})" if k.get("model")
+                                            else "the whole scenario") + f": {k['reason']}" for k in skipped]
     if failed:
         lines += ["", "## Failed rows", ""] + [f"- {r['scenario']} {r['model']}: {r.get('error', '')}" for r in failed]
     lines += ["", "## Files", "", "- `results.csv`: one row per (task, scenario, model), stable columns",
+              *([f"- `{PREDICTIONS_FILE}`: every row's test predictions and their targets (the figures are drawn "
+                 "from it; `hybrid-dyn report DIR` redraws the report from these files)"] if preds is not None else []),
               "- `tip_force.md`, `joint_torque.md` (+ `.tex`): tables in the seed's layout",
               *([f"- `{CURVES_FILE}`: each learned row's loss per epoch, how it stopped and the epoch kept "
                  "(the learning-curve figures are drawn from it)"] if curve_figures else []),
               *[f"- `{f}`" for f in figures], ""]
     (out_dir / "README.md").write_text("\n".join(lines))
+    for note in notes_out:
+        log(f"[report] {note}")
+    return notes_out
+
+
+def rebuild_report(out_dir, log=print) -> list[str]:
+    """``hybrid-dyn report DIR``: rewrite results.csv, the tables, the figures and README.md of a bench report
+    folder from its files alone (results.csv, run.json, curves.json, predictions.h5): no training, no
+    simulation, no dataset. Holds the folder's lock; refuses a folder that is not a bench report."""
+    from ..errors import OutputPathError
+    from ..outputs import output_lock, refuse_foreign
+    from .results import read_results, write_results
+
+    out_dir = Path(out_dir)
+    marker = out_dir / "run.json"
+    if not marker.is_file() or not (out_dir / "results.csv").is_file():
+        raise OutputPathError(f"{out_dir} is not a bench report folder: it needs run.json and results.csv "
+                              "(written by hybrid-dyn bench)")
+    with output_lock(out_dir, "report folder"):
+        try:
+            meta = json.loads(marker.read_text())
+        except ValueError as err:
+            raise OutputPathError(f"{marker} is not valid JSON: {err}") from err
+        if not isinstance(meta, dict) or not ("bench_report" in meta or "profile" in meta):
+            refuse_foreign(marker, "benchmark report", "it is not a run.json of hybrid-dyn bench")
+        rows = read_results(out_dir / "results.csv")
+        write_results(out_dir / "results.csv", rows)
+        return write_report(out_dir, rows, meta, log=log)

@@ -123,3 +123,4 @@ class BenchContext:
     data_root: Path = Path("data")
     log: Callable[[str], None] = print
     cache: dict = field(default_factory=dict)
+    source: str = ""  # the profile's scenario entry (a name, or a dataset path); ``scenario`` is its label

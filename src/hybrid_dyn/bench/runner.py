@@ -15,7 +15,15 @@ exactly as a streaming estimator starts up.
 
 The rows are those of the registry (``rows.py``; declared in ``analytic_rows.py``,
 ``learned_rows.py``, ``identified_rows.py``) that the profile names and that
-apply to the dataset (``BenchProfile.applies``).
+apply to the dataset (``BenchProfile.skip_reason``); each row that does not is
+logged and listed in run.json and the README with its reason. A scenario is a
+simulated or real set's name, or any dataset's path (``hybrid-dyn bench --data``).
+
+Files, each written atomically as rows finish (an interrupted bench keeps them):
+results.csv and curves.json (``results.py``), predictions.h5 (``predictions.py``:
+every row's test predictions and their targets), run.json. The report is then
+drawn from those files alone (``report.write_report``), as ``hybrid-dyn report``
+redraws it.
 """
 from __future__ import annotations
 
@@ -32,13 +40,15 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ..analytic.robot import load_robot
-from ..data import Dataset
+from ..data import Dataset, load_dataset
+from ..data.real import RealLogMissingError
 from ..outputs import output_lock, refuse_foreign, unique_temp
 from .catalog import ROWS, get_row  # noqa: F401  (ROWS: every declared row)
 from .learned_rows import PRESET_ROWS
 from .metrics import ErrorReport, base_force_noise_rms, standardized_mse
-from .profiles import BenchProfile
-from .report import write_report
+from .predictions import PREDICTIONS_FILE, PredictionWriter
+from .profiles import BenchProfile, is_dataset_path, scenario_label
+from .report import machine_info, write_report
 from .results import (COLUMNS, CURVES_FILE, read_curves, write_json, read_results,  # noqa: F401  (re-exported)
                       write_curves, write_results)
 from .rows import TASK_TARGET, BenchContext, Predictor, Row  # noqa: F401  (re-exported for callers)
@@ -115,12 +125,14 @@ def train_split_stats(ds: Dataset) -> dict:
 
 def _train_job(args) -> tuple[str, str | None]:
     """Train one learned row in a worker process (single-threaded torch)."""
-    dataset_path, preset, out_dir, train_config, threads = args
+    dataset_path, robot, preset, out_dir, train_config, threads = args
     _set_torch_threads(threads)
     from ..learn import train_model
 
     try:
-        train_model(dataset_path, preset, out_dir, config=train_config)
+        ds = load_dataset(dataset_path)
+        ds.meta["robot"] = robot  # the bench's robot for this dataset (--robot / --tool), as score_row sees it
+        train_model(ds, preset, out_dir, config=train_config)
         return preset, None
     except Exception as err:  # reported again, with its row, when the row is scored
         return preset, f"{type(err).__name__}: {err}"
@@ -220,7 +232,34 @@ def work_dir(profile: BenchProfile, scenario: str, ds: Dataset, work_root: Path)
     """Where a profile's models of one scenario are cached: one folder per dataset and training
     recipe, so a run with another recipe never meets these models."""
     recipe = hashlib.sha256(json.dumps(profile.train_config().fingerprint_fields(), sort_keys=True).encode())
-    return Path(work_root) / profile.name / scenario / f"{ds.checksum[:12]}-train-{recipe.hexdigest()[:8]}"
+    name = f"{ds.checksum[:12]}-train-{recipe.hexdigest()[:8]}"
+    if profile.robot is not None or profile.tool is not None:  # another analytic model: never its models
+        robot = hashlib.sha256(str(ds.meta.get("robot")).encode()).hexdigest()[:8]
+        name += f"-robot-{robot}"
+    return Path(work_root) / profile.name / scenario / name
+
+
+def _open_datasets(profile, provider, log) -> list:
+    """The profile's datasets as (entry, label, dataset or None, robot ref or skip reason), before any work
+    where that is cheap: a dataset path is read and its robot resolved now (an unknown robot, a duplicate
+    label fail here); a named scenario is made when its turn comes (None here)."""
+    out, seen = [], {}
+    for entry in profile.scenarios:
+        ds = label = ref = None
+        if is_dataset_path(entry):
+            ds = provider(entry, profile)
+            label = scenario_label(entry, ds)
+            ref = profile.robot_ref(ds)  # description.resolve_robot: the one check of a robot name
+        else:
+            label = entry
+        if label in seen:
+            from ..errors import UsageError
+
+            raise UsageError(f"datasets {seen[label]} and {entry} have the same scenario label {label!r} (their "
+                             "manifests' 'scenario', or folder names): results.csv could not tell them apart")
+        seen[label] = entry
+        out.append((entry, label, ds, ref))
+    return out
 
 
 def _run_bench_locked(profile, out_dir, previous, data_root, work_root, dataset_provider, log) -> list[dict]:
@@ -228,28 +267,46 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, dataset_
     work_root = Path(work_root or os.environ.get("HYBRID_DYN_RUNS", "runs"))
     provider = dataset_provider or (lambda scenario, prof: prof.dataset(scenario, data_root, log=log))
     rows: list[dict] = []
+    skipped: list[dict] = []
     datasets = {}
-    contexts = {}
+    labels = {}
+    predictions = PredictionWriter(out_dir / PREDICTIONS_FILE)
     t_start = time.perf_counter()
-    for scenario in profile.scenarios:
+    for entry, scenario, ds, ref in _open_datasets(profile, provider, log):
         log(f"[bench] scenario {scenario}: dataset")
-        ds = provider(scenario, profile)
+        if ds is None:
+            try:
+                ds = provider(entry, profile)
+            except RealLogMissingError as err:  # a real set whose log is not here: skipped, saying where to get it
+                log(f"[bench] skipping scenario {scenario}: {err}")
+                skipped.append({"scenario": scenario, "task": "", "model": "", "reason": str(err)})
+                continue
+            ref = profile.robot_ref(ds)
+        labels[scenario] = entry
+        # The analytic model: the profile's robot (or the dataset's), with its tool and nominal parameters.
+        # An arm known for data only has none (its URDF rows are skipped, saying so).
+        ds.meta["robot"] = ref.name
+        robot = load_robot(ref.name, params=profile.params) if ref.described else None
         datasets[scenario] = ds
-        # Real logs of arms without a description have no analytic model (their rows are skipped).
-        from ..description import available_robots
-
-        robot = load_robot(ds.meta["robot"]) if ds.meta.get("robot") in available_robots() else None
         ctx = BenchContext(profile, scenario, ds, robot, work_dir(profile, scenario, ds, work_root),
-                           data_root, log=log)
-        contexts[scenario] = ctx
+                           data_root, log=log, source=entry)
         norm = train_split_stats(ds)
-        specs = [r for r in profile.selected_rows() if TASK_TARGET[r.task] in ds.fields and profile.applies(r, ds)]
+        specs = []
+        for r in profile.selected_rows():
+            reason = profile.skip_reason(r, ds)
+            if reason is None:
+                specs.append(r)
+            else:
+                log(f"[bench] {scenario}: skipping {r.name} ({r.task}): {reason}")
+                skipped.append({"scenario": scenario, "task": r.task, "model": r.name, "reason": reason})
+        test = ds.split("test")
+        predictions.test_data(scenario, test, [t for t in dict.fromkeys(TASK_TARGET.values()) if t in ds.fields])
         # Parallel workers train quietly (one progress bar over the models, not one per process).
         tcfg = profile.train_config()
         if profile.workers > 1:
             tcfg = dataclasses.replace(tcfg, progress=False)
         # The presets' rows train in parallel first (the identified residuals need their fit first).
-        jobs = [(str(ds.path), s.name, str(ctx.work_dir / "models" / s.name), tcfg, profile.torch_threads)
+        jobs = [(str(ds.path), ref.name, s.name, str(ctx.work_dir / "models" / s.name), tcfg, profile.torch_threads)
                 for s in specs if s.name in PRESET_ROWS]
         log(f"[bench] {scenario}: training {len(jobs)} learned models on {profile.workers} workers")
         pretrain(jobs, profile.workers, log=log)
@@ -264,6 +321,9 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, dataset_
             rows.append(row)
             write_results(out_dir / "results.csv", rows)
             write_curves(out_dir / CURVES_FILE, rows)
+            if row["status"] == "ok":
+                predictions.row(scenario, spec.task, spec.name, [i.name for i in test],
+                                ctx.cache.pop((spec.task, spec.name)))
             log(f"[bench] {scenario} {spec.task:12s} {spec.name:22s} rmse={row.get('rmse', float('nan')):.4g} "
                 f"({time.perf_counter() - t0:.1f} s)" if row["status"] == "ok" else
                 f"[bench] {scenario} {spec.name} failed")
@@ -274,8 +334,12 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, dataset_
     invocations = previous + [{"finished": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "wall_seconds": wall,
                                "rows": len(rows), "rows_ok": sum(r.get("status") == "ok" for r in rows)}]
     meta = {"bench_report": 1, "profile": profile.to_dict(), "wall_seconds": wall, "invocations": invocations,
+            "scenarios": labels, "skipped": skipped, "machine": machine_info(),
             "datasets": {s: {"path": str(d.path), "checksum": d.checksum, "seed": d.meta.get("seed"),
-                             "config_hash": d.meta.get("config_hash")} for s, d in datasets.items()}}
+                             "config_hash": d.meta.get("config_hash"), "robot": d.meta.get("robot")}
+                         for s, d in datasets.items()}}
     write_json(out_dir / "run.json", meta)
-    write_report(out_dir, rows, meta, contexts)
+    write_results(out_dir / "results.csv", rows)  # also when no row applied: the report reads it
+    # The report is drawn from the files just written, exactly as ``hybrid-dyn report`` redraws it.
+    write_report(out_dir, read_results(out_dir / "results.csv"), meta, log=log)
     return rows

@@ -1,0 +1,186 @@
+"""The bench on any dataset (issue 15, items 1 and 6): ``hybrid-dyn bench --data DIR`` on a tiny log
+imported in the test, the rows that apply run and the rest are skipped with their reason; the report is
+redrawn from its files (``hybrid-dyn report DIR``) byte for byte; a bad ``--robot`` fails before any work.
+
+References: the rnea row's stored predictions against Pinocchio's RNEA called here on the same samples,
+and the stored targets against the imported dataset itself.
+"""
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from hybrid_dyn.analytic.robot import load_robot
+from hybrid_dyn.cli import main as cli_main
+from hybrid_dyn.data import load_dataset
+
+NV = 7
+HOME = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785])
+# A few rows of each kind, to keep the test seconds: analytic (one runs, one needs a base sensor), a tip-force
+# net (no tip force in a log), a seed net (trains one tiny epoch) and a row identified on the log itself.
+ROWS = ["rnea", "rnea-bw", "torques-pinv", "seed-tip-1", "seed-tau-mlp", "identified-ols"]
+TINY_TRAIN = ["--workers", "1"]
+
+
+def write_log(folder: Path, n: int = 400, hz: float = 100.0) -> Path:
+    """A 4 s log of slow sines about the Panda's home pose and torques that are any numbers, as a CSV."""
+    t = np.arange(n) / hz
+    w = np.linspace(1.0, 2.5, NV)
+    q = HOME + 0.3 * np.sin(w * t[:, None])
+    qd = 0.3 * w * np.cos(w * t[:, None])
+    tau = np.random.default_rng(0).normal(0, 5, (n, NV))
+    header = ",".join(["t"] + [f"{k}{j}" for k in ("q", "qd", "tau") for j in range(1, NV + 1)])
+    folder.mkdir(parents=True, exist_ok=True)
+    np.savetxt(folder / "log.csv", np.column_stack([t, q, qd, tau]), delimiter=",", header=header, comments="",
+               fmt="%.17g")
+    cols = lambda k: "[" + ", ".join(f'"{k}{j}"' for j in range(1, NV + 1)) + "]"  # noqa: E731
+    spec = folder / "spec.toml"
+    spec.write_text(f'name = "my-panda"\nrobot = "panda"\ntool = "none"\n[source]\nfiles = ["log.csv"]\n'
+                    f'[time]\ncolumn = "t"\n[columns]\nq = {cols("q")}\nqd = {cols("qd")}\ntau_m = {cols("tau")}\n'
+                    '[trajectories]\nfrom = "blocks"\nn_blocks = 10\n[split]\nseed = 0\n')
+    return spec
+
+
+def tiny_profile(data, **kw):
+    from hybrid_dyn.bench.profiles import profile_for_data
+
+    return profile_for_data(data, families=(), rows=tuple(ROWS), workers=1,
+                            train=dict(max_epochs=1, max_batches_per_epoch=2, batch_size=64, progress=False), **kw)
+
+
+@pytest.fixture(scope="module")
+def bench(tmp_path_factory):
+    """A tiny imported log, and the bench on it (Python API: run_bench(profile_for_data(...)))."""
+    from hybrid_dyn.bench.runner import run_bench
+
+    tmp = tmp_path_factory.mktemp("bench-data")
+    spec = write_log(tmp / "logs")
+    assert cli_main(["import", "--spec", str(spec), "--out", str(tmp / "my-log")]) == 0
+    messages = []
+    rows = run_bench(tiny_profile([tmp / "my-log"]), tmp / "report", data_root=tmp / "data",
+                     work_root=tmp / "runs", log=messages.append)
+    return tmp, rows, messages
+
+
+@pytest.mark.slow  # the shared fixture: a tiny bench, ~25 s on 2 busy cores
+def test_bench_on_an_imported_log_runs_what_applies_and_says_why_the_rest_does_not(bench):
+    tmp, rows, messages = bench
+    ran = {r["model"]: r for r in rows}
+    assert set(ran) == {"rnea", "seed-tau-mlp", "identified-ols"}
+    assert all(r["status"] == "ok" for r in rows), [(r["model"], r.get("error")) for r in rows]
+    assert {r["scenario"] for r in rows} == {"my-panda"}  # the manifest's scenario labels the tables
+    meta = json.loads((tmp / "report" / "run.json").read_text())
+    skipped = {k["model"]: k["reason"] for k in meta["skipped"]}
+    assert skipped == {"rnea-bw": "needs base_wrench", "torques-pinv": "needs tau_J, tip_force",
+                       "seed-tip-1": "needs base_wrench, tip_force"}
+    for model, reason in skipped.items():  # printed, and written in the report
+        assert any(model in m and reason in m for m in messages), model
+    readme = (tmp / "report" / "README.md").read_text()
+    assert "## Rows not run" in readme and "`rnea-bw` (joint torque): needs base_wrench" in readme
+    assert "hybrid-dyn bench --data " in readme and "panda[tool=none]" in readme  # the variant the log names
+    assert "Floors" not in readme and "NOT met" not in readme  # the project's floors are benchmarks/acceptance.py
+    assert meta["datasets"]["my-panda"]["robot"] == "panda[tool=none]"
+
+
+@pytest.mark.slow  # the shared fixture: a tiny bench, ~25 s on 2 busy cores
+def test_predictions_h5_holds_each_rows_test_predictions_and_their_targets(bench):
+    tmp, rows, _ = bench
+    ds = load_dataset(tmp / "my-log")
+    robot = load_robot("panda[tool=none]")  # an independent call of the analytic model
+    test = ds.split("test")
+    with h5py.File(tmp / "report" / "predictions.h5", "r") as f:
+        grp = f["my-panda"]
+        assert json.loads(grp["joint_torque"].attrs["order"]) == ["rnea", "seed-tau-mlp", "identified-ols"]
+        for inst in test:
+            np.testing.assert_array_equal(grp["test"][inst.name]["tau_m"][()], inst["tau_m"])
+            np.testing.assert_array_equal(grp["test"][inst.name]["t"][()], inst.t)
+            pred = grp["joint_torque"]["rnea"][inst.name][()]
+            assert pred.dtype == np.float64
+            np.testing.assert_allclose(pred, robot.inverse_dynamics(inst.q, inst.qd, inst.qdd), rtol=0, atol=1e-9)
+        # The stored predictions give results.csv's RMSE (to its 6 printed digits).
+        tau = np.concatenate([inst["tau_m"] for inst in test])
+        pred = np.concatenate([grp["joint_torque"]["identified-ols"][i.name][()] for i in test])
+        rmse = float(next(r["rmse"] for r in rows if r["model"] == "identified-ols"))
+        assert np.sqrt(np.mean((pred - tau) ** 2)) == pytest.approx(rmse, rel=1e-5)
+
+
+@pytest.mark.slow  # the shared fixture: a tiny bench, ~25 s on 2 busy cores
+def test_report_rebuilds_results_and_tables_byte_for_byte(bench, capsys):
+    tmp, _, _ = bench
+    report = tmp / "report-copy"
+    shutil.copytree(tmp / "report", report)
+    kept = {name: (report / name).read_bytes() for name in
+            ("results.csv", "tip_force.md", "joint_torque.md", "tip_force.tex", "joint_torque.tex")}
+    for name in [*kept, "README.md", "traces_joint_torque_my-panda.png", "rmse_by_family_joint_torque.png"]:
+        (report / name).unlink()
+    (report / "results.csv").write_bytes(kept["results.csv"])  # what report reads; it writes it again
+    # No dataset, no model cache: the report is drawn from the folder's files alone.
+    shutil.move(tmp / "my-log", tmp / "moved-log")
+    shutil.move(tmp / "runs", tmp / "moved-runs")
+    try:
+        assert cli_main(["report", str(report)]) == 0
+    finally:
+        shutil.move(tmp / "moved-log", tmp / "my-log")
+        shutil.move(tmp / "moved-runs", tmp / "runs")
+    for name, data in kept.items():
+        assert (report / name).read_bytes() == data, name
+    for name in ("README.md", "traces_joint_torque_my-panda.png", "rmse_by_family_joint_torque.png"):
+        assert (report / name).is_file(), name
+    assert (report / "README.md").read_text() == (tmp / "report" / "README.md").read_text()
+
+    # A report from before predictions.h5: the tables still, the figures that need predictions skipped, said so.
+    (report / "predictions.h5").unlink()
+    (report / "traces_joint_torque_my-panda.png").unlink()
+    capsys.readouterr()
+    assert cli_main(["report", str(report)]) == 0
+    out = capsys.readouterr().out
+    assert "figures not drawn" in out and "predictions.h5" in out
+    assert not (report / "traces_joint_torque_my-panda.png").exists()
+    for name, data in kept.items():
+        assert (report / name).read_bytes() == data, name
+
+
+def test_report_refuses_a_folder_that_is_not_a_bench_report(tmp_path, capsys):
+    (tmp_path / "results.csv").write_text("mine\n")
+    assert cli_main(["report", str(tmp_path)]) == 2
+    assert "not a bench report folder" in capsys.readouterr().err
+    assert (tmp_path / "results.csv").read_text() == "mine\n"
+
+
+def test_a_bad_robot_name_fails_before_any_work_with_the_accepted_names(tmp_path, capsys):
+    spec = write_log(tmp_path / "logs", n=200)
+    assert cli_main(["import", "--spec", str(spec), "--out", str(tmp_path / "log")]) == 0
+    capsys.readouterr()
+    out = tmp_path / "report"
+    assert cli_main(["bench", "--data", str(tmp_path / "log"), "--out", str(out), "--robot", "pandaa",
+                     "--data-root", str(tmp_path / "data"), "--work-root", str(tmp_path / "runs"), *TINY_TRAIN]) == 2
+    err = capsys.readouterr().err
+    assert "unknown robot 'pandaa'" in err and "panda" in err.replace("'pandaa'", "") and "ur5" in err
+    assert "tool=none" in err  # the variants a name may carry
+    assert not out.exists() and not (tmp_path / "runs").exists() and not (tmp_path / "data").exists()
+    # The same from Python, before any dataset is read.
+    from hybrid_dyn.errors import HybridDynError
+
+    with pytest.raises(HybridDynError, match="unknown robot 'pandaa'"):
+        tiny_profile([tmp_path / "does-not-exist"], robot="pandaa")
+
+
+def test_a_robot_known_for_data_only_runs_the_black_box_rows_and_skips_the_urdf_rows(tmp_path):
+    from hybrid_dyn.bench.runner import run_bench
+
+    spec = write_log(tmp_path / "logs", n=200)
+    assert cli_main(["import", "--spec", str(spec), "--out", str(tmp_path / "log")]) == 0
+    profile = tiny_profile([tmp_path / "log"], robot="unknown")
+    profile = type(profile)(**{**profile.__dict__, "rows": ("rnea", "identified-ols")})
+    rows = run_bench(profile, tmp_path / "report", data_root=tmp_path / "data", work_root=tmp_path / "runs",
+                     log=lambda m: None)
+    assert rows == []
+    skipped = json.loads((tmp_path / "report" / "run.json").read_text())["skipped"]
+    assert {k["model"]: k["reason"] for k in skipped} == {
+        "rnea": "needs a URDF for robot 'unknown' (known for data only)",
+        "identified-ols": "needs a URDF for robot 'unknown' (known for data only)"}
