@@ -310,10 +310,11 @@ def main() -> int:
 
             torch.set_num_threads(1)
             inst = test[0]
-            x = concat_fields([inst], model.inputs).astype(np.float64)
+            x = concat_fields(model.sensor_view([inst]), model.inputs).astype(np.float64)  # as the net sees it
             k = min(500, len(inst) - 1)
             window = x[np.clip(np.arange(k - model.window + 1, k + 1), 0, None)]
-            fast = median_us(lambda: model.predict_window(window), args.calls)
+            prior_k = None if priors is None else priors[0][k]  # a tared or stateful prior is given, not recomputed
+            fast = median_us(lambda: model.predict_window(window, prior=prior_k), args.calls)
             xt = torch.from_numpy(window[None]).float()
             p = None if priors is None else torch.from_numpy(priors[0][k][None]).float()
 
