@@ -184,3 +184,39 @@ def test_a_robot_known_for_data_only_runs_the_black_box_rows_and_skips_the_urdf_
     assert {k["model"]: k["reason"] for k in skipped} == {
         "rnea": "needs a URDF for robot 'unknown' (known for data only)",
         "identified-ols": "needs a URDF for robot 'unknown' (known for data only)"}
+
+
+def test_acceptance_floors_are_a_benchmark_of_their_own(tmp_path, capsys):
+    """benchmarks/acceptance.py prints each floor with its numbers and met / NOT met; the report does not."""
+    import importlib.util
+
+    from hybrid_dyn.bench.report import write_report
+    from hybrid_dyn.bench.results import read_results, write_results
+
+    def row(scenario, model, family, rmse, rmse_free):
+        return {"task": "joint_torque", "scenario": scenario, "model": model, "family": family, "status": "ok",
+                "rmse": rmse, "rmse_free": rmse_free, "val_loss": 0.1, "test_loss": 0.1, "nmse": 0.1}
+
+    write_results(tmp_path / "results.csv", [
+        row("mismatch-ext", "rnea", "analytic", 2.0, 1.0),
+        row("mismatch-ext", "identified-consistent", "identified", 1.2, 0.4),  # 0.6 (NOT met), 0.4 (met)
+        row("real-panda", "rnea", "analytic", 1.6, 1.6),
+        row("real-panda", "identified-consistent", "identified", 0.32, 0.32),  # 0.2 <= 0.4
+        row("real-panda", "residual-rnea-identified", "identified", 0.288, 0.288)])  # 0.9 <= 1.0
+    spec = importlib.util.spec_from_file_location("acceptance", Path(__file__).parents[1] / "benchmarks" / "acceptance.py")
+    acceptance = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(acceptance)
+    assert acceptance.main(["--report", str(tmp_path)]) == 1  # one floor is not met
+    out = capsys.readouterr().out
+    assert ("- NOT met: issue 7: joint torque, mismatch-ext: identified-consistent <= 0.5 x nominal RNEA (all samples) "
+            "(identified-consistent 1.2000 Nm / rnea 2.0000 Nm = 0.600)") in out
+    assert "- met: issue 7: joint torque, mismatch-ext: identified-consistent <= 0.5 x nominal RNEA (free motion" in out
+    assert "- met: issue 15: real-panda: identified-consistent <= 0.4 x nominal RNEA" in out and "= 0.200)" in out
+    assert ("- met: issue 15: real-panda: best residual on the identified model <= 1.0 x identified-consistent (aim 0.9) "
+            "(residual-rnea-identified 0.2880 Nm / identified-consistent 0.3200 Nm = 0.900)") in out
+    (tmp_path / "run.json").write_text(json.dumps({"bench_report": 1, "profile": {"name": "t"}}))
+    write_report(tmp_path, read_results(tmp_path / "results.csv"), {"profile": {"name": "t"}, "wall_seconds": 1.0},
+                 log=lambda m: None)
+    readme = (tmp_path / "README.md").read_text()
+    assert "## Floors" not in readme and "NOT met" not in readme and "- met:" not in readme
+    assert "identified (identified-consistent) 1.200" in readme  # the findings stay

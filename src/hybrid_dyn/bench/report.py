@@ -135,8 +135,13 @@ def _ratio(a, b) -> float:
 
 
 def task_tables(rows, task: str) -> tuple[str, str]:
-    """(markdown, latex) for one task over every scenario."""
+    """(markdown, latex) for one task over every scenario. The 'epochs (stop)' column is shown where
+    results.csv records how rows stopped (a report written before it did is redrawn as it was)."""
     header = TIP_HEADER if task == "tip_force" else TAU_HEADER
+    with_stop = any("stopped_by" in r for r in rows)
+    stop_col = header.index("epochs (stop)")
+    if not with_stop:
+        header = header[:stop_col] + header[stop_col + 1:]
     unit = "N" if task == "tip_force" else "Nm"
     title = "Tip-force estimation" if task == "tip_force" else "Joint-torque estimation"
     seed_tab = "Table 2" if task == "tip_force" else "Table 3"
@@ -148,11 +153,13 @@ def task_tables(rows, task: str) -> tuple[str, str]:
           "**figures from another simulator** (CoppeliaSim, 50 ms steps) and another data set, shown for "
           "orientation only, not measured here. Beside the `real-*` scenarios they are the seed's *real Panda* "
           "rows: **another robot** (the toolkit's real logs are of a KUKA LWR, a Baxter and a SARCOS arm).", "",
-          STOP_NOTE, ""]
+          *([STOP_NOTE, ""] if with_stop else [])]
     tex = []
     for scenario in dict.fromkeys(r["scenario"] for r in rows):
         here = [r for r in rows if r["task"] == task and r["scenario"] == scenario]
         body = [_row_cells(r, task, scenario) for r in here]
+        if not with_stop:
+            body = [b[:stop_col] + b[stop_col + 1:] for b in body]
         if not body:
             continue
         capped = [r["model"] for r in _ok(here) if _is_capped(r)]
@@ -168,8 +175,8 @@ def task_tables(rows, task: str) -> tuple[str, str]:
             md += [CAP_FOOTNOTE.replace("<scenario>", scenario) + f" Here: {', '.join(f'`{m}`' for m in capped)}.", ""]
             caption += f"; {CAP_MARK} stopped by the epoch cap while still improving: may not have converged"
         keep = 6  # model, family, inputs, losses, RMSE; then epochs (stop) and the seed's figures
-        tex.append(_latex(header[:keep] + header[-N_SEED_COLUMNS - 1:], [b[:keep] + b[-N_SEED_COLUMNS - 1:] for b in body],
-                          caption))
+        tail = N_SEED_COLUMNS + (1 if with_stop else 0)
+        tex.append(_latex(header[:keep] + header[-tail:], [b[:keep] + b[-tail:] for b in body], caption))
     if task == "tip_force":
         md += ["Seed Table 1 architectures: " + "; ".join(f"`{k}` {v}" for k, v in SEED_TABLE1.items()), ""]
     else:
@@ -259,9 +266,9 @@ def _figures(out_dir: Path, rows, preds: Predictions | None, seed: int = 0) -> l
             for j in range(n):
                 ax = axes[j, 0]
                 ax.plot(t, y[:, j], "k-", lw=1.2, label="measured")
-                for name, preds in picks.items():
-                    if preds is not None:
-                        ax.plot(t, preds[k][:, j], lw=0.9, label=name)
+                for name, row_preds in picks.items():
+                    if row_preds is not None:
+                        ax.plot(t, row_preds[k][:, j], lw=0.9, label=name)
                 ax.set_ylabel(f"{'xyz'[j] if n == 3 else f'joint {j + 1}'} [{unit}]", fontsize=8)
             axes[0, 0].legend(fontsize=7, ncol=3, loc="upper right")
             axes[-1, 0].set_xlabel("t [s]")
@@ -450,6 +457,8 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
         lines += ["", "## Rows not run", "", "Each row the profile names that does not apply to a dataset, and why:", ""]
         lines += [f"- {k['scenario']}: " + (f"`{k['model']}` ({k['task'].replace('_', ' ')})" if k.get("model")
                                             else "the whole scenario") + f": {k['reason']}" for k in skipped]
+    if notes_out:
+        lines += ["", "## Not redrawn", ""] + [f"- {n}" for n in notes_out]
     if failed:
         lines += ["", "## Failed rows", ""] + [f"- {r['scenario']} {r['model']}: {r.get('error', '')}" for r in failed]
     lines += ["", "## Files", "", "- `results.csv`: one row per (task, scenario, model), stable columns",
@@ -471,7 +480,7 @@ def rebuild_report(out_dir, log=print) -> list[str]:
     simulation, no dataset. Holds the folder's lock; refuses a folder that is not a bench report."""
     from ..errors import OutputPathError
     from ..outputs import output_lock, refuse_foreign
-    from .results import read_results, write_results
+    from .results import read_results, results_columns, write_results
 
     out_dir = Path(out_dir)
     marker = out_dir / "run.json"
@@ -486,5 +495,6 @@ def rebuild_report(out_dir, log=print) -> list[str]:
         if not isinstance(meta, dict) or not ("bench_report" in meta or "profile" in meta):
             refuse_foreign(marker, "benchmark report", "it is not a run.json of hybrid-dyn bench")
         rows = read_results(out_dir / "results.csv")
-        write_results(out_dir / "results.csv", rows)
+        # Its own columns: a report written before a column was added is rewritten as it was.
+        write_results(out_dir / "results.csv", rows, columns=results_columns(out_dir / "results.csv"))
         return write_report(out_dir, rows, meta, log=log)

@@ -22,16 +22,17 @@ COLUMNS = [
 ]
 
 
-def write_results(path: Path, rows: list[dict]) -> None:
-    """results.csv with the stable column set, written atomically."""
+def write_results(path: Path, rows: list[dict], columns: list | None = None) -> None:
+    """results.csv with the stable column set (or ``columns``: a report's own, redrawn), written atomically."""
+    columns = COLUMNS if columns is None else list(columns)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = unique_temp(path)
     with open(tmp, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=COLUMNS, extrasaction="ignore")
+        w = csv.DictWriter(f, fieldnames=columns, extrasaction="ignore")
         w.writeheader()
         for r in rows:
-            w.writerow({k: _fmt(r.get(k, "")) for k in COLUMNS})
+            w.writerow({k: _fmt(r.get(k, "")) for k in columns})
     os.replace(tmp, path)
 
 
@@ -58,6 +59,12 @@ def read_curves(path: Path) -> dict:
 def read_results(path: Path) -> list[dict]:
     with open(path, newline="") as f:
         return list(csv.DictReader(f))
+
+
+def results_columns(path: Path) -> list[str]:
+    """The header of a results.csv (a report written before a column was added lacks it)."""
+    with open(path, newline="") as f:
+        return next(csv.reader(f), [])
 
 
 def _fmt(v):
