@@ -156,3 +156,35 @@ def test_a_1d_toy_function_is_fit_within_its_noise():
     assert np.sqrt(np.mean(err ** 2)) < 0.05  # half the noise's standard deviation
     noise_std = np.sqrt(model.tensors["noise_level"][0]) * model.tensors["y_std"][0]  # back to y's units
     assert 0.08 < noise_std < 0.12
+
+
+@pytest.mark.slow
+def test_the_gp_row_in_a_bench_scores_what_the_model_predicts(tmp_path, panda, monkeypatch):
+    """The bench's `gp` row, declared once (bench/learned_rows.py), runs on any dataset with joint torques;
+    its RMSE is the RMSE of the saved model's own predictions on the test split."""
+    import functools
+
+    import hybrid_dyn.learn.gp as gp_module
+    from hybrid_dyn.bench.profiles import profile_for_data
+    from hybrid_dyn.bench.results import read_results
+    from hybrid_dyn.bench.runner import run_bench
+    from hybrid_dyn.data import load_dataset
+    from hybrid_dyn.data.synthetic import make_synthetic_dataset
+    from hybrid_dyn.learn.gp import load_gp
+
+    ds = load_dataset(make_synthetic_dataset(tmp_path / "ds", panda, n_instances=5, n_samples=80, seed=4,
+                                             friction=panda.spec.friction("gaz2019"), tip_forces=False))
+    # Hyperparameters fitted on 60 rows: the bench's path is under test here, not the fit (tested above).
+    monkeypatch.setattr(gp_module, "GPConfig", functools.partial(gp_module.GPConfig, hyper_rows=60))
+    profile = profile_for_data([ds.path], families=(), rows=("gp",), workers=1)
+    rows = run_bench(profile, tmp_path / "report", work_root=tmp_path / "runs", log=lambda *_: None)
+    (row,) = [r for r in rows if r["model"] == "gp"]
+    assert row["status"] == "ok" and row["family"] == "gp", row
+    (model_dir,) = list((tmp_path / "runs").rglob("models/gp"))
+    model = load_gp(model_dir)
+    test = ds.split("test")
+    err = np.concatenate(model.predict(test)) - np.concatenate([i.tau_m for i in test])
+    assert float(row["rmse"]) == pytest.approx(float(np.sqrt(np.mean(err ** 2))), rel=1e-9)
+    csv_row = [r for r in read_results(tmp_path / "report" / "results.csv") if r["model"] == "gp"]
+    assert len(csv_row) == 1 and csv_row[0]["family"] == "gp"
+    assert "gp" in (tmp_path / "report" / "joint_torque.md").read_text()

@@ -164,3 +164,28 @@ def _declare_presets() -> None:
 
 
 _declare_presets()
+
+
+# ---------------------------------------------------------------- Gaussian process
+def _build_gp(ds, ctx):
+    """One exact GP per joint (``learn/gp.py``), fitted on the train split, its hyperparameters by
+    marginal likelihood; cached in the work dir like the nets, no loss curve (no epochs)."""
+    from ..learn.gp import GPConfig, train_gp
+
+    t0 = time.perf_counter()
+    model = train_gp(ds, ctx.work_dir / "models" / "gp", GPConfig(seed=ctx.profile.seed))
+    x_of = {}
+
+    def single(inst, k):  # the model's own per-sample path: one row of (q, qd, qdd)
+        if inst.name not in x_of:
+            x_of[inst.name] = np.concatenate([np.asarray(inst[f], float).reshape(len(inst), -1)
+                                              for f in model.inputs], axis=1)
+        return model.predict_rows(x_of[inst.name][k:k + 1])[0]
+
+    seconds = model.train_seconds
+    return Predictor(predict=model.predict, single_call=single,
+                     train_seconds=float(seconds if np.isfinite(seconds) else time.perf_counter() - t0),
+                     n_params=int(model.n_params), inputs=", ".join(model.inputs))
+
+
+declare(Row("gp", "joint_torque", "gp", needs=("q", "qd", "qdd", "tau_m"), needs_urdf=False, build=_build_gp))

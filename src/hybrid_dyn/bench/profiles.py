@@ -184,9 +184,18 @@ def profile_for_data(paths, robot: str | None = None, params: str | None = None,
 
 
 PROFILES = {
+    # make demo: one net of each architecture and family, trained long enough to learn (within
+    # about 5 minutes on 2 cores), on a quick mismatch-ext of 12 instances (8 to train on).
     "quick": BenchProfile(
         name="quick", scenarios=("mismatch-ext",), generator_profile="quick",
-        train=dict(max_epochs=8, batch_size=256, patience=5),
+        families=("analytic", "identified"),
+        rows=("seed-tip-2", "seed-tip-5", "seed-tip-8", "residual-basewrench", "residual-base-momentum",
+              "seed-tau-mlp", "seed-tau-lstm", "residual-rnea", "delan-friction"),
+        train=dict(max_epochs=30),
+        scenario_overrides={"mismatch-ext": dict(n_instances=12)},
+        notes=("A demo: one seed net of each architecture (MLP #2, conv #5, LSTM #8, and the torque MLP and LSTM), "
+               "the residual nets and DeLaN with friction, on a small mismatch-ext (12 instances of 5 trajectories); "
+               "the default recipe, at most 30 epochs. The comparisons are in reports/default and reports/seed-sim.",),
     ),
     # Full epochs and the default recipe (issue 14). To train every model of three scenarios within
     # 120 minutes on 2 cores the data are shrunk, never the training: 28 instances of 5-10
@@ -216,13 +225,19 @@ PROFILES = {
     # Real logs carry no base wrench or tip force and no URDF ships for these arms:
     # only the joint-torque models that need neither (PROTOCOL 2, issue 8).
     "real": BenchProfile(
-        name="real", scenarios=("real-kuka", "real-baxter", "real-sarcos"), generator_profile="real",
-        families=(), rows=("seed-tau-mlp", "seed-tau-conv", "seed-tau-lstm", "seed-tau-lstm-opt", "tau-mlp-wide",
-                           "delan", "delan-friction"),
+        name="real", scenarios=("real-panda", "real-kuka", "real-baxter", "real-sarcos"), generator_profile="real",
+        # Physics where a URDF is (the real Panda, bare flange: analytic, identified on the log, residuals
+        # on the nominal and the identified model); the black-box rows and the GP everywhere.
+        families=("analytic", "identified"),
+        rows=("residual-rnea", "seed-tau-mlp", "seed-tau-conv", "seed-tau-lstm", "seed-tau-lstm-opt", "tau-mlp-wide",
+              "delan", "delan-friction", "gp"),
         # Patience 25: the validation trajectories lie partly outside the training range, so
         # validation loss is noisy and the seed's patience of 5 stops after a handful of epochs.
         train=dict(max_epochs=300, batch_size=256, patience=25),
-        notes=("KUKA and Baxter: one instance per logged trajectory (10 each), split by trajectory 6/2/2; "
+        notes=("Panda (Gaz et al. 2019's exciting trajectory, ../shared/data/real or $HYBRID_DYN_REAL_LOGS; the arm "
+               "carried no hand, so the analytic model is panda[tool=none]): the log cut into 10 contiguous time "
+               "blocks, split 6/2/2 (benchmarks/real/panda.toml); identified rows fit on its train and val blocks.",
+               "KUKA and Baxter: one instance per logged trajectory (10 each), split by trajectory 6/2/2; "
                "SARCOS: its 4,449-row test file is not one continuous trajectory, so it is cut into 10 contiguous "
                "blocks, split 6/2/2 (benchmarks/real/*.toml).",
                "Accelerations: KUKA and Baxter by a zero-phase 5 Hz Butterworth derivative of the logged velocity; "
@@ -230,7 +245,9 @@ PROFILES = {
                "nMSE = per-joint test MSE / per-joint test-target variance, averaged over joints.",
                "Training: up to 300 epochs, patience 25 (validation trajectories lie partly outside the training "
                "range, so the seed's patience of 5 stopped after a handful of epochs). `tau-mlp-wide` (2 x 128, "
-               "dropout 0.2) is not a seed model: it was chosen on the validation split for these small sets."),
+               "dropout 0.2) is not a seed model: it was chosen on the validation split for these small sets.",
+               "gp: one exact Gaussian process per joint (ARD RBF + white noise, hyperparameters by marginal "
+               "likelihood on 600 training rows, conditioned on at most 8000), learn/gp.py."),
     ),
     # The seed's own data conditions (its 3.1): 20 Hz, exact states, no sensor noise or bias.
     "seed-sim": BenchProfile(

@@ -37,6 +37,7 @@ FAMILIES = {
     "delan": "Deep Lagrangian networks (physics-informed)",
     "identified": "physics on parameters identified from data, and the residual nets on them",
     "learned": "other black-box networks",
+    "gp": "Gaussian-process regression (scikit-learn fit, numpy predictions; not PyTorch)",
 }
 PHYSICS_INFORMED = ("residual", "delan")  # learned families with physics inside (the report's torque floor)
 
