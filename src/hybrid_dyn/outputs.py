@@ -56,3 +56,17 @@ def unique_temp(path, suffix: str = ".partial") -> Path:
 def refuse_foreign(path, what: str, why: str) -> None:
     raise OutputPathError(f"refusing to replace {path}: {why}; it was not written by hybrid-dyn as a {what}. "
                           f"Move it away or choose another output path")
+
+
+def refuse_foreign_files(out_dir, what: str, is_own) -> None:
+    """An output folder must be missing, empty, or hold only what ``is_own(path)`` proves a run of
+    ours wrote (a finished folder has its config.json, so it never reaches here)."""
+    out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        refuse_foreign(out_dir, what, "it is a file, not a folder")
+    if not out_dir.is_dir():
+        return
+    foreign = sorted(p.name for p in out_dir.iterdir() if not is_own(p))
+    if foreign:
+        refuse_foreign(out_dir, what, f"it holds {', '.join(foreign[:5])}{' ...' if len(foreign) > 5 else ''} "
+                                      "but no config.json")

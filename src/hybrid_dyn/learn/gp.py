@@ -48,7 +48,7 @@ from scipy.spatial.distance import cdist
 
 from ..data.dataset import Dataset, load_dataset
 from ..errors import UsageError
-from ..outputs import output_lock, refuse_foreign, unique_temp
+from ..outputs import output_lock, refuse_foreign_files, unique_temp
 from .model import (METADATA_KEY, TIMING_FORMAT, ModelError, _read_timing, canonical_json, check_instances,
                     config_digest, read_file_metadata, tensors_digest)
 
@@ -487,11 +487,4 @@ def _is_own(path: Path) -> bool:
 
 def _refuse_foreign_files(out_dir: Path) -> None:
     """An output folder must be missing, empty, or hold only what a GP fit writes."""
-    if out_dir.exists() and not out_dir.is_dir():
-        refuse_foreign(out_dir, "GP model folder", "it is a file, not a folder")
-    if not out_dir.is_dir():
-        return
-    foreign = sorted(p.name for p in out_dir.iterdir() if not _is_own(p))
-    if foreign:
-        refuse_foreign(out_dir, "GP model folder", f"it holds {', '.join(foreign[:5])}"
-                                                   f"{' ...' if len(foreign) > 5 else ''} but no config.json")
+    refuse_foreign_files(out_dir, "GP model folder", _is_own)

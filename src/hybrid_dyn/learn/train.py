@@ -67,7 +67,7 @@ from ..analytic.tare import TARE_SECONDS, tared_runs
 from ..data import Dataset, load_dataset
 from ..data.windows import WindowedSplit, concat_fields
 from ..errors import UsageError
-from ..outputs import output_lock, refuse_foreign
+from ..outputs import output_lock, refuse_foreign_files
 from .model import (MODEL_FORMAT, MODEL_FORMAT_VERSION, TIMING_FORMAT, HybridModel, ModelError, TrainedModel,
                     canonical_json, check_instances, load_model, read_file_metadata, save_model)
 from .presets import Preset, get_preset
@@ -378,14 +378,7 @@ def _is_own(path: Path) -> bool:
 
 def _refuse_foreign_files(out_dir: Path) -> None:
     """An output folder must be missing, empty, or hold only what training writes."""
-    if out_dir.exists() and not out_dir.is_dir():
-        refuse_foreign(out_dir, "model folder", "it is a file, not a folder")
-    if not out_dir.is_dir():
-        return
-    foreign = sorted(p.name for p in out_dir.iterdir() if not _is_own(p))
-    if foreign:
-        refuse_foreign(out_dir, "model folder", f"it holds {', '.join(foreign[:5])}"
-                                                f"{' ...' if len(foreign) > 5 else ''} but no config.json")
+    refuse_foreign_files(out_dir, "model folder", _is_own)
 
 
 # Fields with one column per joint; the others have fixed widths.
