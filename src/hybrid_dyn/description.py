@@ -743,3 +743,12 @@ def resolve_robot(name: str | os.PathLike, tool=None, payload=None) -> RobotRef:
     spec = with_tool(spec, tool)
     variant = RobotVariant(spec.tool, payload)
     return RobotRef(spec.name + variant.suffix(), variant, spec, source)
+
+
+def has_description(name) -> bool:
+    """Whether robot ``name`` has a model (a URDF): what an analytic part or a base-sensor tare needs.
+    A name the toolkit cannot resolve counts as a data-only arm (False), not as an error."""
+    try:
+        return resolve_robot(name).described
+    except RobotDescriptionError:
+        return False

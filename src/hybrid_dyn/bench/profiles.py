@@ -60,6 +60,7 @@ class BenchProfile:
 
     def __post_init__(self):
         self.selected_rows()  # an unknown row or family is refused now, not after the data are made
+        self.train_config()  # so is an unknown recipe or a bad training field
         if self.robot is not None:
             self.resolve_robot(self.robot)  # a name the toolkit cannot serve is refused now, with the accepted ones
 

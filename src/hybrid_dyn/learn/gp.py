@@ -50,7 +50,7 @@ from ..data.dataset import Dataset, load_dataset
 from ..errors import UsageError
 from ..outputs import output_lock, refuse_foreign_files, unique_temp
 from .model import (METADATA_KEY, TIMING_FORMAT, ModelError, _read_timing, canonical_json, check_instances,
-                    config_digest, read_file_metadata, tensors_digest)
+                    config_digest, read_file_metadata, read_model_config, tensors_digest)
 
 GP_FORMAT = "hybrid_dyn.gp"
 GP_FORMAT_VERSION = 1
@@ -368,12 +368,7 @@ def load_gp(model_dir) -> GPModel:
     a config.json or tensors that do not match the digests saved with them."""
     model_dir = Path(model_dir)
     cpath, wpath = model_dir / "config.json", model_dir / "model.safetensors"
-    if not cpath.is_file() or not wpath.is_file():
-        raise ModelError(f"{model_dir} is not a finished GP model (needs config.json and model.safetensors)")
-    try:
-        config = json.loads(cpath.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as err:
-        raise ModelError(f"{cpath} is corrupt: {err}") from err
+    config = read_model_config(model_dir, "GP model")
     if not isinstance(config, dict) or config.get("format") != GP_FORMAT:
         found = config.get("format") if isinstance(config, dict) else type(config).__name__
         raise ModelError(f"{model_dir} is not a GP model ({cpath} has format {found!r}, expected {GP_FORMAT!r}); "

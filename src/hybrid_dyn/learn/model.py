@@ -407,6 +407,18 @@ def _read_timing(path: Path, digest: str) -> float | None:
     return None
 
 
+def read_model_config(model_dir: Path, what: str):
+    """The parsed config.json of a finished model folder (config.json and model.safetensors both
+    there), or a ModelError naming the folder; what: "model" or "GP model", for the message."""
+    cpath = model_dir / "config.json"
+    if not cpath.is_file() or not (model_dir / "model.safetensors").is_file():
+        raise ModelError(f"{model_dir} is not a finished {what} (needs config.json and model.safetensors)")
+    try:
+        return json.loads(cpath.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
+        raise ModelError(f"{cpath} is corrupt: {err}") from err
+
+
 def load_model(model_dir, robot=None, device: str = "cpu") -> TrainedModel:
     """Open a model directory. robot: a Robot or robot name the model must be for (optional).
 
@@ -418,12 +430,7 @@ def load_model(model_dir, robot=None, device: str = "cpu") -> TrainedModel:
     """
     model_dir = Path(model_dir)
     cpath, wpath = model_dir / "config.json", model_dir / "model.safetensors"
-    if not cpath.is_file() or not wpath.is_file():
-        raise ModelError(f"{model_dir} is not a finished model (needs config.json and model.safetensors)")
-    try:
-        config = json.loads(cpath.read_text())
-    except json.JSONDecodeError as err:
-        raise ModelError(f"{cpath} is corrupt: {err}") from err
+    config = read_model_config(model_dir, "model")
     try:
         with safe_open(str(wpath), framework="pt") as f:
             meta = read_file_metadata(f.metadata() or {})
@@ -441,14 +448,11 @@ def load_model(model_dir, robot=None, device: str = "cpu") -> TrainedModel:
     if meta["tensors_sha256"] != tensors_digest(tensors):
         raise ModelError(f"{wpath}: its tensors do not match the sha256 saved with them (corrupted or edited); "
                          f"refusing to load; retrain or restore the file")
-    from ..description import RobotDescriptionError, available_robots, resolve_robot
+    from ..description import available_robots, has_description
 
+    # The analytic part, and the base sensor's tare, need the robot's model.
     if Preset.from_dict(config["preset"]).prior is not None or config.get("sensor_tare_seconds", 0) > 0:
-        try:  # the analytic part, and the base sensor's tare, need the robot's model
-            described = resolve_robot(config["robot"]).described
-        except RobotDescriptionError:
-            described = False
-        if not described:
+        if not has_description(config["robot"]):
             raise ModelError(f"model {model_dir} needs a description of robot {config['robot']!r} for its analytic "
                              f"part or its sensor tare, and this toolkit has none "
                              f"(available: {', '.join(available_robots())})")

@@ -407,7 +407,7 @@ def _check_robot_and_widths(ds: Dataset, widths: dict, robot) -> None:
 def _train_locked(ds: Dataset, preset: Preset, out_dir: Path, config: TrainConfig, fingerprint: str,
                   device) -> TrainedModel:
     """Checks of robot and data first (nothing is written before they pass), then training."""
-    from ..description import available_robots
+    from ..description import available_robots, has_description
 
     robot_name = ds.meta.get("robot")
     if not robot_name:
@@ -420,7 +420,7 @@ def _train_locked(ds: Dataset, preset: Preset, out_dir: Path, config: TrainConfi
         raise ModelError(f"dataset {ds.path} lacks fields {missing} that preset {preset.name!r} needs")
     robot = None
     sensor_tare = sensor_tare_seconds(preset, config)
-    if _described(robot_name):
+    if has_description(robot_name):
         from ..analytic.robot import load_robot
 
         # The robot of the prior and of the sensor tare: what TrainedModel.robot loads again.
@@ -488,17 +488,6 @@ def evaluate_split(module: HybridModel, ws: WindowedSplit, device, batch_size: i
             n += len(idx)
     module.train()
     return total / max(n, 1)
-
-
-def _described(robot_name: str) -> bool:
-    """Whether the robot has a model (a URDF): what the analytic part and the sensor tare need.
-    A name this toolkit cannot resolve is a data-only arm here (its joint fields are checked alone)."""
-    from ..description import RobotDescriptionError, resolve_robot
-
-    try:
-        return resolve_robot(robot_name).described
-    except RobotDescriptionError:
-        return False
 
 
 def sensor_tare_seconds(preset: Preset, config: TrainConfig) -> float:
