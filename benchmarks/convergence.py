@@ -2,7 +2,8 @@
 
 For the best row of each learned family and task (lowest test RMSE among the rows that
 trained, reference rows aside) of every scenario of a report, retrain the same preset on
-the same data with the same recipe but ``--factor`` (4) times the early-stopping patience,
+the same data with the same recipe but ``--factor`` (4) times the early-stopping patience
+(and a learning-rate floor low enough that patience, not the floor, ends it: :func:`longer_run`),
 and compare the best validation loss (standardized MSE) of the two runs:
 
     gain = (val_loss(patience P) - val_loss(patience 4P)) / val_loss(patience P)
@@ -21,13 +22,14 @@ import argparse
 import dataclasses
 import datetime
 import json
+import math
 import sys
 import time
 from pathlib import Path
 
 from hybrid_dyn.bench.profiles import BenchProfile, get_profile
 from hybrid_dyn.bench.runner import read_results, work_dir
-from hybrid_dyn.learn import PRESETS, train_model
+from hybrid_dyn.learn import PRESETS, TrainConfig, train_model
 
 REFERENCE_SUFFIX = "-raw"  # labelled reference rows are not a family's best
 
@@ -46,6 +48,16 @@ def best_rows(rows: list[dict]) -> list[dict]:
     return [best[k] for k in sorted(best)]
 
 
+def longer_run(config: TrainConfig, factor: int) -> TrainConfig:
+    """The recipe with ``factor`` x the patience, and the learning-rate floor lowered so that the longer
+    run ends by patience, not by the floor: with the floor left at 1e-5 the rate reaches it after four cuts
+    (12 bad epochs), and every 4x-patience run on seed-sim ended by lr-floor 2-5 epochs after the original,
+    which tests nothing. The floor is set one cut below what ``factor x patience`` bad epochs could reach."""
+    patience = config.patience * factor
+    cuts = math.ceil(patience / config.lr_patience) + 1
+    return dataclasses.replace(config, patience=patience, min_lr=config.min_lr * config.lr_factor ** cuts)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--report", required=True, help="a bench report folder (results.csv, run.json)")
@@ -62,11 +74,12 @@ def main() -> int:
     if profile.to_dict() != run["profile"]:  # the report must be of this code's profile, or its models differ
         profile = BenchProfile(**{k: tuple(v) if isinstance(v, list) else v for k, v in run["profile"].items()})
     config = profile.train_config()
-    longer = dataclasses.replace(config, patience=config.patience * args.factor)
+    longer = longer_run(config, args.factor)
     lines = [f"# Convergence check of `{report}`", "",
              f"`{' '.join(sys.argv)}`, {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC.", "",
              f"The best trained row of each family and task (lowest test RMSE), retrained with patience "
-             f"{longer.patience} instead of {config.patience}, everything else equal (recipe `{profile.recipe}`). "
+             f"{longer.patience} instead of {config.patience} and its learning-rate floor lowered from {config.min_lr:g} to "
+             f"{longer.min_lr:.1e}, so that it ends by patience (recipe `{profile.recipe}` otherwise). "
              f"Gain: the relative drop of the best validation loss; converged when below {args.tolerance:.0%}.", "",
              "| scenario | task | family | model | epochs (stop) | val loss | epochs (stop), patience "
              f"{longer.patience} | val loss | gain | converged |", "|---|---|---|---|---|---|---|---|---|---|"]

@@ -66,7 +66,7 @@ def _expected_rates(history, initial_val, cfg):
     rates, lr, best, bad = [], cfg.lr, initial_val, 0
     for e in history:
         rates.append(lr)
-        if e["val_loss"] < best:
+        if e["val_loss"] < best - max(cfg.min_delta, cfg.min_rel_delta * best):
             best, bad = e["val_loss"], 0
         else:
             bad += 1

@@ -84,6 +84,8 @@ class TrainConfig:
     seed: weights and shuffling. batch_size: samples per Adam step.
     max_epochs: upper bound; early stopping usually ends sooner.
     patience: epochs without validation improvement before stopping (seed: 5).
+    min_delta, min_rel_delta: an improvement must beat the best validation loss by
+    max(min_delta, min_rel_delta x best) (:func:`improvement_needed`; seed: 0, 0).
     lr: Adam's initial learning rate. lr_schedule: "plateau" (cut the rate by
     lr_factor after lr_patience epochs without improvement, never below min_lr)
     or "none" (constant, the seed's).
@@ -104,6 +106,7 @@ class TrainConfig:
     max_epochs: int = 200
     patience: int = 10
     min_delta: float = 0.0
+    min_rel_delta: float = 1e-4
     lr: float = 1e-3
     lr_schedule: str = "plateau"
     lr_factor: float = 0.3
@@ -145,7 +148,7 @@ class TrainConfig:
                 raise UsageError(f"{_option(name)} must be an integer >= {least}{' or None' if optional else ''}, "
                                  f"got {v!r}")
             setattr(self, name, int(v))
-        for name, positive in (("lr", True), ("min_delta", False), ("observer_gain", True), ("tare_seconds", False)):
+        for name, positive in (("lr", True), ("min_delta", False), ("min_rel_delta", False), ("observer_gain", True), ("tare_seconds", False)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v) or v < 0 \
                     or (positive and v == 0):
@@ -181,8 +184,19 @@ STOP_REASONS = ("patience", "lr-floor", "epoch-cap")
 # patience 5, no clipping); "default": the TrainConfig defaults (module docstring).
 RECIPES = {
     "default": {},
-    "seed": dict(lr_schedule="none", patience=5, grad_clip=None, batch_size=256, max_epochs=200),
+    "seed": dict(lr_schedule="none", patience=5, grad_clip=None, min_rel_delta=0.0, batch_size=256, max_epochs=200),
 }
+
+
+def improvement_needed(config: TrainConfig, best_val: float) -> float:
+    """How far below the best validation loss an epoch must land to count as an improvement.
+
+    The larger of the absolute ``min_delta`` and ``min_rel_delta`` x the best loss: without the
+    relative part a net that gains 1e-6 per epoch for ever (seen on seed-sim, residual-rnea-bw)
+    resets patience every epoch and runs to the epoch cap on gains nobody can measure. 1e-4 is
+    the threshold of PyTorch's ReduceLROnPlateau.
+    """
+    return max(config.min_delta, config.min_rel_delta * abs(best_val))
 
 
 def _option(field: str) -> str:
@@ -562,7 +576,7 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
             seconds += time.perf_counter() - t0
             lr = opt.param_groups[0]["lr"]  # the rate this epoch trained with
             history.append({"epoch": epoch, "train_loss": float(np.mean(losses)), "val_loss": val, "lr": lr})
-            if val < best_val - config.min_delta:
+            if val < best_val - improvement_needed(config, best_val):
                 best_val, bad_epochs, lr_bad_epochs, best_epoch = val, 0, 0, epoch
                 best_state = {k: v.detach().clone() for k, v in module.state_dict().items()}
             else:
