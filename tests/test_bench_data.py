@@ -7,6 +7,7 @@ and the stored targets against the imported dataset itself.
 """
 from __future__ import annotations
 
+import csv
 import json
 import shutil
 from pathlib import Path
@@ -220,3 +221,20 @@ def test_acceptance_floors_are_a_benchmark_of_their_own(tmp_path, capsys):
     readme = (tmp_path / "README.md").read_text()
     assert "## Floors" not in readme and "NOT met" not in readme and "- met:" not in readme
     assert "identified (identified-consistent) 1.200" in readme  # the findings stay
+
+
+def test_bench_rows_and_families_on_the_command_line_choose_what_runs(tmp_path, capsys):
+    spec = write_log(tmp_path / "logs", n=200)
+    assert cli_main(["import", "--spec", str(spec), "--out", str(tmp_path / "log")]) == 0
+    roots = ["--data-root", str(tmp_path / "data"), "--work-root", str(tmp_path / "runs")]
+    out = tmp_path / "report"
+    assert cli_main(["bench", "--data", str(tmp_path / "log"), "--out", str(out), "--rows", "rnea, identified-ols",
+                     *roots]) == 0
+    assert {r["model"] for r in csv.DictReader((out / "results.csv").open())} == {"rnea", "identified-ols"}
+    capsys.readouterr()
+    for bad, named in ((["--rows", "rnea,rneaa"], "rneaa"), (["--families", "analytik"], "analytik"),
+                       (["--rows", " , "], "name no row")):
+        bad_out = tmp_path / f"bad-{named}"
+        assert cli_main(["bench", "--data", str(tmp_path / "log"), "--out", str(bad_out), *bad, *roots]) == 2
+        assert named in capsys.readouterr().err
+        assert not bad_out.exists()

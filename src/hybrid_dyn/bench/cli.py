@@ -16,6 +16,10 @@ def register(sub) -> None:
     p.add_argument("--tool", default=None, help="the robot's tool: none (the bare flange) or a tool .urdf path")
     p.add_argument("--recipe", default=None, help="training recipe of the learned rows: default or seed "
                    "(default: the profile's)")
+    p.add_argument("--families", default=None, help="comma-separated row families to run instead of the profile's "
+                   "(e.g. analytic,identified; see hybrid_dyn.bench.rows.FAMILIES)")
+    p.add_argument("--rows", default=None, help="comma-separated row names to run instead of the profile's "
+                   "(with --families: both; see hybrid_dyn.bench.rows.ROWS)")
     p.add_argument("--out", default=None, help="report folder (default: reports/<profile>)")
     p.add_argument("--data-root", default=None, help="dataset cache (default: ./data or $HYBRID_DYN_DATA)")
     p.add_argument("--work-root", default=None, help="trained-model cache (default: ./runs or $HYBRID_DYN_RUNS)")
@@ -44,6 +48,11 @@ def cmd_bench(args) -> int:
             profile = dataclasses.replace(profile, robot=args.robot, params=args.params, tool=args.tool)
     if args.workers:
         profile = dataclasses.replace(profile, workers=args.workers)
+    if args.families is not None or args.rows is not None:  # an unknown name is refused by the profile itself
+        families, names = _names(args.families), _names(args.rows)
+        if not families and not names:
+            raise UsageError("--families and --rows name no row to run")
+        profile = dataclasses.replace(profile, families=families, rows=names)
     if args.recipe:  # an unknown recipe is refused by the profile itself
         profile = dataclasses.replace(profile, recipe=args.recipe)
     if args.data and not args.out:
@@ -53,6 +62,10 @@ def cmd_bench(args) -> int:
     n_ok = sum(r.get("status") == "ok" for r in rows)
     print(f"[bench] {n_ok}/{len(rows)} rows ok; report in {out}/README.md")
     return 0 if n_ok == len(rows) else 1
+
+
+def _names(text: str | None) -> tuple:
+    return tuple(n.strip() for n in (text or "").split(",") if n.strip())
 
 
 def cmd_report(args) -> int:
