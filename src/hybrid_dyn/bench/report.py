@@ -462,8 +462,9 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
     if failed:
         lines += ["", "## Failed rows", ""] + [f"- {r['scenario']} {r['model']}: {r.get('error', '')}" for r in failed]
     lines += ["", "## Files", "", "- `results.csv`: one row per (task, scenario, model), stable columns",
-              *([f"- `{PREDICTIONS_FILE}`: every row's test predictions and their targets (the figures are drawn "
-                 "from it; `hybrid-dyn report DIR` redraws the report from these files)"] if preds is not None else []),
+              *([f"- `{PREDICTIONS_FILE}` ({_megabytes(out_dir / PREDICTIONS_FILE)}): every row's test predictions "
+                 "and their targets (the figures are drawn from it; `hybrid-dyn report DIR` redraws the report from "
+                 "these files)"] if preds is not None else []),
               "- `tip_force.md`, `joint_torque.md` (+ `.tex`): tables in the seed's layout",
               *([f"- `{CURVES_FILE}`: each learned row's loss per epoch, how it stopped and the epoch kept "
                  "(the learning-curve figures are drawn from it)"] if curve_figures else []),
@@ -472,6 +473,10 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
     for note in notes_out:
         log(f"[report] {note}")
     return notes_out
+
+
+def _megabytes(path: Path) -> str:
+    return f"{path.stat().st_size / 1e6:.0f} MB" if path.exists() else "absent"
 
 
 def rebuild_report(out_dir, log=print) -> list[str]:
