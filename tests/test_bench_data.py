@@ -238,3 +238,11 @@ def test_bench_rows_and_families_on_the_command_line_choose_what_runs(tmp_path, 
         assert cli_main(["bench", "--data", str(tmp_path / "log"), "--out", str(bad_out), *bad, *roots]) == 2
         assert named in capsys.readouterr().err
         assert not bad_out.exists()
+
+
+def test_a_missing_dataset_is_refused_before_the_report_folder_is_made(tmp_path, capsys):
+    out = tmp_path / "report"
+    assert cli_main(["bench", "--data", str(tmp_path / "no-such-log"), "--out", str(out),
+                     "--data-root", str(tmp_path / "data"), "--work-root", str(tmp_path / "runs")]) == 2
+    assert "no-such-log" in capsys.readouterr().err
+    assert not out.exists()

@@ -442,7 +442,8 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
         "- machine: not recorded in run.json (a report written before it was)",
     ]
     for s, d in meta.get("datasets", {}).items():
-        lines.append(f"- data `{s}`: config hash `{d.get('config_hash')}`, data checksum `{str(d.get('checksum'))[:16]}`"
+        origin = f"config hash `{d['config_hash']}`" if d.get("config_hash") else "imported (no generator config)"
+        lines.append(f"- data `{s}`: {origin}, data checksum `{str(d.get('checksum'))[:16]}`"
                      + (f", read from `{d['path']}`, robot `{d['robot']}`" if d.get("robot") else ""))
     notes = prof.get("notes") or []
     if notes:

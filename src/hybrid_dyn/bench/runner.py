@@ -191,9 +191,14 @@ def run_bench(profile: BenchProfile, out_dir, data_root=None, work_root=None, da
     # process, so it pins torch to ``profile.torch_threads``.
     _set_torch_threads(profile.torch_threads)
     out_dir = Path(out_dir)
+    data_root = Path(data_root or os.environ.get("HYBRID_DYN_DATA", "data"))
+    work_root = Path(work_root or os.environ.get("HYBRID_DYN_RUNS", "runs"))
+    provider = dataset_provider or (lambda scenario, prof: prof.dataset(scenario, data_root, log=log))
+    # A missing or corrupt dataset, an unknown robot: refused before the report folder is touched.
+    opened = _open_datasets(profile, provider, log)
     with output_lock(out_dir, "report folder"):  # one bench per report folder at a time
         previous = _claim_report_dir(out_dir)
-        return _run_bench_locked(profile, out_dir, previous, data_root, work_root, dataset_provider, log)
+        return _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider, opened, log)
 
 
 def _claim_report_dir(out_dir: Path) -> list[dict]:
@@ -262,17 +267,14 @@ def _open_datasets(profile, provider, log) -> list:
     return out
 
 
-def _run_bench_locked(profile, out_dir, previous, data_root, work_root, dataset_provider, log) -> list[dict]:
-    data_root = Path(data_root or os.environ.get("HYBRID_DYN_DATA", "data"))
-    work_root = Path(work_root or os.environ.get("HYBRID_DYN_RUNS", "runs"))
-    provider = dataset_provider or (lambda scenario, prof: prof.dataset(scenario, data_root, log=log))
+def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider, opened, log) -> list[dict]:
     rows: list[dict] = []
     skipped: list[dict] = []
     datasets = {}
     labels = {}
     predictions = PredictionWriter(out_dir / PREDICTIONS_FILE)
     t_start = time.perf_counter()
-    for entry, scenario, ds, ref in _open_datasets(profile, provider, log):
+    for entry, scenario, ds, ref in opened:
         log(f"[bench] scenario {scenario}: dataset")
         if ds is None:
             try:
