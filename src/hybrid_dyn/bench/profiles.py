@@ -202,17 +202,19 @@ PROFILES = {
                "the default recipe, at most 30 epochs. The comparisons are in reports/default and reports/seed-sim.",),
     ),
     # Full epochs and the default recipe (issue 14). To train every model of three scenarios within
-    # 120 minutes on 2 cores the data are shrunk, never the training: 40 instances of 5-10
-    # trajectories instead of the generator's default 40 of 5-20 (about 0.6 of its samples). Sized
-    # on a measured run: 18 instances of 5-6 took 19.5 min from empty caches, its nets stopped
-    # within 30 epochs on overfitting (best epochs 0-16), and cost grows with data and epochs.
+    # 120 minutes on 2 cores the data are shrunk, never the training: 24 instances of 5-10
+    # trajectories instead of the generator's default 40 of 5-20 (about 0.36 of its samples). Sized
+    # on measured runs: 18 instances of 5-6 took 19.5 min from empty caches, and its nets overfit
+    # within a few epochs (reports/data-control); at 40 of 5-10 the torque nets learned (validation
+    # loss 0.19-0.22 against 0.65-1.0) but the LSTM residuals (about 22 s per epoch each) put the
+    # whole bench at an estimated 130 min, so it was stopped after paper-noext.
     "default": BenchProfile(
         name="default", scenarios=("paper-noext", "paper-ext", "mismatch-ext", "contact-steps"),
         generator_profile="default",
         # tau-mlp-wide (2 x 128, dropout 0.2): the larger-capacity control of the seed torque nets.
         rows=("tau-mlp-wide",),
         train=dict(max_epochs=200),
-        scenario_overrides={s: dict(n_instances=40, trajectories=(5, 10))
+        scenario_overrides={s: dict(n_instances=24, trajectories=(5, 10))
                             for s in ("paper-noext", "paper-ext", "mismatch-ext")},
         # contact-steps (1 kHz) tests the physics estimators on steps; the nets' windows are
         # counted in samples and were sized for 100 Hz, so they are not trained on it.
@@ -220,7 +222,7 @@ PROFILES = {
         notes=("Training: the default recipe on full epochs (Adam 1e-3, reduce-on-plateau x0.3 after 3 epochs down "
                "to 1e-5, early stopping with patience 10, LSTM gradient norm clipped at 1, batch 256, at most 200 "
                "epochs). The seed's recipe (constant rate, patience 5) is `--recipe seed`.",
-               "Data: paper-noext, paper-ext and mismatch-ext hold 40 instances of 5-10 trajectories (the generator's "
+               "Data: paper-noext, paper-ext and mismatch-ext hold 24 instances of 5-10 trajectories (the generator's "
                "default is 40 of 5-20), so that the whole bench trains within 120 minutes on 2 cores; the data were "
                "shrunk, never the training.",
                "Sequence models are scored on every sample: the first L-1 windows of each instance are edge-padded "
