@@ -246,3 +246,30 @@ def test_a_missing_dataset_is_refused_before_the_report_folder_is_made(tmp_path,
                      "--data-root", str(tmp_path / "data"), "--work-root", str(tmp_path / "runs")]) == 2
     assert "no-such-log" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_the_data_control_divides_each_learned_row_by_its_own_reports_physics(tmp_path, capsys):
+    """benchmarks/data_control.py: two reports on different test instances compare through their analytic rows."""
+    import importlib.util
+
+    from hybrid_dyn.bench.results import write_results
+
+    def row(model, family, rmse, epochs=""):
+        return {"task": "joint_torque", "scenario": "paper-noext", "model": model, "family": family, "status": "ok",
+                "rmse": rmse, "val_loss": 0.1, "test_loss": 0.1, "nmse": 0.1, "epochs": epochs, "best_epoch": ""}
+
+    for name, rnea, mlp in (("small", 0.5, 5.0), ("large", 0.25, 1.0)):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "run.json").write_text(json.dumps({"profile": {"scenario_overrides": {
+            "paper-noext": {"n_instances": 10 if name == "small" else 40, "trajectories": [5, 10]}}}}))
+        write_results(tmp_path / name / "results.csv", [row("rnea", "analytic", rnea), row("rnea-bw", "analytic", 9.0),
+                                                         row("seed-tau-mlp", "seed-net", mlp, 12)])
+    spec = importlib.util.spec_from_file_location("data_control",
+                                                  Path(__file__).parents[1] / "benchmarks" / "data_control.py")
+    control = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(control)
+    assert control.main(["--small", str(tmp_path / "small"), "--large", str(tmp_path / "large")]) == 0
+    out = capsys.readouterr().out
+    assert "small `rnea` 0.500 Nm, large `rnea` 0.250 Nm" in out  # the best analytic row of each report
+    assert "| seed-tau-mlp | seed-net | 5.000 | 10.00 | 12 (-) | 1.000 | 4.00 | 12 (-) | 0.40x |" in out
+    assert "10 x (5, 10)" in out and "40 x (5, 10)" in out
