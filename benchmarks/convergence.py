@@ -65,6 +65,8 @@ def main() -> int:
     ap.add_argument("--work-root", default="runs")
     ap.add_argument("--factor", type=int, default=4, help="patience multiple of the longer run")
     ap.add_argument("--tolerance", type=float, default=0.05, help="largest relative val-loss gain that counts as converged")
+    ap.add_argument("--scenario", action="append", default=None,
+                    help="check only this scenario's rows (repeat for more; default: every scenario of the report)")
     ap.add_argument("--out", default=None, help="write the table to this markdown file")
     args = ap.parse_args()
 
@@ -87,6 +89,8 @@ def main() -> int:
     datasets = {}
     for r in best_rows(read_results(report / "results.csv")):
         scenario = r["scenario"]
+        if args.scenario and scenario not in args.scenario:
+            continue
         if scenario not in datasets:
             datasets[scenario] = profile.dataset(scenario, Path(args.data_root))
         ds = datasets[scenario]
