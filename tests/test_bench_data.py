@@ -273,3 +273,21 @@ def test_the_data_control_divides_each_learned_row_by_its_own_reports_physics(tm
     assert "small `rnea` 0.500 Nm, large `rnea` 0.250 Nm" in out  # the best analytic row of each report
     assert "| seed-tau-mlp | seed-net | 5.000 | 10.00 | 12 (-) | 1.000 | 4.00 | 12 (-) | 0.40x |" in out
     assert "10 x (5, 10)" in out and "40 x (5, 10)" in out
+
+
+def test_a_rerun_keeps_its_profiles_wall_times_and_drops_another_profiles(tmp_path):
+    """A cached rerun must not hide the first run's wall time; a report of another profile is other work."""
+    from hybrid_dyn.bench.runner import run_bench
+
+    spec = write_log(tmp_path / "logs", n=200)
+    assert cli_main(["import", "--spec", str(spec), "--out", str(tmp_path / "log")]) == 0
+    roots = dict(data_root=tmp_path / "data", work_root=tmp_path / "runs", log=lambda m: None)
+    one = type(tiny_profile([tmp_path / "log"]))(**{**tiny_profile([tmp_path / "log"]).__dict__, "rows": ("rnea",)})
+    other = type(one)(**{**one.__dict__, "rows": ("rnea", "identified-ols")})
+    wall = lambda: [i["wall_seconds"] for i in json.loads((tmp_path / "r" / "run.json").read_text())["invocations"]]  # noqa: E731
+    run_bench(one, tmp_path / "r", **roots)
+    run_bench(one, tmp_path / "r", **roots)
+    first = wall()
+    assert len(first) == 2
+    run_bench(other, tmp_path / "r", **roots)
+    assert len(wall()) == 1 and wall()[0] not in first

@@ -197,12 +197,14 @@ def run_bench(profile: BenchProfile, out_dir, data_root=None, work_root=None, da
     # A missing or corrupt dataset, an unknown robot: refused before the report folder is touched.
     opened = _open_datasets(profile, provider, log)
     with output_lock(out_dir, "report folder"):  # one bench per report folder at a time
-        previous = _claim_report_dir(out_dir)
+        previous = _claim_report_dir(out_dir, profile, log)
         return _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider, opened, log)
 
 
-def _claim_report_dir(out_dir: Path) -> list[dict]:
-    """Make ``out_dir`` a report folder of this toolkit, or refuse; returns its earlier invocations.
+def _claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[dict]:
+    """Make ``out_dir`` a report folder of this toolkit, or refuse; returns its earlier invocations
+    of the same profile (a report of another profile or size is being replaced: its wall times are
+    of other work and are not kept).
 
     A folder is the bench's when its ``run.json`` says so (a ``"bench_report"``
     key, or the ``profile`` of reports written before that key); an empty or new folder is claimed by writing that marker before
@@ -221,6 +223,10 @@ def _claim_report_dir(out_dir: Path) -> list[dict]:
             old = None
         if not isinstance(old, dict) or not ("bench_report" in old or "profile" in old):
             refuse_foreign(marker, "benchmark report", "it is not a run.json of hybrid-dyn bench")
+        if old.get("profile") is not None and old["profile"] != json.loads(json.dumps(profile.to_dict())):
+            log(f"[bench] {out_dir} held a report of another profile or size: it is replaced, and its "
+                "invocations' wall times are not kept")
+            return []
         if "invocations" in old:
             return list(old["invocations"])
         return [{"wall_seconds": old.get("wall_seconds")}]  # a report from before invocations were kept
