@@ -75,7 +75,9 @@ def main() -> int:
     profile = get_profile(run["profile"]["name"])
     if profile.to_dict() != run["profile"]:  # the report must be of this code's profile, or its models differ
         profile = BenchProfile(**{k: tuple(v) if isinstance(v, list) else v for k, v in run["profile"].items()})
-    config = profile.train_config()
+    # The bench's own thread count: torch's default (one thread per core) oversubscribes the cores
+    # when two checks run side by side, and these tiny nets then train 10x slower (measured).
+    config = dataclasses.replace(profile.train_config(), num_threads=profile.torch_threads)
     longer = longer_run(config, args.factor)
     lines = [f"# Convergence check of `{report}`", "",
              f"`{' '.join(sys.argv)}`, {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC.", "",
