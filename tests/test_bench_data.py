@@ -223,6 +223,7 @@ def test_acceptance_floors_are_a_benchmark_of_their_own(tmp_path, capsys):
     assert "identified (identified-consistent) 1.200" in readme  # the findings stay
 
 
+@pytest.mark.slow  # imports a log and runs the bench several times
 def test_bench_rows_and_families_on_the_command_line_choose_what_runs(tmp_path, capsys):
     spec = write_log(tmp_path / "logs", n=200)
     assert cli_main(["import", "--spec", str(spec), "--out", str(tmp_path / "log")]) == 0
@@ -275,6 +276,7 @@ def test_the_data_control_divides_each_learned_row_by_its_own_reports_physics(tm
     assert "10 x (5, 10)" in out and "40 x (5, 10)" in out
 
 
+@pytest.mark.slow  # imports a log and runs the bench several times
 def test_a_rerun_keeps_its_profiles_wall_times_and_drops_another_profiles(tmp_path):
     """A cached rerun must not hide the first run's wall time; a report of another profile is other work."""
     from hybrid_dyn.bench.runner import run_bench
