@@ -274,6 +274,8 @@ class TrainedModel:
 
     def sensor_view(self, instances) -> list:
         """The instances as the net's inputs see them: the base sensor tared as in training."""
+        if self.sensor_tare_seconds == 0:  # nothing to tare: no robot needed (an arm known for data only has none)
+            return list(instances)
         return tared_runs(instances, self.robot, self.config.get("record_hz"), self.sensor_tare_seconds)
 
     # ----------------------------------------------------------- prediction
