@@ -186,7 +186,7 @@ def profile_for_data(paths, robot: str | None = None, params: str | None = None,
 
 PROFILES = {
     # make demo: one net of each architecture and family, trained long enough to learn (within
-    # about 5 minutes on 2 cores), on a quick mismatch-ext of 36 instances of 5 trajectories. The
+    # about 5 minutes on 2 cores), on a quick mismatch-ext of 30 instances of 5 trajectories. The
     # torque nets are data-limited (reports/data-control): at 12 instances they learned nothing.
     "quick": BenchProfile(
         name="quick", scenarios=("mismatch-ext",), generator_profile="quick",
@@ -197,9 +197,9 @@ PROFILES = {
               "identified-ols", "identified-consistent", "identified-sigmoid-friction", "rnea+identified-friction",
               "base-wrench-identified", "base-wrench-identified-tared", "identified-bw-tared"),
         train=dict(max_epochs=20),
-        scenario_overrides={"mismatch-ext": dict(n_instances=36)},
+        scenario_overrides={"mismatch-ext": dict(n_instances=30)},
         notes=("A demo: one seed net of each architecture (MLP #2, conv #5, LSTM #8, and the torque MLP and LSTM), "
-               "the residual nets and DeLaN with friction, on a small mismatch-ext (36 instances of 5 trajectories); "
+               "the residual nets and DeLaN with friction, on a small mismatch-ext (30 instances of 5 trajectories); "
                "the default recipe, at most 20 epochs (rows stopped by that cap carry a dagger). The black-box "
                "torque nets are data-limited at this size (reports/data-control). The comparisons are in "
                "reports/default and reports/seed-sim.",),
