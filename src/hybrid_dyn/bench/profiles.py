@@ -210,7 +210,9 @@ PROFILES = {
     # on measured runs: 18 instances of 5-6 took 19.5 min from empty caches, and its nets overfit
     # within a few epochs (reports/data-control); at 40 of 5-10 the torque nets learned (validation
     # loss 0.19-0.22 against 0.65-1.0) but the LSTM residuals (about 22 s per epoch each) put the
-    # whole bench at an estimated 130 min, so it was stopped after paper-noext.
+    # whole bench at an estimated 130 min, so it was stopped after paper-noext. That estimate was
+    # high: at 24 instances the bench took 36.9 min (paper-ext trained in 10 min), so the data may
+    # grow about 2x within the budget (reports/default/data_control.md: the nets gain from it).
     "default": BenchProfile(
         name="default", scenarios=("paper-noext", "paper-ext", "mismatch-ext", "contact-steps"),
         generator_profile="default",
