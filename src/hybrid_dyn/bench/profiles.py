@@ -16,6 +16,7 @@ row is skipped with its reason (:meth:`BenchProfile.skip_reason`).
 """
 from __future__ import annotations
 
+import json
 import os
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -150,7 +151,9 @@ class BenchProfile:
                                **{**self.generator_overrides, **self.scenario_overrides.get(scenario, {})})
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        """The profile as run.json records it (JSON types: lists for tuples), so that a profile and a
+        report's ``run.json["profile"]`` compare equal exactly when they are the same profile."""
+        return json.loads(json.dumps(asdict(self)))
 
 
 def is_dataset_path(scenario: str) -> bool:

@@ -223,7 +223,7 @@ def _claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[d
             old = None
         if not isinstance(old, dict) or not ("bench_report" in old or "profile" in old):
             refuse_foreign(marker, "benchmark report", "it is not a run.json of hybrid-dyn bench")
-        if old.get("profile") is not None and old["profile"] != json.loads(json.dumps(profile.to_dict())):
+        if old.get("profile") is not None and old["profile"] != profile.to_dict():
             log(f"[bench] {out_dir} held a report of another profile or size: it is replaced, and its "
                 "invocations' wall times are not kept")
             return []
