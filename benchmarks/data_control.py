@@ -22,6 +22,7 @@ import json
 import sys
 from pathlib import Path
 
+from hybrid_dyn.bench.report import best_row
 from hybrid_dyn.bench.runner import read_results
 
 LEARNED = ("seed-net", "residual", "delan")
@@ -31,14 +32,13 @@ def _ok(rows: list[dict]) -> dict:
     return {(r["scenario"], r["task"], r["model"]): r for r in rows if r.get("status") == "ok"}
 
 
-def best_analytic(rows: dict) -> dict:
-    """(scenario, task) -> (model, rmse) of the lowest-RMSE analytic row."""
-    best: dict = {}
-    for (scenario, task, model), r in rows.items():
-        if r["family"] != "analytic":
-            continue
-        if (scenario, task) not in best or float(r["rmse"]) < best[(scenario, task)][1]:
-            best[(scenario, task)] = (model, float(r["rmse"]))
+def best_analytic(rows: list[dict]) -> dict:
+    """(scenario, task) -> (model, rmse) of the lowest-RMSE analytic row (``report.best_row``)."""
+    best = {}
+    for scenario, task in {(r["scenario"], r["task"]) for r in rows}:
+        r = best_row(rows, task, scenario, lambda r: r["family"] == "analytic")
+        if r is not None:
+            best[(scenario, task)] = (r["model"], float(r["rmse"]))
     return best
 
 
@@ -50,8 +50,9 @@ def _size(report: Path) -> str:
 
 
 def compare(small: Path, large: Path) -> str:
-    a, b = _ok(read_results(small / "results.csv")), _ok(read_results(large / "results.csv"))
-    pa, pb = best_analytic(a), best_analytic(b)
+    rows_a, rows_b = read_results(small / "results.csv"), read_results(large / "results.csv")
+    a, b = _ok(rows_a), _ok(rows_b)
+    pa, pb = best_analytic(rows_a), best_analytic(rows_b)
     unit = {"tip_force": "N", "joint_torque": "Nm"}
     out = [f"# Data control: `{small}` against `{large}`", "",
            f"`{' '.join(sys.argv)}`", "",

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hybrid_dyn.bench.metrics import nmse
 from hybrid_dyn.bench.profiles import get_profile
 from hybrid_dyn.data.dataset import load_dataset
 from hybrid_dyn.learn import train_model
@@ -39,9 +40,9 @@ def main(argv=None) -> int:
     test = ds.split("test")
     pred = np.concatenate(model.predict(test))
     y = np.concatenate([i.tau_m for i in test])
-    nmse = float(np.mean(np.mean((pred - y) ** 2, axis=0) / np.var(y, axis=0)))
+    score = nmse(pred, y)
     print(f"{args.preset} {overrides}: {model.config['epochs']} epochs, stopped by {model.config['stopped_by']}, "
-          f"best epoch {model.config['best_epoch']}, val loss {model.val_loss:.4f}, test nMSE {nmse:.4f}")
+          f"best epoch {model.config['best_epoch']}, val loss {model.val_loss:.4f}, test nMSE {score:.4f}")
     return 0
 
 
