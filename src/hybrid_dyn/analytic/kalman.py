@@ -216,7 +216,11 @@ class KalmanTipForce:
         self.filters = _filters(robot, self.dt, self.noise)
         self._base = BaseMomentumObserver(robot, dt=self.dt)    # h(q, qd) and the weight
         self._joint = MomentumObserver(robot, dt=self.dt)       # p = M qd and beta = C^T qd - g
-        self._jdata = robot.model.createData()
+        # With the joint torques, two passes give every term: computeAllTerms (M, g and, for the base
+        # sensor, the momentum m v_com as its centroidal hg), and computeCoriolisMatrix (C, and the joint
+        # Jacobians the tip Jacobian is read from). Five separate calls cost about 2 us more per step.
+        self._all_data = robot.model.createData()
+        self._coriolis_data = robot.model.createData()
         # Each subset's gain embedded in the full state (rows s_base, s_joint, F; columns: the two
         # sensors' innovations), zero for an absent sensor: one small product per call, no indexing.
         self._gains = {}
@@ -238,7 +242,7 @@ class KalmanTipForce:
         # Compile (or load from numba's cache) now, not in the first control cycle: one call on copies.
         _fusion_step(self.state.copy(), self._y.copy(), self._last_base.copy(), self._last_joint.copy(),
                      self._has_last.copy(), self._gain_table, True, self._zero3, self._R3, self._zero6, self._mg3,
-                     True, self._zero_nv, self._zero_nv, self._zero_nv, self._zero_c, self._zero_nv, self._zero_jac,
+                     True, self._zero_nv, self._zero_c, self._zero_nv, self._zero_c, self._zero_nv, self._zero_jac,
                      self.dt, SINGULAR_REGION, MAX_DAMPING)
 
     def reset(self) -> None:
@@ -293,25 +297,28 @@ class KalmanTipForce:
         """
         robot = self.robot
         has_base, has_joint = base_wrench is not None, tau_J is not None
-        if has_base:
-            b = self._base
-            b._qff[7:] = q
-            b._vff[6:] = qd
-            h = pin.computeCentroidalMomentum(robot.model_ff, b._data, b._qff, b._vff).linear
-            w = base_wrench
-        else:
-            h, w = self._zero3, self._zero6
         if has_joint:
-            # The terms behind MomentumObserver._beta_and_p; the kernel forms p = M qd and beta = C^T qd - g,
-            # since each small numpy operation here would cost more than its arithmetic.
-            g, m_qd_g, C = self._joint._dynamics_terms(q, qd)
-            jv = pin.computeFrameJacobian(robot.model, self._jdata, q, robot.tool_frame_id, pin.LOCAL_WORLD_ALIGNED)
-            tau = tau_J
+            model = robot.model
+            a = self._all_data
+            pin.computeAllTerms(model, a, q, qd)
+            C = pin.computeCoriolisMatrix(model, self._coriolis_data, q, qd)
+            jv = pin.getFrameJacobian(model, self._coriolis_data, robot.tool_frame_id, pin.LOCAL_WORLD_ALIGNED)
+            M_upper, g, tau = a.M, a.g, tau_J
+            # The fixed model's centroidal linear momentum is the free-flyer one's with the base at rest.
+            h = a.hg.linear if has_base else self._zero3
         else:
-            qd = m_qd_g = g = tau = self._zero_nv
-            C, jv = self._zero_c, self._zero_jac
+            if has_base:
+                b = self._base
+                b._qff[7:] = q
+                b._vff[6:] = qd
+                h = pin.computeCentroidalMomentum(robot.model_ff, b._data, b._qff, b._vff).linear
+            else:
+                h = self._zero3
+            qd = g = tau = self._zero_nv
+            C, jv, M_upper = self._zero_c, self._zero_jac, self._zero_c
+        w = base_wrench if has_base else self._zero6
         _fusion_step(self.state, self._y, self._last_base, self._last_joint, self._has_last, self._gain_table,
-                     has_base, h, self._R3, w, self._mg3, has_joint, qd, m_qd_g, g, C, tau, jv, self.dt,
+                     has_base, h, self._R3, w, self._mg3, has_joint, qd, M_upper, g, C, tau, jv, self.dt,
                      SINGULAR_REGION, MAX_DAMPING)
         return self.state[2].copy()
 
@@ -366,12 +373,13 @@ class KalmanTipForce:
 
 @njit(cache=True)
 def _fusion_step(x, y, last_base, last_joint, has_last, gain_table, has_base, h, R3, w, mg3,
-                 has_joint, qd, m_qd_g, g, C, tau, jac, dt, singular_region, max_damping):  # pragma: no cover
+                 has_joint, qd, M_upper, g, C, tau, jac, dt, singular_region, max_damping):  # pragma: no cover
     """One predict-update of ``KalmanTipForce`` after the dynamics terms (see ``step_unchecked``).
 
     x (3, 3): s_base, s_joint, F by axis; y (2, 3): the sensors' unexplained momenta.
-    The joint terms come as Pinocchio gives them: m_qd_g = M qd + g, the gravity torque g and the
-    Coriolis matrix C, so p = M qd and beta = C^T qd - g are formed here.
+    The joint terms come as Pinocchio gives them: the mass matrix's upper triangle M_upper (what
+    computeAllTerms fills), the gravity torque g and the Coriolis matrix C, so p = M qd and
+    beta = C^T qd - g are formed here.
     A sensor with no previous sample re-anchors (y = its prediction, no update from it).
     The joint increment is projected to the tool by the damped least squares of
     ``tip_force.damped_force_single``, written out here in the same closed form.
@@ -405,7 +413,10 @@ def _fusion_step(x, y, last_base, last_joint, has_last, gain_table, has_base, h,
         p = np.empty(nv)
         beta = np.empty(nv)
         for k in range(nv):
-            p[k] = m_qd_g[k] - g[k]
+            acc = 0.0
+            for i in range(nv):
+                acc += (M_upper[k, i] if i >= k else M_upper[i, k]) * qd[i]
+            p[k] = acc
             acc = -g[k]
             for i in range(nv):
                 acc += qd[i] * C[i, k]
