@@ -2,15 +2,15 @@
 
 For the best row of each learned family and task (lowest test RMSE among the rows that
 trained, reference rows aside) of every scenario of a report, retrain the same preset on
-the same data with the same recipe but ``--factor`` (4) times the early-stopping patience
-(and a learning-rate floor low enough that patience, not the floor, ends it: :func:`longer_run`),
-and compare the best validation loss (standardized MSE) of the two runs:
+the same data with the same recipe but ``--factor`` (4) times both patiences, the early
+stopping's and the learning-rate plateau's (and a rate floor low enough that patience, not the
+floor, ends it: :func:`longer_run`), and compare the best validation loss (standardized MSE) of the two runs:
 
     gain = (val_loss(patience P) - val_loss(patience 4P)) / val_loss(patience P)
 
 A row counts as converged when the gain is below ``--tolerance`` (5 %). The bench's own
 model is reused from its cache (nothing is retrained for it); the longer runs train into
-``<work dir>/convergence/<preset>-patience<4P>`` and are reused on a rerun, so a killed
+``<work dir>/convergence/<preset>-patience<4P>-lr<4P_lr>`` and are reused on a rerun, so a killed
 check resumes. Deterministic given the profile's seed.
 
 Run (after the bench, with the same data and model caches):
@@ -49,13 +49,20 @@ def best_rows(rows: list[dict]) -> list[dict]:
 
 
 def longer_run(config: TrainConfig, factor: int) -> TrainConfig:
-    """The recipe with ``factor`` x the patience, and the learning-rate floor lowered so that the longer
-    run ends by patience, not by the floor: with the floor left at 1e-5 the rate reaches it after four cuts
-    (12 bad epochs), and every 4x-patience run on seed-sim ended by lr-floor 2-5 epochs after the original,
-    which tests nothing. The floor is set one cut below what ``factor x patience`` bad epochs could reach."""
+    """The recipe with ``factor`` x both patiences (early stopping and the plateau schedule), and the
+    learning-rate floor lowered so that the longer run ends by patience, not by the floor.
+
+    Both, because with the plateau's patience left at 3 the longer run retraces the original one
+    epoch for epoch (training is deterministic) and only adds epochs at ever smaller rates: every
+    such check of stop 15 gained exactly 0.0 %, which tests the tail of the schedule, not whether
+    the rate was cut too early. (KUKA's tau-mlp-wide under the real profile was: its validation
+    loss falls only after ~100 epochs at 1e-3.) The floor is set one cut below what
+    ``factor x patience`` bad epochs could reach."""
     patience = config.patience * factor
-    cuts = math.ceil(patience / config.lr_patience) + 1
-    return dataclasses.replace(config, patience=patience, min_lr=config.min_lr * config.lr_factor ** cuts)
+    lr_patience = config.lr_patience * factor
+    cuts = math.ceil(patience / lr_patience) + 1
+    return dataclasses.replace(config, patience=patience, lr_patience=lr_patience,
+                               min_lr=config.min_lr * config.lr_factor ** cuts)
 
 
 def main() -> int:
@@ -82,7 +89,8 @@ def main() -> int:
     lines = [f"# Convergence check of `{report}`", "",
              f"`{' '.join(sys.argv)}`, {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC.", "",
              f"The best trained row of each family and task (lowest test RMSE), retrained with patience "
-             f"{longer.patience} instead of {config.patience} and its learning-rate floor lowered from {config.min_lr:g} to "
+             f"{longer.patience} instead of {config.patience}, the learning-rate plateau's patience {longer.lr_patience} "
+             f"instead of {config.lr_patience} and its floor lowered from {config.min_lr:g} to "
              f"{longer.min_lr:.1e}, so that it ends by patience (recipe `{profile.recipe}` otherwise). "
              f"Gain: the relative drop of the best validation loss; converged when below {args.tolerance:.0%}.", "",
              "| scenario | task | family | model | epochs (stop) | val loss | epochs (stop), patience "
@@ -100,7 +108,8 @@ def main() -> int:
         base = train_model(ds, r["model"], wd / "models" / r["model"], config)  # the bench's own model
         t0 = time.perf_counter()
         print(f"[convergence] {scenario} {r['family']} {r['model']}: patience {longer.patience}", flush=True)
-        long = train_model(ds, r["model"], wd / "convergence" / f"{r['model']}-patience{longer.patience}", longer)
+        long = train_model(ds, r["model"], wd / "convergence" / f"{r['model']}-patience{longer.patience}-lr{longer.lr_patience}",
+                           longer)
         # A loss at round-off (physics exact on noise-free data) has nothing left to gain.
         gain = (base.val_loss - long.val_loss) / base.val_loss if base.val_loss > 1e-12 else 0.0
         ok = gain < args.tolerance
