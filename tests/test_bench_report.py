@@ -98,6 +98,10 @@ def test_report_flags_the_epoch_capped_row_and_draws_the_curves(tmp_path):
     assert "| seed-tip-11-raw (raw sensor, untared: reference) |" in md
     readme = (tmp_path / "README.md").read_text()
     assert "seed-net (seed-tip-5) 0.700 †" in readme and "seed-tip-11-raw) 0.5" not in readme
+    # Each family's best carries its nMSE (here 0.1 for every row), so a net's share of the target's
+    # variance reads beside its RMSE; the sentence says what the figure is.
+    assert "seed-net (seed-tip-5) 0.700 † (0.100)" in readme and "RMSE [N] (nMSE)" in readme
+    assert "1 is what predicting the mean gives" in readme
     assert "learning_curves_syn.png" in readme and "syn `seed-tip-5` (30 epochs)" in readme
     tex = (tmp_path / "tip_force.tex").read_text()
     assert "epochs (stop)" in tex and r"30 (epoch-cap) $^\dagger$" in tex

@@ -186,6 +186,14 @@ def task_tables(rows, task: str) -> tuple[str, str]:
 
 
 # ------------------------------------------------------------------- findings
+def _nmse_note(row) -> str:
+    """The row's nMSE as " (0.123)", or "" where it has none."""
+    try:
+        return f" ({float(row['nmse']):.3f})"
+    except (KeyError, TypeError, ValueError):
+        return ""
+
+
 def findings(rows) -> list[str]:
     """Headline sentences, each computed from the rows."""
     lines = []
@@ -199,8 +207,14 @@ def findings(rows) -> list[str]:
             if not fams:
                 continue
             ranked = sorted(fams.values(), key=lambda r: float(r["rmse"]))
-            desc = ", ".join(f"{r['family']} ({r['model']}) {float(r['rmse']):.3f}{_cap_mark(r)}" for r in ranked)
-            lines.append(f"- **{scenario}, {task.replace('_', ' ')}** — best per family, RMSE [{unit}]: {desc}.")
+            desc = ", ".join(f"{r['family']} ({r['model']}) {float(r['rmse']):.3f}{_cap_mark(r)}{_nmse_note(r)}"
+                             for r in ranked)
+            lines.append(f"- **{scenario}, {task.replace('_', ' ')}** — best per family, RMSE [{unit}] "
+                         f"(nMSE): {desc}.")
+    if lines:
+        # Beside physics a net's RMSE can read as "learning is broken"; the nMSE says how much it learned.
+        lines.append("- nMSE: the test MSE over the test target's variance, per axis or joint and averaged: "
+                     "1 is what predicting the mean gives, 0 is exact.")
     return lines
 
 
