@@ -196,6 +196,10 @@ class Robot:
         self._aff[6:] = qdd
         return pin.rnea(self.model_ff, self.data_ff, self._qff, self._vff, self._aff)
 
+    def base_wrench_single(self, q, qd, qdd) -> np.ndarray:
+        """``base_wrench`` (6,) [N, Nm] of one validated sample, no tip force: the streaming path."""
+        return self._sensor_from_root @ self.rnea_ff_single(q, qd, qdd)[:6]
+
     def tip_position_single(self, q: np.ndarray) -> np.ndarray:
         """Tool position [m] (3,) of one validated sample (RNEA does not update oMi)."""
         pin.forwardKinematics(self.model, self.data, q)
@@ -294,7 +298,7 @@ class Robot:
         """
         if np.ndim(q) == 1 and tip_force is None:
             q, qd, qdd = self._single(q, "q", True), self._single(qd, "qd"), self._single(qdd, "qdd")
-            return self._sensor_from_root @ self.rnea_ff_single(q, qd, qdd)[:6]
+            return self.base_wrench_single(q, qd, qdd)
         q, qd, qdd, single = self._state(q, qd, qdd)
         n = len(q)
         # The free-flyer base is held still: its RNEA rows are the wrench the

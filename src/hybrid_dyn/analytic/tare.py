@@ -77,9 +77,11 @@ class StreamingTare:
         return self.count >= self.n_calls
 
     def update(self, q, qd, qdd, base_wrench) -> np.ndarray:
+        """The tared wrench of one sample that its caller has validated (finite, (nv,) and (6,) float
+        arrays: the estimator's gate), so the model wrench skips ``Robot.base_wrench``'s checks."""
         if not self.done:  # only during the tare window: after it, one subtraction per call
             self.count += 1
-            self.offset += (base_wrench - self.robot.base_wrench(q, qd, qdd) - self.offset) / self.count
+            self.offset += (base_wrench - self.robot.base_wrench_single(q, qd, qdd) - self.offset) / self.count
         return base_wrench - self.offset
 
     def set_offset(self, offset) -> None:
