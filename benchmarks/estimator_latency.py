@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 import time
 
 import numpy as np
@@ -126,7 +127,7 @@ def main(argv=None) -> None:
     if args.out:
         load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
         text = [f"# Streaming estimator latency (`benchmarks/estimator_latency.py`)", "",
-                f"`benchmarks/estimator_latency.py --repeat {args.repeat}`: {args.calls} calls per estimator and run "
+                f"`benchmarks/estimator_latency.py {' '.join(sys.argv[1:] if argv is None else argv)}`: {args.calls} calls per estimator and run "
                 f"at 1 kHz on one core (CPU 0), torch on one thread, the estimators taking turns in blocks of "
                 f"{BLOCK} calls, {args.repeat} run(s) in one process with fresh estimators; "
                 f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, load average {load_start:.2f} at the "
