@@ -213,8 +213,10 @@ def findings(rows) -> list[str]:
                          f"(nMSE): {desc}.")
     if lines:
         # Beside physics a net's RMSE can read as "learning is broken"; the nMSE says how much it learned.
-        lines.append("- nMSE: the test MSE over the test target's variance, per axis or joint and averaged: "
-                     "1 is what predicting the mean gives, 0 is exact.")
+        lines.append("- nMSE: the test MSE over the test target's variance, per axis or joint, then averaged: "
+                     "1 is what predicting the mean gives, 0 is exact. Every joint weighs the same, so a wrist joint "
+                     "with little torque variance counts as much as the shoulder, and nMSE can rank rows "
+                     "differently from RMSE.")
     return lines
 
 
