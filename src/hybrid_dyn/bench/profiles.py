@@ -213,6 +213,7 @@ PROFILES = {
     # on measured runs: 18 instances of 5-6 took 19.5 min from empty caches, and its nets overfit
     # within a few epochs (reports/data-control); 24 of 5-10 took 36.9 min and the black-box and
     # DeLaN rows still gained from the data (their RMSE ratios fell to 0.41-0.88 from 18 instances).
+    # 40 of 5-10 took 74.2 min from empty caches, another bench beside it (reports/default).
     "default": BenchProfile(
         name="default", scenarios=("paper-noext", "paper-ext", "mismatch-ext", "contact-steps"),
         generator_profile="default",
