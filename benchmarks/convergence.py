@@ -74,6 +74,8 @@ def main() -> int:
     ap.add_argument("--tolerance", type=float, default=0.05, help="largest relative val-loss gain that counts as converged")
     ap.add_argument("--scenario", action="append", default=None,
                     help="check only this scenario's rows (repeat for more; default: every scenario of the report)")
+    ap.add_argument("--model", action="append", default=None,
+                    help="check only this row (repeat for more; default: the best row of every family)")
     ap.add_argument("--out", default=None, help="write the table to this markdown file")
     args = ap.parse_args()
 
@@ -99,7 +101,7 @@ def main() -> int:
     datasets = {}
     for r in best_rows(read_results(report / "results.csv")):
         scenario = r["scenario"]
-        if args.scenario and scenario not in args.scenario:
+        if (args.scenario and scenario not in args.scenario) or (args.model and r["model"] not in args.model):
             continue
         if scenario not in datasets:
             datasets[scenario] = profile.dataset(scenario, Path(args.data_root))
