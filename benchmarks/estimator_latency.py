@@ -64,7 +64,7 @@ def measure(cases, t, q, qd, w, tau):
     out = []
     for (_, est, *_), lat in zip(cases, lats):
         lat = lat * 1e6
-        after = lat[tare_samples(1000.0, est.config.tare_seconds):]
+        after = lat[tare_samples(est.config.call_hz, est.config.tare_seconds):]
         out.append((np.median(lat), np.percentile(lat, 99), lat.max(), np.median(after), np.percentile(after, 99)))
     return out
 
@@ -100,7 +100,7 @@ def main(argv=None) -> None:
             cases.append((f"{est.model.model.preset.name} [{est.model.runtime}]", est, 100.0, 500.0))
         return cases
 
-    runs = []  # per run: [(name, f_med, f_p99, (med, p99, max))]
+    runs = []  # per run: [(name, f_med, f_p99, (med, p99, max, med_after, p99_after))]
     for _ in range(args.repeat):
         cases = build_cases()
         runs.append([(name, f_med, f_p99, res) for (name, _, f_med, f_p99), res in zip(cases, measure(cases, *data))])

@@ -218,7 +218,7 @@ class KalmanTipForce:
         self._joint = MomentumObserver(robot, dt=self.dt)       # p = M qd and beta = C^T qd - g
         # With the joint torques, two passes give every term: computeAllTerms (M, g and, for the base
         # sensor, the momentum m v_com as its centroidal hg), and computeCoriolisMatrix (C, and the joint
-        # Jacobians the tip Jacobian is read from). Five separate calls cost about 2 us more per step.
+        # Jacobians the tip Jacobian is read from), instead of five separate passes.
         self._all_data = robot.model.createData()
         self._coriolis_data = robot.model.createData()
         # Each subset's gain embedded in the full state (rows s_base, s_joint, F; columns: the two
