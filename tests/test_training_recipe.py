@@ -131,3 +131,35 @@ def test_recurrent_gradients_are_clipped(clean_and_biased, tmp_path, monkeypatch
     assert (seed.lr_schedule, seed.patience, seed.grad_clip) == ("none", 5, None)
     train_model(clean, "seed-tip-7", tmp_path / "seed", seed)
     assert norms == [1.0, 1.0]  # the seed's recipe clips nothing
+
+
+def test_weight_decay_is_decoupled_and_spares_biases_and_physical_parameters():
+    """AdamW's identity: with a zero gradient Adam's step is zero, so one step leaves each decayed weight
+    at w (1 - lr x weight_decay); biases and 1-D physical parameters (DeLaN's friction) stay put."""
+    torch.manual_seed(0)
+    module = torch.nn.Sequential(torch.nn.Linear(3, 4), torch.nn.Linear(4, 2))
+    module.register_parameter("friction", torch.nn.Parameter(torch.rand(7) + 0.5))
+    before = {k: v.detach().clone() for k, v in module.named_parameters()}
+    cfg = TrainConfig(lr=1e-2, weight_decay=3.0, progress=False)
+    opt = train_mod._optimizer(module, cfg)
+    for p in module.parameters():
+        p.grad = torch.zeros_like(p)
+    opt.step()
+    for k, p in module.named_parameters():
+        expected = before[k] * (1 - cfg.lr * cfg.weight_decay) if p.ndim >= 2 else before[k]
+        torch.testing.assert_close(p.detach(), expected, rtol=1e-6, atol=0.0)
+    assert isinstance(train_mod._optimizer(module, TrainConfig(progress=False)), torch.optim.Adam)
+
+
+def test_weight_decay_reaches_training_and_only_its_runs_change_fingerprint(clean_and_biased, tmp_path):
+    clean, _ = clean_and_biased
+    plain, decayed = TrainConfig(max_epochs=3, **QUICK), TrainConfig(max_epochs=3, weight_decay=30.0, **QUICK)
+    assert "weight_decay" not in plain.fingerprint_fields()  # runs from before the field keep their fingerprint
+    assert decayed.fingerprint_fields()["weight_decay"] == 30.0
+    norms = {}
+    for label, cfg in (("plain", plain), ("decayed", decayed)):
+        state = load_file(str(train_model(clean, "seed-tip-1", tmp_path / label, cfg).path / "model.safetensors"))
+        norms[label] = sum(float(v.norm() ** 2) for k, v in state.items() if v.ndim >= 2 and "weight" in k)
+    assert norms["decayed"] < 0.9 * norms["plain"], norms
+    with pytest.raises(Exception, match="weight_decay"):
+        TrainConfig(weight_decay=-1.0)

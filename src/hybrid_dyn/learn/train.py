@@ -90,6 +90,10 @@ class TrainConfig:
     lr_factor after lr_patience epochs without improvement, never below min_lr)
     or "none" (constant, the seed's).
     grad_clip: largest gradient norm of a net with an LSTM (None: no clipping).
+    weight_decay: decoupled weight decay of the weight matrices, per step a
+    fraction lr x weight_decay of each weight (AdamW, Loshchilov & Hutter 2019;
+    0: plain Adam). The seed's nets carry an unspecified regularization term
+    (its 3.2).
     max_batches_per_epoch: cap an epoch's batches (quick runs, tuning); None = all.
     analytic_params: parameter set of the residual models' analytic part
     (None: the robot's nominal URDF; a set name or a JSON path, e.g. identified).
@@ -113,6 +117,7 @@ class TrainConfig:
     lr_patience: int = 3
     min_lr: float = 1e-5
     grad_clip: float | None = 1.0
+    weight_decay: float = 0.0
     max_batches_per_epoch: int | None = None
     analytic_params: str | None = None
     observer_gain: float = 20.0
@@ -148,7 +153,8 @@ class TrainConfig:
                 raise UsageError(f"{_option(name)} must be an integer >= {least}{' or None' if optional else ''}, "
                                  f"got {v!r}")
             setattr(self, name, int(v))
-        for name, positive in (("lr", True), ("min_delta", False), ("min_rel_delta", False), ("observer_gain", True), ("tare_seconds", False)):
+        for name, positive in (("lr", True), ("min_delta", False), ("min_rel_delta", False), ("observer_gain", True), ("tare_seconds", False),
+                               ("weight_decay", False)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v) or v < 0 \
                     or (positive and v == 0):
@@ -174,6 +180,8 @@ class TrainConfig:
         d = asdict(self)
         for k in ("device", "progress", "num_threads"):  # where and how loudly a run goes does not change its result
             d.pop(k)
+        if not d["weight_decay"]:  # added later: a run without it keeps the fingerprint it always had
+            d.pop("weight_decay")
         return d
 
 
@@ -478,9 +486,24 @@ def _train_locked(ds: Dataset, preset: Preset, out_dir: Path, config: TrainConfi
         module = HybridModel(preset, widths)
         module.set_normalization(x_mean, x_std, y_mean, y_std)
         module.to(device)
-        opt = torch.optim.Adam(module.parameters(), lr=config.lr)
+        opt = _optimizer(module, config)
         return _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint, widths, prior, device,
                     sensor_tare)
+
+
+def _optimizer(module: torch.nn.Module, config: TrainConfig) -> torch.optim.Optimizer:
+    """Adam, or AdamW where the config decays weights.
+
+    Decoupled decay (AdamW) shrinks every weight at the same relative rate, where an L2 term in the
+    loss would pass through Adam's per-parameter scaling. Only weight matrices and kernels (2-D and
+    up) decay: biases, and the physical parameters a model learns (DeLaN's friction, 1-D), do not.
+    """
+    if not config.weight_decay:
+        return torch.optim.Adam(module.parameters(), lr=config.lr)
+    params = list(module.parameters())
+    groups = [{"params": [p for p in params if p.ndim >= 2], "weight_decay": config.weight_decay},
+              {"params": [p for p in params if p.ndim < 2], "weight_decay": 0.0}]
+    return torch.optim.AdamW([g for g in groups if g["params"]], lr=config.lr)
 
 
 def _batches(ws: WindowedSplit, idx: np.ndarray, device):
