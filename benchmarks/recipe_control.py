@@ -44,6 +44,32 @@ def first_training_instances(ds: Dataset, k: int) -> Dataset:
     return Dataset(ds.path, meta, {n: i for n, i in ds.instances.items() if n in keep})
 
 
+def run_control(data, preset_name: str, out, profile: str = "default", train: dict | None = None,
+                arch: dict | None = None, train_instances: int | None = None) -> dict:
+    """Train (or reuse, when ``out`` holds this very run) one control and score it; returns how it stopped,
+    its validation loss and its test RMSE and nMSE on the preset's target."""
+    train = dict(train or {})
+    config = dataclasses.replace(get_profile(profile).train_config(), num_threads=1, progress=False, **train)
+    ds = load_dataset(data)
+    if train_instances is not None:
+        ds = first_training_instances(ds, train_instances)
+    preset = get_preset(preset_name)
+    if arch:
+        arch = {k: tuple(v) if isinstance(v, list) else v for k, v in arch.items()}
+        preset = preset.replace(name=preset.name + "+" + ",".join(f"{k}={v}" for k, v in arch.items()), **arch)
+    model = train_model(ds, preset, Path(out), config)
+    test = ds.split("test")
+    pred = np.concatenate(model.predict(test))
+    target, = preset.targets
+    y = np.concatenate([getattr(i, target) for i in test])
+    h = model.config["history"]
+    best = model.config["best_epoch"]
+    return dict(model=preset.name, train=train, n_train=len(ds.split("train")), n_params=model.n_params,
+                epochs=model.config["epochs"], stopped_by=model.config["stopped_by"], best_epoch=best,
+                train_loss=h[best]["train_loss"] if best >= 0 else float("nan"), val_loss=model.val_loss,
+                test_rmse=rmse(pred, y), test_nmse=nmse(pred, y), unit="N" if target == "tip_force" else "Nm")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", required=True, help="a dataset folder")
@@ -57,26 +83,13 @@ def main(argv=None) -> int:
                     help="train on the first K training instances only")
     ap.add_argument("--out", required=True, help="model folder (a new one per control)")
     args = ap.parse_args(argv)
-    overrides = {k: json.loads(v) for k, v in (s.split("=", 1) for s in args.set)}
-    config = dataclasses.replace(get_profile(args.profile).train_config(), num_threads=1, progress=False, **overrides)
-    ds = load_dataset(args.data)
-    if args.train_instances is not None:
-        ds = first_training_instances(ds, args.train_instances)
-    preset = get_preset(args.preset)
-    changes = {k: json.loads(v) for k, v in (s.split("=", 1) for s in args.arch)}
-    if changes:
-        changes = {k: tuple(v) if isinstance(v, list) else v for k, v in changes.items()}
-        preset = preset.replace(name=preset.name + "+" + ",".join(f"{k}={v}" for k, v in changes.items()), **changes)
-    model = train_model(ds, preset, Path(args.out), config)
-    test = ds.split("test")
-    pred = np.concatenate(model.predict(test))
-    target, = preset.targets
-    y = np.concatenate([getattr(i, target) for i in test])
-    n_train = len(ds.split("train"))
-    print(f"{preset.name} {overrides} ({n_train} training instances, {model.n_params} parameters): "
-          f"{model.config['epochs']} epochs, stopped by {model.config['stopped_by']}, "
-          f"best epoch {model.config['best_epoch']}, val loss {model.val_loss:.5f}, "
-          f"test RMSE {rmse(pred, y):.4f}, test nMSE {nmse(pred, y):.4f}")
+    parse = lambda items: {k: json.loads(v) for k, v in (s.split("=", 1) for s in items)}  # noqa: E731
+    r = run_control(args.data, args.preset, args.out, args.profile, parse(args.set), parse(args.arch),
+                    args.train_instances)
+    print(f"{r['model']} {r['train']} ({r['n_train']} training instances, {r['n_params']} parameters): "
+          f"{r['epochs']} epochs, stopped by {r['stopped_by']}, best epoch {r['best_epoch']}, "
+          f"train loss {r['train_loss']:.5f}, val loss {r['val_loss']:.5f}, "
+          f"test RMSE {r['test_rmse']:.4f} {r['unit']}, test nMSE {r['test_nmse']:.4f}")
     return 0
 
 

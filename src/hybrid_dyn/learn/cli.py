@@ -50,6 +50,8 @@ def _train_options(p) -> None:
     p.add_argument("--batch-size", type=int, default=None)
     p.add_argument("--lr", type=float, default=None, help="initial learning rate (default 1e-3)")
     p.add_argument("--lr-schedule", default=None, choices=["plateau", "none"])
+    p.add_argument("--weight-decay", type=float, default=None,
+                   help="decoupled weight decay of the weight matrices (AdamW; default 0: plain Adam)")
     p.add_argument("--max-batches-per-epoch", type=int, default=None)
     p.add_argument("--analytic-params", default=None, help="parameter set or JSON for residual models' analytic part")
     p.add_argument("--device", default="auto", help="auto, cpu or cuda")
@@ -61,7 +63,7 @@ def _config(args):
     from .train import TrainConfig
 
     given = {"max_epochs": args.epochs, "patience": args.patience, "batch_size": args.batch_size, "lr": args.lr,
-             "lr_schedule": args.lr_schedule}
+             "lr_schedule": args.lr_schedule, "weight_decay": args.weight_decay}
     return TrainConfig.recipe(args.recipe, seed=args.seed, max_batches_per_epoch=args.max_batches_per_epoch,
                               analytic_params=args.analytic_params, device=args.device, num_threads=args.threads,
                               progress=not args.quiet, **{k: v for k, v in given.items() if v is not None})

@@ -14,6 +14,10 @@ Two recipes (:data:`RECIPES`, ``--recipe``):
   standardized inputs can take an exploding step early on). Batch size: see
   ``docs/models.md`` (a measured sweep, ``benchmarks/learn_speed.py --sweep``).
 
+Neither decays weights; ``weight_decay`` (AdamW on the weight matrices) is there for
+the nets that overfit a small set (``benchmarks/learning_controls.py`` measures what it
+buys).
+
 Both keep the weights of the best validation epoch (as Keras'
 ``restore_best_weights``); the untrained model counts as epoch "-1", so a
 residual model that never beats its physics part on validation stays it.
@@ -216,7 +220,8 @@ def _option(field: str) -> str:
 _CLI_FLAGS = {"seed": "--seed", "batch_size": "--batch-size", "max_epochs": "--epochs", "patience": "--patience",
               "max_batches_per_epoch": "--max-batches-per-epoch", "num_threads": "--threads",
               "device": "--device", "analytic_params": "--analytic-params", "lr": "--lr",
-              "lr_schedule": "--lr-schedule", "grad_clip": "--grad-clip", "min_lr": "--min-lr"}
+              "lr_schedule": "--lr-schedule", "grad_clip": "--grad-clip", "min_lr": "--min-lr",
+              "weight_decay": "--weight-decay"}
 
 
 def _device(name: str) -> torch.device:

@@ -1,0 +1,106 @@
+"""What limits the learned rows on a dataset: the recipe, the net's capacity or the data? (issue 14)
+
+Each control retrains one preset of the bench with one thing changed and is compared, on the
+validation loss (standardized MSE, what every choice is made on), with the preset trained by the
+profile's own recipe:
+
+- recipe: a longer plateau and early-stopping patience (does the schedule stop the net too early?),
+  and decoupled weight decay (``TrainConfig.weight_decay``: does regularisation close a gap
+  between training and validation loss?);
+- capacity: wider or deeper fully connected layers (does the net underfit?);
+- data: the same net on the first 6 and 13 of the 26 training instances (how fast does the
+  validation loss fall with data? Validation and test instances are the same in every control).
+
+The train-loss column is the epoch's running mean at the kept epoch. Test figures are printed for
+reference only: nothing was chosen on them. Controls train into ``--work-root`` (one folder each)
+and a rerun reuses every finished one; deterministic given the profile's seed; one torch thread each.
+
+Run (after ``hybrid-dyn bench --profile seed-sim``, whose dataset it reads from the data cache):
+    .venv/bin/python benchmarks/learning_controls.py --profile seed-sim --out reports/seed-sim/controls.md
+"""
+from __future__ import annotations
+
+import argparse
+import datetime
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from recipe_control import run_control  # noqa: E402
+
+from hybrid_dyn.bench.profiles import get_profile  # noqa: E402
+
+LONGER = {"lr_patience": 10, "patience": 20}
+
+# (what is asked, preset, TrainConfig changes, Preset changes, training instances). The first
+# row of each preset is its bench run (the profile's recipe on all the training data).
+CONTROLS = {
+    "seed-sim": [
+        ("bench recipe", "seed-tip-10", {}, {}, None),
+        ("recipe: longer patience", "seed-tip-10", LONGER, {}, None),
+        ("recipe: weight decay 0.1", "seed-tip-10", {"weight_decay": 0.1}, {}, None),
+        ("recipe: weight decay 1", "seed-tip-10", {"weight_decay": 1.0}, {}, None),
+        ("recipe: weight decay 3", "seed-tip-10", {"weight_decay": 3.0}, {}, None),
+        ("data: 13 of 26 instances", "seed-tip-10", {}, {}, 13),
+        ("data: 6 of 26 instances", "seed-tip-10", {}, {}, 6),
+        ("bench recipe", "seed-tip-4", {}, {}, None),
+        ("data: 13 of 26 instances", "seed-tip-4", {}, {}, 13),
+        ("data: 6 of 26 instances", "seed-tip-4", {}, {}, 6),
+        ("bench recipe", "seed-tau-mlp", {}, {}, None),
+        ("recipe: longer patience", "seed-tau-mlp", LONGER, {}, None),
+        ("recipe: weight decay 1", "seed-tau-mlp", {"weight_decay": 1.0}, {}, None),
+        ("capacity: FC 2 x 256", "seed-tau-mlp", {}, {"fc_units": 256}, None),
+        ("capacity: FC 3 x 256", "seed-tau-mlp", {}, {"fc_units": 256, "fc_layers": 3}, None),
+        ("data: 13 of 26 instances", "seed-tau-mlp", {}, {}, 13),
+        ("data: 6 of 26 instances", "seed-tau-mlp", {}, {}, 6),
+        ("bench recipe", "delan-friction", {}, {}, None),
+        ("recipe: longer patience", "delan-friction", LONGER, {}, None),
+    ],
+}
+
+
+def control_dir(work_root: Path, preset: str, train: dict, arch: dict, n: int | None) -> Path:
+    parts = [preset] + [f"{k}{v}" for k, v in sorted({**train, **arch}.items())] + ([f"k{n}"] if n else [])
+    return work_root / "-".join(parts).replace(" ", "")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--profile", default="seed-sim", choices=sorted(CONTROLS))
+    ap.add_argument("--scenario", default=None, help="the profile's scenario (default: its first)")
+    ap.add_argument("--data-root", default="data")
+    ap.add_argument("--work-root", default="runs/controls")
+    ap.add_argument("--only", action="append", default=None, help="run only this preset's controls (repeat)")
+    ap.add_argument("--out", default=None, help="write the table to this markdown file")
+    args = ap.parse_args(argv)
+    profile = get_profile(args.profile)
+    scenario = args.scenario or profile.scenarios[0]
+    data = profile.dataset(scenario, Path(args.data_root))
+    root = Path(args.work_root) / args.profile / scenario
+    lines = [f"# What limits the learned rows on `{scenario}`: recipe, capacity or data",
+             "", f"`{' '.join(['benchmarks/learning_controls.py'] + (argv if argv is not None else sys.argv[1:]))}`, "
+             f"{datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC; data `{data.path.name}`.", "",
+             "Every control is chosen and read on the validation loss; test figures are for reference only.",
+             "", "| preset | control | training instances | parameters | epochs (stop) | best epoch | "
+             "train loss | val loss | val vs bench | test RMSE | test nMSE |", "|" + "---|" * 11]
+    base = {}
+    for label, preset, train, arch, n in CONTROLS[args.profile]:
+        if args.only and preset not in args.only:
+            continue
+        out = control_dir(root, preset, train, arch, n)
+        print(f"[controls] {preset}: {label} -> {out}", flush=True)
+        r = run_control(data.path, preset, out, args.profile, train, arch, n)
+        base.setdefault(preset, r["val_loss"])
+        rel = r["val_loss"] / base[preset] - 1
+        row = (f"| {preset} | {label} | {r['n_train']} | {r['n_params']} | {r['epochs']} ({r['stopped_by']}) | "
+               f"{r['best_epoch']} | {r['train_loss']:.4f} | {r['val_loss']:.4f} | {rel:+.1%} | "
+               f"{r['test_rmse']:.4f} {r['unit']} | {r['test_nmse']:.4f} |")
+        print(row, flush=True)
+        lines.append(row)
+        if args.out:  # written as controls finish, so an interrupted run keeps what it measured
+            Path(args.out).write_text("\n".join(lines) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
