@@ -87,9 +87,11 @@ def test_the_schedule_cuts_the_rate_after_a_plateau_down_to_its_floor(clean_and_
     assert h[-1]["val_loss"] >= model.val_loss
 
 
-def test_resume_mid_schedule_is_bit_identical(clean_and_biased, tmp_path, monkeypatch):
+@pytest.mark.parametrize("weight_decay", [0.0, 0.5])  # Adam, and AdamW with its two parameter groups
+def test_resume_mid_schedule_is_bit_identical(clean_and_biased, tmp_path, monkeypatch, weight_decay):
     clean, _ = clean_and_biased
-    cfg = TrainConfig(max_epochs=8, patience=20, lr=0.05, lr_factor=0.3, lr_patience=1, min_lr=1e-5, **QUICK)
+    cfg = TrainConfig(max_epochs=8, patience=20, lr=0.05, lr_factor=0.3, lr_patience=1, min_lr=1e-5,
+                      weight_decay=weight_decay, **QUICK)
     straight = train_model(clean, "seed-tip-7", tmp_path / "a", cfg)
     rates = [e["lr"] for e in straight.config["history"]]
     cut = next(i for i, r in enumerate(rates) if r < cfg.lr)  # the first epoch at a cut rate
