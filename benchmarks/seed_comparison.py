@@ -9,6 +9,9 @@ Reads a report's ``results.csv`` and prints, as markdown:
   (its ``sim-ext`` figures; DeLaN also beside its ``sim-noext`` one).
 - The best analytic rows of each task, which on noise-free data with exact states are
   nearly exact: the bar the seed's nets never had to clear.
+- Beside each net, its training and validation loss at the kept epoch (from the report's
+  ``curves.json``): a validation loss many times the training loss is a net that fits the
+  training instances and does not carry over to others (overfitting), not one that cannot fit.
 
 The seed's figures come from another simulator (CoppeliaSim/Newton) and another data set:
 orientation, not a measurement here.
@@ -22,6 +25,7 @@ import statistics
 import sys
 from pathlib import Path
 
+from hybrid_dyn.bench.results import CURVES_FILE, read_curves
 from hybrid_dyn.bench.runner import read_results
 from hybrid_dyn.bench.seed_reference import SEED_TABLE1, SEED_TABLE2, SEED_TABLE3
 
@@ -33,26 +37,36 @@ def _order(figures: dict) -> str:
     return " < ".join(f"{k} ({v:.3f})" for k, v in sorted(figures.items(), key=lambda kv: kv[1]))
 
 
-def comparison(rows: list[dict], scenario: str) -> str:
+def _kept_losses(curve: dict | None) -> str:
+    """'train / val (val/train)' at the kept epoch of a learned row's curve, or '-'."""
+    if not curve or curve.get("best_epoch", -1) < 0:
+        return "-"
+    e = curve["history"][curve["best_epoch"]]
+    return f"{e['train_loss']:.4f} / {e['val_loss']:.4f} ({e['val_loss'] / e['train_loss']:.1f}x)"
+
+
+def comparison(rows: list[dict], scenario: str, curves: dict | None = None) -> str:
     ok = {(r["task"], r["model"]): r for r in rows if r["scenario"] == scenario and r.get("status") == "ok"}
+    curves = (curves or {}).get(scenario, {})
     out = [f"## {scenario}", "",
            "The seed's figures (Kruzic et al. 2021) are from CoppeliaSim/Newton and another data set: shown for "
            "orientation, not measured here.", "",
            "### Table 2: tip-force nets", "",
-           "| # | architecture (seed Table 1) | RMSE here [N] | epochs (stop) | seed RMSE [N] | here / seed |",
-           "|---|---|---|---|---|---|"]
+           "| # | architecture (seed Table 1) | RMSE here [N] | epochs (stop) | train / val loss, kept epoch | "
+           "seed RMSE [N] | here / seed |",
+           "|---|---|---|---|---|---|---|"]
     ours, seeds = {}, {}
     for i in range(1, 12):
         name = f"seed-tip-{i}"
         r = ok.get(("tip_force", name))
         seed = SEED_TABLE2[name][2]
         if r is None:
-            out.append(f"| {i} | {SEED_TABLE1[name]} | - | - | {seed:.4f} | - |")
+            out.append(f"| {i} | {SEED_TABLE1[name]} | - | - | - | {seed:.4f} | - |")
             continue
         rmse = float(r["rmse"])
         ours[i], seeds[i] = rmse, seed
         out.append(f"| {i} | {SEED_TABLE1[name]} | {rmse:.4f} | {r.get('epochs', '')} ({r.get('stopped_by', '')}) | "
-                   f"{seed:.4f} | {rmse / seed:.2f} |")
+                   f"{_kept_losses(curves.get(name))} | {seed:.4f} | {rmse / seed:.2f} |")
     raw = ok.get(("tip_force", "seed-tip-11-raw"))
     if raw is not None:
         out += ["", f"`seed-tip-11-raw` (#11 on the untared sensor, a reference): {float(raw['rmse']):.4f} N."]
@@ -70,8 +84,9 @@ def comparison(rows: list[dict], scenario: str) -> str:
                 f"- median of each, here: {_order(med_here)}",
                 f"- median of each, seed: {_order(med_seed)}"]
     out += ["", "### Table 3: joint-torque nets", "",
-            "| model | RMSE here [Nm] | epochs (stop) | seed RMSE, sim-ext [Nm] | here / seed | seed RMSE, sim-noext [Nm] |",
-            "|---|---|---|---|---|---|"]
+            "| model | RMSE here [Nm] | epochs (stop) | train / val loss, kept epoch | seed RMSE, sim-ext [Nm] | "
+            "here / seed | seed RMSE, sim-noext [Nm] |",
+            "|---|---|---|---|---|---|---|"]
     for name in TORQUE_NETS:
         r = ok.get(("joint_torque", name))
         ext = SEED_TABLE3.get(("delan" if name.startswith("delan") else name, "sim-ext"))
@@ -80,7 +95,7 @@ def comparison(rows: list[dict], scenario: str) -> str:
             continue
         rmse = float(r["rmse"])
         out.append(f"| {name} | {rmse:.4f} | {r.get('epochs', '')} ({r.get('stopped_by', '')}) | "
-                   f"{'-' if ext is None else f'{ext[2]:.4f}'} | {'-' if ext is None else f'{rmse / ext[2]:.2f}'} | "
+                   f"{_kept_losses(curves.get(name))} | {'-' if ext is None else f'{ext[2]:.4f}'} | {'-' if ext is None else f'{rmse / ext[2]:.2f}'} | "
                    f"{'-' if noext is None else f'{noext[2]:.4f}'} |")
     out += ["", "### The analytic rows on the same test split", ""]
     for task, unit in (("tip_force", "N"), ("joint_torque", "Nm")):
@@ -97,9 +112,10 @@ def main() -> int:
     ap.add_argument("--out", default=None, help="write the markdown here")
     args = ap.parse_args()
     rows = read_results(Path(args.report) / "results.csv")
+    curves = read_curves(Path(args.report) / CURVES_FILE) if (Path(args.report) / CURVES_FILE).is_file() else {}
     scenarios = list(dict.fromkeys(r["scenario"] for r in rows))
     text = f"# The seed's tables beside `{args.report}`\n\n`{' '.join(sys.argv)}`\n\n" + \
-        "\n".join(comparison(rows, s) for s in scenarios)
+        "\n".join(comparison(rows, s, curves) for s in scenarios)
     print(text)
     if args.out:
         Path(args.out).write_text(text)
