@@ -44,10 +44,12 @@ CONTROLS = {
         ("data: 13 of 26 instances", "seed-tip-10", {}, {}, 13),
         ("data: 6 of 26 instances", "seed-tip-10", {}, {}, 6),
         ("bench recipe", "seed-tip-4", {}, {}, None),
+        ("recipe: weight decay 0.1", "seed-tip-4", {"weight_decay": 0.1}, {}, None),
         ("data: 13 of 26 instances", "seed-tip-4", {}, {}, 13),
         ("data: 6 of 26 instances", "seed-tip-4", {}, {}, 6),
         ("bench recipe", "seed-tau-mlp", {}, {}, None),
         ("recipe: longer patience", "seed-tau-mlp", LONGER, {}, None),
+        ("recipe: weight decay 0.1", "seed-tau-mlp", {"weight_decay": 0.1}, {}, None),
         ("recipe: weight decay 1", "seed-tau-mlp", {"weight_decay": 1.0}, {}, None),
         ("capacity: FC 2 x 256", "seed-tau-mlp", {}, {"fc_units": 256}, None),
         ("capacity: FC 3 x 256", "seed-tau-mlp", {}, {"fc_units": 256, "fc_layers": 3}, None),
@@ -55,6 +57,7 @@ CONTROLS = {
         ("data: 6 of 26 instances", "seed-tau-mlp", {}, {}, 6),
         ("bench recipe", "delan-friction", {}, {}, None),
         ("recipe: longer patience", "delan-friction", LONGER, {}, None),
+        ("recipe: weight decay 0.1", "delan-friction", {"weight_decay": 0.1}, {}, None),
     ],
 }
 
