@@ -77,6 +77,7 @@ def main() -> int:
     ap.add_argument("--model", action="append", default=None,
                     help="check only this row (repeat for more; default: the best row of every family)")
     ap.add_argument("--out", default=None, help="write the table to this markdown file")
+    ap.add_argument("--quiet", action="store_true", help="no per-batch progress bar (a log stays readable)")
     args = ap.parse_args()
 
     report = Path(args.report)
@@ -86,7 +87,7 @@ def main() -> int:
         profile = BenchProfile(**{k: tuple(v) if isinstance(v, list) else v for k, v in run["profile"].items()})
     # The bench's own thread count: torch's default (one thread per core) oversubscribes the cores
     # when two checks run side by side, and these tiny nets then train 10x slower (measured).
-    config = dataclasses.replace(profile.train_config(), num_threads=profile.torch_threads)
+    config = dataclasses.replace(profile.train_config(), num_threads=profile.torch_threads, progress=not args.quiet)
     longer = longer_run(config, args.factor)
     lines = [f"# Convergence check of `{report}`", "",
              f"`{' '.join(sys.argv)}`, {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC.", "",
