@@ -92,7 +92,7 @@ def main(argv=None) -> int:
             continue
         out = control_dir(root, preset, train, arch, n)
         print(f"[controls] {preset}: {label} -> {out}", flush=True)
-        r = run_control(data.path, preset, out, args.profile, train, arch, n)
+        r = run_control(data, preset, out, args.profile, train, arch, n)
         base.setdefault(preset, r["val_loss"])
         rel = r["val_loss"] / base[preset] - 1
         row = (f"| {preset} | {label} | {r['n_train']} | {r['n_params']} | {r['epochs']} ({r['stopped_by']}) | "

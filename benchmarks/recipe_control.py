@@ -47,10 +47,11 @@ def first_training_instances(ds: Dataset, k: int) -> Dataset:
 def run_control(data, preset_name: str, out, profile: str = "default", train: dict | None = None,
                 arch: dict | None = None, train_instances: int | None = None) -> dict:
     """Train (or reuse, when ``out`` holds this very run) one control and score it; returns how it stopped,
-    its validation loss and its test RMSE and nMSE on the preset's target."""
+    its validation loss and its test RMSE and nMSE on the preset's target. ``data``: a dataset folder,
+    or a loaded :class:`Dataset` (a caller running many controls verifies its files once)."""
     train = dict(train or {})
     config = dataclasses.replace(get_profile(profile).train_config(), num_threads=1, progress=False, **train)
-    ds = load_dataset(data)
+    ds = data if isinstance(data, Dataset) else load_dataset(data)
     if train_instances is not None:
         ds = first_training_instances(ds, train_instances)
     preset = get_preset(preset_name)

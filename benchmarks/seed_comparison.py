@@ -112,7 +112,7 @@ def main() -> int:
     ap.add_argument("--out", default=None, help="write the markdown here")
     args = ap.parse_args()
     rows = read_results(Path(args.report) / "results.csv")
-    curves = read_curves(Path(args.report) / CURVES_FILE) if (Path(args.report) / CURVES_FILE).is_file() else {}
+    curves = read_curves(Path(args.report) / CURVES_FILE)  # {} for a report without learned rows
     scenarios = list(dict.fromkeys(r["scenario"] for r in rows))
     text = f"# The seed's tables beside `{args.report}`\n\n`{' '.join(sys.argv)}`\n\n" + \
         "\n".join(comparison(rows, s, curves) for s in scenarios)
