@@ -11,12 +11,16 @@ profile's own recipe:
 - data: the same net on the first 6 and 13 of the 26 training instances (how fast does the
   validation loss fall with data? Validation and test instances are the same in every control).
 
+On the ``default`` profile (paper-noext) it compares the bench's recipe with the ``long`` one
+(``learn.train.RECIPES``) on the torque rows of the profile's floors.
+
 The train-loss column is the epoch's running mean at the kept epoch. Test figures are printed for
 reference only: nothing was chosen on them. Controls train into ``--work-root`` (one folder each)
 and a rerun reuses every finished one; deterministic given the profile's seed; one torch thread each.
 
 Run (after ``hybrid-dyn bench --profile seed-sim``, whose dataset it reads from the data cache):
     .venv/bin/python benchmarks/learning_controls.py --profile seed-sim --out reports/seed-sim/controls.md
+    .venv/bin/python benchmarks/learning_controls.py --profile default --out reports/default/controls.md
 """
 from __future__ import annotations
 
@@ -29,8 +33,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from recipe_control import run_control  # noqa: E402
 
 from hybrid_dyn.bench.profiles import get_profile  # noqa: E402
+from hybrid_dyn.learn.train import RECIPES  # noqa: E402
 
 LONGER = {"lr_patience": 10, "patience": 20}
+LONG = RECIPES["long"]  # LONGER and weight decay 0.1
+# The default profile's torque rows on paper-noext, the scenario of its floors: the best row of each
+# family in reports/default, and the other seed torque nets.
+DEFAULT_ROWS = ("seed-tau-mlp", "seed-tau-conv", "seed-tau-lstm", "seed-tau-lstm-opt", "tau-mlp-wide",
+                "residual-rnea-bw", "delan-friction")
 
 # (what is asked, preset, TrainConfig changes, Preset changes, training instances). The first
 # row of each preset is its bench run (the profile's recipe on all the training data).
@@ -59,6 +69,8 @@ CONTROLS = {
         ("recipe: longer patience", "delan-friction", LONGER, {}, None),
         ("recipe: weight decay 0.1", "delan-friction", {"weight_decay": 0.1}, {}, None),
     ],
+    "default": [c for p in DEFAULT_ROWS for c in (("bench recipe", p, {}, {}, None),
+                                                    ("recipe: long", p, LONG, {}, None))],
 }
 
 

@@ -199,13 +199,11 @@ PROFILES = {
               "seed-tau-mlp", "seed-tau-lstm", "residual-rnea", "delan-friction",
               "identified-ols", "identified-consistent", "identified-sigmoid-friction", "rnea+identified-friction",
               "base-wrench-identified", "base-wrench-identified-tared", "identified-bw-tared"),
-        # The short recipe: the default's patience of 20 would run nearly every row to the 20-epoch cap.
-        recipe="short", train=dict(max_epochs=20),
+        train=dict(max_epochs=20),
         scenario_overrides={"mismatch-ext": dict(n_instances=30)},
         notes=("A demo: one seed net of each architecture (MLP #2, conv #5, LSTM #8, and the torque MLP and LSTM), "
                "the residual nets and DeLaN with friction, on a small mismatch-ext (30 instances of 5 trajectories); "
-               "the short recipe (plateau patience 3, early-stopping patience 10, no weight decay), at most 20 epochs "
-               "(rows stopped by that cap carry a dagger). The black-box "
+               "the default recipe, at most 20 epochs (rows stopped by that cap carry a dagger). The black-box "
                "torque nets are data-limited at this size (reports/data-control). The comparisons are in "
                "reports/default and reports/seed-sim.",),
     ),
@@ -227,10 +225,9 @@ PROFILES = {
         # contact-steps (1 kHz) tests the physics estimators on steps; the nets' windows are
         # counted in samples and were sized for 100 Hz, so they are not trained on it.
         scenario_families={"contact-steps": ("analytic",)},
-        notes=("Training: the default recipe on full epochs (AdamW 1e-3 with weight decay 0.1 on the weight "
-               "matrices, reduce-on-plateau x0.3 after 10 epochs down to 1e-5, early stopping with patience 20, LSTM "
-               "gradient norm clipped at 1, batch 256, at most 200 epochs). The seed's recipe (Adam at a constant "
-               "rate, patience 5) is `--recipe seed`.",
+        notes=("Training: the default recipe on full epochs (Adam 1e-3, reduce-on-plateau x0.3 after 3 epochs down "
+               "to 1e-5, early stopping with patience 10, LSTM gradient norm clipped at 1, batch 256, at most 200 "
+               "epochs). The seed's recipe (constant rate, patience 5) is `--recipe seed`.",
                "Data: paper-noext, paper-ext and mismatch-ext hold 40 instances of 5-10 trajectories (the generator's "
                "default is 40 of 5-20), so that the whole bench trains within 120 minutes on 2 cores; the data were "
                "shrunk, never the training.",
@@ -256,8 +253,7 @@ PROFILES = {
         # floor after 15 epochs with its untrained weights (val 1.196, test nMSE 0.952); at a constant
         # 1e-3 it stops by patience at epoch 236 (val 0.533, nMSE 0.093), and seed-tau-mlp and
         # seed-tau-lstm gain on validation too (benchmarks/recipe_control.py --set lr_schedule='"none"').
-        # The short recipe: reports/real was measured without weight decay.
-        recipe="short", train=dict(max_epochs=300, batch_size=256, patience=25, lr_schedule="none"),
+        train=dict(max_epochs=300, batch_size=256, patience=25, lr_schedule="none"),
         notes=("Panda (Gaz et al. 2019's exciting trajectory, ../shared/data/real or $HYBRID_DYN_REAL_LOGS; the arm "
                "carried no hand, so the analytic model is panda[tool=none]): the log cut into 10 contiguous time "
                "blocks, split 6/2/2 (benchmarks/real/panda.toml); identified rows fit on its train and val blocks.",
@@ -278,17 +274,12 @@ PROFILES = {
     # The seed's own data conditions (its 3.1): 20 Hz, exact states, no sensor noise or bias.
     "seed-sim": BenchProfile(
         name="seed-sim", scenarios=("seed-sim",), generator_profile="default",
-        # The short recipe, with which reports/seed-sim was measured. Its controls
-        # (reports/seed-sim/controls.md) show the default's longer patience buys nothing here
-        # and its weight decay 0.1 lowers the validation loss by 4.6-26.7 %.
-        recipe="short",
         notes=("seed-sim reproduces the seed's data conditions (its section 3.1): recorded every 50 ms (20 Hz), "
                "q, qd, qdd exact from the simulator, no sensor noise and no bias, the same bell pulses and "
                "trajectory rules, 5-50 trajectories per instance.",
-               "Training: the short recipe (Adam 1e-3, reduce-on-plateau x0.3 after 3 epochs down to 1e-5, "
-               "early stopping with patience 10, LSTM gradient norm clipped at 1, batch 256, full epochs; the "
-               "default recipe's longer patience and weight decay are measured in controls.md). The seed's recipe "
-               "(constant rate, patience 5) is `--recipe seed`.",
+               "Training: the default recipe (Adam 1e-3, reduce-on-plateau x0.3 after 3 epochs down to 1e-5, "
+               "early stopping with patience 10, LSTM gradient norm clipped at 1, batch 256, full epochs). The "
+               "seed's recipe (constant rate, patience 5) is `--recipe seed`.",
                "Sequence models are scored on every sample: the first L-1 windows of each instance are edge-padded "
                "with its first sample, as a streaming estimator starts up; all rows see the same test samples."),
     ),

@@ -41,9 +41,9 @@ def register(sub) -> None:
 
 
 def _train_options(p) -> None:
-    p.add_argument("--recipe", default="default", help="training recipe: default (reduce-on-plateau after 10 epochs, "
-                   "patience 20, weight decay 0.1, LSTM gradients clipped), short (plateau after 3, patience 10, "
-                   "no decay) or seed (the seed's: constant rate, patience 5); the options below override it")
+    p.add_argument("--recipe", default="default", help="training recipe: default (reduce-on-plateau after 3 epochs, "
+                   "patience 10, LSTM gradients clipped), long (plateau after 10, patience 20, weight decay 0.1) "
+                   "or seed (the seed's: constant rate, patience 5); the options below override it")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--epochs", type=int, default=None, help="maximum epochs (early stopping ends sooner; default 200)")
     p.add_argument("--patience", type=int, default=None, help="epochs without validation improvement before stopping")
@@ -51,7 +51,7 @@ def _train_options(p) -> None:
     p.add_argument("--lr", type=float, default=None, help="initial learning rate (default 1e-3)")
     p.add_argument("--lr-schedule", default=None, choices=["plateau", "none"])
     p.add_argument("--weight-decay", type=float, default=None,
-                   help="decoupled weight decay of the weight matrices (AdamW; 0: plain Adam; default: the recipe's)")
+                   help="decoupled weight decay of the weight matrices (AdamW; default 0: plain Adam)")
     p.add_argument("--max-batches-per-epoch", type=int, default=None)
     p.add_argument("--analytic-params", default=None, help="parameter set or JSON for residual models' analytic part")
     p.add_argument("--device", default="auto", help="auto, cpu or cuda")

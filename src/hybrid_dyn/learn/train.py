@@ -7,18 +7,18 @@ Three recipes (:data:`RECIPES`, ``--recipe``):
   until the validation loss has not improved for 5 consecutive epochs.
 - ``default`` (this toolkit's): the same, plus what an expert adds so that a
   net is trained to convergence rather than to its first plateau: the
-  learning rate is cut by ``lr_factor`` after ``lr_patience`` = 10 epochs without
+  learning rate is cut by ``lr_factor`` after ``lr_patience`` epochs without
   improvement (reduce-on-plateau) down to a floor ``min_lr``; early stopping
-  waits ``patience`` = 20 epochs, so a cut rate gets time to pay off; the
+  waits ``patience`` = 10 epochs, so a cut rate gets time to pay off; the
   gradient norm of recurrent nets is clipped at ``grad_clip`` (LSTMs on
-  standardized inputs can take an exploding step early on); the weight matrices
-  decay by ``weight_decay`` = 0.1 (AdamW), because on the small simulated sets every
-  net overfits (``benchmarks/learning_controls.py`` measures what each part buys).
-  Batch size: see ``docs/models.md`` (a measured sweep, ``benchmarks/learn_speed.py --sweep``).
-- ``short``: the default recipe before stop 23 (plateau patience 3, early stopping
-  10, no weight decay); the quick demo and the reports measured with it use it.
+  standardized inputs can take an exploding step early on). Batch size: see
+  ``docs/models.md`` (a measured sweep, ``benchmarks/learn_speed.py --sweep``).
+- ``long``: ``default`` with the plateau's patience 10, early stopping's 20 and
+  decoupled weight decay 0.1 of the weight matrices (AdamW): it trains the nets that
+  ``default`` stops early, and regularizes the ones that overfit a small set, at 2-5x the
+  epochs (``benchmarks/learning_controls.py`` measures what each part buys).
 
-Both keep the weights of the best validation epoch (as Keras'
+All keep the weights of the best validation epoch (as Keras'
 ``restore_best_weights``); the untrained model counts as epoch "-1", so a
 residual model that never beats its physics part on validation stays it.
 A run ends for one of three reasons, recorded as ``stopped_by`` in the model's
@@ -112,16 +112,16 @@ class TrainConfig:
     seed: int = 0
     batch_size: int = 256
     max_epochs: int = 200
-    patience: int = 20
+    patience: int = 10
     min_delta: float = 0.0
     min_rel_delta: float = 1e-4
     lr: float = 1e-3
     lr_schedule: str = "plateau"
     lr_factor: float = 0.3
-    lr_patience: int = 10
+    lr_patience: int = 3
     min_lr: float = 1e-5
     grad_clip: float | None = 1.0
-    weight_decay: float = 0.1
+    weight_decay: float = 0.0
     max_batches_per_epoch: int | None = None
     analytic_params: str | None = None
     observer_gain: float = 20.0
@@ -193,15 +193,14 @@ LR_SCHEDULES = ("plateau", "none")
 STOP_REASONS = ("patience", "lr-floor", "epoch-cap")
 
 # Named training recipes (TrainConfig fields). "seed": the seed's 3.2 exactly (constant rate,
-# patience 5, no clipping, no decay); "default": the TrainConfig defaults (module docstring).
+# patience 5, no clipping); "default": the TrainConfig defaults; "long": module docstring.
 RECIPES = {
     "default": {},
-    # The default recipe until stop 23: the plateau cut after 3 epochs, patience 10, no weight decay.
-    # On paper-noext it cut the rate while DeLaN was still improving (reports/default/convergence.md);
-    # kept for the quick demo (its time budget) and the reports measured with it (seed-sim, real).
-    "short": dict(patience=10, lr_patience=3, weight_decay=0.0),
-    "seed": dict(lr_schedule="none", patience=5, grad_clip=None, min_rel_delta=0.0, weight_decay=0.0, batch_size=256,
-                 max_epochs=200),
+    # Trains to convergence where "default" stops early (docs/models.md, reports/default/controls.md):
+    # the plateau waits 10 epochs, early stopping 20, weight matrices decay by 0.1. It costs 2-5x
+    # the epochs, which the default bench cannot afford within its 120 minutes on 2 cores.
+    "long": dict(patience=20, lr_patience=10, weight_decay=0.1),
+    "seed": dict(lr_schedule="none", patience=5, grad_clip=None, min_rel_delta=0.0, batch_size=256, max_epochs=200),
 }
 
 
