@@ -15,8 +15,8 @@ Three recipes (:data:`RECIPES`, ``--recipe``):
   ``docs/models.md`` (a measured sweep, ``benchmarks/learn_speed.py --sweep``).
 - ``long``: ``default`` with the plateau's patience 10, early stopping's 20 and
   decoupled weight decay 0.1 of the weight matrices (AdamW): it trains the nets that
-  ``default`` stops early, and regularizes the ones that overfit a small set, at 2-5x the
-  epochs (``benchmarks/learning_controls.py`` measures what each part buys).
+  ``default`` stops early, and regularizes the ones that overfit a small set, at 1.8-3.7x the
+  epochs on paper-noext's torque rows (``benchmarks/learning_controls.py`` measures what it buys).
 
 All keep the weights of the best validation epoch (as Keras'
 ``restore_best_weights``); the untrained model counts as epoch "-1", so a
@@ -196,9 +196,9 @@ STOP_REASONS = ("patience", "lr-floor", "epoch-cap")
 # patience 5, no clipping); "default": the TrainConfig defaults; "long": module docstring.
 RECIPES = {
     "default": {},
-    # Trains to convergence where "default" stops early (docs/models.md, reports/default/controls.md):
-    # the plateau waits 10 epochs, early stopping 20, weight matrices decay by 0.1. It costs 2-5x
-    # the epochs, which the default bench cannot afford within its 120 minutes on 2 cores.
+    # Trains further where "default" stops early (docs/models.md, reports/default/controls.md): the
+    # plateau waits 10 epochs, early stopping 20, weight matrices decay by 0.1. It cost 1.8-3.7x the
+    # epochs on paper-noext's torque rows, which the default bench cannot afford in 120 minutes on 2 cores.
     "long": dict(patience=20, lr_patience=10, weight_decay=0.1),
     "seed": dict(lr_schedule="none", patience=5, grad_clip=None, min_rel_delta=0.0, batch_size=256, max_epochs=200),
 }
