@@ -32,14 +32,17 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from recipe_control import run_control  # noqa: E402
 
-from hybrid_dyn.bench.profiles import get_profile  # noqa: E402
-from hybrid_dyn.learn.train import RECIPES  # noqa: E402
+from convergence import longer_run  # noqa: E402
 
-LONGER = {"lr_patience": 10, "patience": 20}
-LONG = RECIPES["long"]  # LONGER and weight decay 0.1
-# The convergence check of `long` (benchmarks/convergence.py's longer_run): 4x both patiences, the
-# rate floor three cuts lower so that patience, not the floor, ends the run.
-LONG_4X = {**LONG, "patience": 4 * LONG["patience"], "lr_patience": 4 * LONG["lr_patience"], "min_lr": 1e-5 * 0.3 ** 3}
+from hybrid_dyn.bench.profiles import get_profile  # noqa: E402
+from hybrid_dyn.learn.train import RECIPES, TrainConfig  # noqa: E402
+
+LONG = RECIPES["long"]  # the longer patiences and weight decay 0.1
+LONGER = {k: LONG[k] for k in ("lr_patience", "patience")}  # the longer patiences alone
+# The convergence check of `long`, built as convergence.py builds it: 4x both patiences, the rate
+# floor lowered so that patience, not the floor, ends the run.
+_LONG_4X = longer_run(TrainConfig.recipe("long"), 4)
+LONG_4X = {**LONG, **{k: getattr(_LONG_4X, k) for k in ("patience", "lr_patience", "min_lr")}}
 LONG_CHECKED = ("seed-tau-mlp", "seed-tau-lstm-opt", "delan-friction")
 # The default profile's torque rows on paper-noext, the scenario of its floors: the best row of each
 # family in reports/default, and the other seed torque nets.
