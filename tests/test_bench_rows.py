@@ -109,3 +109,17 @@ def test_no_import_cycles_in_bench_and_between_dataset_and_store():
             return any(n == b or (n not in seen and reaches(n, b, seen | {n})) for n in graph[a])
 
         assert not [m for m in sorted(mods) if reaches(m, m, set())], pkg
+
+
+def test_pretrain_queues_the_dearest_architectures_first():
+    """The bench's worker pool starts the DeLaN and wide LSTM rows before the MLPs (runner.epoch_cost_rank),
+    so that no core idles at the end while the other trains a DeLaN that was queued last."""
+    from hybrid_dyn.bench.runner import epoch_cost_rank
+    from hybrid_dyn.learn.presets import PRESETS
+
+    order = sorted(PRESETS, key=epoch_cost_rank)
+    assert order[0] == "delan-residual"
+    assert order.index("delan-friction") < order.index("seed-tau-lstm-opt") < order.index("seed-tau-lstm") \
+        < order.index("seed-tau-conv") < order.index("seed-tau-mlp")
+    assert order.index("seed-tip-11") < order.index("seed-tip-9")  # 2 x 32 LSTM before 16 units, window 5
+    assert order[-1] in ("seed-tip-3",)  # the narrowest MLP
