@@ -41,6 +41,7 @@ def test_tiny_bench_writes_every_row_and_column(tmp_path):
                  "rmse_by_family_tip_force.png", "traces_tip_force_mismatch-ext.png",
                  "curves.json", "learning_curves_mismatch-ext.png"):
         assert (tmp_path / "report" / name).is_file(), name
+    assert "training: recipe `default`" in (tmp_path / "report" / "README.md").read_text()  # the profile's recipe
     # A rerun reuses the cached dataset and trained models rather than redoing them.
     rows2 = run_bench(tiny, tmp_path / "report", data_root=tmp_path / "data", work_root=tmp_path / "runs",
                       log=lambda m: None)
