@@ -352,3 +352,17 @@ def test_dropout_acts_in_training_only(friction_set, tmp_path):
     assert torch.equal(model.module.net(x), model.module.net(x))
     inst = friction_set.split("test")[0]
     np.testing.assert_array_equal(model.predict([inst])[0], model.predict([inst])[0])
+
+
+def test_a_residual_net_trains_on_the_callers_thread_count(friction_set, tmp_path, monkeypatch):
+    """Pinocchio's parallel RNEA, which computes the residual's prior, sets OpenMP's thread count for the
+    process, and torch's count is OpenMP's. The net must still train on the caller's count (the bench's
+    workers ask for one thread each), and the caller must get its count back."""
+    seen = []
+    fit = train_mod._fit
+    monkeypatch.setattr(train_mod, "_fit", lambda *a, **k: (seen.append(torch.get_num_threads()), fit(*a, **k))[1])
+    cfg = TrainConfig(max_epochs=1, max_batches_per_epoch=2, batch_size=64, progress=False)  # num_threads: the caller's
+    torch.set_num_threads(1)  # building friction_set ran Pinocchio's parallel RNEA: the count is 2 on 2 cores
+    train_model(friction_set, "residual-rnea", tmp_path / "m", cfg)
+    assert seen == [1]
+    assert torch.get_num_threads() == 1
