@@ -255,7 +255,9 @@ def _claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[d
         refuse_foreign(out_dir, "benchmark report",
                        f"it holds {', '.join(present[:5])}{' ...' if len(present) > 5 else ''} but no run.json")
     out_dir.mkdir(parents=True, exist_ok=True)
-    write_json(marker, {"bench_report": 1, "invocations": []})
+    # The profile now, not only at the end: the report of an interrupted bench (``hybrid-dyn report``)
+    # still says what was run, and with which recipe.
+    write_json(marker, {"bench_report": 1, "invocations": [], "profile": profile.to_dict()})
     return []
 
 
