@@ -443,9 +443,8 @@ def _train_locked(ds: Dataset, preset: Preset, out_dir: Path, config: TrainConfi
 
     # Read before any analytic prior or sensor tare is computed: Pinocchio's parallel RNEA sets
     # OpenMP's thread count for the whole process, and torch's count is OpenMP's. Left so, a residual
-    # net asked to train on one thread trained on all cores, beside the bench's other worker: 3.5x
-    # slower per epoch (residual-rnea 11 s, against 3.1 s alone), and not the run that
-    # `hybrid-dyn train --threads 1` gives.
+    # net asked to train on one thread trained on all cores, beside the bench's other worker: about 3x
+    # slower per epoch (residual-rnea 11.1 s against 3.6 s; docs/models.md, "Training").
     caller_threads = torch.get_num_threads()
 
     robot_name = ds.meta.get("robot")
