@@ -362,7 +362,7 @@ def test_a_residual_net_trains_on_the_callers_thread_count(friction_set, tmp_pat
     fit = train_mod._fit
     monkeypatch.setattr(train_mod, "_fit", lambda *a, **k: (seen.append(torch.get_num_threads()), fit(*a, **k))[1])
     cfg = TrainConfig(max_epochs=1, max_batches_per_epoch=2, batch_size=64, progress=False)  # num_threads: the caller's
-    torch.set_num_threads(1)  # building friction_set ran Pinocchio's parallel RNEA: the count is 2 on 2 cores
+    torch.set_num_threads(1)  # what the bench's workers ask for
     train_model(friction_set, "residual-rnea", tmp_path / "m", cfg)
     assert seen == [1]
     assert torch.get_num_threads() == 1

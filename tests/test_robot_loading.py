@@ -110,3 +110,24 @@ def test_q_outside_limits_warns_but_computes(panda):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         panda.gravity(np.array(panda.spec.home))  # inside: silent
+
+
+def test_the_parallel_rnea_leaves_torchs_thread_count_as_it_found_it():
+    """Pinocchio's rneaInParallel sets OpenMP's thread count for the process, and torch's count is OpenMP's:
+    a batch of analytic torques must not leave a one-thread trainer on the RNEA pool's threads. The batch
+    itself still equals Pinocchio's per-sample RNEA."""
+    import pinocchio as pin
+    import torch
+
+    robot = hd.load_robot("panda", num_threads=2)
+    rng = np.random.default_rng(0)
+    q, qd, qdd = (rng.uniform(-1, 1, (200, robot.nv)) for _ in range(3))
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        tau = robot.inverse_dynamics(q, qd, qdd)
+        assert torch.get_num_threads() == 1
+    finally:
+        torch.set_num_threads(before)
+    ref = np.stack([pin.rnea(robot.model, robot.data, q[i], qd[i], qdd[i]) for i in range(len(q))])
+    np.testing.assert_allclose(tau, ref, rtol=0, atol=1e-9)

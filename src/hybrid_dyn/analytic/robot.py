@@ -16,6 +16,7 @@ from __future__ import annotations
 from ..errors import HybridDynError
 import math
 import os
+import sys
 import warnings
 from dataclasses import dataclass
 
@@ -229,8 +230,17 @@ class Robot:
             pool = pin.ModelPool(model, self.num_threads)
             setattr(self, pool_attr, pool)
         tau = np.empty((model.nv, n), order="F")
+        # rneaInParallel sets OpenMP's thread count for the whole process, and torch's count is
+        # OpenMP's: put it back, or a net trained or timed after an analytic batch runs on this
+        # pool's threads (a residual net's prior left the bench's one-thread workers on two, beside
+        # the other worker: about 3x slower per epoch, docs/models.md "Training"). torch is not
+        # imported here for it; where no one loaded it, there is nothing to restore.
+        torch = sys.modules.get("torch")
+        threads = torch.get_num_threads() if torch is not None else None
         pin.rneaInParallel(self.num_threads, pool, np.asfortranarray(q.T), np.asfortranarray(v.T),
                            np.asfortranarray(a.T), tau)
+        if threads is not None:
+            torch.set_num_threads(threads)
         return tau.T
 
     def inverse_dynamics(self, q, qd, qdd) -> np.ndarray:

@@ -70,10 +70,7 @@ class BenchProfile:
 
         # --params is the nominal model: the residual rows' priors sit on it too (identified rows replace it).
         nominal = {"analytic_params": self.params} if self.params is not None else {}
-        # The thread count is the profile's, whatever the process's count is when a row trains: the
-        # analytic rows' parallel RNEA resets OpenMP's (torch's) count in the bench's own process.
-        return TrainConfig.recipe(self.recipe, **{"seed": self.seed, "num_threads": self.torch_threads, **nominal,
-                                                  **self.train})
+        return TrainConfig.recipe(self.recipe, **{"seed": self.seed, **nominal, **self.train})
 
     def selected_rows(self) -> list[Row]:
         """The rows this profile runs (where they apply), in declaration order."""

@@ -242,11 +242,10 @@ def _device(name: str) -> torch.device:
 
 
 @contextlib.contextmanager
-def _deterministic(num_threads: int | None = None, caller_threads: int | None = None):
+def _deterministic(num_threads: int | None = None):
     """Deterministic algorithms (and the thread count) for the duration of training,
-    then the caller's settings back (``caller_threads``: the count to restore, when it was
-    read before something else changed it)."""
-    before, threads = torch.are_deterministic_algorithms_enabled(), caller_threads or torch.get_num_threads()
+    then the caller's settings back."""
+    before, threads = torch.are_deterministic_algorithms_enabled(), torch.get_num_threads()
     torch.use_deterministic_algorithms(True, warn_only=True)
     if num_threads:
         torch.set_num_threads(num_threads)
@@ -441,12 +440,6 @@ def _train_locked(ds: Dataset, preset: Preset, out_dir: Path, config: TrainConfi
     """Checks of robot and data first (nothing is written before they pass), then training."""
     from ..description import available_robots, has_description
 
-    # Read before any analytic prior or sensor tare is computed: Pinocchio's parallel RNEA sets
-    # OpenMP's thread count for the whole process, and torch's count is OpenMP's. Left so, a residual
-    # net asked to train on one thread trained on all cores, beside the bench's other worker: about 3x
-    # slower per epoch (residual-rnea 11.1 s against 3.6 s; docs/models.md, "Training").
-    caller_threads = torch.get_num_threads()
-
     robot_name = ds.meta.get("robot")
     if not robot_name:
         raise ModelError(f"dataset {ds.path} does not name its robot")
@@ -497,7 +490,7 @@ def _train_locked(ds: Dataset, preset: Preset, out_dir: Path, config: TrainConfi
     x_mean, x_std = _stats(ws_train.x)
     y_mean, y_std = _stats(ws_train.y)
 
-    with _deterministic(config.num_threads or caller_threads, caller_threads):
+    with _deterministic(config.num_threads):
         torch.manual_seed(config.seed)
         module = HybridModel(preset, widths)
         module.set_normalization(x_mean, x_std, y_mean, y_std)
