@@ -122,4 +122,4 @@ def test_pretrain_queues_the_dearest_architectures_first():
     assert order.index("delan-friction") < order.index("seed-tau-lstm-opt") < order.index("seed-tau-lstm") \
         < order.index("seed-tau-conv") < order.index("seed-tau-mlp")
     assert order.index("seed-tip-11") < order.index("seed-tip-9")  # 2 x 32 LSTM before 16 units, window 5
-    assert order[-1] in ("seed-tip-3",)  # the narrowest MLP
+    assert order[-1] == "seed-tip-3"  # the narrowest MLP

@@ -448,7 +448,7 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
         f"- scenarios: {', '.join(labels)}; generator profile `{prof.get('generator_profile')}`; "
         f"seed {prof.get('seed')}; training: "
         + (f"recipe `{prof['recipe']}`, {json.dumps(prof.get('train', {}))}" if prof.get("recipe")
-           else "not recorded in run.json (an interrupted bench writes its profile only when it ends)"),
+           else "not recorded in run.json (an interrupted bench of an older version, which recorded it only at the end)"),
         *([f"- analytic model: " + ", ".join(f"{k} `{prof[k]}`" for k in ("robot", "params", "tool") if prof.get(k))]
           if any(prof.get(k) for k in ("robot", "params", "tool")) else []),
         f"- wall time of this invocation: {meta.get('wall_seconds', float('nan')) / 60:.1f} min (datasets and trained "
