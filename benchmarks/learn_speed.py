@@ -23,6 +23,16 @@ Each run trains into its own folder under ``--work``, so a killed sweep continue
 where it stopped.
 
     taskset -c 1 .venv/bin/python benchmarks/learn_speed.py --sweep --seeds 0 1 --out runs/batch-sweep.md
+
+``--loop`` (issue 26): per family, at the budgeted recipe's batch, the training loop's samples/s
+(``train_model`` under the ``budget`` recipe, validation rounds at the recipe's spacing of
+``BUDGET_STEPS / budget_evals`` steps included) beside the bare forward-backward-Adam step of the
+same module on one batch already in memory; and DeLaN's forward-mode terms beside the
+``torch.func`` oracle (``terms_autograd``) in the same bare step. One torch thread, medians of
+``--repeats`` in one run. Floors: loop >= 0.7x bare for every family; DeLaN (with friction)
+forward-mode >= 2x the oracle.
+
+    nice .venv/bin/python benchmarks/learn_speed.py --loop
 """
 from __future__ import annotations
 
@@ -252,6 +262,103 @@ def sweep(args) -> int:
     return 0
 
 
+# ----------------------------------------------------------------- loop against bare step
+LOOP_PRESETS = {"seed-tau-mlp": "MLP", "seed-tip-4": "conv", "seed-tau-lstm-opt": "LSTM",
+                "residual-rnea": "residual", "delan-friction": "DeLaN"}
+LOOP_FLOOR, DELAN_FLOOR = 0.7, 2.0
+
+
+def bare_step(model, ws, batch: int, oracle: bool = False):
+    """forward + backward + Adam step of a copy of ``model``'s module on one in-memory batch of ``ws``:
+    (the step, samples per step). ``oracle``: a DeLaN's torques come from its ``torch.func`` oracle
+    (``terms_autograd``) instead of its forward-mode terms."""
+    import copy
+
+    from hybrid_dyn.learn.train import _batches
+
+    module = copy.deepcopy(model.module).train()
+    if oracle:
+        delan = module.delan
+        delan.tau = lambda q, qd, qdd: delan.terms_autograd(q, qd, qdd)["tau"]  # shadows the method
+    opt = torch.optim.Adam(module.parameters(), lr=1e-4)
+    idx = np.sort(np.random.default_rng(0).choice(len(ws), size=min(batch, len(ws)), replace=False))
+    x, y, p = _batches(ws, idx, torch.device("cpu"))
+
+    def step():
+        opt.zero_grad(set_to_none=True)
+        loss = module.standardized_loss(module(x, p), y)
+        loss.backward()
+        opt.step()
+    return step, len(idx)
+
+
+def interleaved_rates(steps_and_sizes: list, n_steps: int, repeats: int) -> list[float]:
+    """Median samples/s of each step, timed in turn within every repeat, so that load from other
+    processes on a shared machine falls on all of them alike."""
+    for step, _ in steps_and_sizes:
+        for _ in range(3):
+            step()
+    rates = [[] for _ in steps_and_sizes]
+    for _ in range(repeats):
+        for (step, size), out in zip(steps_and_sizes, rates):
+            t0 = time.perf_counter()
+            for _ in range(n_steps):
+                step()
+            out.append(n_steps * size / (time.perf_counter() - t0))
+    return [float(np.median(r)) for r in rates]
+
+
+def loop_table(args) -> int:
+    from hybrid_dyn.learn.train import BUDGET_STEPS
+
+    torch.set_num_threads(1)
+    with tempfile.TemporaryDirectory() as tmp:
+        robot = hd.load_robot("panda")
+        ds = load_dataset(make_synthetic_dataset(Path(tmp) / "ds", robot, n_instances=10, n_samples=2000, seed=0,
+                                                 friction=robot.spec.friction("gaz2019"), noise=0.01))
+        recipe = TrainConfig.recipe("budget")
+        batch = recipe.batch_size
+        print(f"torch {torch.__version__}, 1 thread, batch {batch} (the budget recipe's); synthetic Panda set, "
+              f"{sum(len(i) for i in ds.split('train'))} training samples; medians of {args.repeats}")
+        print(f"{'family':9s} {'preset':18s} {'loop samples/s':>15s} {'bare samples/s':>15s} {'loop/bare':>9s}  floor")
+        ok = True
+        for name, family in LOOP_PRESETS.items():
+            kind = get_preset(name).kind
+            evals = 2  # validation every budget/2 steps of this run = the recipe's spacing, BUDGET/40
+            steps = max(2, 2 * BUDGET_STEPS[kind] // recipe.budget_evals)
+            rates = []
+            for r in range(args.repeats):
+                cfg = TrainConfig.recipe("budget", budget_steps=steps, budget_evals=evals, seed=r, progress=False,
+                                         num_threads=1)
+                model = train_model(ds, name, Path(tmp) / f"{name}-{r}", cfg)
+                rates.append(steps * batch / model.train_seconds)
+            loop = float(np.median(rates))
+            ws = model_split(model, ds)
+            bare, = interleaved_rates([bare_step(model, ws, batch)], 20, args.repeats)
+            met = loop >= LOOP_FLOOR * bare
+            ok &= met
+            print(f"{family:9s} {name:18s} {loop:15.0f} {bare:15.0f} {loop / bare:9.2f}  >= {LOOP_FLOOR} "
+                  f"{'met' if met else 'NOT MET'}", flush=True)
+            if kind == "delan":
+                fwd, oracle = interleaved_rates([bare_step(model, ws, batch), bare_step(model, ws, batch, oracle=True)],
+                                                20, 2 * args.repeats + 1)
+                met = fwd >= DELAN_FLOOR * oracle
+                ok &= met
+                print(f"{'':9s} {name:18s} forward-mode {fwd:.0f} samples/s, torch.func oracle {oracle:.0f} samples/s:"
+                      f" {fwd / oracle:.2f}x  >= {DELAN_FLOOR} {'met' if met else 'NOT MET'}", flush=True)
+        print("floors:", "all met" if ok else "NOT all met")
+    return 0
+
+
+def model_split(model, ds):
+    """The training split as the model's training loop windows it (prior included)."""
+    from hybrid_dyn.data.windows import WindowedSplit
+
+    train = ds.split("train")
+    extra = {"prior": model.prior.compute_instances(train)} if model.prior else None
+    return WindowedSplit(model.sensor_view(train), model.window, list(model.inputs), list(model.targets), extra=extra)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=None, help="dataset directory (default: a synthetic Panda set; "
@@ -259,6 +366,8 @@ def main() -> int:
     ap.add_argument("--threads", type=int, default=1, help="torch threads for training and batched inference")
     ap.add_argument("--epochs", type=int, default=2)
     ap.add_argument("--calls", type=int, default=2000, help="single calls timed per preset")
+    ap.add_argument("--loop", action="store_true", help="the training loop against the bare step, per family")
+    ap.add_argument("--repeats", type=int, default=3, help="--loop: repeats per measurement (median)")
     sw = ap.add_argument_group("batch-size sweep (--sweep)")
     sw.add_argument("--sweep", action="store_true", help="run the batch-size sweep instead of the speed table")
     sw.add_argument("--presets", nargs="+", default=list(SWEEP_PRESETS), metavar="PRESET")
@@ -280,6 +389,8 @@ def main() -> int:
     args = ap.parse_args()
     if args.sweep:
         return sweep(args)
+    if args.loop:
+        return loop_table(args)
 
     with tempfile.TemporaryDirectory() as tmp:
         if args.data:

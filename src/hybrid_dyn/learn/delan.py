@@ -118,28 +118,37 @@ class DeepLagrangianNetwork(nn.Module):
         return (v @ linears[0].weight) / self.q_std
 
     def terms(self, q, qd, qdd) -> dict:
-        """tau [Nm] (B, nv), H [kg m^2] (B, nv, nv), c and g [Nm] (B, nv), all from the Lagrangian.
+        """tau [Nm] (B, nv), H [kg m^2] (B, nv, nv), c and g [Nm] (B, nv), all from the Lagrangian."""
+        L, c, g = self._factor_coriolis_gravity(q, qd)
+        H = L @ L.transpose(1, 2) + self.eps * torch.eye(self.nv, dtype=q.dtype, device=q.device)
+        return {"tau": (H @ qdd.unsqueeze(2)).squeeze(2) + c + g, "H": H, "c": c, "g": g}
+
+    def _factor_coriolis_gravity(self, q, qd):
+        """L(q) (B, nv, nv), c(q, qd) and g(q) [Nm] (B, nv).
 
         With o the L-network's output, L = place(softplus(o_diag), o_off), so
         dL/dq_k = place(s * do/dq_k) with s = sigmoid(o_diag) on the diagonal entries and 1 elsewhere.
         Then, with u = L^T qd and L_dot = sum_k dL/dq_k qd_k (o's derivative along qd, forward mode):
         H_dot qd = L_dot u + L (L_dot^T qd), and 1/2 d(qd^T H qd)/dq_k = qd^T dL/dq_k u, a
         vector-Jacobian product of the L-network (pulled back by hand); g = dV/dq likewise.
+        The 7 x 7 products are written as broadcast sums: batched small matrix products cost more.
         """
         nv = self.nv
         out, out_dot, slopes = self._forward_with_tangent(self.l_net, q, qd)
         s = torch.cat([torch.sigmoid(out[:, :nv]), torch.ones_like(out[:, nv:])], 1)  # d entries / d out
         L = (torch.cat([nn.functional.softplus(out[:, :nv]), out[:, nv:]], 1) @ self.place).reshape(-1, nv, nv)
         L_dot = ((s * out_dot) @ self.place).reshape(-1, nv, nv)
-        u = (qd.unsqueeze(1) @ L).squeeze(1)  # L^T qd
-        H = L @ L.transpose(1, 2) + self.eps * torch.eye(nv, dtype=q.dtype, device=q.device)
-        H_dot_qd = (L_dot @ u.unsqueeze(2) + L @ (qd.unsqueeze(1) @ L_dot).transpose(1, 2)).squeeze(2)
+        u = _t_apply(L, qd)  # L^T qd
+        H_dot_qd = _apply(L_dot, u) + _apply(L, _t_apply(L_dot, qd))
         # qd^T dL_k u = sum_m w_m s_m do_m/dq_k, with w the outer product qd u^T read at L's entries.
         w = (qd.unsqueeze(2) * u.unsqueeze(1)).reshape(-1, nv * nv) @ self.place.T
         c = H_dot_qd - self._pullback(self.l_net, slopes, w * s)
-        g = self.gravity(q)
-        tau = (H @ qdd.unsqueeze(2)).squeeze(2) + c + g
-        return {"tau": tau, "H": H, "c": c, "g": g}
+        return L, c, self.gravity(q)
+
+    def tau(self, q, qd, qdd) -> torch.Tensor:
+        """tau = H qdd + c + g [Nm] (B, nv) without forming H (H qdd = L (L^T qdd) + eps qdd): training's path."""
+        L, c, g = self._factor_coriolis_gravity(q, qd)
+        return _apply(L, _t_apply(L, qdd)) + self.eps * qdd + c + g
 
     def terms_autograd(self, q, qd, qdd) -> dict:
         """The same terms as :meth:`terms` by automatic differentiation (the tests' oracle)."""
@@ -153,7 +162,7 @@ class DeepLagrangianNetwork(nn.Module):
     # ---- batched API, q, qd, qdd: (B, nv) [rad, rad/s, rad/s^2]
     def forward(self, q, qd, qdd) -> torch.Tensor:
         """Joint torques [Nm] (B, nv), rigid body part."""
-        return self.terms(q, qd, qdd)["tau"]
+        return self.tau(q, qd, qdd)
 
     def mass_matrix(self, q) -> torch.Tensor:
         """H(q) [kg m^2] (B, nv, nv), symmetric positive definite."""
@@ -173,6 +182,16 @@ class DeepLagrangianNetwork(nn.Module):
         """qdd = H^-1 (tau - c - g) (B, nv): the learned system's free or driven motion."""
         t = self.terms(q, qd, torch.zeros_like(q))
         return torch.linalg.solve(t["H"], (tau - t["c"] - t["g"]).unsqueeze(-1)).squeeze(-1)
+
+
+def _apply(A: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
+    """A x for a batch of small matrices (B, n, n) and vectors (B, n)."""
+    return (A * x.unsqueeze(1)).sum(2)
+
+
+def _t_apply(A: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
+    """A^T x for a batch of small matrices (B, n, n) and vectors (B, n)."""
+    return (A * x.unsqueeze(2)).sum(1)
 
 
 def _inverse_softplus(y: float) -> float:

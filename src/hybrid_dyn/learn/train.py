@@ -192,6 +192,9 @@ class TrainConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v) or v <= 0:
                 raise UsageError(f"{_option(name)} must be a finite number > 0, got {v!r}")
+        if self.budgeted and self.max_batches_per_epoch is not None:  # it would be silently ignored
+            raise UsageError(f"{_option('max_batches_per_epoch')} applies to the epoch recipes; a budgeted run "
+                             f"(lr_schedule 'cosine') is sized by {_option('budget_steps')}")
         if isinstance(self.warmup_fraction, bool) or not isinstance(self.warmup_fraction, numbers.Real) \
                 or not 0 <= self.warmup_fraction < 1:
             raise UsageError(f"{_option('warmup_fraction')} must be a number in [0, 1), got {self.warmup_fraction!r}")
