@@ -70,6 +70,8 @@ def main() -> int:
     ap.add_argument("--base-steps", type=int, default=2000, help="the 1x budget [optimizer steps]")
     ap.add_argument("--multiples", type=float, nargs="+", default=list(MULTIPLES))
     ap.add_argument("--knee", type=float, default=0.03, help="a doubling that gains less than this is past the knee")
+    ap.add_argument("--reference", default=None, metavar="RECIPE",
+                    help="also train each preset under this epoch recipe (e.g. default) and print its loss and time")
     ap.add_argument("--out", default=None, help="write the markdown table here (and a PNG beside it)")
     args = ap.parse_args()
 
@@ -80,7 +82,9 @@ def main() -> int:
              f"{n_train} samples), recipe `budget` (batch 1024, lr 2e-3, 5 % warm-up, cosine to zero), "
              f"one torch thread; best validation loss (standardized MSE), seed 0.", "",
              "| family | preset | " + " | ".join(f"{b} steps" for b in budgets) + " | knee (< "
-             f"{args.knee:.0%} per doubling) | s at knee |", "|" + "---|" * (len(budgets) + 4)]
+             f"{args.knee:.0%} per doubling) | s at knee |"
+             + (f" recipe `{args.reference}`: val (epochs, s) |" if args.reference else ""),
+             "|" + "---|" * (len(budgets) + 4 + bool(args.reference))]
     curves = {}
     for preset in args.presets:
         losses, secs = [], []
@@ -97,8 +101,15 @@ def main() -> int:
         cells = [f"{l:.5f}" + ("" if i == 0 else f" ({(l - losses[i - 1]) / losses[i - 1]:+.1%})")
                  for i, l in enumerate(losses)]
         at = f"{secs[budgets.index(k)]:.0f}" if k else "-"
+        ref = ""
+        if args.reference:
+            cfg = TrainConfig.recipe(args.reference, progress=False, num_threads=1)
+            model = train_model(ds, preset, Path(args.work) / f"{ds.checksum[:12]}" / f"{preset}-{args.reference}", cfg)
+            ref = f" {model.val_loss:.5f} ({model.config['epochs']}, {model.train_seconds:.0f}) |"
+            print(f"[budget] {preset:20s} recipe {args.reference}: val {model.val_loss:.5f}, {model.config['epochs']} "
+                  f"epochs ({model.config['stopped_by']}), train {model.train_seconds:.1f} s", flush=True)
         lines.append(f"| {STUDY_PRESETS.get(preset, get_preset(preset).kind)} | {preset} | " + " | ".join(cells)
-                     + f" | {k if k else 'not reached'} | {at} |")
+                     + f" | {k if k else 'not reached'} | {at} |" + ref)
     text = "\n".join(lines) + "\n"
     print(text)
     if args.out:
