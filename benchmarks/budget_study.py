@@ -56,6 +56,41 @@ def knee(budgets: list[int], losses: list[float], tolerance: float) -> int | Non
     return None
 
 
+def batch_sweep(ds, preset: str, batches: list[int], ref_steps: int, work: Path) -> list[str]:
+    """Batch size against validation loss at equal wall time (issue 26): the rate scaled as the square
+    root of the batch from 2e-3 at 1024 (Malladi et al. 2022, for Adam), and each batch given the steps
+    that the bare step's measured throughput fits into the time of ``ref_steps`` at 1024.
+
+    The throughputs are measured once (interleaved, one thread) and kept in ``work``, so a rerun reuses
+    the same step counts, and with them its trained models.
+    """
+    import json
+    import math
+
+    from hybrid_dyn.learn.speed import bare_step, interleaved_rates, training_windows
+
+    work.mkdir(parents=True, exist_ok=True)
+    measured = work / f"{preset}-throughput.json"
+    if measured.is_file():
+        rates = json.loads(measured.read_text())
+    else:
+        probe = train_model(ds, preset, work / f"{preset}-probe",
+                            TrainConfig.recipe("budget", budget_steps=1, budget_evals=1, progress=False, num_threads=1))
+        ws = training_windows(probe, ds)
+        rates = dict(zip(map(str, batches), interleaved_rates([bare_step(probe, ws, b) for b in batches], 10, 5)))
+        measured.write_text(json.dumps(rates))
+    out = []
+    for b in batches:
+        steps = max(1, round(ref_steps * rates[str(b)] / rates["1024"] * 1024 / b))
+        lr = 2e-3 * math.sqrt(b / 1024)
+        cfg = TrainConfig.recipe("budget", batch_size=b, lr=lr, budget_steps=steps, progress=False, num_threads=1)
+        model = train_model(ds, preset, work / f"{preset}-b{b}-{steps}", cfg)
+        out.append(f"| {preset} | {b} | {lr:.2e} | {rates[str(b)]:.0f} | {steps} | {model.train_seconds:.0f} "
+                   f"| {model.val_loss:.5f} |")
+        print(f"[batch] {out[-1]}", flush=True)
+    return out
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=None)
@@ -72,10 +107,27 @@ def main() -> int:
     ap.add_argument("--knee", type=float, default=0.03, help="a doubling that gains less than this is past the knee")
     ap.add_argument("--reference", default=None, metavar="RECIPE",
                     help="also train each preset under this epoch recipe (e.g. default) and print its loss and time")
+    ap.add_argument("--batch-sweep", type=int, nargs="+", default=None, metavar="BATCH",
+                    help="instead: batch sizes compared at equal wall time to --base-steps at batch 1024")
     ap.add_argument("--out", default=None, help="write the markdown table here (and a PNG beside it)")
     args = ap.parse_args()
 
     ds = study_dataset(args)
+    if args.batch_sweep:
+        batches = sorted(set(args.batch_sweep) | {1024})
+        lines = [f"Batch size at equal wall time on `{ds.meta.get('scenario')}` ({len(ds.split('train'))} training "
+                 f"instances): recipe `budget`, lr = 2e-3 x sqrt(batch / 1024), steps = {args.base_steps} at 1024 "
+                 "scaled by the bare step's measured throughput; one torch thread; best validation loss.", "",
+                 "| preset | batch | lr | bare samples/s | steps | train s | val loss |", "|---|---|---|---|---|---|---|"]
+        for preset in args.presets:
+            lines += batch_sweep(ds, preset, batches, args.base_steps,
+                                 Path(args.work) / f"{ds.checksum[:12]}" / "batch-sweep")
+        text = "\n".join(lines) + "\n"
+        print(text)
+        if args.out:
+            Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+            Path(args.out).write_text(text)
+        return 0
     n_train = sum(len(i) for i in ds.split("train"))
     budgets = [int(round(m * args.base_steps)) for m in args.multiples]
     lines = [f"Budget study on `{ds.meta.get('scenario')}` ({len(ds.split('train'))} training instances, "

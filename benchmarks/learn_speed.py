@@ -56,6 +56,7 @@ from hybrid_dyn.data.windows import concat_fields
 from hybrid_dyn.learn import TrainConfig, train_model
 from hybrid_dyn.learn.model import canonical_json
 from hybrid_dyn.learn.presets import get_preset
+from hybrid_dyn.learn.speed import bare_step, interleaved_rates, training_windows
 
 PRESETS = ["seed-tip-1", "seed-tip-11", "seed-tau-lstm-opt", "residual-basewrench", "residual-rnea", "delan",
            "delan-friction"]
@@ -268,46 +269,6 @@ LOOP_PRESETS = {"seed-tau-mlp": "MLP", "seed-tip-4": "conv", "seed-tau-lstm-opt"
 LOOP_FLOOR, DELAN_FLOOR = 0.7, 2.0
 
 
-def bare_step(model, ws, batch: int, oracle: bool = False):
-    """forward + backward + Adam step of a copy of ``model``'s module on one in-memory batch of ``ws``:
-    (the step, samples per step). ``oracle``: a DeLaN's torques come from its ``torch.func`` oracle
-    (``terms_autograd``) instead of its forward-mode terms."""
-    import copy
-
-    from hybrid_dyn.learn.train import _batches
-
-    module = copy.deepcopy(model.module).train()
-    if oracle:
-        delan = module.delan
-        delan.tau = lambda q, qd, qdd: delan.terms_autograd(q, qd, qdd)["tau"]  # shadows the method
-    opt = torch.optim.Adam(module.parameters(), lr=1e-4)
-    idx = np.sort(np.random.default_rng(0).choice(len(ws), size=min(batch, len(ws)), replace=False))
-    x, y, p = _batches(ws, idx, torch.device("cpu"))
-
-    def step():
-        opt.zero_grad(set_to_none=True)
-        loss = module.standardized_loss(module(x, p), y)
-        loss.backward()
-        opt.step()
-    return step, len(idx)
-
-
-def interleaved_rates(steps_and_sizes: list, n_steps: int, repeats: int) -> list[float]:
-    """Median samples/s of each step, timed in turn within every repeat, so that load from other
-    processes on a shared machine falls on all of them alike."""
-    for step, _ in steps_and_sizes:
-        for _ in range(3):
-            step()
-    rates = [[] for _ in steps_and_sizes]
-    for _ in range(repeats):
-        for (step, size), out in zip(steps_and_sizes, rates):
-            t0 = time.perf_counter()
-            for _ in range(n_steps):
-                step()
-            out.append(n_steps * size / (time.perf_counter() - t0))
-    return [float(np.median(r)) for r in rates]
-
-
 def loop_table(args) -> int:
     from hybrid_dyn.learn.train import BUDGET_STEPS
 
@@ -333,7 +294,7 @@ def loop_table(args) -> int:
                 model = train_model(ds, name, Path(tmp) / f"{name}-{r}", cfg)
                 rates.append(steps * batch / model.train_seconds)
             loop = float(np.median(rates))
-            ws = model_split(model, ds)
+            ws = training_windows(model, ds)
             bare, = interleaved_rates([bare_step(model, ws, batch)], 20, args.repeats)
             met = loop >= LOOP_FLOOR * bare
             ok &= met
@@ -348,15 +309,6 @@ def loop_table(args) -> int:
                       f" {fwd / oracle:.2f}x  >= {DELAN_FLOOR} {'met' if met else 'NOT MET'}", flush=True)
         print("floors:", "all met" if ok else "NOT all met")
     return 0
-
-
-def model_split(model, ds):
-    """The training split as the model's training loop windows it (prior included)."""
-    from hybrid_dyn.data.windows import WindowedSplit
-
-    train = ds.split("train")
-    extra = {"prior": model.prior.compute_instances(train)} if model.prior else None
-    return WindowedSplit(model.sensor_view(train), model.window, list(model.inputs), list(model.targets), extra=extra)
 
 
 def main() -> int:
