@@ -276,6 +276,8 @@ def _open_datasets(profile, provider, log) -> list:
     """The profile's datasets as (entry, label, dataset or None, robot ref or skip reason), before any work
     where that is cheap: a dataset path is read and its robot resolved now (an unknown robot, a duplicate
     label fail here); a named scenario is made when its turn comes (None here)."""
+    from .preflight import check_dataset, check_rows_apply
+
     out, seen = [], {}
     for entry in profile.scenarios:
         ds = label = ref = None
@@ -283,6 +285,7 @@ def _open_datasets(profile, provider, log) -> list:
             ds = provider(entry, profile)
             label = scenario_label(entry, ds)
             ref = profile.robot_ref(ds)  # description.resolve_robot: the one check of a robot name
+            check_dataset(profile, label, ds, ref)  # splits, joint count, parameter set
         else:
             label = entry
         if label in seen:
@@ -292,6 +295,8 @@ def _open_datasets(profile, provider, log) -> list:
                              "manifests' 'scenario', or folder names): results.csv could not tell them apart")
         seen[label] = entry
         out.append((entry, label, ds, ref))
+    if all(ds is not None for _, _, ds, _ in out):  # every dataset known now: some row must apply
+        check_rows_apply(profile, [(label, ds) for _, label, ds, _ in out])
     return out
 
 

@@ -41,6 +41,7 @@ from .dataset import (
 )
 from .derivatives import DerivativeFilter, differentiate
 from .log_readers import LogTable, natural_key, read_log
+from ..input_checks import empty_split_problems, split_problems
 from ..outputs import output_lock, refuse_foreign, unique_temp
 
 IMPORTER_VERSION = 1
@@ -169,6 +170,7 @@ class LogSpec:
             problems.append(f"n_blocks must be >= 1, got {self.n_blocks}")
         if self.angle_unit not in ("rad", "deg"):
             problems.append(f"angle_unit must be 'rad' or 'deg', got {self.angle_unit!r}")
+        problems += split_problems(self.split_seed, self.test_frac, self.val_frac)  # issue 28: tracebacks before
         if not re.fullmatch(r"[A-Za-z0-9_.-]+", self.name or ""):
             problems.append(f"name {self.name!r} must be letters, digits, '_', '.', '-'")
         if problems:
@@ -749,6 +751,12 @@ def _build(spec: LogSpec, segments: list, report: ImportReport, partial: Path) -
     by_traj = {}
     for seg in segments:
         by_traj.setdefault(seg.trajectory, []).append(seg)
+    # The split first: fractions that leave a split empty are refused before any instance is written.
+    traj_split = split_by_instance(list(by_traj), spec.split_seed, spec.test_frac, spec.val_frac)
+    empty = empty_split_problems(traj_split) if len(by_traj) >= 3 else []  # fewer: warned below
+    if empty:
+        raise LogSpecError(f"{spec.name}: {empty[0]} ({len(by_traj)} trajectories, test_frac = {spec.test_frac}, "
+                           f"val_frac = {spec.val_frac} of the rest); choose smaller fractions")
     records, steps = [], []
     fields_written = None
     for traj in sorted(by_traj, key=natural_key):
@@ -766,7 +774,6 @@ def _build(spec: LogSpec, segments: list, report: ImportReport, partial: Path) -
                             "trajectory": traj, "source": seg.table.source.name, "table": seg.table.name,
                             "rows": [attrs["first_row"], attrs["last_row"]]})
     report.instances = len(records)
-    traj_split = split_by_instance(list(by_traj), spec.split_seed, spec.test_frac, spec.val_frac)
     if len(by_traj) < 3:
         report.warnings.append(f"only {len(by_traj)} trajectories: all are in the train split "
                                f"(use trajectories from = \"blocks\" to cut one log into several)")
