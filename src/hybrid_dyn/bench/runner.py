@@ -44,6 +44,7 @@ from ..data import Dataset, load_dataset
 from ..data.real import RealLogMissingError
 from ..outputs import output_lock, refuse_foreign, unique_temp
 from .catalog import ROWS, get_row  # noqa: F401  (ROWS: every declared row)
+from .integrity import DIGEST_KEY, read_run_json, results_digest
 from .learned_rows import PRESET_ROWS
 from .metrics import ErrorReport, base_force_noise_rms, standardized_mse
 from .predictions import PREDICTIONS_FILE, PredictionWriter
@@ -226,8 +227,9 @@ def _claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[d
     of the same profile (a report of another profile or size is being replaced: its wall times are
     of other work and are not kept).
 
-    A folder is the bench's when its ``run.json`` says so (a ``"bench_report"``
-    key, or the ``profile`` of reports written before that key); an empty or new folder is claimed by writing that marker before
+    A folder is the bench's when its ``run.json`` carries the marker the bench wrote
+    (``integrity.read_run_json``: ``"bench_report": 1`` and a recorded profile; a user's run.json
+    with a ``profile`` key is not one); an empty or new folder is claimed by writing that marker before
     anything else, so a run killed halfway still leaves a folder a rerun may
     use. Anything else (a user's README.md or results.csv) is refused, named.
     """
@@ -236,14 +238,9 @@ def _claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[d
     if out_dir.exists() and not out_dir.is_dir():
         raise OutputPathError(f"report folder {out_dir} exists and is not a directory")
     marker = out_dir / "run.json"
-    if marker.is_file():
-        try:
-            old = json.loads(marker.read_text())
-        except (OSError, ValueError):
-            old = None
-        if not isinstance(old, dict) or not ("bench_report" in old or "profile" in old):
-            refuse_foreign(marker, "benchmark report", "it is not a run.json of hybrid-dyn bench")
-        if old.get("profile") is not None and old["profile"] != profile.to_dict():
+    old = read_run_json(out_dir)  # refuses a run.json the bench did not write
+    if old is not None:
+        if old["profile"] != profile.to_dict():
             log(f"[bench] {out_dir} held a report of another profile or size: it is replaced, and its "
                 "invocations' wall times are not kept")
             return []
@@ -259,6 +256,13 @@ def _claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[d
     # still says what was run, and with which recipe.
     write_json(marker, {"bench_report": 1, "invocations": [], "profile": profile.to_dict()})
     return []
+
+
+def _record_digest(out_dir: Path) -> None:
+    """run.json (the claim's, or an earlier invocation's) with the digest of results.csv as it is now."""
+    meta = read_run_json(out_dir)
+    meta[DIGEST_KEY] = results_digest(out_dir / "results.csv")
+    write_json(out_dir / "run.json", meta)
 
 
 def work_dir(profile: BenchProfile, scenario: str, ds: Dataset, work_root: Path) -> Path:
@@ -355,6 +359,7 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider
                 log(f"[bench] {spec.name} FAILED: {err}\n{traceback.format_exc(limit=3)}")
             rows.append(row)
             write_results(out_dir / "results.csv", rows)
+            _record_digest(out_dir)  # an interrupted bench's rows stay checkable by ``hybrid-dyn report``
             write_curves(out_dir / CURVES_FILE, rows)
             if row["status"] == "ok":
                 predictions.row(scenario, spec.task, spec.name, [i.name for i in test],
@@ -373,8 +378,9 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider
             "datasets": {s: {"path": str(d.path), "checksum": d.checksum, "seed": d.meta.get("seed"),
                              "config_hash": d.meta.get("config_hash"), "robot": d.meta.get("robot")}
                          for s, d in datasets.items()}}
-    write_json(out_dir / "run.json", meta)
     write_results(out_dir / "results.csv", rows)  # also when no row applied: the report reads it
+    meta[DIGEST_KEY] = results_digest(out_dir / "results.csv")  # what ``hybrid-dyn report`` checks rows against
+    write_json(out_dir / "run.json", meta)
     # The report is drawn from the files just written, exactly as ``hybrid-dyn report`` redraws it.
     write_report(out_dir, read_results(out_dir / "results.csv"), meta, log=log)
     return rows
