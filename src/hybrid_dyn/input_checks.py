@@ -120,3 +120,16 @@ def empty_split_problems(splits: dict) -> list[str]:
     """The splits of ``{"train": [...], "val": [...], "test": [...]}`` that hold nothing."""
     empty = [s for s in ("train", "val", "test") if not splits.get(s)]
     return [f"the {', '.join(empty)} split{'s are' if len(empty) > 1 else ' is'} empty"] if empty else []
+
+
+# ------------------------------------------------------------------ angle units
+def angle_unit_problems(angle_unit: str, q_peak_rad: float) -> list[str]:
+    """Why a log declared in degrees looks like radians: ``q_peak_rad``, its largest |q| after conversion,
+    is below pi degrees, so every joint stayed within +-3.14 logged units, which is every radian log of an
+    arm whose limits lie within +-pi (the Panda's) and no log of an arm moving in degrees. Read as degrees
+    the Panda's joint 4 (-2.36 rad) becomes -0.04 rad, outside its [-3.07, -0.07]; a bound with the
+    import's margin does not see that, this does."""
+    if angle_unit == "deg" and q_peak_rad <= math.pi * math.pi / 180:
+        return [f"angle = \"deg\", but every logged joint position lies within +-pi ({q_peak_rad * 180 / math.pi:.3g} "
+                "at most): the log is in radians; remove [units] angle or set it to \"rad\""]
+    return []

@@ -41,7 +41,7 @@ from .dataset import (
 )
 from .derivatives import DerivativeFilter, differentiate
 from .log_readers import LogTable, natural_key, read_log
-from ..input_checks import empty_split_problems, split_problems
+from ..input_checks import angle_unit_problems, empty_split_problems, split_problems
 from ..outputs import output_lock, refuse_foreign, unique_temp
 
 IMPORTER_VERSION = 1
@@ -479,18 +479,20 @@ def _trajectories(spec: LogSpec, tables: list[LogTable]) -> list[tuple[str, LogT
 
 
 def _robot_limits(spec: LogSpec, nv: int):
-    """Per-joint |q| bound [rad]: the robot's limits if it has a description."""
+    """Per-joint (lower, upper) q bounds [rad]: the robot's limits widened by ``limit_margin`` if it has a
+    description (both sides: the Panda's joint 4 lies in [-3.07, -0.07], not within +-3.07), else
+    +-``q_abs_max``."""
     from ..description import resolve_robot
 
     if not resolve_robot(spec.robot).described:
-        return np.full(nv, spec.checks.q_abs_max)
+        return np.full(nv, -spec.checks.q_abs_max), np.full(nv, spec.checks.q_abs_max)
     from ..analytic.robot import load_robot
 
     robot = load_robot(spec.robot)
     if robot.nv != nv:
         raise LogSpecError(f"robot {spec.robot!r} has {robot.nv} joints but the log maps {nv}")
-    bound = np.maximum(np.abs(robot.q_lower), np.abs(robot.q_upper))
-    return np.minimum(bound, 1e3) + spec.checks.limit_margin
+    margin = spec.checks.limit_margin
+    return np.maximum(robot.q_lower, -1e3) - margin, np.minimum(robot.q_upper, 1e3) + margin
 
 
 def _validate(spec: LogSpec, report: ImportReport):
@@ -498,11 +500,12 @@ def _validate(spec: LogSpec, report: ImportReport):
     tables = []
     for f in spec.files:
         tables += read_log(f, spec.format, spec.variables, spec.delimiter)
-    segments, limits = [], None
+    segments, limits, q_peak = [], None, 0.0
     for traj, table, rows in _trajectories(spec, tables):
         data, t = _extract(spec, table, rows)
         if limits is None:
             limits = _robot_limits(spec, data["q"].shape[1])
+        q_peak = max(q_peak, float(np.abs(data["q"][np.isfinite(data["q"])]).max(initial=0.0)))  # units check
         report.rows_read += len(rows)
         checks = _RowChecks(table, rows, report)
         checks.cells(data, t)
@@ -521,6 +524,9 @@ def _validate(spec: LogSpec, report: ImportReport):
             nxt = data["qd_next"][seg[-1]] if "qd_next" in data and np.isfinite(data["qd_next"][seg[-1]]).all() else None
             segments.append(_Segment(traj, table, rows[seg], fields, nxt))
             report.rows_kept += len(seg)
+    bad_unit = angle_unit_problems(spec.angle_unit, q_peak)
+    if bad_unit:
+        raise LogSpecError(f"{spec.name}: {bad_unit[0]}")
     warning = _timebase_warning(segments, spec) if "qdd" not in spec.columns else None
     return segments, [warning] if warning else []
 
@@ -578,14 +584,15 @@ class _RowChecks:
             kind = "missing_cells" if any("cells" in m for m in msgs) else "nan"
             self.flag(i, kind, "no value in " + ", ".join(bad) + (f" ({'; '.join(msgs)})" if msgs else ""), "drop")
 
-    def ranges(self, data: dict, q_limits: np.ndarray, qd_max: float) -> None:
-        """Unit mistakes, by range: |q| beyond the joint bound, |qd| beyond qd_max."""
+    def ranges(self, data: dict, q_limits: tuple, qd_max: float) -> None:
+        """Unit mistakes, by range: q outside the joint bounds (lower, upper), |qd| beyond qd_max."""
+        lo, hi = q_limits
         for i in np.flatnonzero(self.keep):
-            over = np.flatnonzero(np.abs(data["q"][i]) > q_limits)
+            over = np.flatnonzero((data["q"][i] < lo) | (data["q"][i] > hi))
             if len(over):
                 j = over[0]
-                self.flag(i, "unit_range", f"q[{j + 1}] = {data['q'][i, j]:.4g} rad is beyond +-{q_limits[j]:.3g} rad "
-                          f"(degrees logged as radians?)", "drop")
+                self.flag(i, "unit_range", f"q[{j + 1}] = {data['q'][i, j]:.4g} rad is outside [{lo[j]:.3g}, "
+                          f"{hi[j]:.3g}] rad (degrees logged as radians?)", "drop")
                 continue
             over = np.flatnonzero(np.abs(data["qd"][i]) > qd_max) if "qd" in data else []
             if len(over):
