@@ -373,9 +373,11 @@ def load_gp(model_dir) -> GPModel:
         found = config.get("format") if isinstance(config, dict) else type(config).__name__
         raise ModelError(f"{model_dir} is not a GP model ({cpath} has format {found!r}, expected {GP_FORMAT!r}); "
                          f"a PyTorch model ('hybrid_dyn.model') loads with hybrid_dyn.learn.load_model")
-    if config.get("format_version", 0) > GP_FORMAT_VERSION:
-        raise ModelError(f"{cpath}: GP format version {config.get('format_version')} is newer than this toolkit's "
-                         f"({GP_FORMAT_VERSION})")
+    version = config.get("format_version", 0)
+    if isinstance(version, bool) or not isinstance(version, int):  # "1" or null: a traceback before issue 28
+        raise ModelError(f"{cpath}: GP format_version must be an integer, got {version!r} (edited?)")
+    if version > GP_FORMAT_VERSION:
+        raise ModelError(f"{cpath}: GP format version {version} is newer than this toolkit's ({GP_FORMAT_VERSION})")
     try:
         with safe_open(str(wpath), framework="np") as f:
             meta = read_file_metadata(f.metadata() or {})
