@@ -232,3 +232,27 @@ def test_a_bad_parameter_file_is_refused_by_a_named_profile_before_any_data(tmp_
 
     with pytest.raises(HybridDynError, match="not positive semi-definite"):
         dataclasses.replace(get_profile("quick"), params=str(f))
+
+
+@pytest.mark.slow  # imports a log and runs the bench's rnea row
+def test_an_import_warning_reaches_the_bench_report(tmp_path, capsys):
+    """Finding 7: the import's warning that the time column fits 'ms' never reached the bench report,
+    which then showed RNEA at 0.552 Nm against 4e-6 with the right unit."""
+    from hybrid_dyn.cli import main as cli_main
+    from test_bench_data import write_log
+
+    spec = write_log(tmp_path / "logs", n=200)
+    log = tmp_path / "logs" / "log.csv"
+    lines = log.read_text().splitlines()
+    lines[1:] = [",".join([repr(float(row.split(",")[0]) * 1000)] + row.split(",")[1:]) for row in lines[1:]]
+    log.write_text("\n".join(lines) + "\n")  # time in ms, the spec says s
+    assert cli_main(["import", "--spec", str(spec), "--out", str(tmp_path / "ds")]) == 0
+    warning = "the time column fits the unit 'ms', not the declared 's'"
+    assert warning in capsys.readouterr().out
+    out = tmp_path / "report"
+    cli_main(["bench", "--data", str(tmp_path / "ds"), "--out", str(out), "--rows", "rnea",
+              "--data-root", str(tmp_path / "data"), "--work-root", str(tmp_path / "runs")])
+    assert warning in capsys.readouterr().out
+    readme = (out / "README.md").read_text()
+    assert "**import warning**" in readme and warning in readme
+    assert warning in json.loads((out / "run.json").read_text())["datasets"]["my-panda"]["import_warnings"][0]

@@ -258,6 +258,14 @@ def _claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[d
     return []
 
 
+def _import_warnings(ds) -> list[str]:
+    """The warnings an import recorded in the dataset's manifest (issue 28: they never reached the report,
+    which then showed RNEA off by 0.55 Nm on a log whose time unit the import had said did not fit)."""
+    imp = ds.meta.get("import")
+    warnings = imp.get("warnings") if isinstance(imp, dict) else None
+    return [str(w) for w in warnings] if isinstance(warnings, list) else []
+
+
 def _record_digest(out_dir: Path) -> None:
     """run.json (the claim's, or an earlier invocation's) with the digest of results.csv as it is now."""
     meta = read_run_json(out_dir)
@@ -322,6 +330,8 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider
                 continue
             ref = profile.robot_ref(ds)
         labels[scenario] = entry
+        for warning in _import_warnings(ds):  # e.g. a time unit that does not fit: said here and in the README
+            log(f"[bench] {scenario}: import warning: {warning}")
         # The analytic model: the profile's robot (or the dataset's), with its tool and nominal parameters.
         # An arm known for data only has none (its URDF rows are skipped, saying so).
         ds.meta["robot"] = ref.name
@@ -376,7 +386,8 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider
     meta = {"bench_report": 1, "profile": profile.to_dict(), "wall_seconds": wall, "invocations": invocations,
             "scenarios": labels, "skipped": skipped, "machine": machine_info(),
             "datasets": {s: {"path": str(d.path), "checksum": d.checksum, "seed": d.meta.get("seed"),
-                             "config_hash": d.meta.get("config_hash"), "robot": d.meta.get("robot")}
+                             "config_hash": d.meta.get("config_hash"), "robot": d.meta.get("robot"),
+                             **({"import_warnings": _import_warnings(d)} if _import_warnings(d) else {})}
                          for s, d in datasets.items()}}
     write_results(out_dir / "results.csv", rows)  # also when no row applied: the report reads it
     meta[DIGEST_KEY] = results_digest(out_dir / "results.csv")  # what ``hybrid-dyn report`` checks rows against
