@@ -256,3 +256,41 @@ def test_an_import_warning_reaches_the_bench_report(tmp_path, capsys):
     readme = (out / "README.md").read_text()
     assert "**import warning**" in readme and warning in readme
     assert warning in json.loads((out / "run.json").read_text())["datasets"]["my-panda"]["import_warnings"][0]
+
+
+@pytest.mark.slow  # trains a tiny net
+def test_a_bench_waits_for_a_model_another_bench_is_training_in_a_shared_runs_folder(panda_log, tmp_path):
+    """Finding 7: two benches with different --out sharing runs/: the second one's row failed on the
+    model lock. Here another run holds that model's lock for 3 s; the bench waits, then trains it."""
+    import threading
+    import time
+
+    from hybrid_dyn.bench.runner import run_bench, work_dir
+    from hybrid_dyn.data import load_dataset
+    from hybrid_dyn.outputs import output_lock
+    from test_bench_data import tiny_profile
+
+    profile = tiny_profile([panda_log])
+    profile = type(profile)(**{**profile.__dict__, "rows": ("seed-tau-mlp",)})
+    model_dir = work_dir(profile, "my-panda", load_dataset(panda_log), tmp_path / "runs") / "models" / "seed-tau-mlp"
+    held, release = threading.Event(), threading.Event()
+
+    def other_run():
+        with output_lock(model_dir, "model folder"):
+            held.set()
+            release.wait(3.0)
+
+    other = threading.Thread(target=other_run)
+    other.start()
+    held.wait(10)
+    t0 = time.perf_counter()
+    try:
+        with time_limit(120, "bench"):
+            rows = run_bench(profile, tmp_path / "report", data_root=tmp_path / "data", work_root=tmp_path / "runs",
+                             log=lambda m: None)
+    finally:
+        release.set()
+        other.join()
+    assert [(r["model"], r["status"]) for r in rows] == [("seed-tau-mlp", "ok")], rows
+    assert time.perf_counter() - t0 >= 2.5  # it waited for the other run's lock
+    assert (model_dir / "config.json").is_file()

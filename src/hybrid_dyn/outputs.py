@@ -31,8 +31,12 @@ def lock_path(path) -> Path:
 
 
 @contextlib.contextmanager
-def output_lock(path, what: str = "output"):
-    """Hold an exclusive lock on ``path`` (file or folder, existing or not) for the block."""
+def output_lock(path, what: str = "output", wait: bool = False):
+    """Hold an exclusive lock on ``path`` (file or folder, existing or not) for the block.
+
+    ``wait``: when another run holds it, wait until it is released instead of refusing (a shared
+    cache, such as two benches training the same model into one runs/ folder: the second then
+    reuses what the first finished)."""
     lp = lock_path(path)
     lp.parent.mkdir(parents=True, exist_ok=True)
     f = open(lp, "a+")
@@ -40,6 +44,10 @@ def output_lock(path, what: str = "output"):
         try:
             fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
+            if wait:
+                fcntl.flock(f, fcntl.LOCK_EX)  # released when the other run ends, even if it is killed
+                yield
+                return
             raise OutputPathError(f"{what} {Path(path)} is being written by another run "
                                   f"(lock {lp} is held); wait for it or choose another path") from None
         yield

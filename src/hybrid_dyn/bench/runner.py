@@ -133,7 +133,7 @@ def _train_job(args) -> tuple[str, str | None]:
     try:
         ds = load_dataset(dataset_path)
         ds.meta["robot"] = robot  # the bench's robot for this dataset (--robot / --tool), as score_row sees it
-        train_model(ds, preset, out_dir, config=train_config)
+        train_model(ds, preset, out_dir, config=train_config, wait=True)  # another bench sharing runs/
         return preset, None
     except Exception as err:  # reported again, with its row, when the row is scored
         return preset, f"{type(err).__name__}: {err}"

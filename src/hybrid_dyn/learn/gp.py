@@ -405,12 +405,13 @@ def gp_fingerprint(config: GPConfig, dataset_checksum: str) -> str:
                                           "dataset": dataset_checksum}).encode()).hexdigest()
 
 
-def train_gp(dataset, out_dir, config: GPConfig | None = None) -> GPModel:
+def train_gp(dataset, out_dir, config: GPConfig | None = None, wait: bool = False) -> GPModel:
     """Fit a GP on ``dataset``'s train split (a Dataset or its path) and write it to ``out_dir``.
 
     A finished model of the same run there is returned as is; anything else there (another
     run, another model, files the toolkit did not write) is refused: nothing is overwritten.
-    One run per folder: ``output_lock(out_dir)`` is held while fitting.
+    One run per folder: ``output_lock(out_dir)`` is held while fitting (``wait``: wait for another
+    run's fit there instead of refusing).
     """
     config = config or GPConfig()
     config.validate()
@@ -419,7 +420,7 @@ def train_gp(dataset, out_dir, config: GPConfig | None = None) -> GPModel:
     fingerprint = gp_fingerprint(config, ds.checksum)
     if (out_dir / "config.json").is_file():  # a finished model is never written again
         return _reuse(out_dir, fingerprint)
-    with output_lock(out_dir, "GP model folder"):
+    with output_lock(out_dir, "GP model folder", wait=wait):
         if (out_dir / "config.json").is_file():  # finished by another run between the check and the lock
             return _reuse(out_dir, fingerprint)
         _refuse_foreign_files(out_dir)

@@ -329,12 +329,13 @@ def run_fingerprint(preset: Preset, config: TrainConfig, dataset_checksum: str) 
                                           "dataset": dataset_checksum}).encode()).hexdigest()
 
 
-def train_model(dataset, preset, out_dir, config: TrainConfig | None = None) -> TrainedModel:
+def train_model(dataset, preset, out_dir, config: TrainConfig | None = None, wait: bool = False) -> TrainedModel:
     """Train ``preset`` (a name or a :class:`Preset`) on ``dataset`` (a Dataset or its path).
 
     Writes the model to ``out_dir``. A finished model of the same run there is
     returned as is; a checkpoint of the same run is resumed; anything of another
-    run there is an error (nothing is overwritten).
+    run there is an error (nothing is overwritten). ``wait``: when another run is
+    training into ``out_dir``, wait for it (and reuse its model) instead of refusing.
     """
     config = config or TrainConfig()
     config.validate()  # a caller may have changed a field since construction
@@ -345,7 +346,7 @@ def train_model(dataset, preset, out_dir, config: TrainConfig | None = None) -> 
     fingerprint = run_fingerprint(preset, config, ds.checksum)
     if (out_dir / "config.json").is_file():  # a finished model is never written again: no lock needed to read it
         return _reuse(out_dir, fingerprint)
-    with output_lock(out_dir, "model folder"):
+    with output_lock(out_dir, "model folder", wait=wait):
         if (out_dir / "config.json").is_file():  # finished by another run between the check and the lock
             return _reuse(out_dir, fingerprint)
         _refuse_foreign_files(out_dir)
