@@ -563,10 +563,14 @@ def describe_urdf(path: str | os.PathLike, name: str | None = None) -> RobotSpec
     home, vmax = [], []
     for j in arm:
         lim = j.find("limit")
-        lo = float(lim.get("lower", "-inf")) if lim is not None and j.get("type") != "continuous" else -math.inf
-        hi = float(lim.get("upper", "inf")) if lim is not None and j.get("type") != "continuous" else math.inf
+        try:
+            lo = float(lim.get("lower", "-inf")) if lim is not None and j.get("type") != "continuous" else -math.inf
+            hi = float(lim.get("upper", "inf")) if lim is not None and j.get("type") != "continuous" else math.inf
+            vmax.append(float(lim.get("velocity")) if lim is not None and lim.get("velocity") else None)
+        except ValueError:
+            raise RobotDescriptionError(f"URDF {path}: joint {j.get('name')!r} has a <limit> that is not numbers "
+                                        f"({dict(lim.attrib)})") from None
         home.append(min(max(0.0, lo), hi))
-        vmax.append(float(lim.get("velocity")) if lim is not None and lim.get("velocity") else None)
     return RobotSpec(
         name=name or str(path), urdf_path=path, tool_frame=tool, base_sensor_frame=roots[0], home=tuple(home),
         max_velocity=tuple(vmax) if None not in vmax else (), flange=tool, source=None,
@@ -720,6 +724,8 @@ def resolve_robot(name: str | os.PathLike, tool=None, payload=None) -> RobotRef:
     order: a ``robots/<name>.toml``, robots/data_only.toml, an example-robot-data
     URDF (``ur10``); a ``.toml`` or ``.urdf`` path is read as such.
     """
+    if not isinstance(name, (str, os.PathLike)):
+        raise RobotDescriptionError(f"a robot name is text, got {name!r}; the form is {ROBOT_NAME_HELP}")
     text = os.fspath(name)
     base, name_tool, name_payload = parse_robot_name(text)
     payload = as_payload(payload)

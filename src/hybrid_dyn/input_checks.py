@@ -14,6 +14,9 @@ import numpy as np
 
 
 # ------------------------------------------------------------------ URDF structure
+JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")  # the URDF specification's
+
+
 def urdf_tree_problems(root) -> list[str]:
     """What keeps the URDF element tree ``root`` from being a tree of links: a link or joint without a
     name, a name used twice, a joint without ``<parent link=..>`` or ``<child link=..>`` or naming a link
@@ -36,6 +39,8 @@ def urdf_tree_problems(root) -> list[str]:
         label = repr(name) if name else "without a name"
         if not name:
             problems.append("a <joint> has no name")
+        if j.get("type") not in JOINT_TYPES:
+            problems.append(f"joint {label} has type {j.get('type')!r}, not one of {', '.join(JOINT_TYPES)}")
         ends = {}
         for tag in ("parent", "child"):
             el = j.find(tag)

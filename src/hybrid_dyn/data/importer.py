@@ -42,6 +42,7 @@ from .dataset import (
 from .derivatives import DerivativeFilter, differentiate
 from .log_readers import LogTable, natural_key, read_log
 from ..input_checks import angle_unit_problems, empty_split_problems, split_problems
+from .spec_checks import spec_type_problems
 from ..outputs import output_lock, refuse_foreign, unique_temp
 
 IMPORTER_VERSION = 1
@@ -141,12 +142,20 @@ class LogSpec:
         # The robot first, before anything is read: one RobotDescriptionError listing the names
         # accepted; a variant's name is made canonical ("panda[tool=hand]" is "panda").
         self.robot = resolve_robot(self.robot).name
-        self.files = [Path(f) for f in ([self.files] if isinstance(self.files, (str, Path)) else self.files)]
-        if isinstance(self.derivatives, dict):
-            self.derivatives = DerivativeFilter(**self.derivatives)
-        if isinstance(self.checks, dict):
-            self.checks = ValidationChecks(**self.checks)
-        problems = []
+        files = [self.files] if isinstance(self.files, (str, Path)) else self.files
+        if not isinstance(files, list) or not all(isinstance(f, (str, Path)) for f in files):
+            raise LogSpecError(f"invalid import spec: files must be a path or a list of paths, got {self.files!r}")
+        self.files = [Path(f) for f in files]
+        try:
+            if isinstance(self.derivatives, dict):
+                self.derivatives = DerivativeFilter(**self.derivatives)
+            if isinstance(self.checks, dict):
+                self.checks = ValidationChecks(**self.checks)
+        except TypeError as err:  # unknown keys in [derivatives] or [checks]
+            raise LogSpecError(f"invalid import spec: {err}") from None
+        problems = spec_type_problems(self)  # types first: the checks below compare values
+        if problems:
+            raise LogSpecError("invalid import spec: " + "; ".join(problems))
         if not self.files:
             problems.append("no log files given")
         unknown = sorted(set(self.columns) - set(SIGNALS))
@@ -223,6 +232,9 @@ def spec_from_dict(doc: dict, base_dir=".", spec_file=None) -> LogSpec:
         unknown = sorted(set(table) - allowed)
         if unknown:
             raise LogSpecError(f"unknown keys {unknown} in [{section or 'top level'}]{where}; allowed: {sorted(allowed)}")
+    for section in ("columns", "derivatives", "checks", "env_defaults"):  # tables with free keys
+        if not isinstance(doc.get(section, {}), dict):
+            raise LogSpecError(f"[{section}]{where} must be a table")
     env_defaults = doc.get("env_defaults", {})
 
     def expand(s: str) -> Path:
@@ -241,6 +253,10 @@ def spec_from_dict(doc: dict, base_dir=".", spec_file=None) -> LogSpec:
     files = src.get("files")
     if files is None:
         raise LogSpecError(f"[source] files is missing{where}")
+    if not (isinstance(files, str) or (isinstance(files, list) and all(isinstance(f, str) for f in files))):
+        raise LogSpecError(f"[source] files{where} must be a path or a list of paths, got {files!r}")
+    if not isinstance(env_defaults, dict) or not all(isinstance(v, str) for v in env_defaults.values()):
+        raise LogSpecError(f"[env_defaults]{where} must be a table of NAME = \"path\"")
     split = doc.get("split", {})
     robot, tool = doc.get("robot", "unknown"), doc.get("tool")
     # A robot's URDF and a tool's are files of the spec too: relative to it, ${VAR} expanded.
@@ -465,6 +481,9 @@ def _trajectories(spec: LogSpec, tables: list[LogTable]) -> list[tuple[str, LogT
         if spec.trajectories == "tables":
             out.append((base, table, rows))
         elif spec.trajectories == "blocks":
+            if spec.n_blocks > len(rows):  # 1e9 blocks hung array_split (issue 28's fuzz)
+                raise LogSpecError(f"n_blocks = {spec.n_blocks} is more than the {len(rows)} rows of "
+                                   f"{table.source.name}:{table.name}")
             for k, block in enumerate(np.array_split(rows, spec.n_blocks)):
                 if len(block):
                     out.append((f"{base}_b{k:02d}", table, block))
