@@ -294,3 +294,38 @@ def test_a_bench_waits_for_a_model_another_bench_is_training_in_a_shared_runs_fo
     assert [(r["model"], r["status"]) for r in rows] == [("seed-tau-mlp", "ok")], rows
     assert time.perf_counter() - t0 >= 2.5  # it waited for the other run's lock
     assert (model_dir / "config.json").is_file()
+
+
+def test_every_command_leaves_a_users_folder_alone(panda_log, tmp_path, capsys):
+    """Ownership by proof (issue 28): a folder holding a user's files that happen to carry the toolkit's
+    file names (run.json with a 'profile' key, config.json, generator.json, manifest.json) is refused by
+    bench, report, generate, train and import alike, and every file is left as it was."""
+    from hybrid_dyn.cli import main as cli_main
+
+    user = tmp_path / "mine"
+    user.mkdir()
+    files = {"run.json": json.dumps({"profile": "my-experiment", "lr": 0.01}), "README.md": "# notes\n",
+             "results.csv": "epoch,loss\n1,0.5\n", "config.json": json.dumps({"lr": 0.01}),
+             "generator.json": json.dumps({"profile": "x"}), "manifest.json": json.dumps({"format": "mine"})}
+    for name, text in files.items():
+        (user / name).write_text(text)
+    spec = panda_log.parent / "logs" / "spec.toml"
+    roots = ["--data-root", str(tmp_path / "data"), "--work-root", str(tmp_path / "runs")]
+    commands = {
+        "bench": ["bench", "--data", str(panda_log), "--out", str(user), "--rows", "rnea", *roots],
+        "report": ["report", str(user)],
+        "generate": ["generate", "--scenario", "paper-noext", "--out", str(user), "--quiet"],
+        "train": ["train", "--data", str(panda_log), "--preset", "seed-tau-mlp", "--out", str(user), "--epochs", "1"],
+        "import": ["import", "--spec", str(spec), "--out", str(user), "--overwrite"],
+    }
+    seen = {}
+    for name, argv in commands.items():
+        capsys.readouterr()
+        with time_limit(60, name):
+            assert cli_main(argv) == 2, name
+        err = capsys.readouterr().err
+        assert err.startswith("error: ") and len(err.strip().splitlines()) == 1, (name, err)
+        assert {p.name: p.read_text() for p in user.iterdir()} == files, name
+        seen[name] = err
+    # Each names the folder as a user's, not as a dataset or model of another run.
+    assert all("refusing to replace" in e and "not written by hybrid-dyn" in e for e in seen.values()), seen

@@ -11,13 +11,16 @@ Two tools every command that writes a folder or file uses:
   so two runs never write the same temporary and a rename is atomic.
 
 What counts as "written by the toolkit" is decided by each writer from its own manifest or
-marker (a dataset's manifest, a model's config, a report's ``run.json``); ``refuse_foreign``
-is the common refusal.
+marker, read the same way by every command (``json_marker``): a dataset's manifest.json
+(``format``), a generated dataset's generator.json (``config_hash``), a model's config.json and
+timing.json (``format``), a report's run.json (``bench_report``). A file of that name without
+the marker is a user's: ``refuse_foreign`` is the common refusal.
 """
 from __future__ import annotations
 
 import contextlib
 import fcntl
+import json
 import os
 import uuid
 from pathlib import Path
@@ -59,6 +62,18 @@ def unique_temp(path, suffix: str = ".partial") -> Path:
     """``<path><suffix>.<pid>.<random>``: a temporary name no other run can share."""
     path = Path(path)
     return path.with_name(f"{path.name}{suffix}.{os.getpid()}.{uuid.uuid4().hex[:8]}")
+
+
+def json_marker(path, key: str, value=None) -> dict | None:
+    """The JSON object in file ``path`` if it carries the toolkit's marker ``key`` (equal to ``value``,
+    when given, else any non-empty value); None for a missing, unreadable or unmarked file."""
+    try:
+        doc = json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(doc, dict) or key not in doc:
+        return None
+    return doc if (doc[key] == value if value is not None else bool(doc[key])) else None
 
 
 def refuse_foreign(path, what: str, why: str) -> None:

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import HybridDynError
-from ..outputs import refuse_foreign
+from ..outputs import json_marker, refuse_foreign
 from .metrics import ErrorReport
 from .results import read_results
 
@@ -50,10 +50,7 @@ def read_run_json(out_dir) -> dict | None:
     path = Path(out_dir) / RUN_FILE
     if not path.is_file():
         return None
-    try:
-        doc = json.loads(path.read_text())
-    except (OSError, ValueError):
-        doc = None
+    doc = json_marker(path, "bench_report", 1)  # read as every command reads its marker (outputs.py)
     if not is_bench_meta(doc):
         refuse_foreign(path, "benchmark report", "it is not a run.json of hybrid-dyn bench (it lacks the "
                                                  "'bench_report': 1 marker and the recorded profile)")

@@ -48,7 +48,7 @@ from scipy.spatial.distance import cdist
 
 from ..data.dataset import Dataset, load_dataset
 from ..errors import UsageError
-from ..outputs import output_lock, refuse_foreign_files, unique_temp
+from ..outputs import json_marker, output_lock, refuse_foreign, refuse_foreign_files, unique_temp
 from .model import (METADATA_KEY, TIMING_FORMAT, ModelError, _read_timing, canonical_json, check_instances,
                     config_digest, read_file_metadata, read_model_config, tensors_digest)
 
@@ -452,6 +452,8 @@ def _fit_locked(ds: Dataset, out_dir: Path, config: GPConfig, fingerprint: str) 
 
 
 def _reuse(out_dir: Path, fingerprint: str) -> GPModel:
+    if json_marker(out_dir / "config.json", "format") is None:  # a user's config.json, not a model's
+        refuse_foreign(out_dir, "GP model folder", f"its config.json lacks the format {GP_FORMAT!r}")
     model = load_gp(out_dir)
     if model.config.get("fingerprint") != fingerprint:
         raise ModelError(f"{out_dir} holds a finished GP model of another run (other config or data); "

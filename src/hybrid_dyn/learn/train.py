@@ -71,7 +71,7 @@ from ..analytic.tare import TARE_SECONDS, tared_runs
 from ..data import Dataset, load_dataset
 from ..data.windows import WindowedSplit, concat_fields
 from ..errors import UsageError
-from ..outputs import output_lock, refuse_foreign_files
+from ..outputs import json_marker, output_lock, refuse_foreign, refuse_foreign_files
 from .model import (MODEL_FORMAT, MODEL_FORMAT_VERSION, TIMING_FORMAT, HybridModel, ModelError, TrainedModel,
                     canonical_json, check_instances, load_model, read_file_metadata, save_model)
 from .presets import Preset, get_preset
@@ -354,6 +354,10 @@ def train_model(dataset, preset, out_dir, config: TrainConfig | None = None, wai
 
 
 def _reuse(out_dir: Path, fingerprint: str) -> TrainedModel:
+    # A user's config.json (no toolkit format at all) is refused as theirs; another of our formats (a GP's)
+    # gets load_model's own message.
+    if json_marker(out_dir / "config.json", "format") is None:
+        refuse_foreign(out_dir, "model folder", f"its config.json lacks the format {MODEL_FORMAT!r}")
     model = load_model(out_dir)
     if model.config.get("fingerprint") != fingerprint:
         raise ModelError(f"{out_dir} holds a finished model of another run (other preset, config or data); "
