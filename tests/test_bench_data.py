@@ -423,3 +423,28 @@ def test_bench_and_report_refuse_a_users_folder_with_a_run_json_of_their_own(ben
     assert cli_main(["report", str(user)]) == 2
     assert "not a run.json of hybrid-dyn bench" in capsys.readouterr().err
     assert {p.name: p.read_text() for p in user.iterdir()} == files
+
+
+@pytest.mark.slow  # needs the fixture's imported log
+def test_an_interrupted_benchs_rows_stay_checkable_by_report(bench, capsys):
+    """run.json records the digest after every row, so the report of a bench stopped after its first row
+    is redrawn (that row checked against its predictions), not refused as unverifiable."""
+    from hybrid_dyn.bench.runner import run_bench
+
+    tmp, _, _ = bench
+    one = tiny_profile([tmp / "my-log"])
+    profile = type(one)(**{**one.__dict__, "rows": ("rnea", "identified-ols")})
+
+    def log(message):
+        if "joint_torque rnea" in message and "rmse=" in message:
+            raise KeyboardInterrupt  # as a Ctrl-C right after the first row's files are written
+
+    with pytest.raises(KeyboardInterrupt):
+        run_bench(profile, tmp / "stopped", data_root=tmp / "data", work_root=tmp / "runs", log=log)
+    assert [r["model"] for r in csv.DictReader((tmp / "stopped" / "results.csv").open())] == ["rnea"]
+    assert cli_main(["report", str(tmp / "stopped")]) == 0
+    assert "| rnea |" in (tmp / "stopped" / "joint_torque.md").read_text()
+    _edit_row(tmp / "stopped", "rnea", rmse="1.0")
+    capsys.readouterr()
+    assert cli_main(["report", str(tmp / "stopped")]) == 2
+    assert "row my-panda / joint_torque / rnea" in capsys.readouterr().err

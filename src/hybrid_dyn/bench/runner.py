@@ -368,12 +368,12 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider
                        "status": "failed", "error": f"{type(err).__name__}: {err}"}
                 log(f"[bench] {spec.name} FAILED: {err}\n{traceback.format_exc(limit=3)}")
             rows.append(row)
+            if row["status"] == "ok":  # first: a row in results.csv always has its predictions (report checks them)
+                predictions.row(scenario, spec.task, spec.name, [i.name for i in test],
+                                ctx.cache.pop((spec.task, spec.name)))
             write_results(out_dir / "results.csv", rows)
             _record_digest(out_dir)  # an interrupted bench's rows stay checkable by ``hybrid-dyn report``
             write_curves(out_dir / CURVES_FILE, rows)
-            if row["status"] == "ok":
-                predictions.row(scenario, spec.task, spec.name, [i.name for i in test],
-                                ctx.cache.pop((spec.task, spec.name)))
             log(f"[bench] {scenario} {spec.task:12s} {spec.name:22s} rmse={row.get('rmse', float('nan')):.4g} "
                 f"({time.perf_counter() - t0:.1f} s)" if row["status"] == "ok" else
                 f"[bench] {scenario} {spec.name} failed")
