@@ -277,3 +277,73 @@ def test_fuzzed_urdfs_end_in_a_robot_or_one_error(tmp_path):
         counts[status] += 1
     assert counts["ok"] >= N_URDF_CASES // 20 and counts["refused"] >= N_URDF_CASES // 4, counts
     print(f"URDF fuzz: {counts}")
+
+
+SPEC_TOML = """name = "fuzz"
+robot = "unknown"
+[source]
+files = ["log.csv"]
+[time]
+column = "t"
+unit = "s"
+[columns]
+q = ["q1", "q2", "q3"]
+qd = ["qd1", "qd2", "qd3"]
+tau_m = "8-10"
+[trajectories]
+from = "blocks"
+n_blocks = 3
+[split]
+seed = 0
+test_frac = 0.34
+val_frac = 0.5
+"""
+
+
+@pytest.mark.slow  # 150 imports from mutated TOML text, a few seconds
+def test_fuzzed_spec_files_end_in_a_dataset_or_one_error(tmp_path):
+    """The spec file's text itself: lines dropped, repeated or swapped, characters inserted; read by
+    ``hybrid-dyn import --spec`` as a user's file would be (TOML errors included)."""
+    from hybrid_dyn.data import import_log, load_dataset
+    from hybrid_dyn.data.importer import read_spec
+
+    rng = np.random.default_rng(SPEC_SEED + 1)
+    counts = {"ok": 0, "refused": 0}
+    for case in range(150):
+        here = tmp_path / f"t{case:03d}"
+        here.mkdir()
+        _log(here)
+        lines = SPEC_TOML.splitlines()
+        did = []
+        for _ in range(1 if rng.random() < 0.7 else 2):
+            i = int(rng.integers(len(lines)))
+            kind = int(rng.integers(4))
+            if kind == 0:
+                did.append(f"dropped {lines.pop(i)!r}")
+            elif kind == 1:
+                lines.insert(i, lines[i])
+                did.append(f"repeated {lines[i]!r}")
+            elif kind == 2:
+                j = int(rng.integers(len(lines)))
+                lines[i], lines[j] = lines[j], lines[i]
+                did.append(f"swapped lines {i} and {j}")
+            else:
+                k = int(rng.integers(len(lines[i]) + 1))
+                lines[i] = lines[i][:k] + str(rng.choice(list("=[]\"'#,.-1a \\"))) + lines[i][k:]
+                did.append(f"line {i} -> {lines[i]!r}")
+        (here / "spec.toml").write_text("\n".join(lines) + "\n")
+        what = f"TOML case {case} ({'; '.join(did)})"
+
+        def run():
+            report = import_log(read_spec(here / "spec.toml"), here / "ds")  # what hybrid-dyn import --spec runs
+            load_dataset(here / "ds")
+            return report
+
+        status, _ = _check_outcome(run, what, allow_report=True)
+        counts[status] += 1
+        if status == "refused":
+            left = sorted(p.name for p in here.iterdir() if not p.name.endswith(".lock"))
+            assert left == ["log.csv", "spec.toml"], f"{what}: refused, but left {left}"
+        shutil.rmtree(here)
+    assert counts["ok"] >= 10 and counts["refused"] >= 30, counts
+    print(f"spec file fuzz: {counts}")
