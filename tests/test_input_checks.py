@@ -329,3 +329,17 @@ def test_every_command_leaves_a_users_folder_alone(panda_log, tmp_path, capsys):
         seen[name] = err
     # Each names the folder as a user's, not as a dataset or model of another run.
     assert all("refusing to replace" in e and "not written by hybrid-dyn" in e for e in seen.values()), seen
+
+
+def test_a_bench_that_ran_no_row_does_not_exit_0(tmp_path, capsys, monkeypatch):
+    """Finding 7's '0/0 rows ok, exit 0', for a named profile: every real log missing, so every scenario
+    is skipped with its reason; no row ran, which is no result (exit 1), and the report says why."""
+    from hybrid_dyn.cli import main as cli_main
+
+    monkeypatch.setenv("HYBRID_DYN_REAL_LOGS", str(tmp_path / "no-logs"))
+    out = tmp_path / "report"
+    with time_limit(120, "bench"):
+        code = cli_main(["bench", "--profile", "real", "--out", str(out), "--data-root", str(tmp_path / "data"),
+                         "--work-root", str(tmp_path / "runs")])
+    assert "0/0 rows ok" in capsys.readouterr().out and code == 1
+    assert "## Rows not run" in (out / "README.md").read_text()
