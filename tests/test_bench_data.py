@@ -374,6 +374,8 @@ def test_report_refuses_another_reports_run_json_and_a_run_json_without_digest(b
     ({"profile": "quick"}, "not a run.json of hybrid-dyn bench"),  # finding 6: a traceback before
     ({"wall_seconds": "soon"}, "wall_seconds must be a number of seconds or null"),
     ({"invocations": [{"wall_seconds": "x"}]}, "invocations must be"),
+    ({"scenarios": 3}, "scenarios must be"),
+    ({"machine": {"machine": "x"}}, "machine must be"),
 ])
 def test_report_refuses_a_hand_edited_run_json_in_one_line(bench, capsys, edit, message):
     tmp, _, _ = bench

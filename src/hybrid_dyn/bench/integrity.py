@@ -92,6 +92,14 @@ def check_meta(meta: dict, path) -> None:
             bad("skipped", "a list of {scenario, task, model, reason}")
     if not all(isinstance(d, dict) for d in (meta.get("datasets") or {}).values()):
         bad("datasets", "a mapping of scenario to {path, checksum, ...}")
+    scenarios = meta.get("scenarios")
+    if scenarios is not None and not (isinstance(scenarios, (dict, list)) and all(isinstance(k, str) for k in scenarios)):
+        bad("scenarios", "a mapping of scenario label to dataset, or a list of labels")
+    prof = meta["profile"]
+    if prof.get("seed") is not None and not (_is_number(prof["seed"]) and float(prof["seed"]).is_integer()):
+        raise ReportIntegrityError(f"{path}: profile.seed must be an integer, got {prof['seed']!r}")
+    if not isinstance(prof.get("notes") or [], list) or not isinstance(prof.get("train") or {}, dict):
+        raise ReportIntegrityError(f"{path}: profile.notes must be a list and profile.train a mapping")
     machine = meta.get("machine")
     if machine is not None and not (all(k in machine for k in ("machine", "processor", "python"))
                                     and isinstance(machine.get("packages"), dict)):

@@ -464,7 +464,7 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
     for s, d in meta.get("datasets", {}).items():
         origin = f"config hash `{d['config_hash']}`" if d.get("config_hash") else "imported (no generator config)"
         lines.append(f"- data `{s}`: {origin}, data checksum `{str(d.get('checksum'))[:16]}`"
-                     + (f", read from `{d['path']}`, robot `{d['robot']}`" if d.get("robot") else ""))
+                     + (f", read from `{d.get('path')}`, robot `{d['robot']}`" if d.get("robot") else ""))
         lines += [f"  - **import warning**: {w}" for w in d.get("import_warnings") or []]
     notes = prof.get("notes") or []
     if notes:
