@@ -391,17 +391,24 @@ def test_report_refuses_a_hand_edited_run_json_in_one_line(bench, capsys, edit, 
 
 
 @pytest.mark.slow  # the shared fixture: a tiny bench, ~25 s on 2 busy cores
-def test_report_with_no_recorded_wall_time_and_stale_figures(bench):
-    """Finding 6: wall_seconds null was a traceback; finding 7: a report folder reused for another
-    dataset kept the old traces_*.png (a user's own png there is left alone)."""
+def test_report_refuses_an_edited_run_json_field_and_drops_stale_figures(bench, capsys):
+    """Finding 6: wall_seconds null was a traceback; now any edit of a run.json field the README quotes
+    (its digest is recorded beside results.csv's) is one error, and nothing is redrawn. Finding 7: a
+    report folder reused for another dataset kept the old traces_*.png (a user's own png is left alone)."""
     tmp, _, _ = bench
     report = _copy_report(tmp, "null-wall")
     meta = json.loads((report / "run.json").read_text())
-    (report / "run.json").write_text(json.dumps({**meta, "wall_seconds": None}))
+    for edit in ({"wall_seconds": None}, {"datasets": {"my-panda": {**meta["datasets"]["my-panda"], "path": "x"}}}):
+        (report / "run.json").write_text(json.dumps({**meta, **edit}))
+        readme = (report / "README.md").read_bytes()
+        capsys.readouterr()
+        assert cli_main(["report", str(report)]) == 2
+        assert "run.json differs from what the bench wrote" in capsys.readouterr().err
+        assert (report / "README.md").read_bytes() == readme
+    (report / "run.json").write_text(json.dumps(meta))
     (report / "traces_joint_torque_old-log.png").write_bytes(b"\x89PNG old")
     (report / "my-plot.png").write_bytes(b"mine")
     assert cli_main(["report", str(report)]) == 0
-    assert "wall time of this invocation: - min" in (report / "README.md").read_text()
     assert not (report / "traces_joint_torque_old-log.png").exists()
     assert (report / "traces_joint_torque_my-panda.png").is_file()
     assert (report / "my-plot.png").read_bytes() == b"mine"

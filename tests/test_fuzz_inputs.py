@@ -347,3 +347,60 @@ def test_fuzzed_spec_files_end_in_a_dataset_or_one_error(tmp_path):
         shutil.rmtree(here)
     assert counts["ok"] >= 10 and counts["refused"] >= 30, counts
     print(f"spec file fuzz: {counts}")
+
+
+@pytest.mark.slow  # 200 report redraws without figures, a few seconds
+def test_fuzzed_run_json_ends_in_a_report_or_one_error(tmp_path, monkeypatch):
+    """``hybrid-dyn report`` on a run.json edited at random (keys dropped, odd values at every level): a
+    README or one HybridDynError, never a traceback. The figures are stubbed out (they read results.csv
+    and predictions.h5, not run.json), so each case takes milliseconds."""
+    import json
+
+    from hybrid_dyn.bench import report as report_mod
+    from hybrid_dyn.bench.integrity import _run_digest, results_digest
+    from hybrid_dyn.bench.results import write_results
+
+    monkeypatch.setattr(report_mod, "_figures", lambda *a, **k: [])
+    monkeypatch.setattr(report_mod, "learning_curve_figures", lambda *a, **k: [])
+    row = {"task": "joint_torque", "scenario": "s", "model": "rnea", "family": "analytic", "inputs": "q, qd, qdd",
+           "status": "ok", "val_loss": 0.1, "test_loss": 0.1, "rmse": 1.0, "nmse": 0.1}
+    base = {"bench_report": 1, "wall_seconds": 60.0, "scenarios": {"s": "data/s"}, "skipped": [
+        {"scenario": "s", "task": "tip_force", "model": "x", "reason": "needs tip_force"}],
+            "invocations": [{"wall_seconds": 60.0, "rows": 1}],
+            "machine": {"machine": "x86_64", "processor": "cpu", "python": "3.11", "packages": {"numpy": "2"}},
+            "datasets": {"s": {"path": "data/s", "checksum": "abc", "seed": 0, "config_hash": None, "robot": "panda"}},
+            "profile": {"name": "data", "scenarios": ["data/s"], "generator_profile": "quick", "seed": 0,
+                        "recipe": "default", "train": {}, "notes": ["a note"], "robot": None}}
+    rng = np.random.default_rng(SPEC_SEED + 2)
+    counts = {"ok": 0, "refused": 0}
+    for case in range(200):
+        here = tmp_path / f"r{case:03d}"
+        here.mkdir()
+        write_results(here / "results.csv", [row])
+        meta = copy.deepcopy(base)
+        meta["results_digest"] = results_digest(here / "results.csv", meta)
+        did = []
+        for _ in range(1 if rng.random() < 0.6 else 2):
+            holders = [meta] + [v for v in meta.values() if isinstance(v, dict)] + \
+                [v for v in meta.values() if isinstance(v, list) and v and isinstance(v[0], dict)]
+            holder = holders[rng.integers(len(holders))]
+            if isinstance(holder, list):
+                holder = holder[0]
+            if not holder:
+                continue
+            key = sorted(holder)[rng.integers(len(holder))]
+            if rng.random() < 0.3:
+                del holder[key]
+                did.append(f"del {key}")
+            else:
+                holder[key] = copy.deepcopy(ODD[rng.integers(len(ODD))])
+                did.append(f"{key} = {holder[key]!r}")
+        if isinstance(meta.get("results_digest"), dict):  # re-digested, as a careful editor would: the point
+            meta["results_digest"]["run"] = _run_digest(meta)  # here is write_report's robustness to odd fields
+        (here / "run.json").write_text(json.dumps(meta, allow_nan=True))
+        what = f"run.json case {case} ({'; '.join(did)})"
+        status, _ = _check_outcome(lambda: report_mod.rebuild_report(here, log=lambda m: None), what)
+        counts[status] += 1
+        shutil.rmtree(here)
+    assert counts["ok"] >= 20 and counts["refused"] >= 20, counts
+    print(f"run.json fuzz: {counts}")

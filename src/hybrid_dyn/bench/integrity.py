@@ -5,10 +5,12 @@
   ``run.json`` with a ``profile`` key (``{"profile": "my-experiment"}``) is not one, and ``bench`` and
   ``report`` refuse the folder before writing anything (:func:`read_run_json`, the one test both use).
 - **The digest.** After every row the bench records in run.json a digest of results.csv: one sha256 per
-  row (of the row as read back) and one of the file (:func:`results_digest`).
+  row (of the row as read back) and one of the file, and one of run.json's other fields
+  (:func:`results_digest`).
 - **The check.** ``hybrid-dyn report`` recomputes every error figure of every scored row from
   predictions.h5 (the stored test predictions and targets, ``metrics.ErrorReport``), and checks every
-  row of results.csv against the digest (the figures predictions.h5 cannot give: losses, timings).
+  row of results.csv against the digest (the figures predictions.h5 cannot give: losses, timings), and
+  run.json's fields against theirs (the datasets, profile and times the README quotes).
   A row that differs is an error naming the row and the column (:func:`verify_results`); a report
   without a digest (written before issue 28) is refused, never printed unverified.
 """
@@ -65,11 +67,18 @@ def _row_digest(row: dict) -> str:
     return hashlib.sha256(json.dumps(row, sort_keys=True).encode()).hexdigest()
 
 
-def results_digest(path) -> dict:
-    """The digest run.json records of results.csv at ``path``: its sha256 and one per row (as read back)."""
+def results_digest(path, meta: dict) -> dict:
+    """The digest run.json records: of results.csv at ``path`` (its sha256 and one per row, as read back)
+    and of run.json's own other fields (``meta`` as written), so that neither is edited or swapped alone."""
     path = Path(path)
     return {"sha256": hashlib.sha256(path.read_bytes()).hexdigest(),
-            "rows": {row_key(r): _row_digest(r) for r in read_results(path)}}
+            "rows": {row_key(r): _row_digest(r) for r in read_results(path)}, "run": _run_digest(meta)}
+
+
+def _run_digest(meta: dict) -> str:
+    """sha256 of run.json's fields but the digest, as JSON reads them back (tuples as lists, paths as text)."""
+    doc = json.loads(json.dumps({k: v for k, v in meta.items() if k != DIGEST_KEY}, default=str))
+    return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
 
 
 def check_meta(meta: dict, path) -> None:
@@ -96,14 +105,22 @@ def check_meta(meta: dict, path) -> None:
     if scenarios is not None and not (isinstance(scenarios, (dict, list)) and all(isinstance(k, str) for k in scenarios)):
         bad("scenarios", "a mapping of scenario label to dataset, or a list of labels")
     prof = meta["profile"]
-    if prof.get("seed") is not None and not (_is_number(prof["seed"]) and float(prof["seed"]).is_integer()):
-        raise ReportIntegrityError(f"{path}: profile.seed must be an integer, got {prof['seed']!r}")
-    if not isinstance(prof.get("notes") or [], list) or not isinstance(prof.get("train") or {}, dict):
-        raise ReportIntegrityError(f"{path}: profile.notes must be a list and profile.train a mapping")
+    for key, ok, want in PROFILE_FIELDS:  # those the README quotes; each may be absent (older reports)
+        if prof.get(key) is not None and not ok(prof[key]):
+            raise ReportIntegrityError(f"{path}: profile.{key} must be {want}, got {prof[key]!r}")
     machine = meta.get("machine")
     if machine is not None and not (all(k in machine for k in ("machine", "processor", "python"))
                                     and isinstance(machine.get("packages"), dict)):
         bad("machine", "{machine, processor, python, packages}")
+
+
+_text = lambda x: isinstance(x, str)  # noqa: E731
+_texts = lambda x: isinstance(x, list) and all(isinstance(v, str) for v in x)  # noqa: E731
+PROFILE_FIELDS = (("name", _text, "text"), ("generator_profile", _text, "text"), ("recipe", _text, "text"),
+                  ("robot", _text, "text"), ("params", _text, "text"), ("tool", _text, "text"),
+                  ("scenarios", _texts, "a list of text"), ("notes", _texts, "a list of text"),
+                  ("train", lambda x: isinstance(x, dict), "a mapping"),
+                  ("seed", lambda x: _is_number(x) and float(x).is_integer(), "an integer"))
 
 
 def _is_number(x) -> bool:
@@ -131,6 +148,9 @@ def verify_results(rows: list[dict], meta: dict, preds, where) -> None:
     missing = sorted(set(recorded) - {row_key(r) for r in rows})
     if missing:
         raise ReportIntegrityError(f"{where}/results.csv lacks rows the bench recorded in run.json: {missing[:3]}")
+    if digest.get("run") != _run_digest(meta):  # the datasets, profile and times the README quotes
+        raise ReportIntegrityError(f"{where}/run.json differs from what the bench wrote (an edited field, or "
+                                   "parts of another report's run.json): its datasets and profile cannot be quoted")
     if preds is None:
         return
     for r in rows:

@@ -269,7 +269,7 @@ def _import_warnings(ds) -> list[str]:
 def _record_digest(out_dir: Path) -> None:
     """run.json (the claim's, or an earlier invocation's) with the digest of results.csv as it is now."""
     meta = read_run_json(out_dir)
-    meta[DIGEST_KEY] = results_digest(out_dir / "results.csv")
+    meta[DIGEST_KEY] = results_digest(out_dir / "results.csv", meta)
     write_json(out_dir / "run.json", meta)
 
 
@@ -390,7 +390,7 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider
                              **({"import_warnings": _import_warnings(d)} if _import_warnings(d) else {})}
                          for s, d in datasets.items()}}
     write_results(out_dir / "results.csv", rows)  # also when no row applied: the report reads it
-    meta[DIGEST_KEY] = results_digest(out_dir / "results.csv")  # what ``hybrid-dyn report`` checks rows against
+    meta[DIGEST_KEY] = results_digest(out_dir / "results.csv", meta)  # what ``hybrid-dyn report`` checks against
     write_json(out_dir / "run.json", meta)
     # The report is drawn from the files just written, exactly as ``hybrid-dyn report`` redraws it.
     write_report(out_dir, read_results(out_dir / "results.csv"), meta, log=log)
