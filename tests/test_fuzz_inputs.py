@@ -8,7 +8,6 @@ The seeds are fixed: a failure here is reproducible by its case number, printed 
 from __future__ import annotations
 
 import copy
-import math
 import shutil
 import traceback
 from pathlib import Path

@@ -8,9 +8,8 @@ import pytest
 
 from hybrid_dyn.cli import main as cli_main
 from hybrid_dyn.data import import_log, load_dataset
-from hybrid_dyn.data.importer import LogSpecError
 from hybrid_dyn.data.log_readers import LogReadError
-from test_log_import import CSV_COLUMNS, sine_log, write_csv
+from test_log_import import sine_log
 
 
 def test_a_truncated_matlab_v73_file_is_one_line(tmp_path, capsys):
