@@ -64,6 +64,10 @@ class BenchProfile:
         self.train_config()  # so is an unknown recipe or a bad training field
         if self.robot is not None:
             self.resolve_robot(self.robot)  # a name the toolkit cannot serve is refused now, with the accepted ones
+        if self.params is not None and str(self.params).endswith(".json"):
+            from ..description import read_param_file
+
+            read_param_file(self.params)  # missing, malformed or no rigid body: refused before any work
 
     def train_config(self):
         from ..learn import TrainConfig

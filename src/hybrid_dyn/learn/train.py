@@ -85,7 +85,7 @@ from ..analytic.tare import TARE_SECONDS, tared_runs
 from ..data import Dataset, load_dataset
 from ..data.windows import WindowedSplit, concat_fields
 from ..errors import UsageError
-from ..outputs import output_lock, refuse_foreign_files
+from ..outputs import json_marker, output_lock, refuse_foreign, refuse_foreign_files
 from .model import (MODEL_FORMAT, MODEL_FORMAT_VERSION, TIMING_FORMAT, HybridModel, ModelError, TrainedModel,
                     canonical_json, check_instances, load_model, read_file_metadata, save_model)
 from .presets import Preset, get_preset
@@ -401,12 +401,13 @@ def run_fingerprint(preset: Preset, config: TrainConfig, dataset_checksum: str) 
                                           "dataset": dataset_checksum}).encode()).hexdigest()
 
 
-def train_model(dataset, preset, out_dir, config: TrainConfig | None = None) -> TrainedModel:
+def train_model(dataset, preset, out_dir, config: TrainConfig | None = None, wait: bool = False) -> TrainedModel:
     """Train ``preset`` (a name or a :class:`Preset`) on ``dataset`` (a Dataset or its path).
 
     Writes the model to ``out_dir``. A finished model of the same run there is
     returned as is; a checkpoint of the same run is resumed; anything of another
-    run there is an error (nothing is overwritten).
+    run there is an error (nothing is overwritten). ``wait``: when another run is
+    training into ``out_dir``, wait for it (and reuse its model) instead of refusing.
     """
     config = config or TrainConfig()
     config.validate()  # a caller may have changed a field since construction
@@ -418,7 +419,7 @@ def train_model(dataset, preset, out_dir, config: TrainConfig | None = None) -> 
     fingerprint = run_fingerprint(preset, config, ds.checksum)
     if (out_dir / "config.json").is_file():  # a finished model is never written again: no lock needed to read it
         return _reuse(out_dir, fingerprint)
-    with output_lock(out_dir, "model folder"):
+    with output_lock(out_dir, "model folder", wait=wait):
         if (out_dir / "config.json").is_file():  # finished by another run between the check and the lock
             return _reuse(out_dir, fingerprint)
         _refuse_foreign_files(out_dir)
@@ -426,6 +427,10 @@ def train_model(dataset, preset, out_dir, config: TrainConfig | None = None) -> 
 
 
 def _reuse(out_dir: Path, fingerprint: str) -> TrainedModel:
+    # A user's config.json (no toolkit format at all) is refused as theirs; another of our formats (a GP's)
+    # gets load_model's own message.
+    if json_marker(out_dir / "config.json", "format") is None:
+        refuse_foreign(out_dir, "model folder", f"its config.json lacks the format {MODEL_FORMAT!r}")
     model = load_model(out_dir)
     if model.config.get("fingerprint") != fingerprint:
         raise ModelError(f"{out_dir} holds a finished model of another run (other preset, config or data); "
