@@ -81,7 +81,8 @@ CAP_FOOTNOTE = (f"{CAP_MARK} Stopped by the epoch cap (`max_epochs`) while its v
                 "validation loss per epoch are in `learning_curves_<scenario>.png`.")
 STOP_NOTE = ("'epochs (stop)': the epochs a learned row trained and why it stopped: `patience` (no validation "
              "improvement for `patience` epochs), `lr-floor` (the learning rate reached its floor and plateaued "
-             f"there) or `epoch-cap` ({CAP_MARK}); it keeps the weights of its best validation epoch (`best_epoch` "
+             f"there), `epoch-cap` ({CAP_MARK}) or `budget` (the budgeted recipe spent its fixed number of optimizer steps: "
+             "its 'epochs' are then validation rounds, each a fixed share of the budget); it keeps the weights of its best validation epoch (`best_epoch` "
              "in results.csv, 0-based; 'untrained kept': no epoch beat the untrained model, e.g. a residual that "
              "never beat its physics part). The learning curves are in `learning_curves_<scenario>.png`.")
 
