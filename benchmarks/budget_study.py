@@ -104,6 +104,8 @@ def main() -> int:
     ap.add_argument("--presets", nargs="+", default=list(STUDY_PRESETS))
     ap.add_argument("--base-steps", type=int, default=2000, help="the 1x budget [optimizer steps]")
     ap.add_argument("--multiples", type=float, nargs="+", default=list(MULTIPLES))
+    ap.add_argument("--cap", nargs="+", default=[], metavar="PRESET=STEPS",
+                    help="train PRESET at no budget above STEPS (its dearer cells print '-')")
     ap.add_argument("--knee", type=float, default=0.03, help="a doubling that gains less than this is past the knee")
     ap.add_argument("--reference", default=None, metavar="RECIPE",
                     help="also train each preset under this epoch recipe (e.g. default) and print its loss and time")
@@ -138,9 +140,12 @@ def main() -> int:
              + (f" recipe `{args.reference}`: val (epochs, s) |" if args.reference else ""),
              "|" + "---|" * (len(budgets) + 4 + bool(args.reference))]
     curves = {}
+    caps = {k: int(v) for k, v in (c.split("=", 1) for c in args.cap)}
     for preset in args.presets:
         losses, secs = [], []
         for b in budgets:
+            if b > caps.get(preset, b):
+                continue
             cfg = TrainConfig.recipe("budget", budget_steps=b, progress=False, num_threads=1)
             t0 = time.perf_counter()
             model = train_model(ds, preset, Path(args.work) / f"{ds.checksum[:12]}" / f"{preset}-{b}", cfg)
@@ -148,11 +153,12 @@ def main() -> int:
             secs.append(model.train_seconds)
             print(f"[budget] {preset:20s} {b:6d} steps  val {model.val_loss:.5f}  train {model.train_seconds:7.1f} s"
                   f"  ({time.perf_counter() - t0:.1f} s this run)", flush=True)
-        k = knee(budgets, losses, args.knee)
-        curves[preset] = losses
+        ran = budgets[:len(losses)]
+        k = knee(ran, losses, args.knee)
+        curves[preset] = (ran, losses)
         cells = [f"{l:.5f}" + ("" if i == 0 else f" ({(l - losses[i - 1]) / losses[i - 1]:+.1%})")
-                 for i, l in enumerate(losses)]
-        at = f"{secs[budgets.index(k)]:.0f}" if k else "-"
+                 for i, l in enumerate(losses)] + ["-"] * (len(budgets) - len(losses))
+        at = f"{secs[ran.index(k)]:.0f}" if k else "-"
         ref = ""
         if args.reference:
             cfg = TrainConfig.recipe(args.reference, progress=False, num_threads=1)
@@ -173,8 +179,8 @@ def main() -> int:
         import matplotlib.pyplot as plt
 
         fig, ax = plt.subplots(figsize=(6, 4))
-        for preset, losses in curves.items():
-            ax.loglog(budgets, np.array(losses) / losses[0], "o-", label=f"{preset}")
+        for preset, (ran, losses) in curves.items():
+            ax.loglog(ran, np.array(losses) / losses[0], "o-", label=f"{preset}")
         ax.set_xlabel("budget [optimizer steps, batch 1024]")
         ax.set_ylabel("best validation loss / loss at the smallest budget")
         ax.set_title(f"budget study, {ds.meta.get('scenario')}")
