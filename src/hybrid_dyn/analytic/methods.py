@@ -3,7 +3,8 @@
 A :class:`Method` says what an estimator reads (the sensors beyond q and qd, and
 whether a call may bring any of them), whether it needs qdd, whether it reads the
 base sensor tared, the name of its bandwidth parameter, the values the bench's
-``-val`` row chooses that parameter from, and how to build one stream of it
+``-val`` row chooses that parameter from, whether a residual network may sit on
+it (``prior``), and how to build one stream of it
 (:class:`MethodStream`): its rule for the bandwidth from a noise window
 (``bandwidth.py``), its streaming step, its batch run and its settling time.
 
@@ -21,7 +22,6 @@ method from the first sample after it.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Callable
 
@@ -109,6 +109,12 @@ class Method:
     val_grid: Callable[[float], tuple]
     make: Callable[[Robot, float], MethodStream]
     bench_rows: bool = True
+    prior: bool = False  # a residual network may sit on it (``learn/priors.py``)
+
+    @property
+    def stateful(self) -> bool:
+        """A filter (its value at a sample depends on the run before it), started after the noise window."""
+        return not self.needs_qdd
 
     @property
     def fields(self) -> tuple:
@@ -117,6 +123,7 @@ class Method:
 
 
 REGISTRY: dict[str, Method] = {}
+_LISTENERS: list = []  # (on_register, on_unregister): the bench declares rows for a method registered late
 
 
 def register(method: Method) -> Method:
@@ -125,7 +132,22 @@ def register(method: Method) -> Method:
         raise ValueError(f"estimator method {method.name!r} is registered twice")
     REGISTRY[method.name] = method
     ESTIMATORS[method.name] = "tip_force"
+    for on_register, _ in _LISTENERS:
+        on_register(method)
     return method
+
+
+def unregister(name: str) -> None:
+    """Remove a method (a test's toy) from the registry and from whatever was built from it."""
+    method = REGISTRY.pop(name)
+    ESTIMATORS.pop(name, None)
+    for _, on_unregister in _LISTENERS:
+        on_unregister(method)
+
+
+def add_listener(on_register: Callable[[Method], None], on_unregister: Callable[[Method], None]) -> None:
+    """Be told of every method registered or removed from now on."""
+    _LISTENERS.append((on_register, on_unregister))
 
 
 # ----------------------------------------------------------- the methods
@@ -279,13 +301,13 @@ def _observer_gains(rate_hz):
 
 
 register(Method("base-wrench", "the base sensor's wrench minus the model's (needs qdd)", ("base_wrench",), False,
-                True, True, "qdd_cutoff_hz", "Hz", lambda hz: (), BaseWrench, bench_rows=False))
+                True, True, "qdd_cutoff_hz", "Hz", lambda hz: (), BaseWrench, bench_rows=False, prior=True))
 register(Method("torques-pinv", "F = pinv(J_v^T) (ID(q, qd, qdd) - tau_J)", ("tau_J",), False, True, False,
                 "qdd_cutoff_hz", "Hz", lambda hz: (), TorquesPinv, bench_rows=False))
 register(Method("momentum-observer", "the joint-torque momentum observer (no qdd)", ("tau_J",), False, False, False,
-                "momentum_gain", "1/s", _observer_gains, MomentumObserverMethod))
+                "momentum_gain", "1/s", _observer_gains, MomentumObserverMethod, prior=True))
 register(Method("base-momentum", "the whole robot's momentum against the base sensor (no qdd)", ("base_wrench",),
-                False, False, True, "momentum_gain", "1/s", _observer_gains, BaseMomentumMethod))
+                False, False, True, "momentum_gain", "1/s", _observer_gains, BaseMomentumMethod, prior=True))
 register(Method("kalman-fusion", "both sensors fused by a Kalman filter (a call may bring either or both)",
                 ("base_wrench", "tau_J"), True, False, True, "fusion_force_rate", "N/sqrt(s)",
                 lambda hz: (0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0), KalmanFusionMethod))
@@ -332,8 +354,4 @@ def spec_noise(robot: Robot) -> WindowNoise:
     return WindowNoise(np.full(robot.nv, c.qd), c.force, np.full(robot.nv, c.tau_J), np.array(robot.spec.home, float))
 
 
-def method_names() -> tuple:
-    return tuple(REGISTRY)
-
-
-__all__ = ["Method", "MethodStream", "REGISTRY", "register", "run_batch", "spec_noise", "math"]
+__all__ = ["Method", "MethodStream", "REGISTRY", "add_listener", "register", "run_batch", "spec_noise", "unregister"]
