@@ -210,7 +210,8 @@ class TipForceEstimator:
         self._rate = RateCheck(nv, float(c.call_hz), c.rate_tolerance)
         # The bandwidth: a number in the config, or None for the rule at the window's end.
         param = None if self.spec is None else self.spec.parameter
-        self._fixed = None if param is None or getattr(c, param) == "auto" else float(getattr(c, param))
+        value = "auto" if param is None else getattr(c, param, "auto")  # a method's own parameter: the rule
+        self._fixed = None if value == "auto" else float(value)
         cutoff = c.qdd_cutoff_hz if c.qdd_cutoff_hz != "auto" else (
             model.qdd_cutoff_hz if model is not None else DEFAULT_QDD_CUTOFF_HZ)
         self._qdd_cutoff_start = float(cutoff)

@@ -1,41 +1,46 @@
 """One rule for every filter that trades noise against lag, applied to the noise a window measures.
 
-**The rule.** A method's contact-free estimate may carry at most twice the
-variance of the force sensor's own noise (the sensor's noise, and as much again
-added by the method); within that, the widest bandwidth is taken, since a wider
-one lags less behind a changing contact:
+**The rule.** Take the bandwidth that minimises the estimate's predicted error
+variance on a contact under a stated contact model, given the noise measured on
+the (contact-free) noise window:
 
-    sigma_estimate^2 (bandwidth) <= NOISE_RATIO * sigma_sensor^2,   NOISE_RATIO = 2
+    error^2 (b) = noise^2 (b) + lag^2 (b)
 
-sigma_sensor is the white noise of the sensor the method reads its force from
-(the base sensor's force axes, or the joint torques), and sigma_estimate is
-predicted in closed form from the noises measured on the window
-(:func:`measure_window`, the median-based ``white_noise_rms``):
+- noise^2: what the sensors' white noise, measured on the window
+  (:func:`measure_window`, the median-based ``white_noise_rms``), puts into the
+  estimate at bandwidth b, in closed form;
+- lag^2: what the filter's lag costs on the contact model: the contact force as
+  a random walk of intensity CONTACT_RATE = 10 N/sqrt(s) (a push that changes by
+  ~10 N within ~1 s: the scale of the bench's bells and steps, 3-25 N held
+  0.3-1.5 s). A first-order filter with pole a = 1 - K dt lags a random walk of
+  per-call variance q = CONTACT_RATE^2 dt by q a^2 / (1 - a^2).
 
-- qdd cutoff (base-wrench, torques-pinv): the qdd estimate's noise through
-  m J_com or M(q) may equal the sensor's (``acceleration.auto_qdd_cutoff``);
+So a quieter sensor widens the band and a noisier one narrows it, whichever
+noise it is (tested). Per method:
+
 - observer gain K (base-momentum, momentum-observer): the observer
-  r = K (H - H0 - integral(u + r)) passes the input's white noise (sigma_u,
-  trapezoid) with variance gain K dt / 2 and the momentum's (sigma_H, from qd
-  through m J_com or M) with 2 K^2 / (2 - K dt) (:func:`observer_noise_gains`);
-- Kalman force rate (kalman-fusion): the steady-state gain k of the random-walk
-  force seen through the primary channel's increment noise sigma_e passes it
-  with variance gain k / (2 - k); the largest k within the rule, and the force
-  rate that gives it (:func:`kalman_force_rate`; a measured model error, a bias,
-  is weighed by the filter but left out of the rule).
+  r = K (H - H0 - integral(u + r)) passes the input's white noise (sigma_u, the
+  sensor's force or torque, trapezoid) with variance gain K dt / 2 and the
+  momentum's (sigma_H, from qd through m J_com or M) with 2 K^2 / (2 - K dt)
+  (:func:`observer_noise_gains`); the best K on a grid up to K dt = 1
+  (:func:`observer_gain`);
+- Kalman filter (kalman-fusion): the minimum of noise^2 + lag^2 for a random-walk
+  force *is* the Kalman filter whose force rate is the contact model's
+  (``force_rate = CONTACT_RATE``), with the noises measured on the window;
+- qdd cutoff (base-wrench, torques-pinv): these methods pass the contact
+  unfiltered; their filter lags the arm's own motion, which a window does not
+  predict. The rule's noise side alone: the widest cutoff at which the qdd
+  estimate adds no more noise than the sensor carries (``acceleration.auto_qdd_cutoff``).
 
 Failure modes (what the rule does not know):
-- it is relative: it holds the estimate to the sensor's own quality, not to a
-  task's error. A quieter force sensor with the same encoders *narrows* the band
-  (the encoders' share must shrink with it); noise-free velocities open it fully.
+- the contact model is a prior, not a measurement: slow contacts would be served
+  by a narrower band, 1 ms steps by a wider one. The bench's ``-val`` rows show
+  what a band chosen on validation data gains.
 - it sees only white noise: a slow drift, a vibration or a model error on the
-  window does not narrow it.
-- it knows nothing of the contact: slow contacts would tolerate a narrower band
-  (less noise), steps want a wider one. The bench's ``-val`` rows show what a
-  band chosen on validation data gains.
+  window does not narrow it (the Kalman filter weighs a measured model error).
 - the window must be contact-free and long enough (>= 8 samples; 0.5 s by default).
 - noise-free data (a simulation without sensor noise): the force sensors' noise is
-  taken as at least FORCE_RESOLUTION (0.01 N or Nm), and the band opens fully.
+  taken as at least FORCE_RESOLUTION (0.01 N or Nm).
 """
 from __future__ import annotations
 
@@ -46,9 +51,8 @@ import numpy as np
 
 from .acceleration import white_noise_rms
 
-NOISE_RATIO = 2.0  # the estimate's noise variance may be this multiple of the sensor's
+CONTACT_RATE = 10.0  # N/sqrt(s): the contact model, the force as a random walk of this intensity
 TOP_GAIN_DT = 1.0  # observers: K dt up to 1 (the deadbeat observer, a plain trapezoidal difference)
-TOP_KALMAN_GAIN = 0.95  # kalman-fusion: the largest steady-state force gain per call
 SETTLE_FRACTION = 0.01  # "settled": a start's transient has decayed below 1 %
 
 
@@ -105,13 +109,24 @@ def observer_gain_grid(rate_hz: float) -> np.ndarray:
     return np.geomspace(1.0, TOP_GAIN_DT * rate_hz, 64)
 
 
-def observer_gain(rate_hz: float, s_input: float, s_momentum: float, s_sensor: float) -> float:
-    """The rule for an observer: the largest grid gain K [1/s] whose predicted noise
-    s_input^2 g_u(K) + s_momentum^2 g_H(K) is at most NOISE_RATIO s_sensor^2 (the smallest without one)."""
+def lag_variance(gain, dt: float) -> np.ndarray:
+    """[N^2] A first-order filter's error on the contact model (a random walk of CONTACT_RATE):
+    q a^2 / (1 - a^2) with a = 1 - K dt, q = CONTACT_RATE^2 dt (0 at K dt = 1)."""
+    a = 1.0 - np.asarray(gain, float) * dt
+    return CONTACT_RATE**2 * dt * a * a / np.maximum(1.0 - a * a, 1e-300)
+
+
+def observer_gain(rate_hz: float, s_input: float, s_momentum: float, force_scale: float = 1.0):
+    """The rule for an observer: (K [1/s], its predicted contact-free noise [N]) minimising
+    noise^2 + lag^2 on the grid, with noise^2 = force_scale^2 (s_input^2 g_u(K) + s_momentum^2 g_H(K));
+    force_scale maps the observer's quantity to the tip force (1 for a force; for joint torques the
+    RMS gain of pinv(J_v^T))."""
     grid = observer_gain_grid(rate_hz)
-    g_u, g_h = observer_noise_gains(grid, 1.0 / rate_hz)
-    ok = np.flatnonzero(s_input**2 * g_u + s_momentum**2 * g_h <= NOISE_RATIO * s_sensor**2)
-    return float(grid[ok[-1]] if len(ok) else grid[0])
+    dt = 1.0 / rate_hz
+    g_u, g_h = observer_noise_gains(grid, dt)
+    noise2 = force_scale**2 * (s_input**2 * g_u + s_momentum**2 * g_h)
+    i = int(np.argmin(noise2 + lag_variance(grid, dt)))
+    return float(grid[i]), float(np.sqrt(noise2[i]))
 
 
 def observer_settle_calls(gain: float, dt: float) -> int:
@@ -127,24 +142,6 @@ def random_walk_gain(force_rate: float, dt: float, s_e2: float) -> float:
     lam = force_rate**2 * dt / max(s_e2, 1e-300)
     p = 0.5 * (lam + math.sqrt(lam * lam + 4.0 * lam))
     return p / (1.0 + p)
-
-
-def kalman_gain(s_e2: float, s_sensor: float) -> float:
-    """The rule for the fusion filter's steady-state force gain per call: the largest k whose pass of
-    the white increment noise s_e2 [N^2] (the momentum increments over dt, as a force),
-    k / (2 - k) s_e2, is at most NOISE_RATIO s_sensor^2: k = 2 r / (1 + r), r = NOISE_RATIO s_sensor^2
-    / s_e2, capped at TOP_KALMAN_GAIN."""
-    r = NOISE_RATIO * s_sensor**2 / max(s_e2, 1e-300)
-    return max(1e-6, min(TOP_KALMAN_GAIN, 2.0 * r / (1.0 + r)))
-
-
-def kalman_force_rate(dt: float, s_e2: float, s_sensor: float, s_e2_model: float | None = None) -> float:
-    """The force rate [N/sqrt(s)] that gives the filter ``kalman_gain(s_e2, s_sensor)`` when the filter
-    weighs the increments with variance s_e2_model [N^2] (its white noise plus model errors; default
-    s_e2): lambda = k^2 / (1 - k) inverts ``random_walk_gain``. A model error (a bias) is left out of
-    the rule: narrowing the band would not remove it."""
-    k = kalman_gain(s_e2, s_sensor)
-    return math.sqrt(k * k / (1.0 - k) * max(s_e2 if s_e2_model is None else s_e2_model, 1e-300) / dt)
 
 
 def kalman_settle_calls(k: float) -> int:

@@ -44,7 +44,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg import solve_discrete_are
 
-from .bandwidth import kalman_force_rate, kalman_settle_calls, random_walk_gain
+from .bandwidth import CONTACT_RATE, kalman_settle_calls, random_walk_gain
 from .base_momentum import BaseMomentumObserver
 from .kalman_kernels import _fusion_step, _kf_run
 from .momentum_observer import MomentumObserver
@@ -63,8 +63,7 @@ class FusionNoise:
     sensor, the Panda's torque sensors and encoders). force_rate [N/sqrt(s)]:
     intensity of the random walk of F (its variance grows by force_rate^2 per
     second); it sets the filter's bandwidth. None (the default): the bandwidth
-    rule's value for these noises (``bandwidth.kalman_force_rate`` through the
-    base sensor's channel; :func:`rule_force_rate`). base_model / joint_model [N]: a
+    rule's value (:func:`rule_force_rate`: the contact model of ``bandwidth.py``). base_model / joint_model [N]: a
     model error per axis, as a force, added to that sensor's noise (how far the
     model behind the sensor can be trusted; 0 = exact).
     """
@@ -242,8 +241,7 @@ def window_fusion_noise(robot: Robot, dt: float, window, stats: np.ndarray, base
                         factors=None) -> FusionNoise:
     """The fusion filter's noise from a window (``bandwidth.WindowNoise`` and the increment sums):
     the sensors' noise as measured, their model errors from the increments, and the force rate by the
-    bandwidth rule (``bandwidth.kalman_force_rate``) through the base sensor's channel, or the joint
-    torques' when the window had no base sensor. The one definition the estimator and the bench share."""
+    bandwidth rule (:func:`rule_force_rate`). The one definition the estimator and the bench share."""
     factors = factors or channel_factors(robot)
     floor = 1e-6  # a noise-free window (an exact simulation) still needs a positive variance
     spec = FusionNoise(
@@ -251,17 +249,14 @@ def window_fusion_noise(robot: Robot, dt: float, window, stats: np.ndarray, base
         joint_torque=max(floor, window.joint_torque_rms if window.joint_torque is not None else FusionNoise.joint_torque),
         joint_velocity=max(floor, float(np.sqrt(np.mean(window.qd**2)))))
     noise = noise_from_stats(factors, dt, stats, spec, base_shift)
-    return replace(noise, force_rate=rule_force_rate(factors, dt, noise, "base" if window.base_force is not None
-                                                     else "joint"))
+    return replace(noise, force_rate=rule_force_rate())
 
 
-def rule_force_rate(factors, dt: float, noise: FusionNoise, primary: str = "base") -> float:
-    """The bandwidth rule's force rate [N/sqrt(s)] for these noises, through the ``primary`` sensor's
-    channel: its increment noise (q + 2 r) / dt^2 against that sensor's own force noise."""
-    white = _covariances(factors, dt, replace(noise, base_model=0.0, joint_model=0.0))[primary]
-    model = _covariances(factors, dt, noise)[primary]
-    s_sensor = noise.base_force if primary == "base" else noise.joint_torque * math.sqrt(factors[1])
-    return kalman_force_rate(dt, (white[0] + 2.0 * white[1]) / dt**2, s_sensor, (model[0] + 2.0 * model[1]) / dt**2)
+def rule_force_rate() -> float:
+    """The bandwidth rule's force rate [N/sqrt(s)]: the contact model's (``bandwidth.CONTACT_RATE``). The
+    minimum of noise^2 + lag^2 for a random-walk force is the Kalman filter of that random walk, so the
+    rule sets the force rate to the model's and the filter's gain follows from the measured noise."""
+    return CONTACT_RATE
 
 
 MAX_BRIDGE_CALLS = 5  # a sensor absent for up to this many calls is bridged; longer, it has left
@@ -313,7 +308,7 @@ class KalmanTipForce:
     def configure(self, noise: FusionNoise) -> None:
         """Use these noise intensities (arithmetic only: no design) and start afresh (``reset``)."""
         if noise.force_rate is None:
-            noise = replace(noise, force_rate=rule_force_rate(self._factors, self.dt, noise))
+            noise = replace(noise, force_rate=rule_force_rate())
         self.noise = noise
         cov = _covariances(self._factors, self.dt, noise)
         self._qv = np.array([cov["base"][0], cov["joint"][0], noise.force_rate**2 * self.dt])

@@ -198,8 +198,12 @@ class MomentumObserverMethod(MethodStream):
         self.observer = MomentumObserver(robot, gain=1.0, dt=self.dt)
 
     def choose(self, noise):
-        s_tau = noise.joint_torque_rms
-        return observer_gain(self.rate_hz, s_tau, qdd_noise_per_gain(self.robot, noise.q_mean, noise.qd, "tau_J"), s_tau)
+        # pinv(J_v^T) maps the joint-space noise to the tip force: its RMS gain at the window's pose.
+        jv = self.robot.tip_jacobian(noise.q_mean)[:3]
+        scale = float(np.sqrt(np.trace(np.linalg.inv(jv @ jv.T)) / 3.0))
+        self.value, self.predicted_noise = observer_gain(
+            self.rate_hz, noise.joint_torque_rms, qdd_noise_per_gain(self.robot, noise.q_mean, noise.qd, "tau_J"), scale)
+        return self.value
 
     def configure(self, value):
         self.observer.gain[:] = value
@@ -226,8 +230,9 @@ class BaseMomentumMethod(MethodStream):
         self.observer = BaseMomentumObserver(robot, gain=1.0, dt=self.dt)
 
     def choose(self, noise):
-        s_w = noise.base_force
-        return observer_gain(self.rate_hz, s_w, qdd_noise_per_gain(self.robot, noise.q_mean, noise.qd, "base_wrench"), s_w)
+        self.value, self.predicted_noise = observer_gain(
+            self.rate_hz, noise.base_force, qdd_noise_per_gain(self.robot, noise.q_mean, noise.qd, "base_wrench"))
+        return self.value
 
     def configure(self, value):
         self.observer.gain = float(value)
@@ -262,7 +267,7 @@ class KalmanFusionMethod(MethodStream):
         self.value = self.kalman.noise.force_rate
         return self.value
 
-    def choose(self, noise):  # without the window's increments: the rule on the measured noise alone
+    def choose(self, noise):  # the contact model's force rate (the measured noise sets the gain)
         return window_fusion_noise(self.robot, self.dt, noise, np.zeros((2, 8)), factors=self._factors).force_rate
 
     def configure(self, value):
