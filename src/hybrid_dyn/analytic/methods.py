@@ -49,6 +49,7 @@ class MethodStream:
     def __init__(self, robot: Robot, rate_hz: float):
         self.robot, self.rate_hz, self.dt = robot, float(rate_hz), 1.0 / float(rate_hz)
         self.value = None
+        self.data = robot.model.createData()  # for the rule's Jacobians at the window's pose (made now)
 
     def choose(self, noise: WindowNoise) -> float:
         """The bandwidth rule on the window's measured noise."""
@@ -160,7 +161,7 @@ class _QddMethod(MethodStream):
         return noise.base_force
 
     def choose(self, noise):
-        per_gain = qdd_noise_per_gain(self.robot, noise.q_mean, noise.qd, self.kind)
+        per_gain = qdd_noise_per_gain(self.robot, noise.q_mean, noise.qd, self.kind, self.data)
         return float(cutoff_grid(self.rate_hz)[0][cutoff_index(self.rate_hz, per_gain, self.sensor_noise(noise))])
 
     def settle_calls(self, sensors=()) -> int:
@@ -199,10 +200,13 @@ class MomentumObserverMethod(MethodStream):
 
     def choose(self, noise):
         # pinv(J_v^T) maps the joint-space noise to the tip force: its RMS gain at the window's pose.
-        jv = self.robot.tip_jacobian(noise.q_mean)[:3]
+        import pinocchio as pin
+
+        jv = pin.computeFrameJacobian(self.robot.model, self.data, noise.q_mean, self.robot.tool_frame_id,
+                                      pin.LOCAL_WORLD_ALIGNED)[:3]
         scale = float(np.sqrt(np.trace(np.linalg.inv(jv @ jv.T)) / 3.0))
         self.value, self.predicted_noise = observer_gain(
-            self.rate_hz, noise.joint_torque_rms, qdd_noise_per_gain(self.robot, noise.q_mean, noise.qd, "tau_J"), scale)
+            self.rate_hz, noise.joint_torque_rms, qdd_noise_per_gain(self.robot, noise.q_mean, noise.qd, "tau_J", self.data), scale)
         return self.value
 
     def configure(self, value):
@@ -231,7 +235,7 @@ class BaseMomentumMethod(MethodStream):
 
     def choose(self, noise):
         self.value, self.predicted_noise = observer_gain(
-            self.rate_hz, noise.base_force, qdd_noise_per_gain(self.robot, noise.q_mean, noise.qd, "base_wrench"))
+            self.rate_hz, noise.base_force, qdd_noise_per_gain(self.robot, noise.q_mean, noise.qd, "base_wrench", self.data))
         return self.value
 
     def configure(self, value):
