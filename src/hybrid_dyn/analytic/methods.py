@@ -199,14 +199,19 @@ class MomentumObserverMethod(MethodStream):
         self.observer = MomentumObserver(robot, gain=1.0, dt=self.dt)
 
     def choose(self, noise):
-        # pinv(J_v^T) maps the joint-space noise to the tip force: its RMS gain at the window's pose.
+        # The residual's joint-space noise mapped to the tip force by P = pinv(J_v^T) = (J_v J_v^T)^-1 J_v
+        # at the window's pose: per axis, tr(P diag(s_tau^2) P^T) / 3 from the torque sensors and
+        # tr(P M diag(s_qd^2) M P^T) / 3 from the momentum p = M qd.
         import pinocchio as pin
 
-        jv = pin.computeFrameJacobian(self.robot.model, self.data, noise.q_mean, self.robot.tool_frame_id,
-                                      pin.LOCAL_WORLD_ALIGNED)[:3]
-        scale = float(np.sqrt(np.trace(np.linalg.inv(jv @ jv.T)) / 3.0))
-        self.value, self.predicted_noise = observer_gain(
-            self.rate_hz, noise.joint_torque_rms, qdd_noise_per_gain(self.robot, noise.q_mean, noise.qd, "tau_J", self.data), scale)
+        r, data = self.robot, self.data
+        jv = pin.computeFrameJacobian(r.model, data, noise.q_mean, r.tool_frame_id, pin.LOCAL_WORLD_ALIGNED)[:3]
+        P = np.linalg.solve(jv @ jv.T, jv)
+        M = pin.crba(r.model, data, noise.q_mean)
+        M = np.triu(M) + np.triu(M, 1).T
+        s_in = np.sqrt(np.sum((P * noise.joint_torque) ** 2) / 3.0)
+        s_mom = np.sqrt(np.sum((P @ M * noise.qd) ** 2) / 3.0)
+        self.value, self.predicted_noise = observer_gain(self.rate_hz, s_in, s_mom)
         return self.value
 
     def configure(self, value):
