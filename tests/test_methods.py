@@ -14,25 +14,16 @@ from hybrid_dyn.analytic.methods import REGISTRY, Method, MethodStream, register
 from hybrid_dyn.estimator import EstimatorStatus, TipForceEstimator
 from hybrid_dyn.sim.sensors import causal_acceleration
 
+from test_estimator_robustness import contact_stream
+
 HZ = 1000.0
 
 
-def noisy_stream(robot, n, seed=0, force_from=0.8, base_noise=0.05, qd_noise=2e-4, tau_noise=0.02):
-    """Rigid-body samples of a smooth motion about home with sensor noise, and a 12 N contact after
-    ``force_from`` s: (t, q, qd, base wrench, tau_J, true force), the base sensor offset by a constant."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(n) / HZ
-    amp, w = rng.uniform(0.05, 0.2, robot.nv), rng.uniform(0.5, 2.0, robot.nv)
-    q = np.array(robot.spec.home) + amp * np.sin(w * t[:, None])
-    qd = amp * w * np.cos(w * t[:, None])
-    qdd = -amp * w**2 * np.sin(w * t[:, None])
-    f = np.where(t[:, None] >= force_from, np.array([7.0, -4.0, -9.0]) * 12.0 / np.linalg.norm([7, -4, -9]), 0.0)
-    jv = robot.tip_jacobian(q)[:, :3]
-    tau = robot.inverse_dynamics(q, qd, qdd) - np.einsum("nij,ni->nj", jv, f)
-    wrench = robot.base_wrench(q, qd, qdd, tip_force=f) + np.array([1.5, -0.7, 0.4, 0.05, -0.03, 0.02])
-    wrench = wrench + rng.normal(0, base_noise, wrench.shape) * np.r_[np.ones(3), np.full(3, 0.05)]
-    return (t, q + rng.normal(0, qd_noise / 25, q.shape), qd + rng.normal(0, qd_noise, qd.shape), wrench,
-            tau + rng.normal(0, tau_noise, tau.shape), f)
+def noisy_stream(robot, n, seed=0):
+    """The status tests' contact stream (sensor noise, a base-sensor offset, a constant 15 N contact from
+    0.8 s) as arrays: (t, q, qd, base wrench, tau_J, true force)."""
+    samples, f = contact_stream(robot, n, seed=seed, contact_at=0.8)
+    return (*(np.stack([s[k] for s in samples]) for k in ("t", "q", "qd", "base_wrench", "tau_J")), f)
 
 
 class StaticBase(MethodStream):
@@ -80,7 +71,7 @@ def test_a_toy_method_registered_once_is_found_everywhere(toy, panda):
     out = np.stack([est.estimate_tip_force(q[k], qd[k], base_wrench=w[k], t=t[k]) for k in range(len(t))])
     assert est.bandwidth == 0.5 * HZ and est.last_status is EstimatorStatus.OK
     # Physics: the arm moves slowly, so the quasi-static force is near the true one (the inertial part
-    # is m J_com qdd: a few tenths of a newton here), far from the 12 N it is not.
+    # is m J_com qdd: a few tenths of a newton here), far from the 15 N it is not.
     assert np.sqrt(np.mean(np.sum((out[1000:] - f[1000:]) ** 2, axis=1))) < 1.0
     batch, used = run_batch("static-base", panda, HZ, q, qd, w, None)
     np.testing.assert_allclose(out[501:], batch[501:], atol=1e-9)  # the stream starts after its window
@@ -108,7 +99,7 @@ def test_streaming_step_equals_the_batch_run(method, panda):
                             tau if "tau_J" in spec.reads else None)
     assert used == pytest.approx(est.bandwidth, rel=1e-9)
     np.testing.assert_allclose(out[500:], batch[500:], atol=1e-7)
-    # ...and a real estimate of the 12 N contact once settled.
+    # ...and a real estimate of the 15 N contact once settled.
     settled = int(0.8 * HZ) + 300
     assert np.sqrt(np.mean(np.sum((out[settled:] - f[settled:]) ** 2, axis=1))) < 1.0
 

@@ -191,12 +191,37 @@ class TorquesPinv(_QddMethod):
         return tip_force_from_torques(self.robot, q, qd, qdd, tau)
 
 
-class MomentumObserverMethod(MethodStream):
-    """The joint-torque momentum observer: K by the rule on the torque sensors' and p = M qd's noise."""
+class _ObserverMethod(MethodStream):
+    """A momentum observer (``cls``) stepped on one sensor (``sensor``: "w" or "tau"), gain K by the rule."""
+
+    cls = sensor = None
 
     def __init__(self, robot, rate_hz):
         super().__init__(robot, rate_hz)
-        self.observer = MomentumObserver(robot, gain=1.0, dt=self.dt)
+        self.observer = self.cls(robot, gain=1.0, dt=self.dt)
+
+    def configure(self, value):
+        self.observer.gain = np.broadcast_to(float(value), np.shape(self.observer.gain)).copy() \
+            if np.ndim(self.observer.gain) else float(value)
+        super().configure(value)
+
+    def reset(self):
+        self.observer.reset()
+
+    def step(self, q, qd, qdd, w, tau):
+        return self.observer.force(q, self.observer.step_unchecked(q, qd, w if self.sensor == "w" else tau))
+
+    def batch(self, q, qd, qdd, w, tau):
+        return self.cls(self.robot, gain=self.value, dt=self.dt).run(q, qd, w if self.sensor == "w" else tau)[0]
+
+    def settle_calls(self, sensors=()):
+        return observer_settle_calls(self.value, self.dt)
+
+
+class MomentumObserverMethod(_ObserverMethod):
+    """The joint-torque momentum observer: K by the rule on the torque sensors' and p = M qd's noise."""
+
+    cls, sensor = MomentumObserver, "tau"
 
     def choose(self, noise):
         # The residual's joint-space noise mapped to the tip force by P = pinv(J_v^T) = (J_v J_v^T)^-1 J_v
@@ -214,50 +239,16 @@ class MomentumObserverMethod(MethodStream):
         self.value, self.predicted_noise = observer_gain(self.rate_hz, s_in, s_mom)
         return self.value
 
-    def configure(self, value):
-        self.observer.gain[:] = value
-        super().configure(value)
 
-    def reset(self):
-        self.observer.reset()
-
-    def step(self, q, qd, qdd, w, tau):
-        return self.observer.force(q, self.observer.step_unchecked(q, qd, tau))
-
-    def batch(self, q, qd, qdd, w, tau):
-        return MomentumObserver(self.robot, gain=self.value, dt=self.dt).run(q, qd, tau)[0]
-
-    def settle_calls(self, sensors=()):
-        return observer_settle_calls(self.value, self.dt)
-
-
-class BaseMomentumMethod(MethodStream):
+class BaseMomentumMethod(_ObserverMethod):
     """The base momentum observer: K by the rule on the base sensor's and h = m J_com qd's noise."""
 
-    def __init__(self, robot, rate_hz):
-        super().__init__(robot, rate_hz)
-        self.observer = BaseMomentumObserver(robot, gain=1.0, dt=self.dt)
+    cls, sensor = BaseMomentumObserver, "w"
 
     def choose(self, noise):
         self.value, self.predicted_noise = observer_gain(
             self.rate_hz, noise.base_force, qdd_noise_per_gain(self.robot, noise.q_mean, noise.qd, "base_wrench", self.data))
         return self.value
-
-    def configure(self, value):
-        self.observer.gain = float(value)
-        super().configure(value)
-
-    def reset(self):
-        self.observer.reset()
-
-    def step(self, q, qd, qdd, w, tau):
-        return self.observer.force(q, self.observer.step_unchecked(q, qd, w))
-
-    def batch(self, q, qd, qdd, w, tau):
-        return BaseMomentumObserver(self.robot, gain=self.value, dt=self.dt).run(q, qd, w)[0]
-
-    def settle_calls(self, sensors=()):
-        return observer_settle_calls(self.value, self.dt)
 
 
 class KalmanFusionMethod(MethodStream):
