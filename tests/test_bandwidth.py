@@ -6,8 +6,9 @@
 """
 import numpy as np
 import pytest
+from scipy.signal import lfilter
 
-from hybrid_dyn.analytic.bandwidth import CONTACT_RATE, lag_variance, measure_window, observer_gain
+from hybrid_dyn.analytic.bandwidth import CONTACT_STEP, contact_rate, lag_variance, measure_window, observer_gain
 from hybrid_dyn.analytic.methods import REGISTRY
 from hybrid_dyn.estimator import TipForceEstimator
 
@@ -81,7 +82,16 @@ def test_the_rule_is_the_minimum_of_noise_and_lag():
         best = fine[np.argmin(err)]
         assert abs(np.log(k / best)) < np.log(HZ) / 63 + 1e-9  # within one step of the rule's 64-point grid
         assert noise == pytest.approx(np.sqrt(s_in**2 * k * dt / 2 + s_mom**2 * 2 * k**2 / (2 - k * dt)))
-    assert lag_variance(np.array([HZ]), dt)[0] == 0.0 and CONTACT_RATE > 0
+    assert lag_variance(np.array([HZ]), dt)[0] == 0.0
+    # The lag side is the textbook one: a first-order filter on a random walk of per-sample step s, by
+    # simulation (its steady error variance s^2 a^2 / (1 - a^2)).
+    rng = np.random.default_rng(0)
+    walk = np.cumsum(CONTACT_STEP * rng.standard_normal(400_000))
+    for k in (30.0, 300.0):
+        a = 1.0 - k * dt
+        err = lfilter([1.0 - a], [1.0, -a], walk) - walk
+        assert np.mean(err[1000:] ** 2) == pytest.approx(lag_variance(np.array([k]), dt)[0], rel=0.1)
+    assert contact_rate(1e-3) == pytest.approx(CONTACT_STEP / np.sqrt(1e-3))
 
 
 @pytest.mark.parametrize("method", ["base-momentum", "momentum-observer"])

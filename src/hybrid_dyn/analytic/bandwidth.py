@@ -10,13 +10,17 @@ the (contact-free) noise window:
   (:func:`measure_window`, the median-based ``white_noise_rms``), puts into the
   estimate at bandwidth b, in closed form;
 - lag^2: what the filter's lag costs on the contact model: the contact force as
-  a random walk of intensity CONTACT_RATE = 3 N/sqrt(s) per axis (its variance
-  grows by 9 N^2 a second). A first-order filter with pole a = 1 - K dt lags a
-  random walk of per-call variance q = CONTACT_RATE^2 dt by q a^2 / (1 - a^2).
-  The value is a stated prior, not a measurement: it is the force rate the
-  bench's validation split picks for kalman-fusion on contact-steps (3-25 N
-  steps and 1-20 ms trapezoids held 0.3-1.5 s; ``benchmarks/tip_force_methods.py``),
-  and with 10 N/sqrt(s) the rule's bands were 2x too wide there and on the bells.
+  a random walk whose step per sample is CONTACT_STEP = 0.1 N per axis (its
+  variance grows by 0.01 N^2 a sample: 3.2 N/sqrt(s) at 1 kHz, 1 N/sqrt(s) at
+  100 Hz). A first-order filter with pole a = 1 - K dt lags it by
+  CONTACT_STEP^2 a^2 / (1 - a^2).
+  The model is a stated prior, not a measurement. It is per sample because a
+  recording's rate is chosen for the contacts it must show (contact-steps is
+  recorded at 1 kHz since 10 ms samples hide a step), and its size is what the
+  bench's validation split picks for kalman-fusion's force rate on both kinds
+  of contact: 1 N/sqrt(s) on paper-ext's bells at 100 Hz, 3 N/sqrt(s) on
+  contact-steps' 1-20 ms steps at 1 kHz (``benchmarks/tip_force_methods.py``);
+  one constant rate served one of them at 2x the other's error.
 
 So a quieter sensor widens the band and a noisier one narrows it, whichever
 noise it is (tested). Per method:
@@ -29,7 +33,8 @@ noise it is (tested). Per method:
   (:func:`observer_gain`);
 - Kalman filter (kalman-fusion): the minimum of noise^2 + lag^2 for a random-walk
   force *is* the Kalman filter whose force rate is the contact model's
-  (``force_rate = CONTACT_RATE``), with the noises measured on the window;
+  (``force_rate = CONTACT_STEP / sqrt(dt)``, :func:`contact_rate`), with the noises
+  measured on the window;
 - qdd cutoff (base-wrench, torques-pinv): these methods pass the contact
   unfiltered; their filter lags the arm's own motion, which a window does not
   predict. The rule's noise side alone: the widest cutoff at which the qdd
@@ -54,7 +59,7 @@ import numpy as np
 
 from .acceleration import white_noise_rms
 
-CONTACT_RATE = 3.0  # N/sqrt(s): the contact model, the force as a random walk of this intensity
+CONTACT_STEP = 0.1  # N per axis and sample: the contact model, the force as a random walk of this step
 TOP_GAIN_DT = 1.0  # observers: K dt up to 1 (the deadbeat observer, a plain trapezoidal difference)
 SETTLE_FRACTION = 0.01  # "settled": a start's transient has decayed below 1 %
 
@@ -124,11 +129,16 @@ def observer_gain_grid(rate_hz: float) -> np.ndarray:
     return np.geomspace(1.0, TOP_GAIN_DT * rate_hz, 64)
 
 
+def contact_rate(dt: float) -> float:
+    """The contact model's random-walk intensity [N/sqrt(s)] at sample time dt [s]: CONTACT_STEP / sqrt(dt)."""
+    return CONTACT_STEP / math.sqrt(dt)
+
+
 def lag_variance(gain, dt: float) -> np.ndarray:
-    """[N^2] A first-order filter's error on the contact model (a random walk of CONTACT_RATE):
-    q a^2 / (1 - a^2) with a = 1 - K dt, q = CONTACT_RATE^2 dt (0 at K dt = 1)."""
+    """[N^2] A first-order filter's error on the contact model (a random walk of step CONTACT_STEP per
+    sample): CONTACT_STEP^2 a^2 / (1 - a^2) with a = 1 - K dt (0 at K dt = 1)."""
     a = 1.0 - np.asarray(gain, float) * dt
-    return CONTACT_RATE**2 * dt * a * a / np.maximum(1.0 - a * a, 1e-300)
+    return CONTACT_STEP**2 * a * a / np.maximum(1.0 - a * a, 1e-300)
 
 
 def observer_gain(rate_hz: float, s_input: float, s_momentum: float, force_scale: float = 1.0):

@@ -44,7 +44,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg import solve_discrete_are
 
-from .bandwidth import CONTACT_RATE, kalman_settle_calls, random_walk_gain
+from .bandwidth import contact_rate, kalman_settle_calls, random_walk_gain
 from .base_momentum import BaseMomentumObserver
 from .kalman_kernels import _fusion_step, _kf_run
 from .momentum_observer import MomentumObserver
@@ -249,14 +249,15 @@ def window_fusion_noise(robot: Robot, dt: float, window, stats: np.ndarray, base
         joint_torque=max(floor, window.joint_torque_rms if window.joint_torque is not None else FusionNoise.joint_torque),
         joint_velocity=max(floor, float(np.sqrt(np.mean(window.qd**2)))))
     noise = noise_from_stats(factors, dt, stats, spec, base_shift)
-    return replace(noise, force_rate=rule_force_rate())
+    return replace(noise, force_rate=rule_force_rate(dt))
 
 
-def rule_force_rate() -> float:
-    """The bandwidth rule's force rate [N/sqrt(s)]: the contact model's (``bandwidth.CONTACT_RATE``). The
-    minimum of noise^2 + lag^2 for a random-walk force is the Kalman filter of that random walk, so the
-    rule sets the force rate to the model's and the filter's gain follows from the measured noise."""
-    return CONTACT_RATE
+def rule_force_rate(dt: float) -> float:
+    """The bandwidth rule's force rate [N/sqrt(s)] at sample time dt [s]: the contact model's
+    (``bandwidth.contact_rate``). The minimum of noise^2 + lag^2 for a random-walk force is the Kalman
+    filter of that random walk, so the rule sets the force rate to the model's and the filter's gain
+    follows from the measured noise."""
+    return contact_rate(dt)
 
 
 MAX_BRIDGE_CALLS = 5  # a sensor absent for up to this many calls is bridged; longer, it has left
@@ -308,7 +309,7 @@ class KalmanTipForce:
     def configure(self, noise: FusionNoise) -> None:
         """Use these noise intensities (arithmetic only: no design) and start afresh (``reset``)."""
         if noise.force_rate is None:
-            noise = replace(noise, force_rate=rule_force_rate())
+            noise = replace(noise, force_rate=rule_force_rate(self.dt))
         self.noise = noise
         cov = _covariances(self._factors, self.dt, noise)
         self._qv = np.array([cov["base"][0], cov["joint"][0], noise.force_rate**2 * self.dt])
