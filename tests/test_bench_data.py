@@ -51,7 +51,7 @@ def tiny_profile(data, **kw):
     from hybrid_dyn.bench.profiles import profile_for_data
 
     return profile_for_data(data, families=(), rows=tuple(ROWS), workers=1,
-                            train=dict(max_epochs=1, max_batches_per_epoch=2, batch_size=64, progress=False), **kw)
+                            train=dict(budget_steps=2, budget_evals=1, batch_size=64, progress=False), **kw)
 
 
 @pytest.fixture(scope="module")
