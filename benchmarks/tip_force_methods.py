@@ -57,10 +57,13 @@ def main(argv=None) -> None:
             pred = ROWS[name].build(ds, ctx)
             table[scenario, name] = rmse(np.concatenate(pred.predict(test)), target)
             print(f"  {name:24s} RMSE {table[scenario, name]:.4f} N   [{pred.inputs}]", flush=True)
-    print(f"\ntest RMSE [N] by row and scenario ({args.profile} sizes)")
-    print(f"{'row':24s} " + " ".join(f"{s:>20s}" for s in args.scenarios))
+    print(f"\ntest RMSE [N] by row and scenario ({args.profile} sizes); mean over the scenarios; in brackets the "
+          "ratio to base-wrench-tared (issue 16's floors: <= 0.4 on paper-ext and mismatch-ext, <= 0.6 on contact-steps)")
+    print(f"{'row':24s} " + " ".join(f"{s:>28s}" for s in args.scenarios) + f" {'mean':>8s}")
     for name in ROW_NAMES:
-        print(f"{name:24s} " + " ".join(f"{table[s, name]:20.4f}" for s in args.scenarios))
+        cells = [f"{table[s, name]:.4f} ({table[s, name] / table[s, 'base-wrench-tared']:.2f}x)" for s in args.scenarios]
+        mean = np.mean([table[s, name] for s in args.scenarios])
+        print(f"{name:24s} " + " ".join(f"{c:>28s}" for c in cells) + f" {mean:8.4f}")
 
 
 if __name__ == "__main__":

@@ -29,7 +29,7 @@ from hybrid_dyn.sim.scenarios import ContactStepConfig
 
 DT = 1e-3
 BASE_ONLY = ("base-wrench", "base-momentum", "kalman-fusion")  # the methods that run on q, qd and the base sensor
-RECOMMENDED = "kalman-fusion"  # the README's recommendation
+RECOMMENDED = "base-momentum"  # the README's recommendation
 FLOORS = {"recommended": 0.30, "base-only": 0.35}
 
 
