@@ -47,7 +47,9 @@ run); this module runs them on a stream. What happens in one call:
    the one rule of ``analytic/bandwidth.py`` (a number given in the config
    instead of "auto" is used as is). Without a window (``tare_seconds=0``) the
    rule runs on the sensors' specifications. Every filter design happens when
-   the estimator is built: closing the window picks, it does not design.
+   the estimator is built, and the close is split over two calls: the window's
+   last call measures the noise, the first call after it picks the bandwidth
+   (and the method starts there).
 3. Where the method needs it, qdd is estimated from qd causally, with the
    generator's filter (``analytic/acceleration.py``) at the call rate; the
    window is replayed through the chosen filter, so that it runs as if from the start.
@@ -288,6 +290,7 @@ class TipForceEstimator:
             self._warmup_calls = 1 + self._stream.settle_calls(self.spec.reads)  # the first call starts it
         else:
             self._warmup_calls = self._window_calls + 1
+        self._window_noise = None  # measured by the window's last call, applied by the next
         self._last_good = np.zeros(3)
         self.fusion_noise = None
         self.last_status = EstimatorStatus.WARMING_UP
@@ -344,12 +347,13 @@ class TipForceEstimator:
         if in_window:
             self._record(k, q, qd, base_wrench, tau_J)
             self._stream.window_step(q, qd, qdd, base_wrench, tau_J)
-            if self._calls < self._window_calls:
-                return self._finish(self._last_good, True, wrong_rate, True)
-            qdd_new = self._close_window()
-            if not self.spec.needs_qdd:  # the dynamic methods start at the next sample
-                return self._finish(self._last_good, True, wrong_rate, True)
-            qdd = qdd if qdd_new is None else qdd_new  # a per-sample method estimates from this sample on
+            if self._calls == self._window_calls:  # the window's last call measures its noise...
+                self._window_noise = self._measure_window()
+            return self._finish(self._last_good, True, wrong_rate, True)
+        if self._window_noise is not None:  # ...and the next one applies the rule: no call does both
+            self._close_window(self._window_noise)
+            if self.spec.needs_qdd:
+                qdd = self._qdd_filter.step(qd)  # this sample through the chosen filter, after the window's replay
         if taring and tau_J is not None and self._last_good.dot(self._last_good) > self.config.tare_contact_force ** 2:
             tare.reset()  # a late tare must not average over a contact the torques see: start over
         if not self._base_tared and tare.done:
@@ -405,28 +409,30 @@ class TipForceEstimator:
             self._win_tau[k] = tau
             self._win_has[k, 1] = True
 
-    def _close_window(self):
-        """End of the noise window: measure the noise, set the bandwidth by the rule (or the config's),
-        replay the window through the chosen qdd filter, start the method. No design happens here:
-        the rule picks among designs made when the estimator was built (``cutoff_grid``)."""
+    def _measure_window(self):
+        """The window's white noise (``bandwidth.measure_window``) on the samples each sensor came with."""
         has = self._win_has
         rows = lambda x, i: x[has[:, i]] if has[:, i].sum() >= 8 else None  # noqa: E731
-        noise = measure_window(self._win_q, self._win_qd, rows(self._win_w, 0), rows(self._win_tau, 1))
+        return measure_window(self._win_q, self._win_qd, rows(self._win_w, 0), rows(self._win_tau, 1))
+
+    def _close_window(self, noise) -> None:
+        """The first call after the noise window: set the bandwidth by the rule (or the config's) from the
+        window's noise, replay the window through the chosen qdd filter, start the method at this call. No
+        design happens here: the rule picks among designs made when the estimator was built (``cutoff_grid``)."""
+        self._window_noise = None
         tare = self._tare
         offset = tare.offset if tare is not None and tare.done else None
         if offset is None and tare is not None:  # the base sensor did not fill the window: no model error from it
             self._stream_stats_drop_base()
         self.bandwidth = self._stream.close_window(noise, offset, self._fixed)
-        qdd = self._use_bandwidth(replay=self._win_qd)
+        self._use_bandwidth(replay=self._win_qd)
         self._base_tared = tare is None or tare.done
         self._absent, self._active = [-1, -1], ()
-        # A qdd method estimates from this sample on, with no transient (its filter was replayed). The
-        # dynamic methods start at the next sample: an observer then settles; kalman-fusion settles for
-        # the sensors it gets (``_track_sensors``).
-        self._warmup_calls = self._calls if self.spec.needs_qdd else self._calls + 1
+        # A qdd method has no transient (its filter was replayed); an observer settles; kalman-fusion settles
+        # for the sensors it gets (``_track_sensors``).
+        self._warmup_calls = self._calls
         if not self._optional and not self.spec.needs_qdd:
             self._warmup_calls += self._stream.settle_calls(self.spec.reads)
-        return qdd
 
     def _stream_stats_drop_base(self) -> None:
         kalman = getattr(self._stream, "kalman", None)

@@ -305,6 +305,12 @@ class KalmanTipForce:
                      self._zero_c, self._zero_nv, self._zero_c, self._zero_nv, self._zero_jac, self.dt,
                      SINGULAR_REGION, MAX_DAMPING)
         _kf_run(np.zeros((1, 2, 3)), np.ones(2, np.bool_), self._P0(), self._qv, self._rv, self.dt)
+        # ...and with the arrays Pinocchio hands the step (their memory layouts pick numba's specialization),
+        # for every sensor subset: none is compiled (or loaded from the cache, ~10 ms) in a control call.
+        home, zero = np.array(robot.spec.home, float), np.zeros(robot.nv)
+        for w, tau in ((np.zeros(6), zero), (np.zeros(6), None), (None, zero)):
+            self.step_unchecked(home, zero, w, tau)
+        self.reset()
 
     def configure(self, noise: FusionNoise) -> None:
         """Use these noise intensities (arithmetic only: no design) and start afresh (``reset``)."""
