@@ -265,8 +265,9 @@ def test_any_numeric_layout_gives_what_float64_arrays_give(panda):
 
 
 # ------------------------------------------------- issue 27: statuses that tell the truth
-OK_TOLERANCE = 2.0  # N: no "ok" call may err more, once a contact has lasted the method's settling time
-OK_RMS = 0.6  # N: nor may the "ok" calls' RMS error (the noise the rule allows: ~0.3 N per axis here)
+OK_TOLERANCE = 1.0  # N: no "ok" call may err more, once a contact has lasted the method's settling time (the
+# issue's check is 2 N; the worst seen here is 0.65 N, the noise the rule allows on these streams)
+OK_RMS = 0.3  # N: nor may the "ok" calls' RMS error (0.22 N at most here)
 CONTACT = np.array([0.5, -0.6, -0.8]) / np.linalg.norm([0.5, -0.6, -0.8]) * 15.0  # N, from CONTACT_AT
 CONTACT_AT = 1.0  # s
 

@@ -20,7 +20,6 @@ estimate "out of training range"; it is still returned.
 from __future__ import annotations
 
 import copy
-import math
 import time
 import warnings
 from pathlib import Path
