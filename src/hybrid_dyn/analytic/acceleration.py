@@ -149,7 +149,7 @@ def qdd_noise_gain(rate_hz: float, cutoff_hz: float) -> float:
     return float(np.sum(h**2))
 
 
-def _settle_calls(rate_hz: float, cutoff_hz: float) -> int:
+def filter_settle_calls(rate_hz: float, cutoff_hz: float) -> int:
     """Calls until the filter's impulse response stays below 1 % of its peak (its transient after a restart)."""
     b, a = signal.butter(2, cutoff_hz, fs=rate_hz)
     n = int(max(64, 20 * rate_hz / cutoff_hz))
@@ -167,7 +167,7 @@ def cutoff_grid(rate_hz: float) -> tuple[np.ndarray, np.ndarray, tuple, np.ndarr
     grid = np.geomspace(5.0, 0.45 * rate_hz, 48)
     gains = np.array([qdd_noise_gain(rate_hz, float(fc)) for fc in grid])
     designs = tuple(step_matrix(rate_hz, float(fc)) for fc in grid)
-    settle = np.array([_settle_calls(rate_hz, float(fc)) for fc in grid])
+    settle = np.array([filter_settle_calls(rate_hz, float(fc)) for fc in grid])
     return grid, gains, designs, settle
 
 

@@ -27,7 +27,7 @@ from typing import Callable
 
 import numpy as np
 
-from .acceleration import DEFAULT_QDD_CUTOFF_HZ, cutoff_grid, cutoff_index, qdd_noise_per_gain, _settle_calls
+from .acceleration import DEFAULT_QDD_CUTOFF_HZ, cutoff_grid, cutoff_index, qdd_noise_per_gain, filter_settle_calls
 from .bandwidth import WindowNoise, measure_window, observer_gain, observer_settle_calls
 from .base_momentum import BaseMomentumObserver
 from .estimators import ESTIMATORS
@@ -167,7 +167,7 @@ class _QddMethod(MethodStream):
     def settle_calls(self, sensors=()) -> int:
         grid, _, _, settle = cutoff_grid(self.rate_hz)
         hit = np.flatnonzero(np.isclose(grid, self.value, rtol=1e-12))
-        return int(settle[hit[0]]) if len(hit) else _settle_calls(self.rate_hz, self.value)
+        return int(settle[hit[0]]) if len(hit) else filter_settle_calls(self.rate_hz, self.value)
 
 
 class BaseWrench(_QddMethod):
