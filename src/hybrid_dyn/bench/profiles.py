@@ -2,6 +2,7 @@
 
 quick    every family on one small scenario (``make demo``), minutes on 2 cores
 default  every row on paper-noext, paper-ext and mismatch-ext; the analytic rows on contact-steps (1 kHz)
+         and contact-steps-quiet (its base sensor at 0.05 N)
 paper    the study's scale (1000 instances per scenario)
 real     the joint-torque models that need no URDF on the three real-robot logs
          (KUKA and Baxter split by trajectory; SARCOS, one test file of 4,449
@@ -220,7 +221,7 @@ PROFILES = {
     # DeLaN rows still gained from the data (their RMSE ratios fell to 0.41-0.88 from 18 instances).
     # 40 of 5-10 took 74.2 min from empty caches, another bench beside it (reports/default).
     "default": BenchProfile(
-        name="default", scenarios=("paper-noext", "paper-ext", "mismatch-ext", "contact-steps"),
+        name="default", scenarios=("paper-noext", "paper-ext", "mismatch-ext", "contact-steps", "contact-steps-quiet"),
         generator_profile="default",
         # tau-mlp-wide (2 x 128, dropout 0.2): the larger-capacity control of the seed torque nets.
         rows=("tau-mlp-wide",),
@@ -228,7 +229,7 @@ PROFILES = {
                             for s in ("paper-noext", "paper-ext", "mismatch-ext")},
         # contact-steps (1 kHz) tests the physics estimators on steps; the nets' windows are
         # counted in samples and were sized for 100 Hz, so they are not trained on it.
-        scenario_families={"contact-steps": ("analytic",)},
+        scenario_families={"contact-steps": ("analytic",), "contact-steps-quiet": ("analytic",)},
         notes=("Training: the budgeted recipe (learn/train.py, docs/models.md): a fixed number of Adam steps per network kind, batch 1024, lr 2e-3 with a 5 % linear warm-up and a cosine decay to zero, the best of 40 validation rounds kept; the cost of a row does not grow with the data. The epoch recipe with patience is `--recipe default`, the seed's (constant rate, patience 5) `--recipe seed`.",
                "Data: paper-noext, paper-ext and mismatch-ext hold 40 instances of 5-10 trajectories (the generator's "
                "default is 40 of 5-20), so that the whole bench trains within 120 minutes on 2 cores; the data were "
@@ -238,7 +239,8 @@ PROFILES = {
                "paper-noext has no external force: its tip-force rows are not run.",
                "contact-steps: step and trapezoid contacts (rise 1-20 ms, plateaus 0.3-1.5 s, 3-25 N) recorded at "
                "1 kHz, the rate of a control loop; only the analytic rows run on it (the nets' windows are counted "
-               "in samples and sized for 100 Hz)."),
+               "in samples and sized for 100 Hz). contact-steps-quiet: the same with the base sensor at 0.05 N "
+               "(0.0025 Nm) noise, where the estimators' automatic bandwidth must change."),
     ),
     # Real logs carry no base wrench or tip force and no URDF ships for these arms:
     # only the joint-torque models that need neither (PROTOCOL 2, issue 8).
