@@ -235,11 +235,12 @@ LR_SCHEDULES = ("plateau", "none", "cosine")
 STOP_REASONS = ("patience", "lr-floor", "epoch-cap", "budget")
 
 # Optimizer steps of the budgeted recipe per network kind (of the preset's front; a DeLaN with a
-# residual net counts as DeLaN), from the budget study on seed-sim, 80 instances (benchmarks/budget_study.py,
-# docs/models.md): the knee, the smallest budget whose doubling gains under 3 % on validation, for MLP
-# (8000), LSTM (2000) and DeLaN (4000); the conv net still gained 12 % from 8000 to 16000 and is
-# held at 16000 by cost. The knee moves with the data: re-measure at another data size.
-BUDGET_STEPS = {"mlp": 8000, "conv": 16000, "lstm": 2000, "delan": 4000}
+# residual net counts as DeLaN), from the budget study (benchmarks/budget_study.py, docs/models.md) on
+# seed-sim (80 instances) and paper-noext (40): the MLP's knee (the smallest budget whose doubling gains
+# under 3 % on validation) on both; the others had knees on seed-sim (LSTM 2000, DeLaN 4000) but still
+# gained 8-25 % per doubling on paper-noext, so they are set where the cost allows (conv and LSTM about
+# 3 min a row on a loaded core, DeLaN 6 min) and are known not to have converged there.
+BUDGET_STEPS = {"mlp": 8000, "conv": 16000, "lstm": 4000, "delan": 16000}
 
 
 def budget_steps_of(preset: Preset) -> int:
