@@ -462,7 +462,8 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
     for s, d in meta.get("datasets", {}).items():
         origin = f"config hash `{d['config_hash']}`" if d.get("config_hash") else "imported (no generator config)"
         lines.append(f"- data `{s}`: {origin}, data checksum `{str(d.get('checksum'))[:16]}`"
-                     + (f", read from `{d['path']}`, robot `{d['robot']}`" if d.get("robot") else ""))
+                     + (f", read from `{d['path']}`, robot `{d['robot']}`" if d.get("robot") else "")
+                     + (f"; split {d['split']}" if d.get("split") else ""))
     notes = prof.get("notes") or []
     if notes:
         lines += ["", "## Method notes", ""] + [f"- {n}" for n in notes]

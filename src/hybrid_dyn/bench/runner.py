@@ -42,6 +42,7 @@ from tqdm.auto import tqdm
 from ..analytic.robot import load_robot
 from ..data import Dataset, load_dataset
 from ..data.real import RealLogMissingError
+from ..data.splits import dataset_split_text
 from ..outputs import output_lock, refuse_foreign, unique_temp
 from .catalog import ROWS, get_row  # noqa: F401  (ROWS: every declared row)
 from .learned_rows import PRESET_ROWS
@@ -366,7 +367,8 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider
     meta = {"bench_report": 1, "profile": profile.to_dict(), "wall_seconds": wall, "invocations": invocations,
             "scenarios": labels, "skipped": skipped, "machine": machine_info(),
             "datasets": {s: {"path": str(d.path), "checksum": d.checksum, "seed": d.meta.get("seed"),
-                             "config_hash": d.meta.get("config_hash"), "robot": d.meta.get("robot")}
+                             "config_hash": d.meta.get("config_hash"), "robot": d.meta.get("robot"),
+                             "split": dataset_split_text(d)}
                          for s, d in datasets.items()}}
     write_json(out_dir / "run.json", meta)
     write_results(out_dir / "results.csv", rows)  # also when no row applied: the report reads it
