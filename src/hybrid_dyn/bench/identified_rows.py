@@ -26,6 +26,8 @@ Rows:
                 and residual-rnea-bw with their prior on the consistent model, its inertials and
                 its friction (TrainConfig.analytic_params = its file; learn/priors.py); untrained,
                 residual-rnea-identified is identified-consistent
+                gp-residual-identified: a sparse GP on the consistent model's residual
+                (learn/gp_residual.py): hyperparameters by marginal likelihood on train, chosen on val
 """
 from __future__ import annotations
 
@@ -43,7 +45,7 @@ from ..analytic.tip_force import contact_joint_torques, tip_force_from_base_wren
 from ..data import DatasetError, load_dataset
 from ..outputs import unique_temp
 from .learned_rows import learned_predictor
-from .rows import Predictor, Row, declare
+from .rows import Predictor, Row, declare, prior_kept_text
 
 EXCITATION_ITERATIONS = {"quick": 30, "default": 150, "paper": 150}
 LOG_SPLITS = ("train", "val")  # what an imported log's identification sees; never its test split
@@ -227,7 +229,40 @@ def _residual_row(name: str, preset: str) -> Row:
 
     p = get_preset(preset)
     return declare(Row(name, "joint_torque", "identified", needs=tuple(p.inputs) + tuple(p.targets), needs_urdf=True,
-                       build=build, trains=True, more_needs=fit_needs))
+                       build=build, trains=True, more_needs=fit_needs,
+                       # No row is the rnea-bw prior on the consistent set (identified-bw-tared sits on
+                       # sigmoid-friction): the report compares only rows whose prior is a row.
+                       prior=f"identified-{RESIDUAL_PRIOR_METHOD}" if p.prior == "rnea" else None))
+
+
+def _gp_residual_row(name: str) -> Row:
+    """A sparse GP on the residual of the identified model, inertials and friction (learn/gp_residual.py)."""
+    def build(ds, ctx):
+        from ..learn.gp_residual import GPResidualConfig, train_gp_residual
+
+        _, path = _identified(ctx, RESIDUAL_PRIOR_METHOD)
+        out = Path(ctx.work_dir) / "models" / f"{name}-{hashlib.sha256(Path(path).read_bytes()).hexdigest()[:12]}"
+        t0 = time.perf_counter()
+        model = train_gp_residual(ds, path, out, GPResidualConfig(seed=ctx.profile.seed), robot=ctx.robot)
+        x_of = {}
+
+        def single(inst, k):  # the model's own per-sample path: one row of (q, qd, qdd)
+            if inst.name not in x_of:
+                x_of[inst.name] = np.concatenate([np.asarray(inst[f], float).reshape(len(inst), -1)
+                                                  for f in model.inputs], axis=1)
+            return model.predict_rows(x_of[inst.name][k:k + 1])[0]
+
+        kept = [j + 1 for j, k in enumerate(model.kept_prior) if k]
+        ctx.log(f"[bench] {ctx.scenario} {name}: validation RMSE {model.config['val_rmse']:.4f} Nm against the "
+                f"prior's {model.config['val_rmse_prior']:.4f}; joints keeping the prior: {kept or 'none'}")
+        seconds = model.train_seconds
+        return Predictor(predict=model.predict, single_call=single, n_params=model.n_params,
+                         train_seconds=float(seconds if np.isfinite(seconds) else time.perf_counter() - t0),
+                         inputs=f"q, qd, qdd; prior on identified-{RESIDUAL_PRIOR_METHOD} (inertials + friction)",
+                         prior_kept=prior_kept_text(model.kept_prior))
+
+    return declare(Row(name, "joint_torque", "identified", needs=TORQUE_NEEDS, needs_urdf=True, build=build,
+                       more_needs=fit_needs, prior=f"identified-{RESIDUAL_PRIOR_METHOD}"))
 
 
 # ------------------------------------------------------------------ the rows
@@ -249,3 +284,4 @@ _row("joint_torque", "identified-bw-tared", ("q", "qd", "qdd", "base_wrench", "t
      TARED_INPUTS, single=lambda m, c, i, k: _identified_bw_torque(m, c, i, k))
 for _name, _preset in RESIDUAL_ROWS.items():
     _residual_row(_name, _preset)
+_gp_residual_row("gp-residual-identified")

@@ -18,6 +18,7 @@ import numpy as np
 from ..data import package_versions
 from .catalog import reference_label
 from .predictions import PREDICTIONS_FILE, Predictions, PredictionsError
+from .hybrids import hybrid_lines
 from .results import CURVES_FILE, read_curves
 from .seed_reference import GAZ2019_VALIDATION_RMSE, SEED_TABLE1, SEED_TABLE2, SEED_TABLE3, seed_dataset_label
 
@@ -471,6 +472,7 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
     if any(_is_capped(r) for r in _contenders(rows)):
         lines += ["", f"{CAP_MARK}: stopped by the epoch cap while still improving; it may not have converged "
                       "(see the learning curves)."]
+    lines += hybrid_lines(rows)
     lines += convergence_lines(rows, curve_figures)
     skipped = meta.get("skipped") or []
     if skipped:

@@ -79,6 +79,8 @@ def score_row(spec: Row, ctx: BenchContext, norm: dict) -> dict:
         raise ValueError(f"the dataset has no {target!r} field")
     pred_obj = spec.build(ds, ctx)
     row.update(inputs=pred_obj.inputs, train_seconds=pred_obj.train_seconds, n_params=pred_obj.n_params)
+    if pred_obj.prior_kept is not None:
+        row["prior_kept"] = pred_obj.prior_kept
     if pred_obj.training is not None:
         t = pred_obj.training
         row.update(epochs=t["epochs"], stopped_by=t["stopped_by"], best_epoch=t["best_epoch"])
