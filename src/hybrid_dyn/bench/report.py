@@ -414,7 +414,18 @@ def _command(prof: dict) -> str:
     scenarios = prof.get("scenarios") or []
     if prof.get("name") == "data" and scenarios and all(is_dataset_path(s) for s in scenarios):
         return "hybrid-dyn bench " + " ".join(f"--data {s}" for s in scenarios)
-    return f"hybrid-dyn bench --profile {prof.get('name', '?')}"
+    from .profiles import PROFILES
+
+    cmd = f"hybrid-dyn bench --profile {prof.get('name', '?')}"
+    named = PROFILES.get(prof.get("name"))
+    if named is not None:  # the options that narrowed the named profile (bench/cli.py)
+        base = named.to_dict()
+        if list(scenarios) != base["scenarios"]:
+            cmd += f" --scenarios {','.join(scenarios)}"
+        if prof.get("families") != base["families"] or prof.get("rows") != base["rows"]:
+            cmd += f" --families {','.join(prof.get('families') or [])}" if prof.get("families") else ""
+            cmd += f" --rows {','.join(prof.get('rows') or [])}" if prof.get("rows") else ""
+    return cmd
 
 
 def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
