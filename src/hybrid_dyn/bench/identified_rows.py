@@ -241,9 +241,12 @@ def _gp_residual_row(name: str) -> Row:
         from ..learn.gp_residual import GPResidualConfig, train_gp_residual
 
         _, path = _identified(ctx, RESIDUAL_PRIOR_METHOD)
-        out = Path(ctx.work_dir) / "models" / f"{name}-{hashlib.sha256(Path(path).read_bytes()).hexdigest()[:12]}"
+        config = GPResidualConfig(seed=ctx.profile.seed)
+        # Named by the prior file's content and the config: a refit or a new config never meets an old model.
+        key = hashlib.sha256(Path(path).read_bytes() + json.dumps(config.to_dict(), sort_keys=True).encode())
+        out = Path(ctx.work_dir) / "models" / f"{name}-{key.hexdigest()[:12]}"
         t0 = time.perf_counter()
-        model = train_gp_residual(ds, path, out, GPResidualConfig(seed=ctx.profile.seed), robot=ctx.robot)
+        model = train_gp_residual(ds, path, out, config, robot=ctx.robot)
         x_of = {}
 
         def single(inst, k):  # the model's own per-sample path: one row of (q, qd, qdd)

@@ -272,7 +272,7 @@ PROFILES = {
                "dropout 0.2) is not a seed model: it was chosen on the validation split for these small sets.",
                "gp: one exact Gaussian process per joint (ARD RBF + white noise, hyperparameters by marginal "
                "likelihood on 600 training rows, conditioned on at most 8000), learn/gp.py. gp-residual-identified "
-               "(the Panda): a sparse GP per joint (500 inducing inputs) on the residual of identified-consistent, "
+               "(the Panda): a sparse GP per joint (2000 inducing inputs) on the residual of identified-consistent, "
                "its hyperparameters by marginal likelihood on train and chosen on val, learn/gp_residual.py.",
                "Hybrid rows keep their physics prior where their correction does not beat it on validation; the "
                "section 'Hybrid rows against their physics prior' says where they did."),
