@@ -63,6 +63,7 @@ def import_panda_log(csv, out, n_blocks=12, **split):
                                    trajectories="blocks", n_blocks=n_blocks, **split).path)
 
 
+@pytest.mark.slow  # sklearn's marginal-likelihood fits: ~10-20 s
 def test_zero_residual_is_the_identified_model(panda, prior, tmp_path):
     """A log the identified model explains exactly: every joint keeps the prior, and the semiparametric
     model, saved and loaded, predicts what the parameter file alone predicts, to 1e-9 Nm."""
@@ -82,6 +83,7 @@ def test_zero_residual_is_the_identified_model(panda, prior, tmp_path):
     assert sorted(p.name for p in (tmp_path / "m").iterdir()) == ["config.json", "model.safetensors", "timing.json"]
 
 
+@pytest.mark.slow  # sklearn's marginal-likelihood fits: ~10-20 s
 def test_a_known_smooth_residual_is_recovered(panda, prior, tmp_path):
     model, path = prior
     ds = import_panda_log(panda_log(tmp_path / "log.csv", model, panda, smooth_residual), tmp_path / "ds")
@@ -102,6 +104,7 @@ def test_a_known_smooth_residual_is_recovered(panda, prior, tmp_path):
     assert config["prior"]["params"] == str(path.resolve()) and config["n_inducing"] == SMALL.inducing
 
 
+@pytest.mark.slow  # sklearn's marginal-likelihood fits: ~10-20 s
 def test_a_residual_that_does_not_hold_on_validation_keeps_the_prior(panda, prior, tmp_path):
     """Train blocks carry a residual, the validation and test blocks do not: the GP fits it on train,
     it only hurts on validation, so every joint keeps the prior and the test predictions are the prior's."""
