@@ -1,4 +1,8 @@
-"""Convergence check of a bench report's learned rows (issue 14): does more patience still pay?
+"""Convergence check of a bench report's learned rows (issues 14, 26): does more training still pay?
+
+Under the budgeted recipe (the bench's, issue 26) the longer run is the same preset at ``--factor``
+(2) times its step budget, and a row counts as converged when the gain is below 3 %
+(``--tolerance``). Under an epoch recipe it is the patience check below.
 
 For the best row of each learned family and task (lowest test RMSE among the rows that
 trained, reference rows aside) of every scenario of a report, retrain the same preset on
@@ -65,13 +69,23 @@ def longer_run(config: TrainConfig, factor: int) -> TrainConfig:
                                min_lr=config.min_lr * config.lr_factor ** cuts)
 
 
+def budget_longer_run(config: TrainConfig, preset: str, factor: int) -> TrainConfig:
+    """The budgeted recipe at ``factor`` x the preset's own step budget (the schedule stretched with it)."""
+    from hybrid_dyn.learn.presets import get_preset
+
+    own = config.for_preset(get_preset(preset))
+    return dataclasses.replace(own, budget_steps=own.budget_steps * factor)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--report", required=True, help="a bench report folder (results.csv, run.json)")
     ap.add_argument("--data-root", default="data")
     ap.add_argument("--work-root", default="runs")
-    ap.add_argument("--factor", type=int, default=4, help="patience multiple of the longer run")
-    ap.add_argument("--tolerance", type=float, default=0.05, help="largest relative val-loss gain that counts as converged")
+    ap.add_argument("--factor", type=int, default=None,
+                    help="budget (default 2) or patience (default 4) multiple of the longer run")
+    ap.add_argument("--tolerance", type=float, default=None,
+                    help="largest relative val-loss gain that counts as converged (default: 3 %% budget, 5 %% epochs)")
     ap.add_argument("--scenario", action="append", default=None,
                     help="check only this scenario's rows (repeat for more; default: every scenario of the report)")
     ap.add_argument("--model", action="append", default=None,
@@ -88,9 +102,20 @@ def main() -> int:
     # The bench's own thread count: torch's default (one thread per core) oversubscribes the cores
     # when two checks run side by side, and these tiny nets then train 10x slower (measured).
     config = dataclasses.replace(profile.train_config(), num_threads=profile.torch_threads, progress=not args.quiet)
-    longer = longer_run(config, args.factor)
+    budgeted = config.budgeted
+    args.factor = args.factor or (2 if budgeted else 4)
+    args.tolerance = args.tolerance if args.tolerance is not None else (0.03 if budgeted else 0.05)
+    longer = None if budgeted else longer_run(config, args.factor)
     lines = [f"# Convergence check of `{report}`", "",
-             f"`{' '.join(sys.argv)}`, {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC.", "",
+             f"`{' '.join(sys.argv)}`, {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC.", ""]
+    if budgeted:
+        lines += [f"The best trained row of each family and task (lowest test RMSE), retrained under recipe "
+                  f"`{profile.recipe}` at {args.factor}x its step budget. Gain: the relative drop of the best "
+                  f"validation loss; converged when below {args.tolerance:.0%}.", "",
+                  "| scenario | task | family | model | steps | val loss | steps, longer | val loss | gain | converged |",
+                  "|---|---|---|---|---|---|---|---|---|---|"]
+    else:
+        lines += [
              f"The best trained row of each family and task (lowest test RMSE), retrained with patience "
              f"{longer.patience} instead of {config.patience}, the learning-rate plateau's patience {longer.lr_patience} "
              f"instead of {config.lr_patience} and its floor lowered from {config.min_lr:g} to "
@@ -110,17 +135,28 @@ def main() -> int:
         wd = work_dir(profile, scenario, ds, Path(args.work_root))
         base = train_model(ds, r["model"], wd / "models" / r["model"], config)  # the bench's own model
         t0 = time.perf_counter()
-        print(f"[convergence] {scenario} {r['family']} {r['model']}: patience {longer.patience}", flush=True)
-        long = train_model(ds, r["model"], wd / "convergence" / f"{r['model']}-patience{longer.patience}-lr{longer.lr_patience}",
-                           longer)
+        if budgeted:
+            run_cfg = budget_longer_run(config, r["model"], args.factor)
+            label = f"{run_cfg.budget_steps} steps"
+            folder = f"{r['model']}-steps{run_cfg.budget_steps}"
+        else:
+            run_cfg, label = longer, f"patience {longer.patience}"
+            folder = f"{r['model']}-patience{longer.patience}-lr{longer.lr_patience}"
+        print(f"[convergence] {scenario} {r['family']} {r['model']}: {label}", flush=True)
+        long = train_model(ds, r["model"], wd / "convergence" / folder, run_cfg)
         # A loss at round-off (physics exact on noise-free data) has nothing left to gain.
         gain = (base.val_loss - long.val_loss) / base.val_loss if base.val_loss > 1e-12 else 0.0
         ok = gain < args.tolerance
         failures += not ok
-        lines.append(f"| {scenario} | {r['task']} | {r['family']} | {r['model']} | {base.config['epochs']} "
-                     f"({base.config.get('stopped_by')}) | {base.val_loss:.5f} | {long.config['epochs']} "
-                     f"({long.config.get('stopped_by')}) | {long.val_loss:.5f} | {gain:+.1%} | "
-                     f"{'yes' if ok else 'NO'} |")
+        if budgeted:
+            lines.append(f"| {scenario} | {r['task']} | {r['family']} | {r['model']} | "
+                         f"{base.config['train_config']['budget_steps']} | {base.val_loss:.5f} | {run_cfg.budget_steps} "
+                         f"| {long.val_loss:.5f} | {gain:+.1%} | {'yes' if ok else 'NO'} |")
+        else:
+            lines.append(f"| {scenario} | {r['task']} | {r['family']} | {r['model']} | {base.config['epochs']} "
+                         f"({base.config.get('stopped_by')}) | {base.val_loss:.5f} | {long.config['epochs']} "
+                         f"({long.config.get('stopped_by')}) | {long.val_loss:.5f} | {gain:+.1%} | "
+                         f"{'yes' if ok else 'NO'} |")
         print(lines[-1], f"({time.perf_counter() - t0:.0f} s)", flush=True)
         if args.out:  # after every row: an interrupted check keeps what it measured
             Path(args.out).write_text("\n".join(lines + ["", "(incomplete: the check is still running or was "

@@ -23,6 +23,17 @@ Each run trains into its own folder under ``--work``, so a killed sweep continue
 where it stopped.
 
     taskset -c 1 .venv/bin/python benchmarks/learn_speed.py --sweep --seeds 0 1 --out runs/batch-sweep.md
+
+``--loop`` (issue 26): per family, at the budgeted recipe's batch, the training loop's samples/s
+(``train_model`` under the ``budget`` recipe, validation rounds at the recipe's spacing of
+``BUDGET_STEPS / budget_evals`` steps included) beside the bare forward-backward-Adam step of the
+same module on one batch already in memory; and DeLaN's forward-mode terms beside the
+``torch.func`` oracle (``terms_autograd``) in the same bare step. One torch thread, medians of
+``--repeats`` in one run (loop/bare: the median of the ratios of each loop run and the bare step timed
+right after it). Floors: loop >= 0.7x bare for every family; DeLaN (with friction)
+forward-mode >= 2x the oracle.
+
+    nice .venv/bin/python benchmarks/learn_speed.py --loop
 """
 from __future__ import annotations
 
@@ -46,6 +57,7 @@ from hybrid_dyn.data.windows import concat_fields
 from hybrid_dyn.learn import TrainConfig, train_model
 from hybrid_dyn.learn.model import canonical_json
 from hybrid_dyn.learn.presets import get_preset
+from hybrid_dyn.learn.speed import bare_step, interleaved_rates, training_windows
 
 PRESETS = ["seed-tip-1", "seed-tip-11", "seed-tau-lstm-opt", "residual-basewrench", "residual-rnea", "delan",
            "delan-friction"]
@@ -252,6 +264,61 @@ def sweep(args) -> int:
     return 0
 
 
+# ----------------------------------------------------------------- loop against bare step
+LOOP_PRESETS = {"seed-tau-mlp": "MLP", "seed-tip-4": "conv", "seed-tau-lstm-opt": "LSTM",
+                "residual-rnea": "residual", "delan-friction": "DeLaN"}
+LOOP_FLOOR, DELAN_FLOOR = 0.7, 2.0
+
+
+def loop_table(args) -> int:
+    from hybrid_dyn.learn.train import BUDGET_STEPS
+
+    torch.set_num_threads(1)
+    with tempfile.TemporaryDirectory() as tmp:
+        robot = hd.load_robot("panda")
+        ds = load_dataset(make_synthetic_dataset(Path(tmp) / "ds", robot, n_instances=10, n_samples=2000, seed=0,
+                                                 friction=robot.spec.friction("gaz2019"), noise=0.01))
+        recipe = TrainConfig.recipe("budget")
+        batch = recipe.batch_size
+        print(f"torch {torch.__version__}, 1 thread, batch {batch} (the budget recipe's); synthetic Panda set, "
+              f"{sum(len(i) for i in ds.split('train'))} training samples; medians of {args.repeats}")
+        print(f"{'family':9s} {'preset':18s} {'loop samples/s':>15s} {'bare samples/s':>15s} {'loop/bare':>9s}  floor")
+        ok = True
+        for name, family in LOOP_PRESETS.items():
+            kind = get_preset(name).kind
+            evals = 2  # validation every budget/2 steps of this run = the recipe's spacing, BUDGET/40
+            steps = max(2, 2 * BUDGET_STEPS[kind] // recipe.budget_evals)
+            # Each repeat times the loop, then the bare step right after it: a pair sees the same load
+            # from other processes, and the ratio is the median over the pairs.
+            loops, bares = [], []
+            ws = step = None
+            for r in range(args.repeats):
+                cfg = TrainConfig.recipe("budget", budget_steps=steps, budget_evals=evals, seed=r, progress=False,
+                                         num_threads=1)
+                model = train_model(ds, name, Path(tmp) / f"{name}-{r}", cfg)
+                loops.append(steps * batch / model.train_seconds)
+                if ws is None:
+                    ws = training_windows(model, ds)
+                    step = bare_step(model, ws, batch)
+                n_bare = max(5, int(0.5 * model.train_seconds * loops[-1] / batch))  # about half the loop's time
+                bares.append(interleaved_rates([step], n_bare, 1)[0])
+            loop, bare = float(np.median(loops)), float(np.median(bares))
+            ratio = float(np.median(np.array(loops) / np.array(bares)))
+            met = ratio >= LOOP_FLOOR
+            ok &= met
+            print(f"{family:9s} {name:18s} {loop:15.0f} {bare:15.0f} {ratio:9.2f}  >= {LOOP_FLOOR} "
+                  f"{'met' if met else 'NOT MET'}", flush=True)
+            if kind == "delan":
+                fwd, oracle = interleaved_rates([bare_step(model, ws, batch), bare_step(model, ws, batch, oracle=True)],
+                                                20, 2 * args.repeats + 1)
+                met = fwd >= DELAN_FLOOR * oracle
+                ok &= met
+                print(f"{'':9s} {name:18s} forward-mode {fwd:.0f} samples/s, torch.func oracle {oracle:.0f} samples/s:"
+                      f" {fwd / oracle:.2f}x  >= {DELAN_FLOOR} {'met' if met else 'NOT MET'}", flush=True)
+        print("floors:", "all met" if ok else "NOT all met")
+    return 0
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=None, help="dataset directory (default: a synthetic Panda set; "
@@ -259,6 +326,8 @@ def main() -> int:
     ap.add_argument("--threads", type=int, default=1, help="torch threads for training and batched inference")
     ap.add_argument("--epochs", type=int, default=2)
     ap.add_argument("--calls", type=int, default=2000, help="single calls timed per preset")
+    ap.add_argument("--loop", action="store_true", help="the training loop against the bare step, per family")
+    ap.add_argument("--repeats", type=int, default=3, help="--loop: repeats per measurement (median)")
     sw = ap.add_argument_group("batch-size sweep (--sweep)")
     sw.add_argument("--sweep", action="store_true", help="run the batch-size sweep instead of the speed table")
     sw.add_argument("--presets", nargs="+", default=list(SWEEP_PRESETS), metavar="PRESET")
@@ -280,6 +349,8 @@ def main() -> int:
     args = ap.parse_args()
     if args.sweep:
         return sweep(args)
+    if args.loop:
+        return loop_table(args)
 
     with tempfile.TemporaryDirectory() as tmp:
         if args.data:

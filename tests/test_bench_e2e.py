@@ -17,7 +17,7 @@ def test_tiny_bench_writes_every_row_and_column(tmp_path):
         families=("analytic", "identified"),
         rows=("seed-tip-1", "seed-tip-11", "residual-basewrench", "residual-momentum",
               "seed-tau-lstm", "residual-rnea", "residual-rnea-bw", "delan", "delan-friction", "delan-residual"),
-        train=dict(max_epochs=1, max_batches_per_epoch=2, batch_size=64, progress=False),
+        train=dict(budget_steps=2, budget_evals=1, batch_size=64, progress=False),
         workers=2,  # exercises the parallel generator and the training pool
     )
     rows = run_bench(tiny, tmp_path / "report", data_root=tmp_path / "data", work_root=tmp_path / "runs",
@@ -36,12 +36,12 @@ def test_tiny_bench_writes_every_row_and_column(tmp_path):
             assert r[col] != "" and float(r[col]) >= 0.0, (r["model"], col)
         assert r["inputs"], r["model"]
         learned = int(r["n_params"] or 0) > 0  # a trained net (residuals on identified models included)
-        assert (r["stopped_by"] in ("patience", "lr-floor", "epoch-cap")) == learned, (r["model"], r["stopped_by"])
+        assert (r["stopped_by"] == "budget") == learned, (r["model"], r["stopped_by"])
     for name in ("README.md", "tip_force.md", "joint_torque.md", "tip_force.tex", "joint_torque.tex",
                  "rmse_by_family_tip_force.png", "traces_tip_force_mismatch-ext.png",
                  "curves.json", "learning_curves_mismatch-ext.png"):
         assert (tmp_path / "report" / name).is_file(), name
-    assert "training: recipe `default`" in (tmp_path / "report" / "README.md").read_text()  # the profile's recipe
+    assert "training: recipe `budget`" in (tmp_path / "report" / "README.md").read_text()  # the profile's recipe
     # A rerun reuses the cached dataset and trained models rather than redoing them.
     rows2 = run_bench(tiny, tmp_path / "report", data_root=tmp_path / "data", work_root=tmp_path / "runs",
                       log=lambda m: None)

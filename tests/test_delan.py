@@ -192,8 +192,55 @@ def test_mass_matrix_positive_definite_in_float32_at_trained_scale():
     assert (eig.min(1).values >= 1e-3 - 1e-6 * eig.max(1).values).all()
 
 
+def _random_delan(nv, seed, hidden=(32, 32)):
+    """A float64 DeLaN with non-trivial standardization and weights far from their initialization."""
+    torch.manual_seed(seed)
+    net = DeepLagrangianNetwork(nv, hidden, q_mean=torch.rand(nv) - 0.5, q_std=torch.rand(nv) + 0.5,
+                                torque_scale=3.0).double()
+    with torch.no_grad():
+        for p in net.parameters():
+            p.add_(0.3 * torch.randn_like(p))
+    return net
+
+
+@pytest.mark.parametrize("nv, seed", [(7, 0), (3, 1), (1, 2)])
+def test_forward_mode_terms_equal_the_autograd_oracle(nv, seed):
+    """terms() (tangent forward, pullback by hand) against terms_autograd() (torch.func jvp/grad): 1e-9 in float64."""
+    net = _random_delan(nv, seed)
+    q, qd, qdd = (torch.randn(64, nv, dtype=torch.float64) * s for s in (1.5, 2.0, 3.0))
+    got, ref = net.terms(q, qd, qdd), net.terms_autograd(q, qd, qdd)
+    for k in ("tau", "H", "c", "g"):
+        torch.testing.assert_close(got[k], ref[k], rtol=0, atol=1e-9, msg=k)
+    torch.testing.assert_close(net.gravity(q), ref["g"], rtol=0, atol=1e-9)
+    torch.testing.assert_close(net(q, qd, qdd), ref["tau"], rtol=0, atol=1e-9)  # training's path, without H
+
+
+def test_forward_mode_training_gradient_equals_the_oracles():
+    """Training differentiates terms() once; its parameter gradients equal those through the oracle's double autograd."""
+    net = _random_delan(7, 3)
+    q, qd, qdd, y = (torch.randn(32, 7, dtype=torch.float64) for _ in range(4))
+    grads = []
+    for terms in (net, lambda *a: net.terms_autograd(*a)["tau"]):
+        net.zero_grad()
+        ((terms(q, qd, qdd) - y) ** 2).mean().backward()
+        # V's output bias does not move g: a None gradient there is a zero one
+        grads.append([torch.zeros_like(p) if p.grad is None else p.grad.clone() for p in net.parameters()])
+    for a, b in zip(*grads):
+        torch.testing.assert_close(a, b, rtol=1e-9, atol=1e-12)
+
+
+def test_gravity_matches_finite_difference_of_potential():
+    """g = dV/dq against central differences of the net's own V(q) (energy at qd = 0)."""
+    net = _random_delan(4, 5)
+    q = torch.randn(6, 4, dtype=torch.float64)
+    h = 1e-6
+    g_fd = torch.stack([(net.energy(q + h * e, torch.zeros_like(q)) - net.energy(q - h * e, torch.zeros_like(q)))
+                        / (2 * h) for e in torch.eye(4, dtype=torch.float64)], 1)
+    torch.testing.assert_close(net.terms(q, torch.zeros_like(q), torch.zeros_like(q))["g"], g_fd, rtol=0, atol=1e-7)
+
+
 def test_coriolis_matches_finite_difference_of_mass_matrix():
-    """c from autograd equals the Christoffel form built from finite differences of H."""
+    """c from the forward-mode terms equals the Christoffel form built from finite differences of H."""
     torch.manual_seed(4)
     net = DeepLagrangianNetwork(3, (16, 16)).double()
     q, qd = torch.randn(5, 3, dtype=torch.float64), torch.randn(5, 3, dtype=torch.float64)
@@ -223,7 +270,7 @@ def test_gaz_friction_parameters_stay_positive_and_zero_at_rest():
 
 
 def test_hand_derived_single_sample_delan_matches_autodiff():
-    """fastpath.FastDeLaN differentiates by hand; DeepLagrangianNetwork by torch.func."""
+    """fastpath.FastDeLaN differentiates by hand (numpy, one sample); the oracle by torch.func."""
     from hybrid_dyn.learn.fastpath import FastDeLaN
 
     torch.manual_seed(6)
@@ -233,7 +280,7 @@ def test_hand_derived_single_sample_delan_matches_autodiff():
         fr.phi3.uniform_(-0.1, 0.1)
     fast = FastDeLaN(net, fr)
     q, qd, qdd = (torch.randn(4, 7, dtype=torch.float64) for _ in range(3))
-    ref = net.terms(q, qd, qdd)
+    ref = net.terms_autograd(q, qd, qdd)
     tau_ref = (ref["tau"] + fr(qd)).detach().numpy()
     for i in range(4):
         got = fast.terms(q[i].numpy(), qd[i].numpy(), qdd[i].numpy())

@@ -32,8 +32,9 @@ def test_streaming_filter_equals_scipy_lfilter(recorded):
 
 
 def test_streaming_base_wrench_equals_batch(recorded):
-    # This set has no sensor offset and may push from t = 0: trust the sensor's zero (no tare).
-    est = TipForceEstimator.analytic("panda", "base_wrench", call_hz=RATE, tare_seconds=0.0)
+    # This set has no sensor offset and may push from t = 0: trust the sensor's zero (no tare, no noise
+    # window), at the generator's 20 Hz cutoff.
+    est = TipForceEstimator.analytic("panda", "base_wrench", call_hz=RATE, tare_seconds=0.0, qdd_cutoff_hz=20.0)
     stream = np.stack([est.estimate_tip_force(recorded.q[k], recorded.qd[k], base_wrench=recorded.base_wrench[k],
                                               t=recorded.t[k]) for k in range(len(recorded))])
     qdd = causal_acceleration(recorded.qd, 1.0 / RATE, 20.0)
@@ -59,7 +60,8 @@ def test_warming_up_until_history_suffices(recorded):
     est = TipForceEstimator.analytic("panda", "momentum", call_hz=RATE, momentum_gain=50.0)
     statuses = [est.estimate_tip_force(recorded.q[k], recorded.qd[k], tau_J=recorded.tau_J[k]) is not None
                 and est.last_status for k in range(15)]
-    warm = int(np.ceil(5.0 / 50.0 * RATE))  # 5/K seconds: error below 1 %
+    # The first call starts the observer; then its transient (1 - K dt)^n must fall below 1 %.
+    warm = 1 + int(np.ceil(np.log(0.01) / np.log(1.0 - 50.0 / RATE)))
     assert statuses[: warm - 1] == [EstimatorStatus.WARMING_UP] * (warm - 1)
     assert statuses[warm - 1:] == [EstimatorStatus.OK] * (15 - warm + 1)
     est.reset()
@@ -212,14 +214,17 @@ def test_streaming_base_momentum_equals_the_batch_observer_after_the_tare(record
     w = _window_tared(panda, recorded, 50)
     batch = BaseMomentumObserver(panda, gain=20.0, dt=1.0 / RATE).run(recorded.q[50:], recorded.qd[50:], w[50:])[0]
     np.testing.assert_allclose(np.stack(stream)[50:], batch, atol=1e-9)
-    # The tare window, then 5/K = 0.25 s of observer transient, warm up.
-    assert set(statuses[:74]) == {EstimatorStatus.WARMING_UP} and set(statuses[74:]) == {EstimatorStatus.OK}
+    # The tare window, its first step, then the observer's transient (1 - K dt)^n below 1 %, warm up.
+    settle = int(np.ceil(np.log(0.01) / np.log(1.0 - 20.0 / RATE)))  # 21 calls
+    n = 50 + settle
+    assert set(statuses[:n]) == {EstimatorStatus.WARMING_UP} and set(statuses[n:]) == {EstimatorStatus.OK}
 
 
 @pytest.mark.parametrize("with_torques", [True, False], ids=["both sensors", "base sensor only"])
 def test_streaming_kalman_fusion_equals_the_batch_filter(recorded, panda, with_torques):
-    """Noise from the tare window, then the steady-state filter; without tau_J it is the base-only filter."""
-    from hybrid_dyn.analytic.kalman import FusionNoise, KalmanTipForce, tare_window_noise
+    """Noise and force rate from the tare window, then the filter; without tau_J it is the base-only filter."""
+    from hybrid_dyn.analytic.bandwidth import measure_window
+    from hybrid_dyn.analytic.kalman import KalmanTipForce, increment_stats, window_fusion_noise
 
     est = TipForceEstimator.analytic(panda, "kalman_fusion", call_hz=RATE, tare_seconds=0.5)
     tau = recorded.tau_J if with_torques else [None] * len(recorded)
@@ -228,11 +233,15 @@ def test_streaming_kalman_fusion_equals_the_batch_filter(recorded, panda, with_t
     w = _window_tared(panda, recorded, 50)
     tau_arr = recorded.tau_J if with_torques else None
     dt = 1.0 / RATE
-    noise = tare_window_noise(panda, dt, recorded.q[:50], recorded.qd[:50], w[:50],
-                              None if tau_arr is None else tau_arr[:50], FusionNoise(force_rate=est.config.fusion_force_rate))
-    # The stream accumulates the window's increments call by call; the batch sums them at once.
+    win_tau = None if tau_arr is None else tau_arr[:50]
+    # The batch: the window's increments as arrays, on the wrench tared with the whole window's offset.
+    y = KalmanTipForce(panda, dt).measurements(recorded.q[:50], recorded.qd[:50], w[:50], win_tau)
+    noise = window_fusion_noise(panda, dt, measure_window(recorded.q[:50], recorded.qd[:50], recorded.base_wrench[:50],
+                                                          win_tau),
+                                increment_stats({c: np.diff(v, axis=0) for c, v in y.items()}))
+    # The stream accumulates the window's increments call by call, on the raw wrench, and shifts them by
+    # the tare's offset at the end; the batch sums them at once.
     assert dataclasses.asdict(est.fusion_noise) == pytest.approx(dataclasses.asdict(noise), rel=1e-9)
-    noise = est.fusion_noise
     batch = KalmanTipForce(panda, dt, noise).run(recorded.q[50:], recorded.qd[50:], w[50:],
                                                  None if tau_arr is None else tau_arr[50:])
     np.testing.assert_allclose(stream[50:], batch, atol=1e-9)

@@ -228,16 +228,16 @@ def test_the_stated_margins(panda):
 
 
 def test_a_force_beyond_the_bound_is_out_of_range_and_not_held(panda):
-    good = stream(panda, 3)
+    good = stream(panda, 60)
     est = TipForceEstimator.analytic(panda, "base_wrench", call_hz=HZ, tare_seconds=0.0, on_bad_input="hold")
-    est.estimate_tip_force(**good[0])
-    f1 = est.estimate_tip_force(**good[1])
+    for s in good[:-2]:  # past the qdd filter's settling
+        f1 = est.estimate_tip_force(**s)
     assert est.last_status is EstimatorStatus.OK
-    w = good[2]["base_wrench"] + np.array([0, 0, 700.0, 0, 0, 0])  # 870 N: inside the input bound (1014 N)
-    f2 = est.estimate_tip_force(**dict(good[2], base_wrench=w))
+    w = good[-2]["base_wrench"] + np.array([0, 0, 700.0, 0, 0, 0])  # 870 N: inside the input bound (1014 N)
+    f2 = est.estimate_tip_force(**dict(good[-2], base_wrench=w))
     assert est.last_status is EstimatorStatus.FORCE_OUT_OF_RANGE and est.last_status.value == "out of range"
     assert np.linalg.norm(f2) > BOUND
-    held = est.estimate_tip_force(**dict(good[2], t="abc"))
+    held = est.estimate_tip_force(**dict(good[-1], t="abc"))
     assert est.last_status is EstimatorStatus.INPUT_REJECTED
     np.testing.assert_array_equal(held, f1)  # the last estimate within the bound
 
@@ -262,3 +262,135 @@ def test_any_numeric_layout_gives_what_float64_arrays_give(panda):
                 odd = {n: (variants(x)[v] if isinstance(x, np.ndarray) else x) for n, x in s.items()}
                 np.testing.assert_array_equal(other.estimate_tip_force(**odd), plain.estimate_tip_force(**s))
                 assert other.last_status is plain.last_status
+
+
+# ------------------------------------------------- issue 27: statuses that tell the truth
+OK_TOLERANCE = 1.0  # N: no "ok" call may err more, once a contact has lasted the method's settling time (the
+# issue's check is 2 N; the worst seen here is 0.65 N, the noise the rule allows on these streams)
+OK_RMS = 0.3  # N: nor may the "ok" calls' RMS error (0.22 N at most here)
+CONTACT = np.array([0.5, -0.6, -0.8]) / np.linalg.norm([0.5, -0.6, -0.8]) * 15.0  # N, from CONTACT_AT
+CONTACT_AT = 1.0  # s
+
+
+def contact_stream(robot, n, hz=HZ, seed=0, contact_at=CONTACT_AT):
+    """Rigid-body samples of a smooth motion with sensor noise (base 0.05 N, tau_J 0.02 Nm, qd 2e-4 rad/s),
+    a base-sensor offset, and a constant 15 N contact from CONTACT_AT: (samples with true t, true forces)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / hz
+    amp, w = rng.uniform(0.05, 0.25, robot.nv), rng.uniform(0.5, 2.0, robot.nv)
+    q = np.array(robot.spec.home) + amp * np.sin(w * t[:, None])
+    qd = amp * w * np.cos(w * t[:, None])
+    qdd = -amp * w**2 * np.sin(w * t[:, None])
+    f = np.where(t[:, None] >= contact_at, CONTACT, 0.0)
+    jv = robot.tip_jacobian(q)[:, :3]
+    tau = robot.inverse_dynamics(q, qd, qdd) - np.einsum("nij,ni->nj", jv, f) + rng.normal(0, 0.02, q.shape)
+    wrench = robot.base_wrench(q, qd, qdd, tip_force=f) + rng.uniform(-1, 1, 6) * np.r_[np.full(3, 2.0), np.full(3, 0.1)]
+    wrench += rng.normal(0, 0.05, wrench.shape) * np.r_[np.ones(3), np.full(3, 0.05)]
+    q_m, qd_m = q + rng.normal(0, 1e-5, q.shape), qd + rng.normal(0, 2e-4, qd.shape)
+    return [dict(q=q_m[k], qd=qd_m[k], base_wrench=wrench[k], tau_J=tau[k], t=t[k]) for k in range(n)], f
+
+
+def settle_calls(est) -> int:
+    """The method's longest settling time [calls], over the sensor sets it may run on."""
+    stream = est._stream
+    if est.spec.any_of:
+        return max(stream.settle_calls(s) for s in (("base_wrench",), ("tau_J",), ("base_wrench", "tau_J")))
+    return stream.settle_calls(est.spec.reads)
+
+
+def pattern_run(robot, method, pattern, rng):
+    """One stream pattern fed to a fresh estimator with its defaults: (statuses, errors [N], settle calls,
+    calls since the contact began or since the stream resumed, whichever is later, per call)."""
+    hz = HZ
+    samples, force = contact_stream(robot, 1700, seed=int(rng.integers(1 << 30)))
+    est = TipForceEstimator.analytic(robot, method, call_hz=hz, on_bad_input="hold")
+    reads = est.spec.reads
+    statuses, errors, since = [], [], []
+    gap = (int(rng.integers(1100, 1400)), int(rng.integers(2, 6))) if pattern == "gap" else None
+    phase = int(rng.integers(2))
+    last_event = -10**9
+    k = 0
+    while k < len(samples):
+        s = {name: samples[k][name] for name in ("q", "qd", "t") + reads}
+        if gap and gap[0] <= k < gap[0] + gap[1]:
+            k += 1
+            continue  # lost samples
+        if gap and k == gap[0] + gap[1]:
+            last_event = k + 1  # the sample after the refused one resumes
+        if pattern == "alternating" or (pattern == "alternating-after-window" and k >= 600):
+            s["base_wrench" if (k + phase) % 2 else "tau_J"] = None
+        if pattern == "late-base" and samples[k]["t"] < 0.7:
+            s["base_wrench"] = None
+        if pattern == "untimed-half-rate":  # a 500 Hz recording (every other sample) into call_hz=1000, no t
+            if k % 2:
+                k += 1
+                continue
+            s["t"] = None
+        if pattern == "untimed":
+            s["t"] = None
+        f = est.estimate_tip_force(**s)
+        statuses.append(est.last_status)
+        errors.append(float(np.linalg.norm(f - force[k])))
+        contact_start = int(CONTACT_AT * hz)
+        since.append(k - max(contact_start, last_event) if k >= contact_start else 10**9)
+        k += 1
+    return statuses, np.array(errors), settle_calls(est), np.array(since)
+
+
+PATTERNS = {"base-wrench": ("untimed", "gap", "untimed-half-rate"),
+            "torques-pinv": ("untimed", "gap", "untimed-half-rate"),
+            "momentum-observer": ("untimed", "gap", "untimed-half-rate"),
+            "base-momentum": ("untimed", "gap", "untimed-half-rate"),
+            "kalman-fusion": ("untimed", "gap", "untimed-half-rate", "alternating", "alternating-after-window",
+                              "late-base")}
+
+
+@pytest.mark.parametrize("method", list(PATTERNS))
+def test_no_ok_call_errs_once_the_contact_has_settled(method, panda):
+    """The issue's stream patterns, randomized (gap place and length, alternation phase, noise draws):
+    every "ok" call errs at most OK_TOLERANCE once the contact (or the resumed stream) has lasted the
+    method's settling time; a stream at half the rate without t is never "ok"; the right rate is."""
+    rng = np.random.default_rng(27)
+    for pattern in PATTERNS[method]:
+        for _ in range(2):
+            statuses, errors, settle, since = pattern_run(panda, method, pattern, rng)
+            ok = np.array([s is EstimatorStatus.OK for s in statuses])
+            if pattern == "untimed-half-rate":
+                assert not ok.any(), (method, pattern)
+                assert statuses[-1] is EstimatorStatus.WRONG_RATE
+                continue
+            assert ok[-200:].all(), (method, pattern, statuses[-1])  # it does get going, and says so
+            judged = ok & (since >= settle)
+            worst = errors[judged].max()
+            assert worst <= OK_TOLERANCE, (method, pattern, worst, int(np.argmax(np.where(judged, errors, 0))))
+            assert np.sqrt(np.mean(errors[judged] ** 2)) <= OK_RMS, (method, pattern)
+            assert EstimatorStatus.WRONG_RATE not in statuses
+
+
+def test_a_late_base_sensor_never_tares_over_a_contact(panda):
+    """tau_J from the start, the base sensor from 0.7 s, the contact from 1.0 s (the issue's case: a
+    permanent 6 N error once): the tare that started at 0.7 s starts over when the torques see the
+    contact, so the base sensor is not used; the estimate stays right, on the torques."""
+    samples, force = contact_stream(panda, 2500, seed=5)
+    est = TipForceEstimator.analytic(panda, "kalman-fusion", call_hz=HZ)
+    out = []
+    for s in samples:
+        out.append(est.estimate_tip_force(**dict(s, base_wrench=None if s["t"] < 0.7 else s["base_wrench"])))
+    assert not est._tare.done and est._tare.count < 50  # never finished over the contact
+    assert est.last_status is EstimatorStatus.OK
+    assert np.linalg.norm(out[-1] - force[-1]) < 0.5
+
+
+def test_a_call_the_method_cannot_estimate_from_says_so(panda):
+    """kalman-fusion with the torques for the window, then only a base sensor that is not yet tared:
+    "no usable sensor" (not a stale "ok") until its tare is done (500 base calls), then warming up, then
+    ok on the base sensor (the contact comes at 1.3 s, after that tare)."""
+    samples, force = contact_stream(panda, 1600, seed=6, contact_at=1.3)
+    est = TipForceEstimator.analytic(panda, "kalman-fusion", call_hz=HZ)
+    statuses, out = [], []
+    for k, s in enumerate(samples):
+        out.append(est.estimate_tip_force(**dict(s, base_wrench=None) if k < 500 else dict(s, tau_J=None)))
+        statuses.append(est.last_status)
+    assert set(statuses[506:999]) == {EstimatorStatus.NO_SENSOR}  # the torques left (5 calls bridged)
+    assert statuses[1000] is EstimatorStatus.WARMING_UP and statuses[-1] is EstimatorStatus.OK
+    assert np.linalg.norm(out[-1] - force[-1]) < 1.0

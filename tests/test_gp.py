@@ -134,6 +134,33 @@ def test_a_corrupt_edited_or_foreign_file_is_refused(fitted, tmp_path):
             load_gp(d)
 
 
+@pytest.mark.parametrize("version", ["1", None, True])
+def test_a_non_integer_format_version_is_one_error_not_a_traceback(fitted, tmp_path, version):
+    """Issue 28, finding 6: format_version "1" or null in config.json was a TypeError."""
+    import shutil
+
+    d = tmp_path / "gp"
+    shutil.copytree(fitted.path, d)
+    doc = json.loads((d / "config.json").read_text())
+    (d / "config.json").write_text(json.dumps({**doc, "format_version": version}))
+    with pytest.raises(ModelError, match=f"format_version must be an integer, got {version!r}"):
+        load_gp(d)
+
+
+def test_timing_json_of_another_gp_is_not_read_as_this_ones(fitted, ds, tmp_path):
+    """Issue 28, finding 7: a GP's timing.json is bound to its config, as the nets' is: another fit's
+    timing file copied in gives no training time, not the other fit's."""
+    import shutil
+
+    other = train_gp(ds, tmp_path / "other", GPConfig(hyper_rows=10, rows=10))
+    assert np.isfinite(other.train_seconds) and np.isfinite(fitted.train_seconds)
+    d = tmp_path / "gp"
+    shutil.copytree(fitted.path, d)
+    shutil.copy(other.path / "timing.json", d / "timing.json")
+    assert np.isnan(load_gp(d).train_seconds)  # unknown, not the other fit's
+    assert load_gp(fitted.path).train_seconds == fitted.train_seconds
+
+
 def test_an_output_folder_it_did_not_write_is_left_alone(ds, tmp_path):
     out = tmp_path / "mine"
     out.mkdir()

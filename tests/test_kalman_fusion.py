@@ -83,16 +83,27 @@ def test_robot_filter_streaming_equals_batch_and_one_sensor_is_the_single_sensor
         stream = np.stack([kf.step(q[k], qd[k], None if w_in is None else w_in[k], None if tau_in is None else tau_in[k])
                            for k in range(len(q))])
         np.testing.assert_allclose(stream, batch, atol=1e-9, rtol=0)
-    # Base sensor only: a hand-written textbook filter on the same measurements gives the same force.
+    # Base sensor only: a hand-written textbook time-varying filter on the same measurements gives the same
+    # force, and its covariance settles to the steady-state (Riccati) one of scipy.
     y = kf.measurements(q, qd, base_wrench=wrench)["base"]
-    f = kf.filters[("base",)]
-    x = np.zeros((2, 3))
+    A, H = np.array([[1.0, 1e-3], [0.0, 1.0]]), np.array([[1.0, 0.0]])
+    Q, R = np.diag([kf._qv[0], kf._qv[2]]), np.array([[kf._rv[0]]])
+    x, P = np.zeros((2, 3)), np.diag([kf._rv[0], 100.0**2])
     manual = []
     for k in range(len(q)):
-        x_pred = f.A @ x
-        x = x_pred + f.K @ (y[k][None, :] - f.H @ x_pred)
+        x, P = A @ x, A @ P @ A.T + Q
+        if k == 0:  # the sensor anchors: its sum is its prediction, its error its measurement noise
+            P[0, :] = P[:, 0] = 0.0
+            P[0, 0] = R[0, 0]
+        else:
+            K = P @ H.T @ np.linalg.inv(H @ P @ H.T + R)
+            x, P = x + K @ (y[k][None, :] - H @ x), (np.eye(2) - K @ H) @ P
         manual.append(x[1])
     np.testing.assert_allclose(kf.run(q, qd, base_wrench=wrench), np.array(manual), atol=1e-9)
+    for _ in range(20_000):
+        K = P @ H.T @ np.linalg.inv(H @ P @ H.T + R)
+        P = A @ (np.eye(2) - K @ H) @ P @ A.T + Q
+    np.testing.assert_allclose(P, solve_discrete_are(A.T, H.T, Q, R), rtol=1e-6)
     # A sensor that drops out mid-run: the other carries on and the output stays finite.
     kf.reset()
     out = [kf.step(q[k], qd[k], wrench[k], tau[k] if k < 50 or k > 80 else None) for k in range(len(q))]

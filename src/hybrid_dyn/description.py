@@ -12,6 +12,7 @@ only differ where a scenario says they should.
 from __future__ import annotations
 
 from .errors import HybridDynError
+from .input_checks import inertial_problems, urdf_tree_problems
 import importlib.metadata
 import dataclasses
 import functools
@@ -29,6 +30,15 @@ import numpy as np
 
 class RobotDescriptionError(HybridDynError, ValueError):
     """A robot name, frame, URDF or parameter file is missing or inconsistent."""
+
+
+def _checked_tree(root, what: str):
+    """``root`` (a parsed URDF) if its links form a tree, else one error naming the problems: every walk of
+    the tree below (chains, subtrees) assumes one (a joint cycle made them loop forever)."""
+    problems = urdf_tree_problems(root)
+    if problems:
+        raise RobotDescriptionError(f"{what} is not a tree of links: {'; '.join(problems[:3])}")
+    return root
 
 
 # --------------------------------------------------------------------------- paths
@@ -109,6 +119,11 @@ def read_param_file(path: Path) -> list[LinkInertial]:
         absorbed = item.mass == 0 and bool(ln.get("absorbed_into"))
         if not ((item.mass > 0 and math.isfinite(item.mass)) or absorbed):
             raise RobotDescriptionError(f"parameter file {path}, link {item.name}: mass must be positive, got {item.mass}")
+        # A negative inertia was accepted before issue 28. A published set may break the triangle inequality
+        # and say so on the link ("triangle_inequality": why it is kept), to be used as published.
+        bad = inertial_problems(item.mass, item.inertia, triangle=not ln.get("triangle_inequality"))
+        if bad:
+            raise RobotDescriptionError(f"parameter file {path}, link {item.name}: not a rigid body: {'; '.join(bad)}")
         out.append(item)
     return out
 
@@ -266,7 +281,7 @@ def build_urdf(spec: RobotSpec, params: str | os.PathLike | None = None, payload
     URDF joint damping/friction is zeroed: Pinocchio ignores it while DART would
     apply it, so friction is modelled explicitly instead (``GazFriction``).
     """
-    root = ET.fromstring(spec.urdf_path.read_text())
+    root = _checked_tree(ET.fromstring(spec.urdf_path.read_text()), f"URDF {spec.urdf_path}")
     # A variant's tool first, so that everything below treats its links like the arm's.
     removed_links, removed_joints = _mount_tool(root, spec) if spec.tool is not None else (set(), set())
     links = {ln.get("name"): ln for ln in root.findall("link")}
@@ -415,6 +430,7 @@ def read_tool(path: str | os.PathLike, arm_links=()) -> ToolUrdf:
         root = ET.parse(path).getroot()
     except (OSError, ET.ParseError) as err:
         raise RobotDescriptionError(f"tool URDF {path} cannot be read: {err}") from err
+    _checked_tree(root, f"tool URDF {path}")
     links = root.findall("link")
     joints = root.findall("joint")
     names = [ln.get("name") for ln in links]
@@ -464,7 +480,7 @@ def with_tool(spec: RobotSpec, tool) -> RobotSpec:
     if spec.flange is None:
         raise RobotDescriptionError(f"robot {spec.name!r} names no flange, so a tool cannot be changed "
                                     f"(add flange = \"<its last link>\" to {where})")
-    root = ET.fromstring(spec.urdf_path.read_text())
+    root = _checked_tree(ET.fromstring(spec.urdf_path.read_text()), f"URDF {spec.urdf_path}")
     arm_links = {ln.get("name") for ln in root.findall("link")}
     if spec.flange not in arm_links:
         raise RobotDescriptionError(f"robot {spec.name!r}: flange {spec.flange!r} ({where}) is not a link of its URDF")
@@ -508,6 +524,7 @@ def describe_urdf(path: str | os.PathLike, name: str | None = None) -> RobotSpec
         root = ET.parse(path).getroot()
     except (OSError, ET.ParseError) as err:
         raise RobotDescriptionError(f"URDF {path} cannot be read: {err}") from err
+    _checked_tree(root, f"URDF {path}")
     links = [ln.get("name") for ln in root.findall("link")]
     joint_to = {j.find("child").get("link"): j for j in root.findall("joint")}
     roots = [n for n in links if n not in joint_to]
@@ -546,10 +563,14 @@ def describe_urdf(path: str | os.PathLike, name: str | None = None) -> RobotSpec
     home, vmax = [], []
     for j in arm:
         lim = j.find("limit")
-        lo = float(lim.get("lower", "-inf")) if lim is not None and j.get("type") != "continuous" else -math.inf
-        hi = float(lim.get("upper", "inf")) if lim is not None and j.get("type") != "continuous" else math.inf
+        try:
+            lo = float(lim.get("lower", "-inf")) if lim is not None and j.get("type") != "continuous" else -math.inf
+            hi = float(lim.get("upper", "inf")) if lim is not None and j.get("type") != "continuous" else math.inf
+            vmax.append(float(lim.get("velocity")) if lim is not None and lim.get("velocity") else None)
+        except ValueError:
+            raise RobotDescriptionError(f"URDF {path}: joint {j.get('name')!r} has a <limit> that is not numbers "
+                                        f"({dict(lim.attrib)})") from None
         home.append(min(max(0.0, lo), hi))
-        vmax.append(float(lim.get("velocity")) if lim is not None and lim.get("velocity") else None)
     return RobotSpec(
         name=name or str(path), urdf_path=path, tool_frame=tool, base_sensor_frame=roots[0], home=tuple(home),
         max_velocity=tuple(vmax) if None not in vmax else (), flange=tool, source=None,
@@ -703,6 +724,8 @@ def resolve_robot(name: str | os.PathLike, tool=None, payload=None) -> RobotRef:
     order: a ``robots/<name>.toml``, robots/data_only.toml, an example-robot-data
     URDF (``ur10``); a ``.toml`` or ``.urdf`` path is read as such.
     """
+    if not isinstance(name, (str, os.PathLike)):
+        raise RobotDescriptionError(f"a robot name is text, got {name!r}; the form is {ROBOT_NAME_HELP}")
     text = os.fspath(name)
     base, name_tool, name_payload = parse_robot_name(text)
     payload = as_payload(payload)

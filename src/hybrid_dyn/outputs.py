@@ -11,13 +11,16 @@ Two tools every command that writes a folder or file uses:
   so two runs never write the same temporary and a rename is atomic.
 
 What counts as "written by the toolkit" is decided by each writer from its own manifest or
-marker (a dataset's manifest, a model's config, a report's ``run.json``); ``refuse_foreign``
-is the common refusal.
+marker, read the same way by every command (``json_marker``): a dataset's manifest.json
+(``format``), a generated dataset's generator.json (``config_hash``), a model's config.json and
+timing.json (``format``), a report's run.json (``bench_report``). A file of that name without
+the marker is a user's: ``refuse_foreign`` is the common refusal.
 """
 from __future__ import annotations
 
 import contextlib
 import fcntl
+import json
 import os
 import uuid
 from pathlib import Path
@@ -31,8 +34,12 @@ def lock_path(path) -> Path:
 
 
 @contextlib.contextmanager
-def output_lock(path, what: str = "output"):
-    """Hold an exclusive lock on ``path`` (file or folder, existing or not) for the block."""
+def output_lock(path, what: str = "output", wait: bool = False):
+    """Hold an exclusive lock on ``path`` (file or folder, existing or not) for the block.
+
+    ``wait``: when another run holds it, wait until it is released instead of refusing (a shared
+    cache, such as two benches training the same model into one runs/ folder: the second then
+    reuses what the first finished)."""
     lp = lock_path(path)
     lp.parent.mkdir(parents=True, exist_ok=True)
     f = open(lp, "a+")
@@ -40,6 +47,10 @@ def output_lock(path, what: str = "output"):
         try:
             fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
+            if wait:
+                fcntl.flock(f, fcntl.LOCK_EX)  # released when the other run ends, even if it is killed
+                yield
+                return
             raise OutputPathError(f"{what} {Path(path)} is being written by another run "
                                   f"(lock {lp} is held); wait for it or choose another path") from None
         yield
@@ -51,6 +62,18 @@ def unique_temp(path, suffix: str = ".partial") -> Path:
     """``<path><suffix>.<pid>.<random>``: a temporary name no other run can share."""
     path = Path(path)
     return path.with_name(f"{path.name}{suffix}.{os.getpid()}.{uuid.uuid4().hex[:8]}")
+
+
+def json_marker(path, key: str, value=None) -> dict | None:
+    """The JSON object in file ``path`` if it carries the toolkit's marker ``key`` (equal to ``value``,
+    when given, else any non-empty value); None for a missing, unreadable or unmarked file."""
+    try:
+        doc = json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(doc, dict) or key not in doc:
+        return None
+    return doc if (doc[key] == value if value is not None else bool(doc[key])) else None
 
 
 def refuse_foreign(path, what: str, why: str) -> None:

@@ -10,7 +10,7 @@ name                          estimates    what
 ``torques-pinv``              tip force    F = pinv(J_v^T) (tau_J - ID(q, qd, qdd))
 ``momentum-observer``         tip force    the joint-torque momentum observer (no qdd)
 ``base-momentum``             tip force    the whole robot's momentum against the base sensor (no qdd)
-``kalman-fusion``             tip force    both sensors fused by a steady-state Kalman filter
+``kalman-fusion``             tip force    both sensors fused by a Kalman filter
 ``rnea``                      tau_m        inverse dynamics (+ friction on an identified set)
 ``rnea-bw``                   tau_m        RNEA - J_v^T F, F from ``base-wrench``
 ============================  ===========  =================================================

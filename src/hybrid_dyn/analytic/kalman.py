@@ -1,4 +1,4 @@
-"""A steady-state Kalman filter that fuses the base sensor and the joint torques into one tip force.
+"""A Kalman filter that fuses the base sensor and the joint torques into one tip force.
 
 Both sensors see the tip force F through a momentum law that needs no joint
 acceleration:
@@ -20,28 +20,33 @@ and alike, so every matrix below is (n, n) with n = sensors + 1):
     F_k+1   = F_k + w_F                 (the force as a random walk)
     y_c,k   = s_c,k + v_c               (v_c: the velocity noise in the momentum)
 
-The gain is the steady-state one (``scipy.linalg.solve_discrete_are``),
-computed once per (dt, noise, sensors) and cached, so a call costs the dynamics
-terms and a few 3x3 products. A sensor that is absent (``None``) at a call is
-predicted, not updated, with the gain of the filter that lacks it: with one
-sensor missing throughout, this *is* the single-sensor filter.
+The filter is the time-varying one: its covariance is propagated every call
+(a few 3 x 3 operations in a compiled kernel, ``kalman_kernels.py``), so no
+call solves a Riccati equation, and it settles to the steady-state filter
+(``SteadyStateKalman``, the reference a test compares it with). A sensor that is
+absent (``None``) at a call is predicted, not updated: with one sensor missing
+throughout, this *is* the single-sensor filter; a sensor that comes every other
+call is bridged (its increment spans the gap).
 
-Noise covariances come from the sensors' specifications (``FusionNoise``, the
-generator's ``NoiseConfig`` values), mapped through the arm's Jacobians at its
-home pose (the isotropic mean over axes): see :func:`channel_covariances`.
+Noise covariances (``FusionNoise``) map the sensors' noise through the arm's
+Jacobians at its home pose (the isotropic mean over axes): see
+:func:`channel_covariances`. On a stream they are measured on the noise window,
+and the force rate follows the bandwidth rule (:func:`window_fusion_noise`,
+``bandwidth.py``); the specifications (the generator's ``NoiseConfig`` values)
+are the defaults.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, replace
-from functools import lru_cache
 
 import numpy as np
 import pinocchio as pin
-from numba import njit
 from scipy.linalg import solve_discrete_are
 
+from .bandwidth import contact_rate, kalman_settle_calls, random_walk_gain
 from .base_momentum import BaseMomentumObserver
+from .kalman_kernels import _fusion_step, _kf_run
 from .momentum_observer import MomentumObserver
 from .robot import InputError, Robot, as_batch
 from .tip_force import MAX_DAMPING, SINGULAR_REGION, damped_force_from_joint_torques
@@ -57,7 +62,8 @@ class FusionNoise:
     per joint: the generator's ``NoiseConfig`` defaults (a mid-range 6-axis F/T
     sensor, the Panda's torque sensors and encoders). force_rate [N/sqrt(s)]:
     intensity of the random walk of F (its variance grows by force_rate^2 per
-    second); it sets the filter's bandwidth. base_model / joint_model [N]: a
+    second); it sets the filter's bandwidth. None (the default): the bandwidth
+    rule's value (:func:`rule_force_rate`: the contact model of ``bandwidth.py``). base_model / joint_model [N]: a
     model error per axis, as a force, added to that sensor's noise (how far the
     model behind the sensor can be trusted; 0 = exact).
     """
@@ -65,12 +71,14 @@ class FusionNoise:
     base_force: float = 0.2
     joint_torque: float = 0.05
     joint_velocity: float = 5e-4
-    force_rate: float = 0.6
+    force_rate: float | None = None
     base_model: float = 0.0
     joint_model: float = 0.0
 
     def __post_init__(self):
         for name, value in asdict(self).items():
+            if value is None and name == "force_rate":
+                continue
             if not (math.isfinite(value) and value >= 0):
                 raise InputError(f"FusionNoise.{name} must be finite and >= 0, got {value}")
         if self.force_rate == 0:
@@ -132,14 +140,10 @@ def momentum_filter(dt: float, q_sensors, r_sensors, force_rate: float) -> Stead
     return SteadyStateKalman.solve(A, H, Q, R)
 
 
-def channel_covariances(robot: Robot, dt: float, noise: FusionNoise) -> dict:
-    """Per sensor (process variance q, measurement variance r) [N^2 s^2] from the specifications.
-
-    At the home pose, averaged over the three axes:
-    base   q = dt^2 (base_force^2 + base_model^2),  r = sigma_qd^2 tr(m^2 J_com J_com^T) / 3;
-    joint  q = dt^2 (sigma_tau^2 tr((J_v J_v^T)^-1) / 3 + joint_model^2),
-           r = sigma_qd^2 tr(P M M P^T) / 3 with P = pinv(J_v^T) = (J_v J_v^T)^-1 J_v.
-    """
+def channel_factors(robot: Robot) -> tuple[float, float, float]:
+    """The pose factors of the channel covariances at the home pose (the isotropic mean over axes):
+    (m^2 tr(J_com J_com^T) / 3 [kg^2 m^2], tr((J_v J_v^T)^-1) / 3 [1/m^2], tr(P M M P^T) / 3 [kg^2 m^2])
+    with P = pinv(J_v^T) = (J_v J_v^T)^-1 J_v. Computed once per filter, when it is built."""
     q0 = np.array(robot.spec.home, float)
     data = robot.model.createData()
     m = robot.total_mass
@@ -148,12 +152,73 @@ def channel_covariances(robot: Robot, dt: float, noise: FusionNoise) -> dict:
     M = robot.mass_matrix(q0)
     jjt_inv = np.linalg.inv(jv @ jv.T)
     P = jjt_inv @ jv
+    return (float(m**2 * np.trace(jcom @ jcom.T) / 3.0), float(np.trace(jjt_inv) / 3.0),
+            float(np.trace(P @ M @ M @ P.T) / 3.0))
+
+
+def _covariances(factors, dt: float, noise: FusionNoise) -> dict:
+    """``channel_covariances`` from precomputed pose factors (arithmetic only)."""
+    f_base, f_jjt, f_pm = factors
     sq = noise.joint_velocity**2
-    return {
-        "base": (dt**2 * (noise.base_force**2 + noise.base_model**2), sq * m**2 * np.trace(jcom @ jcom.T) / 3.0),
-        "joint": (dt**2 * (noise.joint_torque**2 * np.trace(jjt_inv) / 3.0 + noise.joint_model**2),
-                  sq * np.trace(P @ M @ M @ P.T) / 3.0),
-    }
+    return {"base": (dt**2 * (noise.base_force**2 + noise.base_model**2), sq * f_base),
+            "joint": (dt**2 * (noise.joint_torque**2 * f_jjt + noise.joint_model**2), sq * f_pm)}
+
+
+def channel_covariances(robot: Robot, dt: float, noise: FusionNoise) -> dict:
+    """Per sensor (process variance q, measurement variance r) [N^2 s^2] from the specifications.
+
+    At the home pose, averaged over the three axes:
+    base   q = dt^2 (base_force^2 + base_model^2),  r = sigma_qd^2 tr(m^2 J_com J_com^T) / 3;
+    joint  q = dt^2 (sigma_tau^2 tr((J_v J_v^T)^-1) / 3 + joint_model^2),
+           r = sigma_qd^2 tr(P M M P^T) / 3 with P = pinv(J_v^T) = (J_v J_v^T)^-1 J_v.
+    """
+    return _covariances(channel_factors(robot), dt, noise)
+
+
+def increment_stats(increments: dict) -> np.ndarray:
+    """The sums the streaming filter keeps of each sensor's unexplained-momentum increments [N s],
+    {"base" | "joint": (n, 3)} (consecutive samples): rows base, joint; columns sum d (3), sum d^2 (3),
+    count, samples spanned (``KalmanTipForce.stats``)."""
+    stats = np.zeros((2, 8))
+    for row, name in enumerate(SENSORS):
+        if name in increments:
+            d = np.asarray(increments[name], float)
+            stats[row] = np.r_[d.sum(axis=0), (d**2).sum(axis=0), len(d), len(d)]
+    return stats
+
+
+def noise_from_stats(factors, dt: float, stats: np.ndarray, noise: FusionNoise,
+                     base_shift: np.ndarray | None = None) -> FusionNoise:
+    """``noise`` with each sensor's model error from its increment sums (``increment_stats``).
+
+    With F = 0, the increments d / dt [N] are the sensor's noise alone; their mean square per axis
+    beyond what the noise predicts, (q + 2 r) / dt^2, is the model error [N]. base_shift (3,) [N s]:
+    what the base sensor's tare adds to each of its increments per sample spanned (R o dt): the sums
+    were taken on the raw wrench, and the shift enters them exactly (d + c m)^2 / m = d^2 / m + 2 c d + c^2 m.
+    A sensor with fewer than 2 increments keeps its model error.
+    """
+    cov = _covariances(factors, dt, noise)
+    errors = {}
+    for row, name in enumerate(SENSORS):
+        s_d, s_d2, n, steps = stats[row, :3], stats[row, 3:6], stats[row, 6], stats[row, 7]
+        if n < 2:
+            continue
+        if name == "base" and base_shift is not None:
+            s_d2 = s_d2 + 2.0 * base_shift * s_d + base_shift**2 * steps
+        measured = float(np.mean(s_d2)) / n / dt**2
+        q_c, r_c = cov[name]
+        predicted = (q_c + 2.0 * r_c) / dt**2
+        errors[f"{name}_model"] = math.sqrt(max(0.0, measured - predicted) + getattr(noise, f"{name}_model") ** 2)
+    return replace(noise, **errors)
+
+
+def noise_from_increments(robot: Robot, dt: float, increments: dict, noise: FusionNoise | None = None) -> FusionNoise:
+    """``noise`` with its model errors from the sensors' unexplained-momentum increments [N s] on a
+    contact-free window, {"base" | "joint": (n, 3)}."""
+    for name, inc in increments.items():
+        if len(inc) < 2:
+            raise InputError(f"the tare window needs at least 3 samples, got {len(inc) + 1}")
+    return noise_from_stats(channel_factors(robot), dt, increment_stats(increments), noise or FusionNoise())
 
 
 def tare_window_noise(robot: Robot, dt: float, q, qd, base_wrench=None, tau_J=None,
@@ -172,31 +237,30 @@ def tare_window_noise(robot: Robot, dt: float, q, qd, base_wrench=None, tau_J=No
     return noise_from_increments(robot, dt, {name: np.diff(v, axis=0) for name, v in y.items()}, noise)
 
 
-def noise_from_increments(robot: Robot, dt: float, increments: dict, noise: FusionNoise | None = None) -> FusionNoise:
-    """``tare_window_noise`` from the sensors' unexplained-momentum increments [N s] on the window,
-    {"base" | "joint": (n, 3)}: what a stream accumulates call by call (``TipForceEstimator``)."""
-    noise = noise or FusionNoise()
-    cov = channel_covariances(robot, dt, noise)
-    errors = {}
-    for name, inc in increments.items():
-        if len(inc) < 2:
-            raise InputError(f"the tare window needs at least 3 samples, got {len(inc) + 1}")
-        d = np.asarray(inc, float) / dt
-        measured = float(np.mean(d.var(axis=0) + d.mean(axis=0) ** 2))
-        q_c, r_c = cov[name]
-        predicted = (q_c + 2.0 * r_c) / dt**2
-        errors[f"{name}_model"] = math.sqrt(max(0.0, measured - predicted) + getattr(noise, f"{name}_model") ** 2)
-    return replace(noise, **errors)
+def window_fusion_noise(robot: Robot, dt: float, window, stats: np.ndarray, base_shift=None,
+                        factors=None) -> FusionNoise:
+    """The fusion filter's noise from a window (``bandwidth.WindowNoise`` and the increment sums):
+    the sensors' noise as measured, their model errors from the increments, and the force rate by the
+    bandwidth rule (:func:`rule_force_rate`). The one definition the estimator and the bench share."""
+    factors = factors or channel_factors(robot)
+    floor = 1e-6  # a noise-free window (an exact simulation) still needs a positive variance
+    spec = FusionNoise(
+        base_force=max(floor, window.base_force if window.base_force is not None else FusionNoise.base_force),
+        joint_torque=max(floor, window.joint_torque_rms if window.joint_torque is not None else FusionNoise.joint_torque),
+        joint_velocity=max(floor, float(np.sqrt(np.mean(window.qd**2)))))
+    noise = noise_from_stats(factors, dt, stats, spec, base_shift)
+    return replace(noise, force_rate=rule_force_rate(dt))
 
 
-@lru_cache(maxsize=64)
-def _filters(robot: Robot, dt: float, noise: FusionNoise) -> dict:
-    """The steady-state filter of every non-empty sensor subset, solved once per configuration."""
-    cov = channel_covariances(robot, dt, noise)
-    out = {}
-    for subset in (("base",), ("joint",), ("base", "joint")):
-        out[subset] = momentum_filter(dt, [cov[c][0] for c in subset], [cov[c][1] for c in subset], noise.force_rate)
-    return out
+def rule_force_rate(dt: float) -> float:
+    """The bandwidth rule's force rate [N/sqrt(s)] at sample time dt [s]: the contact model's
+    (``bandwidth.contact_rate``). The minimum of noise^2 + lag^2 for a random-walk force is the Kalman
+    filter of that random walk, so the rule sets the force rate to the model's and the filter's gain
+    follows from the measured noise."""
+    return contact_rate(dt)
+
+
+MAX_BRIDGE_CALLS = 5  # a sensor absent for up to this many calls is bridged; longer, it has left
 
 
 class KalmanTipForce:
@@ -205,6 +269,13 @@ class KalmanTipForce:
     dt: sample time [s]. Inputs per call: q [rad], qd [rad/s] (nv,);
     base_wrench [N, Nm] (6,) in the base-sensor frame, tared (``analytic/tare.py``),
     or None; tau_J link-side joint torques [Nm] (nv,), or None.
+
+    The filter is the time-varying one: its covariance P is propagated every call
+    (a few 3 x 3 operations, compiled), so it needs no Riccati solution, settles to
+    the steady-state filter, and treats an absent sensor exactly (predicted, not
+    updated). A sensor absent for up to MAX_BRIDGE_CALLS calls (one call of two,
+    alternating) is bridged: its next increment spans the gap (the trapezoid over
+    it); absent longer, it has left and re-anchors when it returns.
     """
 
     def __init__(self, robot: Robot, dt: float = 1e-3, noise: FusionNoise | None = None):
@@ -212,8 +283,7 @@ class KalmanTipForce:
             raise InputError(f"dt must be positive [s], got {dt}")
         self.robot = robot
         self.dt = float(dt)
-        self.noise = noise or FusionNoise()
-        self.filters = _filters(robot, self.dt, self.noise)
+        self._factors = channel_factors(robot)
         self._base = BaseMomentumObserver(robot, dt=self.dt)    # h(q, qd) and the weight
         self._joint = MomentumObserver(robot, dt=self.dt)       # p = M qd and beta = C^T qd - g
         # With the joint torques, two passes give every term: computeAllTerms (M, g and, for the base
@@ -221,37 +291,62 @@ class KalmanTipForce:
         # Jacobians the tip Jacobian is read from), instead of five separate passes.
         self._all_data = robot.model.createData()
         self._coriolis_data = robot.model.createData()
-        # Each subset's gain embedded in the full state (rows s_base, s_joint, F; columns: the two
-        # sensors' innovations), zero for an absent sensor: one small product per call, no indexing.
-        self._gains = {}
-        for subset, f in self.filters.items():
-            G = np.zeros((3, 2))
-            rows = [SENSORS.index(c) for c in subset]
-            G[np.ix_(rows + [2], rows)] = f.K
-            self._gains[subset] = G
-        # For the compiled step: the gains indexed by 1 (base), 2 (joint), 3 (both), and constants.
-        self._gain_table = np.zeros((4, 3, 2))
-        for code, subset in ((1, ("base",)), (2, ("joint",)), (3, ("base", "joint"))):
-            self._gain_table[code] = self._gains[subset]
         self._R3 = np.ascontiguousarray(robot._root_from_sensor[:3])
         self._mg3 = robot.total_mass * np.asarray(robot.model_ff.gravity.linear, float)
         self._zero3, self._zero6, self._zero_nv = np.zeros(3), np.zeros(6), np.zeros(robot.nv)
         self._zero_jac = np.zeros((6, robot.nv))
         self._zero_c = np.zeros((robot.nv, robot.nv))
-        self.reset()
+        self.stats = np.zeros((2, 8))  # the increment sums (``increment_stats``), kept since the last reset
+        self.configure(noise or FusionNoise())
         # Compile (or load from numba's cache) now, not in the first control cycle: one call on copies.
-        _fusion_step(self.state.copy(), self._y.copy(), self._last_base.copy(), self._last_joint.copy(),
-                     self._has_last.copy(), self._gain_table, True, self._zero3, self._R3, self._zero6, self._mg3,
-                     True, self._zero_nv, self._zero_c, self._zero_nv, self._zero_c, self._zero_nv, self._zero_jac,
-                     self.dt, SINGULAR_REGION, MAX_DAMPING)
+        _fusion_step(self.state.copy(), self.P.copy(), self._y.copy(), self._last_base.copy(),
+                     self._last_joint.copy(), self._since.copy(), self.stats.copy(), self._qv, self._rv,
+                     MAX_BRIDGE_CALLS, True, self._zero3, self._R3, self._zero6, self._mg3, True, self._zero_nv,
+                     self._zero_c, self._zero_nv, self._zero_c, self._zero_nv, self._zero_jac, self.dt,
+                     SINGULAR_REGION, MAX_DAMPING)
+        _kf_run(np.zeros((1, 2, 3)), np.ones(2, np.bool_), self._P0(), self._qv, self._rv, self.dt)
+        # ...and with the arrays Pinocchio hands the step (their memory layouts pick numba's specialization),
+        # for every sensor subset: none is compiled (or loaded from the cache, ~10 ms) in a control call.
+        home, zero = np.array(robot.spec.home, float), np.zeros(robot.nv)
+        for w, tau in ((np.zeros(6), zero), (np.zeros(6), None), (None, zero)):
+            self.step_unchecked(home, zero, w, tau)
+        self.reset()
+
+    def configure(self, noise: FusionNoise) -> None:
+        """Use these noise intensities (arithmetic only: no design) and start afresh (``reset``)."""
+        if noise.force_rate is None:
+            noise = replace(noise, force_rate=rule_force_rate(self.dt))
+        self.noise = noise
+        cov = _covariances(self._factors, self.dt, noise)
+        self._qv = np.array([cov["base"][0], cov["joint"][0], noise.force_rate**2 * self.dt])
+        self._rv = np.array([max(cov["base"][1], 1e-300), max(cov["joint"][1], 1e-300)])
+        # The force gain each sensor subset settles to (random-walk filter through the subset's
+        # combined increment noise): the settling times of ``settle_calls``.
+        s_e2 = {c: (cov[c][0] + 2.0 * cov[c][1]) / self.dt**2 for c in SENSORS}
+        self.gains = {}
+        for subset in (("base",), ("joint",), ("base", "joint")):
+            combined = 1.0 / sum(1.0 / max(s_e2[c], 1e-300) for c in subset)
+            self.gains[subset] = random_walk_gain(noise.force_rate, self.dt, combined)
+        self.reset()
+
+    def settle_calls(self, subset=SENSORS) -> int:
+        """Calls until a start's transient has decayed below 1 % with the sensors ``subset``."""
+        return kalman_settle_calls(self.gains[tuple(c for c in SENSORS if c in subset)])
+
+    def _P0(self) -> np.ndarray:
+        """The covariance at a start: each sensor anchors at its first sample; the force is unknown
+        (a prior of (max 100 N)^2: the first increments decide it)."""
+        return np.diag([self._rv[0], self._rv[1], 100.0**2])
 
     def reset(self) -> None:
         """Forget the history: F = 0 and both sensors re-anchor at their next sample."""
         self.state = np.zeros((3, 3))  # rows: s_base, s_joint, F; columns: x, y, z
+        self.P = self._P0()
         self._y = np.zeros((2, 3))
         self._last_base = np.zeros((2, 3))  # the compiled step's copy: h, u of the previous sample
         self._last_joint = np.zeros((2, self.robot.nv))  # p, tau + beta of the previous sample
-        self._has_last = np.zeros(2, dtype=np.bool_)
+        self._since = np.full(2, -1, dtype=np.int64)  # calls each sensor has been absent (-1: never seen)
+        self.stats[:] = 0.0
 
     @property
     def force(self) -> np.ndarray:
@@ -259,8 +354,7 @@ class KalmanTipForce:
 
     @property
     def sums(self) -> np.ndarray:
-        """The sensors' unexplained momenta y (2, 3) [N s] (rows: base, joint): between two calls at
-        which a sensor is present, its row grows by exactly that sensor's increment."""
+        """The sensors' unexplained momenta y (2, 3) [N s] (rows: base, joint)."""
         return self._y
 
     # ------------------------------------------------------- measurements
@@ -317,9 +411,9 @@ class KalmanTipForce:
             qd = g = tau = self._zero_nv
             C, jv, M_upper = self._zero_c, self._zero_jac, self._zero_c
         w = base_wrench if has_base else self._zero6
-        _fusion_step(self.state, self._y, self._last_base, self._last_joint, self._has_last, self._gain_table,
-                     has_base, h, self._R3, w, self._mg3, has_joint, qd, M_upper, g, C, tau, jv, self.dt,
-                     SINGULAR_REGION, MAX_DAMPING)
+        _fusion_step(self.state, self.P, self._y, self._last_base, self._last_joint, self._since, self.stats,
+                     self._qv, self._rv, MAX_BRIDGE_CALLS, has_base, h, self._R3, w, self._mg3, has_joint, qd,
+                     M_upper, g, C, tau, jv, self.dt, SINGULAR_REGION, MAX_DAMPING)
         return self.state[2].copy()
 
     # ---------------------------------------------------------------- batch
@@ -352,11 +446,8 @@ class KalmanTipForce:
         return np.cumsum(d, axis=0) if cumulative else d
 
     def run(self, q, qd, base_wrench=None, tau_J=None) -> np.ndarray:
-        """Tip forces (N, 3) [N] over a trajectory sampled every ``dt``, from a reset.
-
-        The steady-state filter is linear and time-invariant: x_k = (I - K H) A x_k-1 + K y_k
-        from x_-1 = 0 (y_0 = 0), run for each axis by ``SteadyStateKalman.filter``.
-        """
+        """Tip forces (N, 3) [N] over a trajectory sampled every ``dt``, from a reset (every sample
+        brings the sensors given)."""
         return self.filter_measurements(self.measurements(q, qd, base_wrench, tau_J))
 
     def filter_measurements(self, y: dict) -> np.ndarray:
@@ -364,125 +455,12 @@ class KalmanTipForce:
         filters of other noise settings can share one pass over the dynamics."""
         if not y:
             raise InputError("KalmanTipForce.run needs base_wrench, tau_J or both")
-        subset = tuple(c for c in SENSORS if c in y)
-        f = self.filters[subset]
+        n = len(next(iter(y.values())))
+        Y = np.zeros((n, 2, 3))
+        present = np.zeros(2, np.bool_)
+        for row, c in enumerate(SENSORS):
+            if c in y:
+                Y[:, row] = y[c]
+                present[row] = True
         self.reset()
-        Y = np.stack([y[c] for c in subset], axis=1)  # (N, sensors, 3)
-        return np.stack([f.filter(Y[:, :, axis])[:, -1] for axis in range(3)], axis=1)
-
-
-@njit(cache=True)
-def _fusion_step(x, y, last_base, last_joint, has_last, gain_table, has_base, h, R3, w, mg3,
-                 has_joint, qd, M_upper, g, C, tau, jac, dt, singular_region, max_damping):  # pragma: no cover
-    """One predict-update of ``KalmanTipForce`` after the dynamics terms (see ``step_unchecked``).
-
-    x (3, 3): s_base, s_joint, F by axis; y (2, 3): the sensors' unexplained momenta.
-    The joint terms come as Pinocchio gives them: the mass matrix's upper triangle M_upper (what
-    computeAllTerms fills), the gravity torque g and the Coriolis matrix C, so p = M qd and
-    beta = C^T qd - g are formed here.
-    A sensor with no previous sample re-anchors (y = its prediction, no update from it).
-    The joint increment is projected to the tool by the damped least squares of
-    ``tip_force.damped_force_single``, written out here in the same closed form.
-    """
-    for j in range(3):
-        x[0, j] += dt * x[2, j]
-        x[1, j] += dt * x[2, j]
-    code = 0
-    if has_base:
-        u = np.empty(3)
-        for i in range(3):
-            acc = mg3[i]
-            for k in range(6):
-                acc += R3[i, k] * w[k]
-            u[i] = acc
-        if has_last[0]:
-            for i in range(3):
-                y[0, i] += h[i] - last_base[0, i] - (u[i] + last_base[1, i]) * (0.5 * dt)
-            code += 1
-        else:
-            for i in range(3):
-                y[0, i] = x[0, i]
-        for i in range(3):
-            last_base[0, i] = h[i]
-            last_base[1, i] = u[i]
-        has_last[0] = True
-    else:
-        has_last[0] = False
-    if has_joint:
-        nv = qd.shape[0]
-        p = np.empty(nv)
-        beta = np.empty(nv)
-        for k in range(nv):
-            acc = 0.0
-            for i in range(nv):
-                acc += (M_upper[k, i] if i >= k else M_upper[i, k]) * qd[i]
-            p[k] = acc
-            acc = -g[k]
-            for i in range(nv):
-                acc += qd[i] * C[i, k]
-            beta[k] = acc
-        if has_last[1]:
-            d = np.empty(nv)
-            for k in range(nv):
-                d[k] = p[k] - last_joint[0, k] - (tau[k] + beta[k] + last_joint[1, k]) * (0.5 * dt)
-            a = np.zeros((3, 3))
-            bvec = np.zeros(3)
-            for i in range(3):
-                for k in range(nv):
-                    bvec[i] += jac[i, k] * d[k]
-                for j in range(3):
-                    acc = 0.0
-                    for k in range(nv):
-                        acc += jac[i, k] * jac[j, k]
-                    a[i, j] = acc
-            z = _damped_solve3(a, bvec, singular_region, max_damping)
-            for i in range(3):
-                y[1, i] += z[i]
-            code += 2
-        else:
-            for i in range(3):
-                y[1, i] = x[1, i]
-        for k in range(nv):
-            last_joint[0, k] = p[k]
-            last_joint[1, k] = tau[k] + beta[k]
-        has_last[1] = True
-    else:
-        has_last[1] = False
-    if code > 0:
-        G = gain_table[code]
-        inn0 = np.empty(3)
-        inn1 = np.empty(3)
-        for j in range(3):
-            inn0[j] = y[0, j] - x[0, j]
-            inn1[j] = y[1, j] - x[1, j]
-        for r in range(3):
-            for j in range(3):
-                x[r, j] += G[r, 0] * inn0[j] + G[r, 1] * inn1[j]
-
-
-@njit(cache=True)
-def _damped_solve3(a, b, singular_region, max_damping):  # pragma: no cover (compiled)
-    """``damped_force_single``'s damping law and adjugate solve for a = J_v J_v^T, b = J_v tau."""
-    a00, a01, a02, a11, a12, a22 = a[0, 0], a[0, 1], a[0, 2], a[1, 1], a[1, 2], a[2, 2]
-    det0 = a00 * (a11 * a22 - a12 * a12) - a01 * (a01 * a22 - a12 * a02) + a02 * (a01 * a12 - a11 * a02)
-    tr = a00 + a11 + a22
-    lam_min = np.inf
-    if det0 < singular_region**2 * tr * tr:
-        lam_min = np.linalg.eigvalsh(a)[0]
-    if lam_min < singular_region**2:
-        dmp = max_damping**2 * (1.0 - max(lam_min, 0.0) / singular_region**2)
-        a00 += dmp
-        a11 += dmp
-        a22 += dmp
-    c00 = a11 * a22 - a12 * a12
-    c01 = a02 * a12 - a01 * a22
-    c02 = a01 * a12 - a02 * a11
-    c11 = a00 * a22 - a02 * a02
-    c12 = a01 * a02 - a00 * a12
-    c22 = a00 * a11 - a01 * a01
-    det = a00 * c00 + a01 * c01 + a02 * c02
-    out = np.empty(3)
-    out[0] = (c00 * b[0] + c01 * b[1] + c02 * b[2]) / det
-    out[1] = (c01 * b[0] + c11 * b[1] + c12 * b[2]) / det
-    out[2] = (c02 * b[0] + c12 * b[1] + c22 * b[2]) / det
-    return out
+        return _kf_run(Y, present, self._P0(), self._qv, self._rv, self.dt)

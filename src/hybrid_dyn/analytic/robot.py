@@ -103,9 +103,14 @@ class Robot:
         self.sensor_mount = sensor_mount or SensorMount()
         self.num_threads = num_threads or max(1, min(4, os.cpu_count() or 1))
 
-        self.model = pin.buildModelFromXML(urdf_xml)
+        try:
+            self.model = pin.buildModelFromXML(urdf_xml)
+            self.model_ff = pin.buildModelFromXML(urdf_xml, pin.JointModelFreeFlyer())
+        except (ValueError, RuntimeError) as err:  # urdfdom's parse errors (a bad number, an unknown joint type)
+            where = spec.source or spec.urdf_path
+            raise RobotDescriptionError(f"robot {self.name!r} ({where}): Pinocchio cannot build its URDF: "
+                                        f"{str(err).strip().splitlines()[0]}") from None
         self.data = self.model.createData()
-        self.model_ff = pin.buildModelFromXML(urdf_xml, pin.JointModelFreeFlyer())
         self.data_ff = self.model_ff.createData()
         self.nq, self.nv = self.model.nq, self.model.nv
         if self.nq != self.nv:

@@ -5,47 +5,49 @@ reads, and how it predicts a run (batch) and one sample (the call a user makes i
 control loop: the same library functions, an observer or filter stepped once per
 call). Adding an analytic row is one ``_analytic(...)`` call in this file.
 
-The observers' gains and the Kalman filter's force rate are chosen on the
-validation split, once per scenario (:func:`_chosen_on_val`).
+The estimator methods of ``analytic/methods.py`` get their rows from the registry
+(:func:`declare_method_rows`): ``name``, the estimator with its defaults (the
+bandwidth by the rule), and ``name-val``, the bandwidth chosen on the validation
+split once per scenario (:func:`_chosen_on_val`), a labelled reference.
 """
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
-from ..analytic.base_momentum import BaseMomentumObserver, base_momentum_tip_force
-from ..analytic.kalman import KalmanTipForce, tare_window_noise
-from ..analytic.momentum_observer import MomentumObserver
+from ..analytic.methods import REGISTRY, add_listener, run_batch
 from ..analytic.tare import TARE_SECONDS, tare_samples, tared_base_wrench
 from ..analytic.tip_force import contact_joint_torques, tip_force_from_base_wrench, tip_force_from_torques
-from .rows import Predictor, Row, declare
+from ..estimator import EstimatorConfig, TipForceEstimator
+from .rows import ROWS, Predictor, Row, declare
 
 TARED = "(tared on the first 0.5 s)"  # how the inputs column says a row reads the tared base sensor
 
 
-def _analytic(name: str, task: str, needs: tuple, inputs, batch_fn, single_fn=None) -> Row:
+def _analytic(name: str, task: str, needs: tuple, inputs, batch_fn, single_fn=None, reference=None,
+              warmup_calls=None) -> Row:
     """Declare an analytic row: batch_fn(robot, instance, ctx) -> (T, C) and single_fn(robot, instance, k, ctx) -> (C,).
 
     needs: the dataset fields it reads, its target included; inputs: the results' inputs
-    column, a string or ctx -> string (a value chosen on validation)."""
+    column, a string or ctx -> string (a value chosen on validation); reference: a reference
+    row's label; warmup_calls(ctx): untimed calls first (a stream's noise window)."""
     def build(ds, ctx):
         robot = ctx.robot
         return Predictor(
             predict=lambda insts: [batch_fn(robot, i, ctx) for i in insts],
             single_call=(lambda inst, k: single_fn(robot, inst, k, ctx)) if single_fn else None,
             inputs=inputs(ctx) if callable(inputs) else inputs,
+            warmup_calls=1 if warmup_calls is None else warmup_calls(ctx),
         )
 
-    return declare(Row(name, task, "analytic", needs=needs, needs_urdf=True, build=build))
+    return declare(Row(name, task, "analytic", needs=needs, needs_urdf=True, build=build, reference=reference))
 
 
-# The observers' gains and the Kalman filter's force rate set a bandwidth: the best one depends on
-# the sample rate and on how fast the contact force changes (bells over seconds, steps in 1 ms).
-# Each physics row takes the value of its grid with the least validation RMSE, once per scenario,
-# as the learned rows stop on the validation loss: every row is at its best on the same split.
-OBSERVER_GAINS = (5.0, 10.0, 20.0, 50.0, 100.0, 200.0)        # K [1/s]; only K dt < 0.5 is tried (stable, no ringing)
-FORCE_RATES = (0.1, 0.2, 0.3, 0.6, 1.0, 2.0, 5.0, 10.0)      # Kalman random-walk intensity [N/sqrt(s)]
+# The registry's methods (analytic/methods.py): two rows each. ``name`` is what TipForceEstimator does
+# with its defaults: the noise window (the tare, the bandwidth by the rule of analytic/bandwidth.py),
+# then the method; its single call is the user's call itself. ``name-val`` takes the bandwidth from
+# the method's grid with the least validation RMSE, once per scenario (a labelled reference: the
+# cost of choosing the bandwidth without the data's answers).
+VAL_LABEL = "bandwidth chosen on validation"
 
 
 def _chosen_on_val(ctx, name: str, grid, estimate) -> float:
@@ -66,37 +68,68 @@ def _chosen_on_val(ctx, name: str, grid, estimate) -> float:
     return ctx.cache[key]
 
 
-def _momentum_at(robot, inst, ctx, gain):
-    return MomentumObserver(robot, gain=gain, dt=1.0 / ctx.dataset.meta["record_hz"]).run(inst.q, inst.qd, inst.tau_J)[0]
+def _method_run(method, robot, inst, ctx, value=None):
+    """(forces (T, 3), bandwidth) of the method over one run as the estimator runs it (cached per value)."""
+    key = ("method-run", method.name, inst.name, value)
+    if key not in ctx.cache:
+        ctx.cache[key] = run_batch(method, robot, ctx.dataset.meta["record_hz"], inst.q, inst.qd,
+                                   inst.base_wrench if "base_wrench" in method.reads else None,
+                                   inst.tau_J if "tau_J" in method.reads else None, TARE_SECONDS, value)
+    return ctx.cache[key]
 
 
-def _gains(ctx) -> tuple:
-    """The observer gains worth trying at the data's rate: K dt < 0.5 (at K dt >= 1 the discrete observer rings or diverges)."""
-    return tuple(k for k in OBSERVER_GAINS if k / ctx.dataset.meta["record_hz"] < 0.5)
-
-
-def _momentum_gain(ctx) -> float:
-    return _chosen_on_val(ctx, "momentum-observer gain", _gains(ctx), _momentum_at)
-
-
-def _momentum(robot, inst, ctx):
-    return _momentum_at(robot, inst, ctx, _momentum_gain(ctx))
-
-
-def _observer_single(name: str, make, sensor):
-    """A row's single call: an observer (``make(robot, ctx)``) started at the run's first sample and
-    stepped once per call on ``sensor(robot, inst, ctx)`` (its (T, k) input), as a control loop runs it."""
-    def single(robot, inst, k, ctx):
+def _user_call(method):
+    """The user's call, per sample: a TipForceEstimator with its defaults at the data's rate, fresh per run."""
+    def call(robot, inst, k, ctx):
         if k == 0:
-            ctx.cache[name] = make(robot, ctx)
-        return ctx.cache[name].step_force(inst.q[k], inst.qd[k], sensor(robot, inst, ctx)[k])
+            ctx.cache[("estimator", method.name)] = TipForceEstimator(
+                robot, method.name, EstimatorConfig(call_hz=ctx.dataset.meta["record_hz"]))
+        kw = {name: inst[name][k] for name in method.reads}
+        return ctx.cache[("estimator", method.name)].estimate_tip_force(inst.q[k], inst.qd[k], **kw)
 
-    return single
+    return call
 
 
-_momentum_single = _observer_single(
-    "momentum-observer", lambda robot, ctx: MomentumObserver(robot, _momentum_gain(ctx), 1.0 / ctx.dataset.meta["record_hz"]),
-    lambda robot, inst, ctx: inst.tau_J)
+def declare_method_rows(method) -> None:
+    """The rows ``name`` and ``name-val`` of a registered method (``analytic.methods.register`` calls it)."""
+    if not method.bench_rows:
+        return
+    needs = method.fields + ("tip_force",)
+    reads = ", ".join(("q", "qd") + tuple(f"{r} (tared)" if r == "base_wrench" and method.tares else r
+                                         for r in method.reads))
+
+    def rule_inputs(ctx):
+        values = sorted({_method_run(method, ctx.robot, i, ctx)[1] for i in ctx.dataset.split("test")})
+        shown = f"{values[0]:.3g}" if len(values) == 1 else f"{values[0]:.3g}-{values[-1]:.3g}"
+        return f"{reads}; {method.parameter} {shown} {method.unit} (the rule, per run's window)"
+
+    _analytic(method.name, "tip_force", needs, rule_inputs,
+              lambda r, i, ctx: _method_run(method, r, i, ctx)[0], _user_call(method),
+              warmup_calls=lambda ctx: tare_samples(ctx.dataset.meta["record_hz"], TARE_SECONDS) + 1)
+
+    def at(robot, inst, ctx, value):
+        return _method_run(method, robot, inst, ctx, value)[0]
+
+    def chosen(ctx):
+        return _chosen_on_val(ctx, f"{method.name} {method.parameter}", method.val_grid(ctx.dataset.meta["record_hz"]), at)
+
+    def val_single(robot, inst, k, ctx):
+        if k == 0:
+            ctx.cache[("estimator-val", method.name)] = TipForceEstimator(
+                robot, method.name, EstimatorConfig(call_hz=ctx.dataset.meta["record_hz"],
+                                                    **{method.parameter: chosen(ctx)}))
+        kw = {name: inst[name][k] for name in method.reads}
+        return ctx.cache[("estimator-val", method.name)].estimate_tip_force(inst.q[k], inst.qd[k], **kw)
+
+    _analytic(f"{method.name}-val", "tip_force", needs,
+              lambda ctx: f"{reads}; {method.parameter} {chosen(ctx):g} {method.unit} (chosen on val)",
+              lambda r, i, ctx: at(r, i, ctx, chosen(ctx)), val_single, reference=VAL_LABEL,
+              warmup_calls=lambda ctx: tare_samples(ctx.dataset.meta["record_hz"], TARE_SECONDS) + 1)
+
+
+def forget_method_rows(method) -> None:
+    for name in (method.name, f"{method.name}-val"):
+        ROWS.pop(name, None)
 
 
 def _tared(robot, inst, ctx) -> np.ndarray:
@@ -113,76 +146,6 @@ def _rnea_minus_contact(robot, q, qd, qdd, w):
     return robot.inverse_dynamics(q, qd, qdd) - contact_joint_torques(robot, q, tip_force_from_base_wrench(robot, q, qd, qdd, w))
 
 
-def _base_momentum_at(robot, inst, ctx, gain):
-    """The base momentum observer (force rows) on the tared base wrench, started after the tare
-    window as a stream starts it."""
-    hz = ctx.dataset.meta["record_hz"]
-    return base_momentum_tip_force(robot, inst.q, inst.qd, _tared(robot, inst, ctx), 1.0 / hz, gain,
-                                   tare_samples(hz, TARE_SECONDS))
-
-
-def _base_momentum_gain(ctx) -> float:
-    return _chosen_on_val(ctx, "base-momentum gain", _gains(ctx), _base_momentum_at)
-
-
-def _base_momentum(robot, inst, ctx):
-    return _base_momentum_at(robot, inst, ctx, _base_momentum_gain(ctx))
-
-
-_base_momentum_single = _observer_single(
-    "base-momentum",
-    lambda robot, ctx: BaseMomentumObserver(robot, _base_momentum_gain(ctx), 1.0 / ctx.dataset.meta["record_hz"]),
-    _tared)
-
-
-def _kalman_inputs(robot, inst, ctx):
-    """What the fusion filter of one instance needs whatever its force rate, computed once per instance:
-    (the sensors' noise with the model errors measured on the contact-free tare window,
-    the unexplained momenta of the samples after the window)."""
-    key = ("kalman-inputs", inst.name)
-    if key not in ctx.cache:
-        hz = ctx.dataset.meta["record_hz"]
-        n = tare_samples(hz, TARE_SECONDS)
-        w = _tared(robot, inst, ctx)
-        noise = tare_window_noise(robot, 1.0 / hz, inst.q[:n], inst.qd[:n], w[:n], inst.tau_J[:n])
-        y = KalmanTipForce(robot, 1.0 / hz, noise).measurements(inst.q[n:], inst.qd[n:], w[n:], inst.tau_J[n:]) \
-            if n < len(inst) else None
-        ctx.cache[key] = (noise, y)
-    return ctx.cache[key]
-
-
-def _kalman_filter(robot, inst, ctx, force_rate=None) -> KalmanTipForce:
-    """The fusion filter of one instance (``analytic/kalman.py``) at the force rate chosen on validation."""
-    noise = _kalman_inputs(robot, inst, ctx)[0]  # the model errors do not depend on the force rate
-    rate = _kalman_force_rate(ctx) if force_rate is None else force_rate
-    return KalmanTipForce(robot, 1.0 / ctx.dataset.meta["record_hz"], dataclasses.replace(noise, force_rate=rate))
-
-
-def _kalman_at(robot, inst, ctx, force_rate):
-    """The fusion filter started after the tare window, as TipForceEstimator starts it (0 before)."""
-    n = tare_samples(ctx.dataset.meta["record_hz"], TARE_SECONDS)
-    out = np.zeros((len(inst), 3))
-    y = _kalman_inputs(robot, inst, ctx)[1]
-    if y is not None:
-        out[n:] = _kalman_filter(robot, inst, ctx, force_rate).filter_measurements(y)
-    return out
-
-
-def _kalman_force_rate(ctx) -> float:
-    return _chosen_on_val(ctx, "kalman-fusion force rate", FORCE_RATES, _kalman_at)
-
-
-def _kalman(robot, inst, ctx):
-    return _kalman_at(robot, inst, ctx, _kalman_force_rate(ctx))
-
-
-def _kalman_single(robot, inst, k, ctx):
-    """One filter per run, started at its first sample and stepped once per call."""
-    if k == 0:
-        ctx.cache["kalman-fusion"] = _kalman_filter(robot, inst, ctx)
-    return ctx.cache["kalman-fusion"].step(inst.q[k], inst.qd[k], _tared(robot, inst, ctx)[k], inst.tau_J[k])
-
-
 # ------------------------------------------------------------------ the rows
 _analytic("torques-pinv", "tip_force", ("q", "qd", "qdd", "tau_J", "tip_force"), "q, qd, qdd, tau_J",
           lambda r, i, ctx: tip_force_from_torques(r, i.q, i.qd, i.qdd, i.tau_J),
@@ -195,15 +158,9 @@ _analytic("base-wrench-tared", "tip_force", ("q", "qd", "qdd", "base_wrench", "t
           f"q, qd, qdd, base_wrench {TARED}",
           lambda r, i, ctx: tip_force_from_base_wrench(r, i.q, i.qd, i.qdd, _tared(r, i, ctx)),
           lambda r, i, k, ctx: tip_force_from_base_wrench(r, i.q[k], i.qd[k], i.qdd[k], _tared(r, i, ctx)[k]))
-_analytic("momentum-observer", "tip_force", ("q", "qd", "tau_J", "tip_force"),
-          lambda ctx: f"q, qd, tau_J; gain {_momentum_gain(ctx):g}/s (chosen on val)", _momentum, _momentum_single)
-# Issue 16: Newton's law for the whole robot (no qdd; qdd only for the tare), and both force sensors fused.
-_analytic("base-momentum", "tip_force", ("q", "qd", "qdd", "base_wrench", "tip_force"),
-          lambda ctx: f"q, qd, base_wrench {TARED}; gain {_base_momentum_gain(ctx):g}/s (chosen on val)",
-          _base_momentum, _base_momentum_single)
-_analytic("kalman-fusion", "tip_force", ("q", "qd", "qdd", "base_wrench", "tau_J", "tip_force"),
-          lambda ctx: f"q, qd, base_wrench (tared), tau_J; force rate {_kalman_force_rate(ctx):g} N/sqrt(s) "
-                      "(chosen on val)", _kalman, _kalman_single)
+# The registry's methods (issue 16: Newton's law for the whole robot, and both force sensors fused).
+for _method in REGISTRY.values():
+    declare_method_rows(_method)
 _analytic("rnea", "joint_torque", ("q", "qd", "qdd", "tau_m"), "q, qd, qdd",
           lambda r, i, ctx: r.inverse_dynamics(i.q, i.qd, i.qdd),
           lambda r, i, k, ctx: r.inverse_dynamics(i.q[k], i.qd[k], i.qdd[k]))
@@ -214,3 +171,4 @@ _analytic("rnea-bw", "joint_torque", ("q", "qd", "qdd", "base_wrench", "tau_m"),
 _analytic("rnea-bw-tared", "joint_torque", ("q", "qd", "qdd", "base_wrench", "tau_m"), f"q, qd, qdd, base_wrench {TARED}",
           lambda r, i, ctx: _rnea_minus_contact(r, i.q, i.qd, i.qdd, _tared(r, i, ctx)),
           lambda r, i, k, ctx: _rnea_minus_contact(r, i.q[k], i.qd[k], i.qdd[k], _tared(r, i, ctx)[k]))
+add_listener(declare_method_rows, forget_method_rows)  # a method registered later gets its rows too

@@ -150,7 +150,8 @@ def _build(preset: str):
         from ..learn import train_model
 
         t0 = time.perf_counter()
-        model = train_model(ds, preset, ctx.work_dir / "models" / preset, config=ctx.profile.train_config())
+        model = train_model(ds, preset, ctx.work_dir / "models" / preset, config=ctx.profile.train_config(),
+                            wait=True)  # another bench sharing runs/ may be training it: wait, then reuse
         return learned_predictor(model, getattr(model, "train_seconds", None) or (time.perf_counter() - t0))
 
     return build
@@ -182,7 +183,7 @@ def _build_gp(ds, ctx):
     from ..learn.gp import GPConfig, train_gp
 
     t0 = time.perf_counter()
-    model = train_gp(ds, ctx.work_dir / "models" / "gp", GPConfig(seed=ctx.profile.seed))
+    model = train_gp(ds, ctx.work_dir / "models" / "gp", GPConfig(seed=ctx.profile.seed), wait=True)
     x_of = {}
 
     def single(inst, k):  # the model's own per-sample path: one row of (q, qd, qdd)

@@ -82,7 +82,8 @@ CAP_FOOTNOTE = (f"{CAP_MARK} Stopped by the epoch cap (`max_epochs`) while its v
                 "validation loss per epoch are in `learning_curves_<scenario>.png`.")
 STOP_NOTE = ("'epochs (stop)': the epochs a learned row trained and why it stopped: `patience` (no validation "
              "improvement for `patience` epochs), `lr-floor` (the learning rate reached its floor and plateaued "
-             f"there) or `epoch-cap` ({CAP_MARK}); it keeps the weights of its best validation epoch (`best_epoch` "
+             f"there), `epoch-cap` ({CAP_MARK}) or `budget` (the budgeted recipe spent its fixed number of optimizer steps: "
+             "its 'epochs' are then validation rounds, each a fixed share of the budget); it keeps the weights of its best validation epoch (`best_epoch` "
              "in results.csv, 0-based; 'untrained kept': no epoch beat the untrained model, e.g. a residual that "
              "never beat its physics part). The learning curves are in `learning_curves_<scenario>.png`.")
 
@@ -447,6 +448,7 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
     figures = _figures(out_dir, rows, preds, seed=int(prof.get("seed") or 0))
     curve_figures = learning_curve_figures(out_dir, read_curves(out_dir / CURVES_FILE))
     figures += curve_figures
+    _remove_stale_figures(out_dir, figures)
     failed = [r for r in rows if r.get("status") != "ok"]
     machine = meta.get("machine")
     labels = meta.get("scenarios") or {s: s for s in prof.get("scenarios", [])}
@@ -454,7 +456,8 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
     lines = [
         f"# Benchmark report: profile `{prof.get('name', '?')}`", "",
         f"Produced by `{command}`; every number below and in the "
-        "tables was computed by that command on this data. Seed (Kruzic et al. 2021) figures in the tables come "
+        "tables was computed by that command on this data (`hybrid-dyn report` redraws it only after checking "
+        "every row against the digest the bench recorded in run.json and the stored predictions). Seed (Kruzic et al. 2021) figures in the tables come "
         "from another simulator and are labelled as such.", "",
         "## What was run", "",
         f"- scenarios: {', '.join(labels)}; generator profile `{prof.get('generator_profile')}`; "
@@ -463,9 +466,9 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
            else "not recorded in run.json (an interrupted bench of an older version, which recorded it only at the end)"),
         *([f"- analytic model: " + ", ".join(f"{k} `{prof[k]}`" for k in ("robot", "params", "tool") if prof.get(k))]
           if any(prof.get(k) for k in ("robot", "params", "tool")) else []),
-        f"- wall time of this invocation: {meta.get('wall_seconds', float('nan')) / 60:.1f} min (datasets and trained "
+        f"- wall time of this invocation: {_minutes(meta.get('wall_seconds'))} min (datasets and trained "
         "models found in the caches are reused; each row's `train_seconds` is its own training time)"
-        + ("; all invocations [min]: " + ", ".join(f"{(i.get('wall_seconds') or float('nan')) / 60:.1f}"
+        + ("; all invocations [min]: " + ", ".join(_minutes(i.get("wall_seconds"))
                                                  for i in meta.get("invocations", [])) if len(meta.get("invocations", [])) > 1 else ""),
         (f"- machine: {machine['machine']}, {machine['processor']}, Python {machine['python']}; packages: "
          + ", ".join(f"{k} {v}" for k, v in machine["packages"].items())) if machine else
@@ -474,8 +477,9 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
     for s, d in meta.get("datasets", {}).items():
         origin = f"config hash `{d['config_hash']}`" if d.get("config_hash") else "imported (no generator config)"
         lines.append(f"- data `{s}`: {origin}, data checksum `{str(d.get('checksum'))[:16]}`"
-                     + (f", read from `{d['path']}`, robot `{d['robot']}`" if d.get("robot") else "")
+                     + (f", read from `{d.get('path')}`, robot `{d['robot']}`" if d.get("robot") else "")
                      + (f"; split {d['split']}" if d.get("split") else ""))
+        lines += [f"  - **import warning**: {w}" for w in d.get("import_warnings") or []]
     notes = prof.get("notes") or []
     if notes:
         lines += ["", "## Method notes", ""] + [f"- {n}" for n in notes]
@@ -508,6 +512,21 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
     return notes_out
 
 
+def _minutes(seconds) -> str:
+    return "-" if seconds is None else f"{float(seconds) / 60:.1f}"
+
+
+# The figures a report draws (``_figures``, ``learning_curve_figures``): one of these left from an earlier
+# report in the same folder (another dataset, another scenario) is removed, not shown beside the new ones.
+FIGURE_PREFIXES = ("rmse_by_family_", "traces_", "error_vs_force_", "learning_curves_")
+
+
+def _remove_stale_figures(out_dir: Path, figures: list[str]) -> None:
+    for p in out_dir.glob("*.png"):
+        if p.name.startswith(FIGURE_PREFIXES) and p.name not in figures and p.is_file():
+            p.unlink()
+
+
 def _megabytes(path: Path) -> str:
     return f"{path.stat().st_size / 1e6:.0f} MB" if path.exists() else "absent"
 
@@ -517,7 +536,8 @@ def rebuild_report(out_dir, log=print) -> list[str]:
     folder from its files alone (results.csv, run.json, curves.json, predictions.h5): no training, no
     simulation, no dataset. Holds the folder's lock; refuses a folder that is not a bench report."""
     from ..errors import OutputPathError
-    from ..outputs import output_lock, refuse_foreign
+    from ..outputs import output_lock
+    from .integrity import check_meta, read_run_json, verify_results
     from .results import read_results, results_columns, write_results
 
     out_dir = Path(out_dir)
@@ -526,13 +546,16 @@ def rebuild_report(out_dir, log=print) -> list[str]:
         raise OutputPathError(f"{out_dir} is not a bench report folder: it needs run.json and results.csv "
                               "(written by hybrid-dyn bench)")
     with output_lock(out_dir, "report folder"):
-        try:
-            meta = json.loads(marker.read_text())
-        except ValueError as err:
-            raise OutputPathError(f"{marker} is not valid JSON: {err}") from err
-        if not isinstance(meta, dict) or not ("bench_report" in meta or "profile" in meta):
-            refuse_foreign(marker, "benchmark report", "it is not a run.json of hybrid-dyn bench")
+        # Everything is checked before anything is written: the marker, run.json's fields, and every row
+        # against run.json's digest and predictions.h5 (integrity.py).
+        meta = read_run_json(out_dir)
+        check_meta(meta, marker)
         rows = read_results(out_dir / "results.csv")
+        try:
+            preds = Predictions(out_dir / PREDICTIONS_FILE)
+        except PredictionsError:  # absent or unreadable: the digest alone vouches for the rows (write_report notes it)
+            preds = None
+        verify_results(rows, meta, preds, out_dir)
         # Its own columns: a report written before a column was added is rewritten as it was.
         write_results(out_dir / "results.csv", rows, columns=results_columns(out_dir / "results.csv"))
         return write_report(out_dir, rows, meta, log=log)

@@ -45,6 +45,7 @@ from ..data.real import RealLogMissingError
 from ..data.splits import dataset_split_text
 from ..outputs import output_lock, refuse_foreign, unique_temp
 from .catalog import ROWS, get_row  # noqa: F401  (ROWS: every declared row)
+from .integrity import DIGEST_KEY, read_run_json, results_digest
 from .learned_rows import PRESET_ROWS
 from .metrics import ErrorReport, base_force_noise_rms, standardized_mse
 from .predictions import PREDICTIONS_FILE, PredictionWriter
@@ -135,7 +136,7 @@ def _train_job(args) -> tuple[str, str | None]:
     try:
         ds = load_dataset(dataset_path)
         ds.meta["robot"] = robot  # the bench's robot for this dataset (--robot / --tool), as score_row sees it
-        train_model(ds, preset, out_dir, config=train_config)
+        train_model(ds, preset, out_dir, config=train_config, wait=True)  # another bench sharing runs/
         return preset, None
     except Exception as err:  # reported again, with its row, when the row is scored
         return preset, f"{type(err).__name__}: {err}"
@@ -229,8 +230,9 @@ def _claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[d
     of the same profile (a report of another profile or size is being replaced: its wall times are
     of other work and are not kept).
 
-    A folder is the bench's when its ``run.json`` says so (a ``"bench_report"``
-    key, or the ``profile`` of reports written before that key); an empty or new folder is claimed by writing that marker before
+    A folder is the bench's when its ``run.json`` carries the marker the bench wrote
+    (``integrity.read_run_json``: ``"bench_report": 1`` and a recorded profile; a user's run.json
+    with a ``profile`` key is not one); an empty or new folder is claimed by writing that marker before
     anything else, so a run killed halfway still leaves a folder a rerun may
     use. Anything else (a user's README.md or results.csv) is refused, named.
     """
@@ -239,14 +241,9 @@ def _claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[d
     if out_dir.exists() and not out_dir.is_dir():
         raise OutputPathError(f"report folder {out_dir} exists and is not a directory")
     marker = out_dir / "run.json"
-    if marker.is_file():
-        try:
-            old = json.loads(marker.read_text())
-        except (OSError, ValueError):
-            old = None
-        if not isinstance(old, dict) or not ("bench_report" in old or "profile" in old):
-            refuse_foreign(marker, "benchmark report", "it is not a run.json of hybrid-dyn bench")
-        if old.get("profile") is not None and old["profile"] != profile.to_dict():
+    old = read_run_json(out_dir)  # refuses a run.json the bench did not write
+    if old is not None:
+        if old["profile"] != profile.to_dict():
             log(f"[bench] {out_dir} held a report of another profile or size: it is replaced, and its "
                 "invocations' wall times are not kept")
             return []
@@ -264,6 +261,21 @@ def _claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[d
     return []
 
 
+def _import_warnings(ds) -> list[str]:
+    """The warnings an import recorded in the dataset's manifest (issue 28: they never reached the report,
+    which then showed RNEA off by 0.55 Nm on a log whose time unit the import had said did not fit)."""
+    imp = ds.meta.get("import")
+    warnings = imp.get("warnings") if isinstance(imp, dict) else None
+    return [str(w) for w in warnings] if isinstance(warnings, list) else []
+
+
+def _record_digest(out_dir: Path) -> None:
+    """run.json (the claim's, or an earlier invocation's) with the digest of results.csv as it is now."""
+    meta = read_run_json(out_dir)
+    meta[DIGEST_KEY] = results_digest(out_dir / "results.csv", meta)
+    write_json(out_dir / "run.json", meta)
+
+
 def work_dir(profile: BenchProfile, scenario: str, ds: Dataset, work_root: Path) -> Path:
     """Where a profile's models of one scenario are cached: one folder per dataset and training
     recipe, so a run with another recipe never meets these models."""
@@ -279,6 +291,8 @@ def _open_datasets(profile, provider, log) -> list:
     """The profile's datasets as (entry, label, dataset or None, robot ref or skip reason), before any work
     where that is cheap: a dataset path is read and its robot resolved now (an unknown robot, a duplicate
     label fail here); a named scenario is made when its turn comes (None here)."""
+    from .preflight import check_dataset, check_rows_apply
+
     out, seen = [], {}
     for entry in profile.scenarios:
         ds = label = ref = None
@@ -286,6 +300,7 @@ def _open_datasets(profile, provider, log) -> list:
             ds = provider(entry, profile)
             label = scenario_label(entry, ds)
             ref = profile.robot_ref(ds)  # description.resolve_robot: the one check of a robot name
+            check_dataset(profile, label, ds, ref)  # splits, joint count, parameter set
         else:
             label = entry
         if label in seen:
@@ -295,6 +310,8 @@ def _open_datasets(profile, provider, log) -> list:
                              "manifests' 'scenario', or folder names): results.csv could not tell them apart")
         seen[label] = entry
         out.append((entry, label, ds, ref))
+    if all(ds is not None for _, _, ds, _ in out):  # every dataset known now: some row must apply
+        check_rows_apply(profile, [(label, ds) for _, label, ds, _ in out])
     return out
 
 
@@ -316,6 +333,8 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider
                 continue
             ref = profile.robot_ref(ds)
         labels[scenario] = entry
+        for warning in _import_warnings(ds):  # e.g. a time unit that does not fit: said here and in the README
+            log(f"[bench] {scenario}: import warning: {warning}")
         # The analytic model: the profile's robot (or the dataset's), with its tool and nominal parameters.
         # An arm known for data only has none (its URDF rows are skipped, saying so).
         ds.meta["robot"] = ref.name
@@ -352,11 +371,12 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider
                        "status": "failed", "error": f"{type(err).__name__}: {err}"}
                 log(f"[bench] {spec.name} FAILED: {err}\n{traceback.format_exc(limit=3)}")
             rows.append(row)
-            write_results(out_dir / "results.csv", rows)
-            write_curves(out_dir / CURVES_FILE, rows)
-            if row["status"] == "ok":
+            if row["status"] == "ok":  # first: a row in results.csv always has its predictions (report checks them)
                 predictions.row(scenario, spec.task, spec.name, [i.name for i in test],
                                 ctx.cache.pop((spec.task, spec.name)))
+            write_results(out_dir / "results.csv", rows)
+            _record_digest(out_dir)  # an interrupted bench's rows stay checkable by ``hybrid-dyn report``
+            write_curves(out_dir / CURVES_FILE, rows)
             log(f"[bench] {scenario} {spec.task:12s} {spec.name:22s} rmse={row.get('rmse', float('nan')):.4g} "
                 f"({time.perf_counter() - t0:.1f} s)" if row["status"] == "ok" else
                 f"[bench] {scenario} {spec.name} failed")
@@ -370,10 +390,12 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider
             "scenarios": labels, "skipped": skipped, "machine": machine_info(),
             "datasets": {s: {"path": str(d.path), "checksum": d.checksum, "seed": d.meta.get("seed"),
                              "config_hash": d.meta.get("config_hash"), "robot": d.meta.get("robot"),
-                             "split": dataset_split_text(d)}
+                             "split": dataset_split_text(d),
+                             **({"import_warnings": _import_warnings(d)} if _import_warnings(d) else {})}
                          for s, d in datasets.items()}}
-    write_json(out_dir / "run.json", meta)
     write_results(out_dir / "results.csv", rows)  # also when no row applied: the report reads it
+    meta[DIGEST_KEY] = results_digest(out_dir / "results.csv", meta)  # what ``hybrid-dyn report`` checks against
+    write_json(out_dir / "run.json", meta)
     # The report is drawn from the files just written, exactly as ``hybrid-dyn report`` redraws it.
     write_report(out_dir, read_results(out_dir / "results.csv"), meta, log=log)
     return rows

@@ -42,6 +42,8 @@ from .dataset import (
 )
 from .derivatives import DerivativeFilter, differentiate
 from .log_readers import LogTable, natural_key, read_log
+from ..input_checks import angle_unit_problems, empty_split_problems, split_problems
+from .spec_checks import spec_type_problems
 from .splits import SPLIT_NAMES, SplitSpec, split_trajectories
 from ..outputs import output_lock, refuse_foreign, unique_temp
 
@@ -144,12 +146,20 @@ class LogSpec:
         # The robot first, before anything is read: one RobotDescriptionError listing the names
         # accepted; a variant's name is made canonical ("panda[tool=hand]" is "panda").
         self.robot = resolve_robot(self.robot).name
-        self.files = [Path(f) for f in ([self.files] if isinstance(self.files, (str, Path)) else self.files)]
-        if isinstance(self.derivatives, dict):
-            self.derivatives = DerivativeFilter(**self.derivatives)
-        if isinstance(self.checks, dict):
-            self.checks = ValidationChecks(**self.checks)
-        problems = []
+        files = [self.files] if isinstance(self.files, (str, Path)) else self.files
+        if not isinstance(files, list) or not all(isinstance(f, (str, Path)) for f in files):
+            raise LogSpecError(f"invalid import spec: files must be a path or a list of paths, got {self.files!r}")
+        self.files = [Path(f) for f in files]
+        try:
+            if isinstance(self.derivatives, dict):
+                self.derivatives = DerivativeFilter(**self.derivatives)
+            if isinstance(self.checks, dict):
+                self.checks = ValidationChecks(**self.checks)
+        except TypeError as err:  # unknown keys in [derivatives] or [checks]
+            raise LogSpecError(f"invalid import spec: {err}") from None
+        problems = spec_type_problems(self)  # types first: the checks below compare values
+        if problems:
+            raise LogSpecError("invalid import spec: " + "; ".join(problems))
         if not self.files:
             problems.append("no log files given")
         unknown = sorted(set(self.columns) - set(SIGNALS))
@@ -173,6 +183,7 @@ class LogSpec:
             problems.append(f"n_blocks must be >= 1, got {self.n_blocks}")
         if self.angle_unit not in ("rad", "deg"):
             problems.append(f"angle_unit must be 'rad' or 'deg', got {self.angle_unit!r}")
+        problems += split_problems(self.split_seed, self.test_frac, self.val_frac)  # issue 28: tracebacks before
         problems += self.split_spec.problems()
         if not re.fullmatch(r"[A-Za-z0-9_.-]+", self.name or ""):
             problems.append(f"name {self.name!r} must be letters, digits, '_', '.', '-'")
@@ -231,6 +242,9 @@ def spec_from_dict(doc: dict, base_dir=".", spec_file=None) -> LogSpec:
         unknown = sorted(set(table) - allowed)
         if unknown:
             raise LogSpecError(f"unknown keys {unknown} in [{section or 'top level'}]{where}; allowed: {sorted(allowed)}")
+    for section in ("columns", "derivatives", "checks", "env_defaults"):  # tables with free keys
+        if not isinstance(doc.get(section, {}), dict):
+            raise LogSpecError(f"[{section}]{where} must be a table")
     env_defaults = doc.get("env_defaults", {})
 
     def expand(s: str) -> Path:
@@ -249,6 +263,10 @@ def spec_from_dict(doc: dict, base_dir=".", spec_file=None) -> LogSpec:
     files = src.get("files")
     if files is None:
         raise LogSpecError(f"[source] files is missing{where}")
+    if not (isinstance(files, str) or (isinstance(files, list) and all(isinstance(f, str) for f in files))):
+        raise LogSpecError(f"[source] files{where} must be a path or a list of paths, got {files!r}")
+    if not isinstance(env_defaults, dict) or not all(isinstance(v, str) for v in env_defaults.values()):
+        raise LogSpecError(f"[env_defaults]{where} must be a table of NAME = \"path\"")
     split = doc.get("split", {})
     lists = {k: split[k] for k in SPLIT_NAMES if k in split}
     robot, tool = doc.get("robot", "unknown"), doc.get("tool")
@@ -476,6 +494,9 @@ def _trajectories(spec: LogSpec, tables: list[LogTable]) -> list[tuple[str, LogT
         if spec.trajectories == "tables":
             out.append((base, table, rows))
         elif spec.trajectories == "blocks":
+            if spec.n_blocks > len(rows):  # 1e9 blocks hung array_split (issue 28's fuzz)
+                raise LogSpecError(f"n_blocks = {spec.n_blocks} is more than the {len(rows)} rows of "
+                                   f"{table.source.name}:{table.name}")
             for k, block in enumerate(np.array_split(rows, spec.n_blocks)):
                 if len(block):
                     out.append((f"{base}_b{k:02d}", table, block))
@@ -490,18 +511,20 @@ def _trajectories(spec: LogSpec, tables: list[LogTable]) -> list[tuple[str, LogT
 
 
 def _robot_limits(spec: LogSpec, nv: int):
-    """Per-joint |q| bound [rad]: the robot's limits if it has a description."""
+    """Per-joint (lower, upper) q bounds [rad]: the robot's limits widened by ``limit_margin`` if it has a
+    description (both sides: the Panda's joint 4 lies in [-3.07, -0.07], not within +-3.07), else
+    +-``q_abs_max``."""
     from ..description import resolve_robot
 
     if not resolve_robot(spec.robot).described:
-        return np.full(nv, spec.checks.q_abs_max)
+        return np.full(nv, -spec.checks.q_abs_max), np.full(nv, spec.checks.q_abs_max)
     from ..analytic.robot import load_robot
 
     robot = load_robot(spec.robot)
     if robot.nv != nv:
         raise LogSpecError(f"robot {spec.robot!r} has {robot.nv} joints but the log maps {nv}")
-    bound = np.maximum(np.abs(robot.q_lower), np.abs(robot.q_upper))
-    return np.minimum(bound, 1e3) + spec.checks.limit_margin
+    margin = spec.checks.limit_margin
+    return np.maximum(robot.q_lower, -1e3) - margin, np.minimum(robot.q_upper, 1e3) + margin
 
 
 def _validate(spec: LogSpec, report: ImportReport):
@@ -509,11 +532,12 @@ def _validate(spec: LogSpec, report: ImportReport):
     tables = []
     for f in spec.files:
         tables += read_log(f, spec.format, spec.variables, spec.delimiter)
-    segments, limits = [], None
+    segments, limits, q_peak = [], None, 0.0
     for traj, table, rows in _trajectories(spec, tables):
         data, t = _extract(spec, table, rows)
         if limits is None:
             limits = _robot_limits(spec, data["q"].shape[1])
+        q_peak = max(q_peak, float(np.abs(data["q"][np.isfinite(data["q"])]).max(initial=0.0)))  # units check
         report.rows_read += len(rows)
         checks = _RowChecks(table, rows, report)
         checks.cells(data, t)
@@ -532,6 +556,9 @@ def _validate(spec: LogSpec, report: ImportReport):
             nxt = data["qd_next"][seg[-1]] if "qd_next" in data and np.isfinite(data["qd_next"][seg[-1]]).all() else None
             segments.append(_Segment(traj, table, rows[seg], fields, nxt))
             report.rows_kept += len(seg)
+    bad_unit = angle_unit_problems(spec.angle_unit, q_peak)
+    if bad_unit:
+        raise LogSpecError(f"{spec.name}: {bad_unit[0]}")
     warning = _timebase_warning(segments, spec) if "qdd" not in spec.columns else None
     return segments, [warning] if warning else []
 
@@ -589,14 +616,15 @@ class _RowChecks:
             kind = "missing_cells" if any("cells" in m for m in msgs) else "nan"
             self.flag(i, kind, "no value in " + ", ".join(bad) + (f" ({'; '.join(msgs)})" if msgs else ""), "drop")
 
-    def ranges(self, data: dict, q_limits: np.ndarray, qd_max: float) -> None:
-        """Unit mistakes, by range: |q| beyond the joint bound, |qd| beyond qd_max."""
+    def ranges(self, data: dict, q_limits: tuple, qd_max: float) -> None:
+        """Unit mistakes, by range: q outside the joint bounds (lower, upper), |qd| beyond qd_max."""
+        lo, hi = q_limits
         for i in np.flatnonzero(self.keep):
-            over = np.flatnonzero(np.abs(data["q"][i]) > q_limits)
+            over = np.flatnonzero((data["q"][i] < lo) | (data["q"][i] > hi))
             if len(over):
                 j = over[0]
-                self.flag(i, "unit_range", f"q[{j + 1}] = {data['q'][i, j]:.4g} rad is beyond +-{q_limits[j]:.3g} rad "
-                          f"(degrees logged as radians?)", "drop")
+                self.flag(i, "unit_range", f"q[{j + 1}] = {data['q'][i, j]:.4g} rad is outside [{lo[j]:.3g}, "
+                          f"{hi[j]:.3g}] rad (degrees logged as radians?)", "drop")
                 continue
             over = np.flatnonzero(np.abs(data["qd"][i]) > qd_max) if "qd" in data else []
             if len(over):
@@ -762,6 +790,16 @@ def _build(spec: LogSpec, segments: list, report: ImportReport, partial: Path) -
     by_traj = {}
     for seg in segments:
         by_traj.setdefault(seg.trajectory, []).append(seg)
+    # The split first: fractions that leave a split empty are refused before any instance is written.
+    # Each trajectory's first sample time [s]: the order of a time split (splits.py).
+    traj_split = split_trajectories(spec.split_spec, {k: min(float(s.fields["t"][0]) for s in v)
+                                                      for k, v in by_traj.items()})
+    empty = empty_split_problems(traj_split) if len(by_traj) >= 3 else []  # fewer: warned below
+    if empty and spec.split_by == "list":
+        raise LogSpecError(f"{spec.name}: {empty[0]}: [split] lists no trajectory for it")
+    if empty:
+        raise LogSpecError(f"{spec.name}: {empty[0]} ({len(by_traj)} trajectories, test_frac = {spec.test_frac}, "
+                           f"val_frac = {spec.val_frac} of the rest); choose smaller fractions")
     records, steps = [], []
     fields_written = None
     for traj in sorted(by_traj, key=natural_key):
@@ -779,9 +817,6 @@ def _build(spec: LogSpec, segments: list, report: ImportReport, partial: Path) -
                             "trajectory": traj, "source": seg.table.source.name, "table": seg.table.name,
                             "rows": [attrs["first_row"], attrs["last_row"]]})
     report.instances = len(records)
-    # Each trajectory's first sample time [s]: the order of a time split.
-    traj_split = split_trajectories(spec.split_spec, {k: min(float(s.fields["t"][0]) for s in v)
-                                                      for k, v in by_traj.items()})
     if len(by_traj) < 3:
         report.warnings.append(f"only {len(by_traj)} trajectories: all are in the train split "
                                f"(use trajectories from = \"blocks\" to cut one log into several)")

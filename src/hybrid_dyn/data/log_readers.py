@@ -120,14 +120,18 @@ def _read_mat(path: Path) -> dict:
 
     try:
         return {k: v for k, v in scipy.io.loadmat(path).items() if not k.startswith("__")}
-    except NotImplementedError:  # MATLAB v7.3 files are HDF5
-        import h5py
+    except NotImplementedError:  # MATLAB v7.3 files are HDF5: read below, outside this handler
+        pass
+    except (ValueError, TypeError, OSError) as err:
+        raise LogReadError(f"{path}: not a readable MATLAB file: {err}") from err
+    import h5py
 
+    try:
         with h5py.File(path, "r") as f:
             # MATLAB stores column-major: transpose back to rows = samples.
             return {k: np.asarray(f[k][()]).T for k in f if isinstance(f[k], h5py.Dataset)}
-    except (ValueError, TypeError, OSError) as err:
-        raise LogReadError(f"{path}: not a readable MATLAB file: {err}") from err
+    except (OSError, KeyError, ValueError, TypeError) as err:  # a truncated v7.3 file was a traceback (issue 28)
+        raise LogReadError(f"{path}: not a readable MATLAB v7.3 (HDF5) file: {err}") from None
 
 
 def _read_npz(path: Path) -> dict:
@@ -216,13 +220,37 @@ def _read_parquet(path: Path) -> LogTable:
         table = pq.read_table(path)
     except Exception as err:  # pyarrow raises its own error types
         raise LogReadError(f"{path}: not a readable Parquet file: {err}") from err
-    arrays = {}
+    arrays, problems = {}, []
     for name in table.column_names:
         col = table.column(name).to_numpy(zero_copy_only=False)
-        if col.dtype == object:  # list columns: one row = one vector
-            try:
-                col = np.stack([np.asarray(v, dtype=np.float64) for v in col])
-            except (TypeError, ValueError) as err:
-                raise LogReadError(f"{path}: column {name!r} is neither numeric nor a numeric list") from err
+        if col.dtype == object or not np.issubdtype(col.dtype, np.number):
+            col = _parquet_cells(name, col, problems)
         arrays[name] = col
-    return _named_table(path.stem, path, arrays)
+    out = _named_table(path.stem, path, arrays)
+    out.cell_problems = problems
+    return out
+
+
+def _parquet_cells(name: str, col: np.ndarray, problems: list) -> np.ndarray:
+    """A list column (one row = one vector) or a column of text, as float64; a cell that is null, not a
+    number or of another length is NaN and listed by row, so that only a row whose *mapped* cells are bad
+    is dropped (a null list cell or an unmapped text column failed the whole import before issue 28)."""
+    def vector(v):
+        try:
+            a = np.asarray(v, dtype=np.float64)
+        except (TypeError, ValueError):
+            return None
+        return a if a.ndim <= 1 else None
+
+    cells = [None if v is None else vector(v) for v in col]
+    widths = [a.size for a in cells if a is not None and a.ndim == 1]
+    width = max(set(widths), key=widths.count) if widths else None
+    out = np.full((len(col), width) if width is not None else len(col), np.nan)
+    for r, a in enumerate(cells):
+        ok = a is not None and (a.ndim == 1 and a.size == width if width is not None else a.ndim == 0)
+        if ok:
+            out[r] = a
+        else:
+            problems.append((r, f"column {name!r}: {col[r]!r} is not a number" if width is None else
+                             f"column {name!r}: {'null' if col[r] is None else 'not a list of ' + str(width) + ' numbers'}"))
+    return out

@@ -45,6 +45,8 @@ class SplitSpec:
     def problems(self) -> list[str]:
         """Why this split cannot be used, before any trajectory is known (empty: fine)."""
         out = []
+        if not isinstance(self.lists, dict):
+            return [f"[split] lists must map train/val/test to trajectory names, got {self.lists!r}"]
         if self.by not in SPLIT_MODES:
             out.append(f"[split] by must be one of {list(SPLIT_MODES)}, got {self.by!r}")
         unknown = sorted(set(self.lists) - set(SPLIT_NAMES))

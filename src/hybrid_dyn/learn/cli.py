@@ -41,7 +41,8 @@ def register(sub) -> None:
 
 
 def _train_options(p) -> None:
-    p.add_argument("--recipe", default="default", help="training recipe: default (reduce-on-plateau after 3 epochs, "
+    p.add_argument("--recipe", default="default", help="training recipe: budget (a fixed number of steps "
+                   "per network kind, warm-up and cosine decay; the bench's), default (reduce-on-plateau after 3 epochs, "
                    "patience 10, LSTM gradients clipped), long (plateau after 10, patience 20, weight decay 0.1) "
                    "or seed (the seed's: constant rate, patience 5); the options below override it")
     p.add_argument("--seed", type=int, default=0)
@@ -49,7 +50,9 @@ def _train_options(p) -> None:
     p.add_argument("--patience", type=int, default=None, help="epochs without validation improvement before stopping")
     p.add_argument("--batch-size", type=int, default=None)
     p.add_argument("--lr", type=float, default=None, help="initial learning rate (default 1e-3)")
-    p.add_argument("--lr-schedule", default=None, choices=["plateau", "none"])
+    p.add_argument("--lr-schedule", default=None, choices=["plateau", "none", "cosine"])
+    p.add_argument("--budget-steps", type=int, default=None,
+                   help="optimizer steps of a budgeted run (recipe budget; default: by network kind)")
     p.add_argument("--weight-decay", type=float, default=None,
                    help="decoupled weight decay of the weight matrices (AdamW; default 0: plain Adam)")
     p.add_argument("--max-batches-per-epoch", type=int, default=None)
@@ -63,7 +66,7 @@ def _config(args):
     from .train import TrainConfig
 
     given = {"max_epochs": args.epochs, "patience": args.patience, "batch_size": args.batch_size, "lr": args.lr,
-             "lr_schedule": args.lr_schedule, "weight_decay": args.weight_decay}
+             "lr_schedule": args.lr_schedule, "weight_decay": args.weight_decay, "budget_steps": args.budget_steps}
     return TrainConfig.recipe(args.recipe, seed=args.seed, max_batches_per_epoch=args.max_batches_per_epoch,
                               analytic_params=args.analytic_params, device=args.device, num_threads=args.threads,
                               progress=not args.quiet, **{k: v for k, v in given.items() if v is not None})

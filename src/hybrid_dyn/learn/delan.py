@@ -8,13 +8,23 @@ give the inverse dynamics
     c   = dH/dt qd - 1/2 d(qd^T H qd)/dq,   dH/dt = sum_k dH/dq_k qd_k,
     g   = dV/dq.
 
-DeLaN learns H and V with two networks of q and gets c and g by automatic
-differentiation (``torch.func.jvp`` and ``torch.func.grad`` on batched maps:
-samples are independent, so the gradient of a batch sum is per sample), so every prediction obeys the structure: H is symmetric positive
+DeLaN learns H and V with two networks of q, so every prediction obeys the
+structure: H is symmetric positive
 definite by construction (H = L L^T + eps I with L lower-triangular and a
 softplus-positive diagonal), and the learned system conserves its own energy
 T + V when no torque acts. Activations are smooth (tanh) since c needs second
 derivatives of the networks.
+
+How c and g are computed (:meth:`DeepLagrangianNetwork.terms`): as the reference
+implementation does (Lutter et al., ``DeLaN_model.py``), each layer carries the
+Jacobian of its output with respect to q forward beside the output itself
+(a Linear layer maps it by W, a tanh scales its rows by 1 - tanh^2). dL/dq then
+comes out of one forward pass, and training needs one first-order backward,
+where differentiating the networks by autograd (:meth:`terms_autograd`: a
+``torch.func.jvp`` for dH/dt, a ``grad`` of the kinetic and of the potential
+energy) makes the training backward differentiate through those derivatives
+again. The autograd form is kept as the oracle of the tests and of
+``benchmarks/learn_speed.py``.
 
 Friction, which the Lagrangian cannot hold, is a separate term: the Gaz et al.
 (2019) sigmoid law with learnable per-joint parameters kept positive by
@@ -79,8 +89,69 @@ class DeepLagrangianNetwork(nn.Module):
     def _potential(self, q: torch.Tensor) -> torch.Tensor:
         return self.torque_scale * self.v_net((q - self.q_mean) / self.q_std)[:, 0]
 
+    def _forward_with_tangent(self, net: nn.Sequential, q: torch.Tensor, q_dot: torch.Tensor | None):
+        """The output of ``net`` on standardized q (B, n_out), its derivative along q_dot,
+        d out / dq . q_dot (B, n_out, or None), and each tanh layer's slope 1 - tanh^2 (for :meth:`_pullback`).
+
+        Forward mode by hand with one tangent: a Linear layer maps the tangent by W, a tanh scales it
+        by its slope. One tangent costs one more pass, where the full Jacobian would cost nv more.
+        """
+        h = (q - self.q_mean) / self.q_std
+        dh = None if q_dot is None else q_dot / self.q_std
+        slopes = []
+        for layer in net:
+            if isinstance(layer, nn.Tanh):
+                h = torch.tanh(h)
+                slopes.append(1.0 - h * h)
+                dh = None if dh is None else dh * slopes[-1]
+            else:  # nn.Linear
+                h = layer(h)
+                dh = None if dh is None else nn.functional.linear(dh, layer.weight)
+        return h, dh, slopes
+
+    def _pullback(self, net: nn.Sequential, slopes: list, v: torch.Tensor) -> torch.Tensor:
+        """v^T d out / dq (B, nv) for v (B, n_out): the chain rule run backwards through the layers
+        by hand, with the slopes of the forward pass (an explicit expression, not an autograd call)."""
+        linears = [layer for layer in net if isinstance(layer, nn.Linear)]
+        for layer, slope in zip(reversed(linears[1:]), reversed(slopes)):
+            v = (v @ layer.weight) * slope
+        return (v @ linears[0].weight) / self.q_std
+
     def terms(self, q, qd, qdd) -> dict:
         """tau [Nm] (B, nv), H [kg m^2] (B, nv, nv), c and g [Nm] (B, nv), all from the Lagrangian."""
+        L, c, g = self._factor_coriolis_gravity(q, qd)
+        H = L @ L.transpose(1, 2) + self.eps * torch.eye(self.nv, dtype=q.dtype, device=q.device)
+        return {"tau": (H @ qdd.unsqueeze(2)).squeeze(2) + c + g, "H": H, "c": c, "g": g}
+
+    def _factor_coriolis_gravity(self, q, qd):
+        """L(q) (B, nv, nv), c(q, qd) and g(q) [Nm] (B, nv).
+
+        With o the L-network's output, L = place(softplus(o_diag), o_off), so
+        dL/dq_k = place(s * do/dq_k) with s = sigmoid(o_diag) on the diagonal entries and 1 elsewhere.
+        Then, with u = L^T qd and L_dot = sum_k dL/dq_k qd_k (o's derivative along qd, forward mode):
+        H_dot qd = L_dot u + L (L_dot^T qd), and 1/2 d(qd^T H qd)/dq_k = qd^T dL/dq_k u, a
+        vector-Jacobian product of the L-network (pulled back by hand); g = dV/dq likewise.
+        The 7 x 7 products are written as broadcast sums: batched small matrix products cost more.
+        """
+        nv = self.nv
+        out, out_dot, slopes = self._forward_with_tangent(self.l_net, q, qd)
+        s = torch.cat([torch.sigmoid(out[:, :nv]), torch.ones_like(out[:, nv:])], 1)  # d entries / d out
+        L = (torch.cat([nn.functional.softplus(out[:, :nv]), out[:, nv:]], 1) @ self.place).reshape(-1, nv, nv)
+        L_dot = ((s * out_dot) @ self.place).reshape(-1, nv, nv)
+        u = _t_apply(L, qd)  # L^T qd
+        H_dot_qd = _apply(L_dot, u) + _apply(L, _t_apply(L_dot, qd))
+        # qd^T dL_k u = sum_m w_m s_m do_m/dq_k, with w the outer product qd u^T read at L's entries.
+        w = (qd.unsqueeze(2) * u.unsqueeze(1)).reshape(-1, nv * nv) @ self.place.T
+        c = H_dot_qd - self._pullback(self.l_net, slopes, w * s)
+        return L, c, self.gravity(q)
+
+    def tau(self, q, qd, qdd) -> torch.Tensor:
+        """tau = H qdd + c + g [Nm] (B, nv) without forming H (H qdd = L (L^T qdd) + eps qdd): training's path."""
+        L, c, g = self._factor_coriolis_gravity(q, qd)
+        return _apply(L, _t_apply(L, qdd)) + self.eps * qdd + c + g
+
+    def terms_autograd(self, q, qd, qdd) -> dict:
+        """The same terms as :meth:`terms` by automatic differentiation (the tests' oracle)."""
         H, H_dot = jvp(self._mass, (q,), (qd,))  # H_dot = sum_k dH/dq_k qd_k
         dT_dq = grad(lambda q_: 0.5 * torch.einsum("bi,bij,bj->", qd, self._mass(q_), qd))(q)
         c = torch.einsum("bij,bj->bi", H_dot, qd) - dT_dq
@@ -91,7 +162,7 @@ class DeepLagrangianNetwork(nn.Module):
     # ---- batched API, q, qd, qdd: (B, nv) [rad, rad/s, rad/s^2]
     def forward(self, q, qd, qdd) -> torch.Tensor:
         """Joint torques [Nm] (B, nv), rigid body part."""
-        return self.terms(q, qd, qdd)["tau"]
+        return self.tau(q, qd, qdd)
 
     def mass_matrix(self, q) -> torch.Tensor:
         """H(q) [kg m^2] (B, nv, nv), symmetric positive definite."""
@@ -99,7 +170,8 @@ class DeepLagrangianNetwork(nn.Module):
 
     def gravity(self, q) -> torch.Tensor:
         """g(q) = dV/dq [Nm] (B, nv)."""
-        return grad(lambda q_: self._potential(q_).sum())(q)
+        _, _, slopes = self._forward_with_tangent(self.v_net, q, None)
+        return self.torque_scale * self._pullback(self.v_net, slopes, torch.ones_like(q[:, :1]))
 
     def energy(self, q, qd) -> torch.Tensor:
         """Learned total energy T + V [J] (B,)."""
@@ -110,6 +182,16 @@ class DeepLagrangianNetwork(nn.Module):
         """qdd = H^-1 (tau - c - g) (B, nv): the learned system's free or driven motion."""
         t = self.terms(q, qd, torch.zeros_like(q))
         return torch.linalg.solve(t["H"], (tau - t["c"] - t["g"]).unsqueeze(-1)).squeeze(-1)
+
+
+def _apply(A: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
+    """A x for a batch of small matrices (B, n, n) and vectors (B, n)."""
+    return (A * x.unsqueeze(1)).sum(2)
+
+
+def _t_apply(A: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
+    """A^T x for a batch of small matrices (B, n, n) and vectors (B, n)."""
+    return (A * x.unsqueeze(2)).sum(1)
 
 
 def _inverse_softplus(y: float) -> float:

@@ -181,8 +181,8 @@ class _FastTanhMLP:
 class FastDeLaN:
     """DeLaN's tau = H qdd + c + g (+ friction) for one sample, derivatives derived by hand.
 
-    The same quantities as :class:`~hybrid_dyn.learn.delan.DeepLagrangianNetwork`, which gets
-    them by automatic differentiation; equality of the two is a test of both.
+    The same quantities as :class:`~hybrid_dyn.learn.delan.DeepLagrangianNetwork` (batched,
+    in torch), for one sample in numpy; the tests hold both to the autograd oracle.
     With J = dL/dq: dH/dq_k = J_k L^T + L J_k^T, c = (sum_k dH/dq_k qd_k) qd - 1/2 [qd^T dH/dq_k qd]_k,
     g = dV/dq.
     """

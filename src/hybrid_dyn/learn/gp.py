@@ -48,7 +48,7 @@ from scipy.spatial.distance import cdist
 
 from ..data.dataset import Dataset, load_dataset
 from ..errors import UsageError
-from ..outputs import output_lock, refuse_foreign_files, unique_temp
+from ..outputs import json_marker, output_lock, refuse_foreign, refuse_foreign_files, unique_temp
 from .model import (METADATA_KEY, TIMING_FORMAT, ModelError, _read_timing, canonical_json, check_instances,
                     config_digest, read_file_metadata, read_model_config, tensors_digest)
 
@@ -379,9 +379,11 @@ def load_gp(model_dir, family: str = "gp") -> GPModel:
         raise ModelError(f"{model_dir} is a {config.get('family')!r} model, not a {family!r} one"
                          + ("; load it with hybrid_dyn.learn.gp_residual.load_gp_residual (its prior added)"
                             if config.get("family") == "gp-residual" else ""))
-    if config.get("format_version", 0) > GP_FORMAT_VERSION:
-        raise ModelError(f"{cpath}: GP format version {config.get('format_version')} is newer than this toolkit's "
-                         f"({GP_FORMAT_VERSION})")
+    version = config.get("format_version", 0)
+    if isinstance(version, bool) or not isinstance(version, int):  # "1" or null: a traceback before issue 28
+        raise ModelError(f"{cpath}: GP format_version must be an integer, got {version!r} (edited?)")
+    if version > GP_FORMAT_VERSION:
+        raise ModelError(f"{cpath}: GP format version {version} is newer than this toolkit's ({GP_FORMAT_VERSION})")
     try:
         with safe_open(str(wpath), framework="np") as f:
             meta = read_file_metadata(f.metadata() or {})
@@ -409,12 +411,13 @@ def gp_fingerprint(config: GPConfig, dataset_checksum: str) -> str:
                                           "dataset": dataset_checksum}).encode()).hexdigest()
 
 
-def train_gp(dataset, out_dir, config: GPConfig | None = None) -> GPModel:
+def train_gp(dataset, out_dir, config: GPConfig | None = None, wait: bool = False) -> GPModel:
     """Fit a GP on ``dataset``'s train split (a Dataset or its path) and write it to ``out_dir``.
 
     A finished model of the same run there is returned as is; anything else there (another
     run, another model, files the toolkit did not write) is refused: nothing is overwritten.
-    One run per folder: ``output_lock(out_dir)`` is held while fitting.
+    One run per folder: ``output_lock(out_dir)`` is held while fitting (``wait``: wait for another
+    run's fit there instead of refusing).
     """
     config = config or GPConfig()
     config.validate()
@@ -423,7 +426,7 @@ def train_gp(dataset, out_dir, config: GPConfig | None = None) -> GPModel:
     fingerprint = gp_fingerprint(config, ds.checksum)
     if (out_dir / "config.json").is_file():  # a finished model is never written again
         return _reuse(out_dir, fingerprint)
-    with output_lock(out_dir, "GP model folder"):
+    with output_lock(out_dir, "GP model folder", wait=wait):
         if (out_dir / "config.json").is_file():  # finished by another run between the check and the lock
             return _reuse(out_dir, fingerprint)
         _refuse_foreign_files(out_dir)
@@ -455,6 +458,8 @@ def _fit_locked(ds: Dataset, out_dir: Path, config: GPConfig, fingerprint: str) 
 
 
 def _reuse(out_dir: Path, fingerprint: str) -> GPModel:
+    if json_marker(out_dir / "config.json", "format") is None:  # a user's config.json, not a model's
+        refuse_foreign(out_dir, "GP model folder", f"its config.json lacks the format {GP_FORMAT!r}")
     model = load_gp(out_dir)
     if model.config.get("fingerprint") != fingerprint:
         raise ModelError(f"{out_dir} holds a finished GP model of another run (other config or data); "

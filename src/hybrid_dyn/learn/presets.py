@@ -27,12 +27,28 @@ TIP_INPUTS = ["base_wrench", "q", "qd", "qdd"]
 TIP_INPUTS_TAU = TIP_INPUTS + ["tau_J"]
 
 KINDS = ("mlp", "conv", "lstm", "delan")
-# The analytic estimators a residual can sit on, by their one name (analytic/estimators.py).
-PRIORS = (None, "rnea", "rnea-bw", "base-wrench", "momentum-observer", "base-momentum")
+# The analytic estimators a residual can sit on, by their one name (analytic/estimators.py): the two
+# torque models, and the tip-force methods registered as priors (analytic/methods.py).
+TORQUE_PRIORS = ("rnea", "rnea-bw")
+
+
+def prior_kinds() -> tuple:
+    """Every prior a preset may name now (a method registered later included)."""
+    from ..analytic.methods import REGISTRY
+
+    return TORQUE_PRIORS + tuple(name for name, m in REGISTRY.items() if m.prior)
+
+
+PRIORS = (None,) + prior_kinds()
 # How model files (config.json) and training fingerprints spell each prior: as they always have,
 # so that every saved model and every cached training run stays valid (read: either spelling).
+# A prior not listed is spelled by its name.
 PRIOR_FILE_SPELLING = {"rnea": "rnea", "rnea-bw": "rnea-basewrench", "base-wrench": "basewrench",
                        "momentum-observer": "momentum", "base-momentum": "base-momentum"}
+
+
+def prior_file_spelling(kind: str) -> str:
+    return PRIOR_FILE_SPELLING.get(kind, kind)
 
 
 @dataclass(frozen=True)
@@ -87,7 +103,7 @@ class Preset:
         if self.kind not in KINDS:
             raise ValueError(f"preset {self.name!r}: kind must be one of {KINDS}, got {self.kind!r}")
         if self.prior is not None:  # one name per estimator; a saved model's older spelling is read as it
-            object.__setattr__(self, "prior", estimator_name(self.prior, PRIORS[1:], f"prior of preset {self.name!r}"))
+            object.__setattr__(self, "prior", estimator_name(self.prior, prior_kinds(), f"prior of preset {self.name!r}"))
         if self.activation not in ("relu", "tanh"):
             raise ValueError(f"preset {self.name!r}: activation must be relu or tanh, got {self.activation!r}")
         if self.window < 1:
@@ -112,7 +128,7 @@ class Preset:
             if isinstance(v, tuple):
                 d[k] = list(v)
         if self.prior is not None:
-            d["prior"] = PRIOR_FILE_SPELLING[self.prior]
+            d["prior"] = prior_file_spelling(self.prior)
         return d
 
     @classmethod

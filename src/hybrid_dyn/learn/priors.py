@@ -11,7 +11,9 @@ an identified one):
 - ``base-wrench``       F = tip_force_from_base_wrench(q, qd, qdd, w)  [N] (3)
 - ``momentum-observer`` F = MomentumObserver(q, qd, tau_J), dt = 1 / record_hz [N] (3)
 - ``base-momentum``     F = the base momentum observer (q, qd, tared base wrench) [N] (3),
-  0 in the tare window and started after it (``analytic.base_momentum_tip_force``)
+  0 in the tare window and started after it
+- any tip-force method registered with ``prior=True`` (``analytic/methods.py``): its
+  batch run from its one definition, at the bandwidth ``observer_gain``
 
 The kinds are the estimators' one name (``analytic/estimators.py``); the older
 spellings ``rnea-basewrench``, ``basewrench`` and ``momentum`` are accepted, and
@@ -51,22 +53,35 @@ import h5py
 import numpy as np
 import pinocchio as pin
 
-from ..analytic.base_momentum import base_momentum_tip_force
 from ..analytic.estimators import estimator_name
-from ..analytic.momentum_observer import MomentumObserver
+from ..analytic.methods import REGISTRY, add_listener
 from ..analytic.tare import tare_samples, tared_base_wrench
 from ..analytic.tip_force import base_wrench_force_core, contact_joint_torques, tip_force_from_base_wrench
-from .presets import PRIOR_FILE_SPELLING
+from .presets import prior_file_spelling
 
-PRIOR_FIELDS = {
-    "rnea": ("q", "qd", "qdd"),
-    "rnea-bw": ("q", "qd", "qdd", "base_wrench"),
-    "base-wrench": ("q", "qd", "qdd", "base_wrench"),
-    "momentum-observer": ("q", "qd", "tau_J"),
-    "base-momentum": ("q", "qd", "qdd", "base_wrench"),  # qdd: only for the tare
-}
-STATEFUL_PRIORS = ("momentum-observer", "base-momentum")
+# The fields each prior reads: the two torque models here, every tip-force method registered as a prior
+# from its one definition (analytic/methods.py; base-momentum reads qdd only for the tare).
+PRIOR_FIELDS = {"rnea": ("q", "qd", "qdd"), "rnea-bw": ("q", "qd", "qdd", "base_wrench")}
+STATEFUL_PRIORS: list = []  # the filters among them (the registry's stateful methods)
 FRICTION_PRIORS = ("rnea", "rnea-bw")  # predict the motor torque: rigid body + friction
+
+
+def _on_register(method) -> None:
+    if method.prior:
+        PRIOR_FIELDS[method.name] = method.fields
+        if method.stateful:
+            STATEFUL_PRIORS.append(method.name)
+
+
+def _on_unregister(method) -> None:
+    PRIOR_FIELDS.pop(method.name, None)
+    if method.name in STATEFUL_PRIORS:
+        STATEFUL_PRIORS.remove(method.name)
+
+
+for _method in REGISTRY.values():
+    _on_register(_method)
+add_listener(_on_register, _on_unregister)
 
 
 class AnalyticPrior:
@@ -115,7 +130,7 @@ class AnalyticPrior:
 
     def describe(self) -> dict:
         """What identifies this prior's values (part of the cache key and the model config)."""
-        return {"kind": PRIOR_FILE_SPELLING[self.kind], "robot": self.robot.name, "params": self.robot.params_name,
+        return {"kind": prior_file_spelling(self.kind), "robot": self.robot.name, "params": self.robot.params_name,
                 "payload": repr(self.robot.payload), "sensor_mount": repr(self.robot.sensor_mount),
                 "record_hz": self.record_hz, "observer_gain": self.observer_gain,
                 "tare_seconds": self.tare_seconds,
@@ -132,26 +147,38 @@ class AnalyticPrior:
         """The prior over one instance: fields name -> (T, k) arrays; returns (T, n_out)."""
         r = self.robot
         q, qd = fields["q"], fields["qd"]
-        if self.kind == "momentum-observer":
-            obs = MomentumObserver(r, gain=self.observer_gain, dt=1.0 / self.record_hz)
-            return obs.run(q, qd, fields["tau_J"])[0]
-        qdd = fields["qdd"]
+        qdd = fields.get("qdd")
         if self.kind == "rnea":
             return np.atleast_2d(r.inverse_dynamics(q, qd, qdd) + self.friction_torque(qd))
-        w = fields["base_wrench"]
+        w = fields.get("base_wrench")
         n_tare = tare_samples(self.record_hz, self.tare_seconds) if self.tare_seconds > 0 else 0
         if n_tare:
             w = tared_base_wrench(r, q, qd, qdd, w, n_tare)
-        if self.kind == "base-momentum":
-            return base_momentum_tip_force(r, q, qd, w, 1.0 / self.record_hz, self.observer_gain, n_tare)
+        if self.kind in REGISTRY:
+            return self._method_run(REGISTRY[self.kind], fields, w, n_tare)
         f_bw = np.atleast_2d(tip_force_from_base_wrench(r, q, qd, qdd, w))
-        if self.kind == "base-wrench":
-            return f_bw
         return np.atleast_2d(r.inverse_dynamics(q, qd, qdd) + self.friction_torque(qd)) \
             - contact_joint_torques(r, np.atleast_2d(q), f_bw)
 
+    def _method_stream(self, method):
+        """The method's stream at the data's rate with this prior's bandwidth (observer_gain)."""
+        stream = method.make(self.robot, self.record_hz or 1.0)
+        stream.configure(self.observer_gain)
+        return stream
+
+    def _method_run(self, method, fields: dict, w, n_tare: int) -> np.ndarray:
+        """A registered method over one instance from its one definition: a filter starts after the tare
+        window (0 there, so that no running offset lingers in it), a per-sample method runs throughout."""
+        start = n_tare if method.stateful else 0
+        cut = lambda x: None if x is None else np.asarray(x, float)[start:]  # noqa: E731
+        out = np.zeros((len(fields["q"]), 3))
+        if start < len(out):
+            out[start:] = self._method_stream(method).batch(
+                cut(fields["q"]), cut(fields["qd"]), cut(fields.get("qdd")), cut(w), cut(fields.get("tau_J")))
+        return out
+
     def single(self, sample: dict) -> np.ndarray:
-        """The prior at one sample (fields -> 1-D arrays); not for the stateful momentum observer.
+        """The prior at one sample (fields -> 1-D arrays); not for a stateful (filter) prior.
 
         A direct Pinocchio path for a control loop (no batching or validation
         overhead); it computes exactly what :meth:`compute` does (tested).
@@ -162,13 +189,16 @@ class AnalyticPrior:
                              "(the observer's step_force) as `prior`")
         if self._single is None:
             self._single = _SingleSample(self.robot)
+            if self.kind in REGISTRY:
+                self._single.stream = self._method_stream(REGISTRY[self.kind])
         s = self._single
         q, qd, qdd = (np.asarray(sample[k], float) for k in ("q", "qd", "qdd"))
         if self.kind == "rnea":
             return pin.rnea(s.model, s.data, q, qd, qdd) + self.friction_torque(qd)
+        if self.kind in REGISTRY:
+            get = lambda k: None if sample.get(k) is None else np.asarray(sample[k], float)  # noqa: E731
+            return s.stream.step(q, qd, qdd, get("base_wrench"), get("tau_J"))
         f_bw = s.basewrench_force(q, qd, qdd, np.asarray(sample["base_wrench"], float))
-        if self.kind == "base-wrench":
-            return f_bw
         jv = pin.computeFrameJacobian(s.model, s.data, q, s.tool, pin.LOCAL_WORLD_ALIGNED)[:3]
         return pin.rnea(s.model, s.data, q, qd, qdd) + self.friction_torque(qd) - jv.T @ f_bw
 
@@ -178,7 +208,7 @@ class AnalyticPrior:
         if cache_dir is not None and dataset_checksum:
             key = hashlib.sha256(json.dumps({"dataset": dataset_checksum, **self.describe()},
                                             sort_keys=True).encode()).hexdigest()[:20]
-            cache = Path(cache_dir) / f"prior-{PRIOR_FILE_SPELLING[self.kind]}-{key}.h5"
+            cache = Path(cache_dir) / f"prior-{prior_file_spelling(self.kind)}-{key}.h5"
         names = [inst.name for inst in instances]
         if cache is not None and cache.is_file():
             try:

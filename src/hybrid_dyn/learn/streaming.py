@@ -20,7 +20,6 @@ estimate "out of training range"; it is still returned.
 from __future__ import annotations
 
 import copy
-import math
 import time
 import warnings
 from pathlib import Path
@@ -28,12 +27,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..analytic.base_momentum import BaseMomentumObserver
-from ..analytic.momentum_observer import MomentumObserver
+from ..analytic.methods import REGISTRY
 from ..analytic.tare import StreamingTare, tare_samples, tared_runs
-from ..analytic.tip_force import base_wrench_force_core
 from ..data.windows import window_index
 from .model import ModelError, TrainedModel, load_model
+from .priors import AnalyticPrior
 
 RANGE_SIGMAS = 5.0
 
@@ -125,7 +123,7 @@ class StreamingModel:
         self._fast = None
         self.runtime = "pytorch (DeLaN)"
         self._prior_kind = model.preset.prior
-        self._observer = None
+        self._method = self._prior_stream = None
         self.set_call_rate(call_hz or self.record_hz)
         if m.delan is None:
             self._choose_runtime(runtime)
@@ -173,11 +171,13 @@ class StreamingModel:
         self._offsets = np.arange(self.window - 1, -1, -1) * self.stride  # oldest first
         n = len(self._ring)  # the ring rows of the window ending at each head: one take per call
         self._window_rows = (np.arange(n)[:, None] - self._offsets) % n
-        gain = self.model.config.get("observer_gain", 20.0)
-        if self.model.preset.prior == "momentum-observer":
-            self._observer = MomentumObserver(self.robot, gain=gain, dt=1.0 / call_hz)
-        elif self.model.preset.prior == "base-momentum":
-            self._observer = BaseMomentumObserver(self.robot, gain=gain, dt=1.0 / call_hz)
+        # A registered method as the prior: its one definition, stepped at the call rate with the
+        # bandwidth the model was trained with (a filter: stepped at every call).
+        self._method = REGISTRY.get(self.model.preset.prior)
+        self._prior_stream = None
+        if self._method is not None:
+            self._prior_stream = self._method.make(self.robot, call_hz)
+            self._prior_stream.configure(self.model.config.get("observer_gain", 20.0))
         # One tare for the net's base-wrench input and the prior's (the same contact-free start).
         self._tare = None
         tare_seconds = max(self.model.sensor_tare_seconds,
@@ -192,10 +192,10 @@ class StreamingModel:
         if call_hz != self.call_hz:
             self.set_call_rate(call_hz)
         n = (self.window - 1) * self.stride + 1
-        if self._observer is not None:
-            settle = int(math.ceil(5.0 / float(np.min(self._observer.gain)) * call_hz))
-            # The base momentum observer starts after the tare window (base_momentum_tip_force).
-            tare = self._tare.n_calls if self._tare is not None and self._prior_kind == "base-momentum" else 0
+        if self._method is not None and self._method.stateful:
+            settle = 1 + self._prior_stream.settle_calls(self._method.reads)
+            # A filter on the tared sensor starts after the tare window (``AnalyticPrior``).
+            tare = self._tare.n_calls if self._tare is not None and self.model.prior.tare_seconds > 0 else 0
             n = max(n, tare + settle)
         if self._tare is not None:
             n = max(n, self._tare.n_calls)
@@ -203,8 +203,8 @@ class StreamingModel:
 
     def reset(self) -> None:
         self._head = -1
-        if self._observer is not None:
-            self._observer.reset()
+        if self._prior_stream is not None:
+            self._prior_stream.reset()
         if self._tare is not None:
             self._tare.reset()
 
@@ -223,15 +223,11 @@ class StreamingModel:
         kind = self._prior_kind
         if kind is None:
             return None
-        # The sample is validated (``step``): the observers' unchecked steps, as the estimator's own methods.
-        if kind == "base-momentum":  # 0 in the tare window, then the observer from a fresh start
-            if in_tare:
+        if self._method is not None:  # the sample is validated (``step``): the method's own step
+            if in_tare and self._method.stateful and self.model.prior.tare_seconds > 0:
+                # a filter on the tared sensor: 0 in the tare window, then from a fresh start
                 return np.zeros(3)
-            return self._observer.force(q, self._observer.step_unchecked(q, qd, base_wrench))
-        if kind == "base-wrench":
-            return base_wrench_force_core(self.robot, q, qd, qdd, base_wrench)
-        if kind == "momentum-observer":
-            return self._observer.force(q, self._observer.step_unchecked(q, qd, tau_J))
+            return self._prior_stream.step(q, qd, qdd, base_wrench, tau_J)
         return self.model.prior.single({"q": q, "qd": qd, "qdd": qdd, "base_wrench": base_wrench})
 
     # ------------------------------------------------------------------ step
@@ -278,11 +274,10 @@ class StreamingModel:
         index = window_index([len(inst)], self.window)
         prior = None
         if self.model.prior is not None:
-            if self.model.preset.prior == "momentum-observer":
-                obs = MomentumObserver(self.robot, gain=self._observer.gain[0], dt=1.0 / self.call_hz)
-                prior = torch.from_numpy(obs.run(inst["q"], inst["qd"], inst["tau_J"])[0])
-            else:
-                prior = torch.from_numpy(self.model.prior.compute({k: inst[k] for k in self.model.prior.fields}))
+            p = self.model.prior
+            if self._method is not None and self._method.stateful:  # a filter: at the call rate
+                p = AnalyticPrior(p.kind, self.robot, self.call_hz, p.observer_gain, p.tare_seconds, p.friction)
+            prior = torch.from_numpy(p.compute({k: inst[k] for k in p.fields}))
         with torch.no_grad():
             out = module64(torch.from_numpy(x_all[index]), prior)
         return out.numpy()

@@ -1,6 +1,17 @@
 """Training: Adam on standardized MSE, a learning-rate schedule, early stopping; deterministic and resumable.
 
-Three recipes (:data:`RECIPES`, ``--recipe``):
+Four recipes (:data:`RECIPES`, ``--recipe``):
+
+- ``budget`` (the bench's): a fixed budget of optimizer steps per network kind
+  (:data:`BUDGET_STEPS`, from the study in ``benchmarks/budget_study.py`` and
+  ``docs/models.md``), a linear warm-up over the first ``warmup_fraction`` of the
+  budget, then a cosine decay of the rate to zero at the last step (Li, Yumer &
+  Ramanan, "Budgeted Training", ICLR 2020), batch 1024 at lr 2e-3 (the rate scaled
+  as the square root of the batch from 1e-3 at 256, Malladi et al. 2022 for Adam).
+  Batches are drawn from the whole training pool, epoch after epoch, so more data
+  means more distinct trajectories seen at the same cost, not more time; the
+  validation loss is measured ``budget_evals`` times over the budget and the best
+  weights are kept. The cost of a run is known before it starts.
 
 - ``seed`` (seed 3.2, exactly): Glorot-uniform initialization, Adam at lr 1e-3,
   MSE loss on standardized targets, a constant learning rate, and training
@@ -21,10 +32,13 @@ Three recipes (:data:`RECIPES`, ``--recipe``):
 All keep the weights of the best validation epoch (as Keras'
 ``restore_best_weights``); the untrained model counts as epoch "-1", so a
 residual model that never beats its physics part on validation stays it.
-A run ends for one of three reasons, recorded as ``stopped_by`` in the model's
+A run ends for one of four reasons, recorded as ``stopped_by`` in the model's
 config with ``best_epoch``: ``patience`` (no improvement for ``patience``
-epochs), ``lr-floor`` (the rate sits at its floor and has plateaued there) or
-``epoch-cap`` (``max_epochs`` ran out first: the net may not have converged).
+epochs), ``lr-floor`` (the rate sits at its floor and has plateaued there),
+``epoch-cap`` (``max_epochs`` ran out first: the net may not have converged) or
+``budget`` (the budgeted recipe's steps are spent, its rate decayed to zero).
+Under the budget, an "epoch" of the history is one validation round of
+``budget_steps / budget_evals`` steps, and ``best_epoch`` counts rounds.
 
 Inputs: a preset that reads the base wrench reads it *tared* (``analytic/tare.py``:
 the sensor offset estimated on each run's contact-free first ``tare_seconds``
@@ -58,7 +72,7 @@ import numbers
 import os
 import re
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -71,7 +85,7 @@ from ..analytic.tare import TARE_SECONDS, tared_runs
 from ..data import Dataset, load_dataset
 from ..data.windows import WindowedSplit, concat_fields
 from ..errors import UsageError
-from ..outputs import output_lock, refuse_foreign_files
+from ..outputs import json_marker, output_lock, refuse_foreign, refuse_foreign_files
 from .model import (MODEL_FORMAT, MODEL_FORMAT_VERSION, TIMING_FORMAT, HybridModel, ModelError, TrainedModel,
                     canonical_json, check_instances, load_model, read_file_metadata, save_model)
 from .presets import Preset, get_preset
@@ -99,6 +113,10 @@ class TrainConfig:
     0: plain Adam). The seed's nets carry an unspecified regularization term
     (its 3.2).
     max_batches_per_epoch: cap an epoch's batches (quick runs, tuning); None = all.
+    budget_steps: optimizer steps of a budgeted run (lr_schedule "cosine"); None: the
+    preset's network kind's budget, :data:`BUDGET_STEPS` (resolved by :meth:`for_preset`).
+    warmup_fraction: share of the budget over which the rate rises linearly to lr.
+    budget_evals: validation rounds over the budget (each keeps the weights if best).
     analytic_params: parameter set of the residual models' analytic part
     (None: the robot's nominal URDF; a set name or a JSON path, e.g. identified).
     observer_gain: momentum-observer bandwidth K [1/s] for the momentum prior.
@@ -123,6 +141,9 @@ class TrainConfig:
     grad_clip: float | None = 1.0
     weight_decay: float = 0.0
     max_batches_per_epoch: int | None = None
+    budget_steps: int | None = None
+    warmup_fraction: float = 0.05
+    budget_evals: int = 40
     analytic_params: str | None = None
     observer_gain: float = 20.0
     tare_seconds: float = TARE_SECONDS
@@ -148,7 +169,8 @@ class TrainConfig:
         """
         for name, least, optional in (("seed", 0, False), ("batch_size", 1, False), ("max_epochs", 1, False),
                                       ("patience", 1, False), ("lr_patience", 1, False),
-                                      ("max_batches_per_epoch", 1, True),
+                                      ("max_batches_per_epoch", 1, True), ("budget_steps", 1, True),
+                                      ("budget_evals", 1, True),
                                       ("num_threads", 1, True)):
             v = getattr(self, name)
             if v is None and optional:
@@ -170,6 +192,12 @@ class TrainConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v) or v <= 0:
                 raise UsageError(f"{_option(name)} must be a finite number > 0, got {v!r}")
+        if self.budgeted and self.max_batches_per_epoch is not None:  # it would be silently ignored
+            raise UsageError(f"{_option('max_batches_per_epoch')} applies to the epoch recipes; a budgeted run "
+                             f"(lr_schedule 'cosine') is sized by {_option('budget_steps')}")
+        if isinstance(self.warmup_fraction, bool) or not isinstance(self.warmup_fraction, numbers.Real) \
+                or not 0 <= self.warmup_fraction < 1:
+            raise UsageError(f"{_option('warmup_fraction')} must be a number in [0, 1), got {self.warmup_fraction!r}")
         if not self.lr_factor < 1:
             raise UsageError(f"{_option('lr_factor')} must be < 1 (it cuts the rate), got {self.lr_factor!r}")
         if self.min_lr > self.lr:
@@ -180,17 +208,61 @@ class TrainConfig:
             raise UsageError(f"{_option('analytic_params')} must be a parameter-set name or a JSON path, "
                              f"got {self.analytic_params!r}")
 
+    @property
+    def budgeted(self) -> bool:
+        """Whether training runs a fixed budget of steps (the cosine schedule) instead of epochs to patience."""
+        return self.lr_schedule == "cosine"
+
+    def for_preset(self, preset: Preset) -> "TrainConfig":
+        """This config with a budgeted run's step count resolved from the preset's network kind."""
+        if not self.budgeted or self.budget_steps is not None:
+            return self
+        return replace(self, budget_steps=budget_steps_of(preset))
+
     def fingerprint_fields(self) -> dict:
         d = asdict(self)
         for k in ("device", "progress", "num_threads"):  # where and how loudly a run goes does not change its result
             d.pop(k)
         if not d["weight_decay"]:  # added later: a run without it keeps the fingerprint it always had
             d.pop("weight_decay")
+        if not self.budgeted:  # added later, and meaningless without the budget: older runs keep their fingerprint
+            for k in ("budget_steps", "warmup_fraction", "budget_evals"):
+                d.pop(k)
         return d
 
 
-LR_SCHEDULES = ("plateau", "none")
-STOP_REASONS = ("patience", "lr-floor", "epoch-cap")
+LR_SCHEDULES = ("plateau", "none", "cosine")
+STOP_REASONS = ("patience", "lr-floor", "epoch-cap", "budget")
+
+# Optimizer steps of the budgeted recipe per network kind (of the preset's front; a DeLaN with a
+# residual net counts as DeLaN), from the budget study on seed-sim, 80 instances (benchmarks/budget_study.py,
+# docs/models.md): the knee, the smallest budget whose doubling gains under 3 % on validation, for MLP
+# (8000), LSTM (2000) and DeLaN (4000); the conv net still gained 12 % from 8000 to 16000 and is
+# held at 16000 by cost. The knee moves with the data: re-measure at another data size.
+BUDGET_STEPS = {"mlp": 8000, "conv": 16000, "lstm": 2000, "delan": 4000}
+
+
+def budget_steps_of(preset: Preset) -> int:
+    """The budgeted recipe's step count for ``preset`` (:data:`BUDGET_STEPS` by its network kind)."""
+    if preset.kind not in BUDGET_STEPS:
+        raise UsageError(f"no step budget for network kind {preset.kind!r} (preset {preset.name!r}); "
+                         f"declare one in BUDGET_STEPS ({', '.join(BUDGET_STEPS)})")
+    return BUDGET_STEPS[preset.kind]
+
+
+def budget_lr(config: TrainConfig, step: int) -> float:
+    """The budgeted recipe's rate at optimizer step ``step`` (0-based) of ``config.budget_steps``.
+
+    Linear warm-up to ``lr`` over the first ``warmup_fraction`` of the steps (lr / w at step 0),
+    then lr x (1 + cos(pi x progress)) / 2, which reaches zero after the last step. A function of
+    the step alone: a resumed run needs no scheduler state.
+    """
+    total = config.budget_steps
+    warm = int(round(config.warmup_fraction * total))
+    if step < warm:
+        return config.lr * (step + 1) / warm
+    progress = (step - warm) / max(total - warm, 1)
+    return config.lr * 0.5 * (1.0 + math.cos(math.pi * progress))
 
 # Named training recipes (TrainConfig fields). "seed": the seed's 3.2 exactly (constant rate,
 # patience 5, no clipping); "default": the TrainConfig defaults; "long": module docstring.
@@ -201,6 +273,8 @@ RECIPES = {
     # epochs on paper-noext's torque rows, which the default bench cannot afford in 120 minutes on 2 cores.
     "long": dict(patience=20, lr_patience=10, weight_decay=0.1),
     "seed": dict(lr_schedule="none", patience=5, grad_clip=None, min_rel_delta=0.0, batch_size=256, max_epochs=200),
+    # A known cost per row (module docstring): steps by network kind, warm-up, cosine decay to zero.
+    "budget": dict(lr_schedule="cosine", batch_size=1024, lr=2e-3),
 }
 
 
@@ -225,7 +299,7 @@ _CLI_FLAGS = {"seed": "--seed", "batch_size": "--batch-size", "max_epochs": "--e
               "max_batches_per_epoch": "--max-batches-per-epoch", "num_threads": "--threads",
               "device": "--device", "analytic_params": "--analytic-params", "lr": "--lr",
               "lr_schedule": "--lr-schedule", "grad_clip": "--grad-clip", "min_lr": "--min-lr",
-              "weight_decay": "--weight-decay"}
+              "weight_decay": "--weight-decay", "budget_steps": "--budget-steps"}
 
 
 def _device(name: str) -> torch.device:
@@ -329,23 +403,25 @@ def run_fingerprint(preset: Preset, config: TrainConfig, dataset_checksum: str) 
                                           "dataset": dataset_checksum}).encode()).hexdigest()
 
 
-def train_model(dataset, preset, out_dir, config: TrainConfig | None = None) -> TrainedModel:
+def train_model(dataset, preset, out_dir, config: TrainConfig | None = None, wait: bool = False) -> TrainedModel:
     """Train ``preset`` (a name or a :class:`Preset`) on ``dataset`` (a Dataset or its path).
 
     Writes the model to ``out_dir``. A finished model of the same run there is
     returned as is; a checkpoint of the same run is resumed; anything of another
-    run there is an error (nothing is overwritten).
+    run there is an error (nothing is overwritten). ``wait``: when another run is
+    training into ``out_dir``, wait for it (and reuse its model) instead of refusing.
     """
     config = config or TrainConfig()
     config.validate()  # a caller may have changed a field since construction
     device = _device(config.device)
     preset = get_preset(preset)
+    config = config.for_preset(preset)  # the budget the run will spend is part of its fingerprint
     ds: Dataset = dataset if isinstance(dataset, Dataset) else load_dataset(dataset)
     out_dir = Path(out_dir)
     fingerprint = run_fingerprint(preset, config, ds.checksum)
     if (out_dir / "config.json").is_file():  # a finished model is never written again: no lock needed to read it
         return _reuse(out_dir, fingerprint)
-    with output_lock(out_dir, "model folder"):
+    with output_lock(out_dir, "model folder", wait=wait):
         if (out_dir / "config.json").is_file():  # finished by another run between the check and the lock
             return _reuse(out_dir, fingerprint)
         _refuse_foreign_files(out_dir)
@@ -353,6 +429,10 @@ def train_model(dataset, preset, out_dir, config: TrainConfig | None = None) -> 
 
 
 def _reuse(out_dir: Path, fingerprint: str) -> TrainedModel:
+    # A user's config.json (no toolkit format at all) is refused as theirs; another of our formats (a GP's)
+    # gets load_model's own message.
+    if json_marker(out_dir / "config.json", "format") is None:
+        refuse_foreign(out_dir, "model folder", f"its config.json lacks the format {MODEL_FORMAT!r}")
     model = load_model(out_dir)
     if model.config.get("fingerprint") != fingerprint:
         raise ModelError(f"{out_dir} holds a finished model of another run (other preset, config or data); "
@@ -548,8 +628,18 @@ def _is_recurrent(preset: Preset) -> bool:
     return preset.kind == "lstm" or preset.residual_kind == "lstm"
 
 
+def _next_stop(config: TrainConfig, epoch: int, n_rounds: int, bad_epochs: int, lr_bad_epochs: int,
+               lr: float) -> str | None:
+    """Why training stops after round ``epoch`` of ``n_rounds`` (None: it goes on)."""
+    last = epoch + 1 == n_rounds
+    if config.budgeted:  # a budget is spent, never cut short: its schedule assumes every step
+        return "budget" if last else None
+    reason = _stop_reason(config, bad_epochs, lr_bad_epochs, lr)
+    return reason or ("epoch-cap" if last else None)
+
+
 def _stop_reason(config: TrainConfig, bad_epochs: int, lr_bad_epochs: int, lr: float) -> str | None:
-    """Why training stops after this epoch (None: it goes on). ``epoch-cap`` is decided by the loop."""
+    """Why an epoch recipe stops after this epoch (None: it goes on). ``epoch-cap``: :func:`_next_stop`."""
     if bad_epochs >= config.patience:
         return "patience"
     if config.lr_schedule == "plateau" and lr <= config.min_lr and lr_bad_epochs >= config.lr_patience:
@@ -557,11 +647,43 @@ def _stop_reason(config: TrainConfig, bad_epochs: int, lr_bad_epochs: int, lr: f
     return None
 
 
+def _rounds(config: TrainConfig, n: int):
+    """The training plan: (number of rounds, round -> [(batch sample indices, rate or None)]).
+
+    Epoch recipes: a round is an epoch, its batches a permutation of the n training samples
+    seeded by (seed, epoch), its rate the optimizer's own (None). Budgeted recipe: a round is
+    ``budget_steps / budget_evals`` steps; global step s takes batch s mod (batches per epoch)
+    of epoch s div (batches per epoch), so batches walk the whole pool and the schedule's rate
+    comes with each step.
+    """
+    per_epoch = -(-n // config.batch_size)
+
+    def epoch_batches(epoch, first=0, stop=None):
+        order = np.random.default_rng([config.seed, epoch]).permutation(n)
+        return [np.sort(order[b * config.batch_size:(b + 1) * config.batch_size])
+                for b in range(first, per_epoch if stop is None else stop)]
+
+    if not config.budgeted:
+        if config.max_batches_per_epoch:
+            per_epoch = min(per_epoch, config.max_batches_per_epoch)
+        return config.max_epochs, lambda r: [(idx, None) for idx in epoch_batches(r, 0, per_epoch)]
+    total, n_rounds = config.budget_steps, min(config.budget_evals, config.budget_steps)
+
+    def budget_round(r):
+        first, stop = r * total // n_rounds, (r + 1) * total // n_rounds
+        out, cache = [], {}
+        for step in range(first, stop):
+            epoch, b = divmod(step, per_epoch)
+            if epoch not in cache:
+                cache = {epoch: epoch_batches(epoch)}
+            out.append((cache[epoch][b], budget_lr(config, step)))
+        return out
+
+    return n_rounds, budget_round
+
+
 def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint, widths, prior, device, sensor_tare):
-    n = len(ws_train)
-    n_batches = -(-n // config.batch_size)
-    if config.max_batches_per_epoch:
-        n_batches = min(n_batches, config.max_batches_per_epoch)
+    n_rounds, round_batches = _rounds(config, len(ws_train))
     history, bad_epochs, lr_bad_epochs, start_epoch, seconds = [], 0, 0, 0, 0.0
     best_epoch, stopped_by = -1, None
     clip = config.grad_clip if _is_recurrent(preset) else None
@@ -583,19 +705,21 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
         start_epoch, seconds = info["epoch"] + 1, info["train_seconds"]
         lr_bad_epochs, best_epoch, stopped_by = info["lr_bad_epochs"], info["best_epoch"], info["stopped_by"]
     stopped = stopped_by is not None
-    bar = tqdm(total=config.max_epochs * n_batches, initial=start_epoch * n_batches, disable=not config.progress,
+    steps_per_round = len(round_batches(0))  # the progress bar's unit; rounds differ by one step at most
+    bar = tqdm(total=n_rounds * steps_per_round, initial=start_epoch * steps_per_round, disable=not config.progress,
                desc=f"{preset.name}", unit="batch", dynamic_ncols=True)
     module.train()
-    epoch = start_epoch
     try:
-        for epoch in range(start_epoch, config.max_epochs):
+        for epoch in range(start_epoch, n_rounds):
             if stopped:
                 break
             t0 = time.perf_counter()
-            order = np.random.default_rng([config.seed, epoch]).permutation(n)
             losses = []
-            for b in range(n_batches):
-                x, y, p = _batches(ws_train, np.sort(order[b * config.batch_size:(b + 1) * config.batch_size]), device)
+            for idx, step_lr in round_batches(epoch):
+                if step_lr is not None:
+                    for group in opt.param_groups:
+                        group["lr"] = step_lr
+                x, y, p = _batches(ws_train, idx, device)
                 opt.zero_grad(set_to_none=True)
                 loss = module.standardized_loss(module(x, p), y)
                 loss.backward()
@@ -606,7 +730,7 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
                 bar.update(1)
             val = evaluate_split(module, ws_val, device)
             seconds += time.perf_counter() - t0
-            lr = opt.param_groups[0]["lr"]  # the rate this epoch trained with
+            lr = opt.param_groups[0]["lr"]  # the rate the round's last step trained with
             history.append({"epoch": epoch, "train_loss": float(np.mean(losses)), "val_loss": val, "lr": lr})
             if val < best_val - improvement_needed(config, best_val):
                 best_val, bad_epochs, lr_bad_epochs, best_epoch = val, 0, 0, epoch
@@ -614,15 +738,13 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
             else:
                 bad_epochs += 1
                 lr_bad_epochs += 1
-            stopped_by = _stop_reason(config, bad_epochs, lr_bad_epochs, lr)
+            stopped_by = _next_stop(config, epoch, n_rounds, bad_epochs, lr_bad_epochs, lr)
             if stopped_by is None and config.lr_schedule == "plateau" and lr_bad_epochs >= config.lr_patience:
                 for group in opt.param_groups:  # reduce on plateau, floored
                     group["lr"] = max(group["lr"] * config.lr_factor, config.min_lr)
                 lr_bad_epochs = 0
-            if stopped_by is None and epoch + 1 == config.max_epochs:
-                stopped_by = "epoch-cap"
             stopped = stopped_by is not None
-            bar.set_description(f"{preset.name} epoch {epoch + 1}/{config.max_epochs}")
+            bar.set_description(f"{preset.name} {'round' if config.budgeted else 'epoch'} {epoch + 1}/{n_rounds}")
             bar.set_postfix(train=f"{history[-1]['train_loss']:.4f}", val=f"{val:.4f}", best=f"{best_val:.4f}")
             _save_checkpoint(out_dir, module, best_state, opt, {
                 "fingerprint": fingerprint, "epoch": epoch, "history": history, "best_val": best_val,

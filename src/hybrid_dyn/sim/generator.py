@@ -443,8 +443,15 @@ _OWN_ENTRIES = ("generator.json", "manifest.json", "instances")
 
 
 def _check_ours(store: DatasetStore, out_dir) -> None:
-    """Refuse a non-empty folder that the generator did not start (e.g. an imported dataset)."""
+    """Refuse a non-empty folder that the generator did not start (e.g. an imported dataset): its
+    generator.json must carry the generator's marker (a config hash), not merely exist."""
     if store.exists("generator.json"):
+        try:
+            doc = json.loads(store.read_text("generator.json"))
+        except (OSError, ValueError):
+            doc = None
+        if not (isinstance(doc, dict) and isinstance(doc.get("config_hash"), str) and isinstance(doc.get("config"), dict)):
+            refuse_foreign(out_dir, "generated dataset", "its generator.json lacks the generator's config_hash and config")
         return
     present = [e for e in store.entries() if not _is_temporary(e)]
     if present == ["instances"] and not [e for e in store.glob("instances/*") if not _is_temporary(e)]:

@@ -17,6 +17,8 @@ name            plant                                                    externa
                 base sensor mounted 1 mm / 1 deg off its nominal pose
 ``contact-steps``as paper-ext, recorded at 1 kHz                         step and trapezoid
                                                                          contacts
+``contact-steps-quiet`` as contact-steps, base sensor noise 0.05 N      as contact-steps
+                (0.0025 Nm) instead of 0.2 N (0.01 Nm)
 ``seed-sim``    as paper-ext, recorded as the seed's 3.1: every 50 ms,   bell pulses
                 exact simulator states (qdd too), no noise or bias
 =============== ======================================================== ==============
@@ -24,6 +26,10 @@ name            plant                                                    externa
 ``contact-steps`` is recorded at the control rate (1 kHz), because a 10 ms sample
 step hides what a force step does to an estimator; its instances are fewer and
 shorter than the other scenarios' (10x the samples per second).
+
+``contact-steps-quiet`` is the same contacts under a quieter base sensor: the
+estimators' bandwidth is chosen from the measured noise (``analytic/bandwidth.py``),
+so this is where its answer must change (issue 27).
 
 ``seed-sim`` reproduces the seed's own data conditions (its section 3.1), so its
 Tables 2 and 3 can be met on like data: the plant, controller, pulses and
@@ -55,7 +61,8 @@ from ..analytic.robot import Robot, SensorMount, load_robot
 # Bump when the generator's algorithm changes what a config produces.
 GENERATOR_VERSION = 1
 
-SCENARIOS = ("paper-noext", "paper-ext", "mismatch-ext", "contact-steps", "seed-sim")
+SCENARIOS = ("paper-noext", "paper-ext", "mismatch-ext", "contact-steps", "contact-steps-quiet", "seed-sim")
+QUIET_BASE_NOISE = dict(force=0.05, torque=0.0025)  # contact-steps-quiet's base sensor [N, Nm]
 PROFILES = ("quick", "default", "paper")
 QDD_SOURCES = ("filter", "exact")
 
@@ -274,15 +281,18 @@ def scenario_config(name: str, profile: str = "quick", seed: int = 0, **override
         raise ConfigError(f"unknown scenario {name!r}; known: {', '.join(SCENARIOS)}")
     if profile not in PROFILES:
         raise ConfigError(f"unknown profile {profile!r}; known: {', '.join(PROFILES)}")
-    sizes = {"contact-steps": _CONTACT_STEPS_SIZES, "seed-sim": _SEED_SIM_SIZES}.get(name, _PROFILE_SIZES)
+    sizes = {"contact-steps": _CONTACT_STEPS_SIZES, "contact-steps-quiet": _CONTACT_STEPS_SIZES,
+             "seed-sim": _SEED_SIM_SIZES}.get(name, _PROFILE_SIZES)
     kw = dict(scenario=name, profile=profile, seed=int(seed), **sizes[profile])
     if name == "paper-noext":
         kw["pulses"] = None
     if name == "mismatch-ext":
         kw.update(plant_params="franka_official", payload=MISMATCH_PAYLOAD,
                   sensor_translation=MISMATCH_SENSOR_TRANSLATION, sensor_rotation=MISMATCH_SENSOR_ROTATION)
-    if name == "contact-steps":
+    if name in ("contact-steps", "contact-steps-quiet"):
         kw.update(pulses=None, contact_steps=ContactStepConfig(), record_hz=1000.0)
+    if name == "contact-steps-quiet":
+        kw.update(noise=NoiseConfig(**QUIET_BASE_NOISE))
     if name == "seed-sim":
         # The seed's 3.1: a 50 ms step, the simulator's exact states, noise-free sensors.
         kw.update(record_hz=20.0, qdd_source="exact", noise=NoiseConfig.off())

@@ -1,0 +1,362 @@
+"""The analytic tip-force estimators, one definition each, in one registry.
+
+A :class:`Method` says what an estimator reads (the sensors beyond q and qd, and
+whether a call may bring any of them), whether it needs qdd, whether it reads the
+base sensor tared, the name of its bandwidth parameter, the values the bench's
+``-val`` row chooses that parameter from, whether a residual network may sit on
+it (``prior``), and how to build one stream of it
+(:class:`MethodStream`): its rule for the bandwidth from a noise window
+(``bandwidth.py``), its streaming step, its batch run and its settling time.
+
+Everything else is built from :data:`REGISTRY`:
+
+- ``TipForceEstimator.analytic(robot, method=name)`` (``estimator.py``);
+- the bench's rows ``name`` (the bandwidth by the rule, what the estimator does)
+  and ``name-val`` (chosen on validation, a labelled reference) (``bench/analytic_rows.py``);
+- the residual priors (``learn/priors.py``) and ``StreamingModel`` (``learn/streaming.py``).
+
+Adding a method is one class and one :func:`register` call (``tests/test_methods.py``
+registers a toy one). :func:`run_batch` is what the estimator does over a whole run,
+as a batch: the noise window (tare, measured noise, bandwidth by the rule), then the
+method from the first sample after it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from .acceleration import DEFAULT_QDD_CUTOFF_HZ, cutoff_grid, cutoff_index, qdd_noise_per_gain, filter_settle_calls
+from .bandwidth import WindowNoise, measure_window, observer_gain, observer_settle_calls
+from .base_momentum import BaseMomentumObserver
+from .estimators import ESTIMATORS
+from .kalman import (SENSORS, KalmanTipForce, channel_factors, increment_stats, window_fusion_noise)
+from .momentum_observer import MomentumObserver
+from .robot import Robot
+from .tare import base_sensor_offset, tare_samples
+from .tip_force import base_wrench_force_core, tip_force_from_base_wrench, tip_force_from_torques
+
+SENSOR_NAMES = {"base_wrench": "base", "tau_J": "joint"}  # an input's name -> the Kalman filter's channel
+
+
+class MethodStream:
+    """One stream of a method on a robot at rate_hz [Hz]: its bandwidth ``value``, its state.
+
+    Subclasses define ``choose`` (the rule), ``step``, ``batch`` and ``settle_calls``; those with
+    state define ``reset``. ``configure`` sets the bandwidth without designing anything."""
+
+    def __init__(self, robot: Robot, rate_hz: float):
+        self.robot, self.rate_hz, self.dt = robot, float(rate_hz), 1.0 / float(rate_hz)
+        self.value = None
+        self.data = robot.model.createData()  # for the rule's Jacobians at the window's pose (made now)
+
+    def choose(self, noise: WindowNoise) -> float:
+        """The bandwidth rule on the window's measured noise."""
+        raise NotImplementedError
+
+    def configure(self, value: float) -> None:
+        self.value = float(value)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the history (a start, a gap)."""
+
+    def window_step(self, q, qd, qdd, w_raw, tau) -> None:
+        """One sample of the noise window (the raw base wrench): only methods that measure more than the
+        window's arrays do anything here."""
+
+    def close_window(self, noise: WindowNoise, tare_offset, fixed=None) -> float:
+        """The window is over: configure the bandwidth (``fixed``, or the rule's) and return it."""
+        self.configure(self.choose(noise) if fixed is None else fixed)
+        return self.value
+
+    def fit_window(self, q, qd, qdd, w_tared, tau, noise: WindowNoise, fixed=None) -> float:
+        """``close_window`` from the window's arrays (the batch twin); base wrench already tared."""
+        return self.close_window(noise, None, fixed)
+
+    def step(self, q, qd, qdd, w, tau) -> np.ndarray:
+        """One validated sample (w tared, or None; tau or None) -> the tip force (3,) [N]."""
+        raise NotImplementedError
+
+    def batch(self, q, qd, qdd, w, tau) -> np.ndarray:
+        """``step`` over a run (N, ...) from a start: (N, 3) [N]."""
+        raise NotImplementedError
+
+    def settle_calls(self, sensors=()) -> int:
+        """Calls from a start until its transient is below 1 % (with the sensors present)."""
+        raise NotImplementedError
+
+
+@dataclass(frozen=True)
+class Method:
+    """One analytic tip-force estimator.
+
+    reads: the inputs beyond q, qd ("base_wrench", "tau_J"). any_of: a call may bring any non-empty
+    subset of them (else all, every call). needs_qdd: the method reads qdd at every call. tares: it
+    reads the base sensor tared on the noise window. parameter: its bandwidth parameter (an
+    ``EstimatorConfig`` field, "auto" there by default) and unit. val_grid: the values the bench's
+    ``-val`` row chooses from (``rate_hz -> tuple``). make(robot, rate_hz) -> :class:`MethodStream`.
+    bench_rows: the bench declares its rows from here (False where ``analytic_rows`` declares them)."""
+
+    name: str
+    summary: str
+    reads: tuple
+    any_of: bool
+    needs_qdd: bool
+    tares: bool
+    parameter: str
+    unit: str
+    val_grid: Callable[[float], tuple]
+    make: Callable[[Robot, float], MethodStream]
+    bench_rows: bool = True
+    prior: bool = False  # a residual network may sit on it (``learn/priors.py``)
+
+    @property
+    def stateful(self) -> bool:
+        """A filter (its value at a sample depends on the run before it), started after the noise window."""
+        return not self.needs_qdd
+
+    @property
+    def fields(self) -> tuple:
+        """The dataset fields a batch run reads (qdd: for the tare, or the method)."""
+        return ("q", "qd") + (("qdd",) if self.needs_qdd or self.tares else ()) + self.reads
+
+
+REGISTRY: dict[str, Method] = {}
+_LISTENERS: list = []  # (on_register, on_unregister): the bench declares rows for a method registered late
+
+
+def register(method: Method) -> Method:
+    """Add a method to the registry (and the estimators' names, as a tip-force estimator)."""
+    if method.name in REGISTRY or method.name in ESTIMATORS and ESTIMATORS[method.name] != "tip_force":
+        raise ValueError(f"estimator method {method.name!r} is registered twice")
+    REGISTRY[method.name] = method
+    ESTIMATORS[method.name] = "tip_force"
+    for on_register, _ in _LISTENERS:
+        on_register(method)
+    return method
+
+
+def unregister(name: str) -> None:
+    """Remove a method (a test's toy) from the registry and from whatever was built from it."""
+    method = REGISTRY.pop(name)
+    ESTIMATORS.pop(name, None)
+    for _, on_unregister in _LISTENERS:
+        on_unregister(method)
+
+
+def add_listener(on_register: Callable[[Method], None], on_unregister: Callable[[Method], None]) -> None:
+    """Be told of every method registered or removed from now on."""
+    _LISTENERS.append((on_register, on_unregister))
+
+
+# ----------------------------------------------------------- the methods
+class _QddMethod(MethodStream):
+    """A per-sample method whose bandwidth is the qdd filter's cutoff [Hz] (the estimator's filter)."""
+
+    kind = "base_wrench"
+
+    def sensor_noise(self, noise: WindowNoise) -> float:
+        return noise.base_force
+
+    def choose(self, noise):
+        per_gain = qdd_noise_per_gain(self.robot, noise.q_mean, noise.qd, self.kind, self.data)
+        return float(cutoff_grid(self.rate_hz)[0][cutoff_index(self.rate_hz, per_gain, self.sensor_noise(noise))])
+
+    def settle_calls(self, sensors=()) -> int:
+        grid, _, _, settle = cutoff_grid(self.rate_hz)
+        hit = np.flatnonzero(np.isclose(grid, self.value, rtol=1e-12))
+        return int(settle[hit[0]]) if len(hit) else filter_settle_calls(self.rate_hz, self.value)
+
+
+class BaseWrench(_QddMethod):
+    def step(self, q, qd, qdd, w, tau):
+        return base_wrench_force_core(self.robot, q, qd, qdd, w)
+
+    def batch(self, q, qd, qdd, w, tau):
+        return tip_force_from_base_wrench(self.robot, q, qd, qdd, w)
+
+
+class TorquesPinv(_QddMethod):
+    kind = "tau_J"
+
+    def sensor_noise(self, noise):
+        return noise.joint_torque_rms
+
+    def step(self, q, qd, qdd, w, tau):
+        return tip_force_from_torques(self.robot, q, qd, qdd, tau)
+
+    def batch(self, q, qd, qdd, w, tau):
+        return tip_force_from_torques(self.robot, q, qd, qdd, tau)
+
+
+class _ObserverMethod(MethodStream):
+    """A momentum observer (``cls``) stepped on one sensor (``sensor``: "w" or "tau"), gain K by the rule."""
+
+    cls = sensor = None
+
+    def __init__(self, robot, rate_hz):
+        super().__init__(robot, rate_hz)
+        self.observer = self.cls(robot, gain=1.0, dt=self.dt)
+
+    def configure(self, value):
+        self.observer.gain = np.broadcast_to(float(value), np.shape(self.observer.gain)).copy() \
+            if np.ndim(self.observer.gain) else float(value)
+        super().configure(value)
+
+    def reset(self):
+        self.observer.reset()
+
+    def step(self, q, qd, qdd, w, tau):
+        return self.observer.force(q, self.observer.step_unchecked(q, qd, w if self.sensor == "w" else tau))
+
+    def batch(self, q, qd, qdd, w, tau):
+        return self.cls(self.robot, gain=self.value, dt=self.dt).run(q, qd, w if self.sensor == "w" else tau)[0]
+
+    def settle_calls(self, sensors=()):
+        return observer_settle_calls(self.value, self.dt)
+
+
+class MomentumObserverMethod(_ObserverMethod):
+    """The joint-torque momentum observer: K by the rule on the torque sensors' and p = M qd's noise."""
+
+    cls, sensor = MomentumObserver, "tau"
+
+    def choose(self, noise):
+        # The residual's joint-space noise mapped to the tip force by P = pinv(J_v^T) = (J_v J_v^T)^-1 J_v
+        # at the window's pose: per axis, tr(P diag(s_tau^2) P^T) / 3 from the torque sensors and
+        # tr(P M diag(s_qd^2) M P^T) / 3 from the momentum p = M qd.
+        import pinocchio as pin
+
+        r, data = self.robot, self.data
+        jv = pin.computeFrameJacobian(r.model, data, noise.q_mean, r.tool_frame_id, pin.LOCAL_WORLD_ALIGNED)[:3]
+        P = np.linalg.solve(jv @ jv.T, jv)
+        M = pin.crba(r.model, data, noise.q_mean)
+        M = np.triu(M) + np.triu(M, 1).T
+        s_in = np.sqrt(np.sum((P * noise.joint_torque) ** 2) / 3.0)
+        s_mom = np.sqrt(np.sum((P @ M * noise.qd) ** 2) / 3.0)
+        self.value, self.predicted_noise = observer_gain(self.rate_hz, s_in, s_mom)
+        return self.value
+
+
+class BaseMomentumMethod(_ObserverMethod):
+    """The base momentum observer: K by the rule on the base sensor's and h = m J_com qd's noise."""
+
+    cls, sensor = BaseMomentumObserver, "w"
+
+    def choose(self, noise):
+        self.value, self.predicted_noise = observer_gain(
+            self.rate_hz, noise.base_force, qdd_noise_per_gain(self.robot, noise.q_mean, noise.qd, "base_wrench", self.data))
+        return self.value
+
+
+class KalmanFusionMethod(MethodStream):
+    """Both sensors fused (``kalman.py``): the noise and the force rate measured on the window."""
+
+    def __init__(self, robot, rate_hz):
+        super().__init__(robot, rate_hz)
+        self.kalman = KalmanTipForce(robot, self.dt)
+        self._factors = channel_factors(robot)
+        self._R3 = robot._root_from_sensor[:3]
+
+    def _apply(self, noise, fixed):
+        from dataclasses import replace
+
+        self.kalman.configure(noise if fixed is None else replace(noise, force_rate=float(fixed)))
+        self.value = self.kalman.noise.force_rate
+        return self.value
+
+    def choose(self, noise):  # the contact model's force rate (the measured noise sets the gain)
+        return window_fusion_noise(self.robot, self.dt, noise, np.zeros((2, 8)), factors=self._factors).force_rate
+
+    def configure(self, value):
+        from dataclasses import replace
+
+        self._apply(replace(self.kalman.noise, force_rate=float(value)), None)
+
+    def reset(self):
+        self.kalman.reset()
+
+    def window_step(self, q, qd, qdd, w_raw, tau):
+        self.kalman.step_unchecked(q, qd, w_raw, tau)  # its increment sums measure the model errors
+
+    def close_window(self, noise, tare_offset, fixed=None):
+        shift = None if tare_offset is None else (self._R3 @ tare_offset) * self.dt
+        return self._apply(window_fusion_noise(self.robot, self.dt, noise, self.kalman.stats.copy(), shift,
+                                               self._factors), fixed)
+
+    def fit_window(self, q, qd, qdd, w_tared, tau, noise, fixed=None):
+        y = self.kalman.measurements(q, qd, w_tared, tau)
+        stats = increment_stats({c: np.diff(v, axis=0) for c, v in y.items()})
+        return self._apply(window_fusion_noise(self.robot, self.dt, noise, stats, None, self._factors), fixed)
+
+    def step(self, q, qd, qdd, w, tau):
+        return self.kalman.step_unchecked(q, qd, w, tau)
+
+    def batch(self, q, qd, qdd, w, tau):
+        return self.kalman.run(q, qd, w, tau)
+
+    def settle_calls(self, sensors=SENSORS):
+        return self.kalman.settle_calls(tuple(SENSOR_NAMES.get(s, s) for s in sensors))
+
+
+def _observer_gains(rate_hz):
+    return tuple(k for k in (5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0) if k / rate_hz <= 1.0)
+
+
+register(Method("base-wrench", "the base sensor's wrench minus the model's (needs qdd)", ("base_wrench",), False,
+                True, True, "qdd_cutoff_hz", "Hz", lambda hz: (), BaseWrench, bench_rows=False, prior=True))
+register(Method("torques-pinv", "F = pinv(J_v^T) (ID(q, qd, qdd) - tau_J)", ("tau_J",), False, True, False,
+                "qdd_cutoff_hz", "Hz", lambda hz: (), TorquesPinv, bench_rows=False))
+register(Method("momentum-observer", "the joint-torque momentum observer (no qdd)", ("tau_J",), False, False, False,
+                "momentum_gain", "1/s", _observer_gains, MomentumObserverMethod, prior=True))
+register(Method("base-momentum", "the whole robot's momentum against the base sensor (no qdd)", ("base_wrench",),
+                False, False, True, "momentum_gain", "1/s", _observer_gains, BaseMomentumMethod, prior=True))
+register(Method("kalman-fusion", "both sensors fused by a Kalman filter (a call may bring either or both)",
+                ("base_wrench", "tau_J"), True, False, True, "fusion_force_rate", "N/sqrt(s)",
+                lambda hz: (0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0), KalmanFusionMethod))
+
+
+def run_batch(method: str | Method, robot: Robot, rate_hz: float, q, qd, base_wrench=None, tau_J=None,
+              tare_seconds: float = 0.5, value=None, stream: MethodStream | None = None):
+    """What ``TipForceEstimator`` gives over one run (N, ...) with every sample present, as a batch:
+    (forces (N, 3) [N], the bandwidth used). The first ``tare_seconds`` are the noise window (0 there);
+    on it the base sensor is tared (qdd: the 20 Hz filter that runs during the window), the noise is
+    measured and the bandwidth chosen by the rule (``value``: fixed instead); then the method runs
+    from the first sample after it (a qdd method on qdd filtered at its cutoff from the start, as the
+    estimator replays the window through it)."""
+    from ..sim.sensors import causal_acceleration
+
+    m = REGISTRY[method] if isinstance(method, str) else method
+    stream = stream or m.make(robot, rate_hz)
+    q, qd = np.asarray(q, float), np.asarray(qd, float)
+    w = None if base_wrench is None else np.asarray(base_wrench, float)
+    tau = None if tau_J is None else np.asarray(tau_J, float)
+    n, dt = tare_samples(rate_hz, tare_seconds), 1.0 / rate_hz
+    out = np.zeros((len(q), 3))
+    if n >= len(q) or n < 8:
+        raise ValueError(f"run_batch needs a noise window of 8 samples or more inside the run, got {n} of {len(q)}")
+    qdd20 = causal_acceleration(qd, dt, DEFAULT_QDD_CUTOFF_HZ)
+    w_tared = w
+    if m.tares and w is not None:
+        w_tared = w - base_sensor_offset(robot, q[:n], qd[:n], qdd20[:n], w[:n])
+    noise = measure_window(q[:n], qd[:n], None if w is None else w[:n], None if tau is None else tau[:n])
+    win = lambda x: None if x is None else x[:n]  # noqa: E731
+    used = stream.fit_window(q[:n], qd[:n], qdd20[:n], win(w_tared), win(tau), noise, value)
+    qdd = causal_acceleration(qd, dt, used)[n:] if m.needs_qdd else None
+    after = lambda x: None if x is None else x[n:]  # noqa: E731
+    out[n:] = stream.batch(q[n:], qd[n:], qdd, after(w_tared), after(tau))
+    return out, used
+
+
+def spec_noise(robot: Robot) -> WindowNoise:
+    """The sensors' specifications as a window's noise (the generator's ``NoiseConfig`` defaults): what
+    the rule uses when a stream has no noise window (tare_seconds = 0)."""
+    from ..sim.scenarios import NoiseConfig
+
+    c = NoiseConfig()
+    return WindowNoise(np.full(robot.nv, c.qd), c.force, np.full(robot.nv, c.tau_J), np.array(robot.spec.home, float))
+
+
+__all__ = ["Method", "MethodStream", "REGISTRY", "add_listener", "register", "run_batch", "spec_noise", "unregister"]
