@@ -44,7 +44,7 @@ from ..analytic.tare import TARE_SECONDS, tare_samples, tared_base_wrench
 from ..analytic.tip_force import contact_joint_torques, tip_force_from_base_wrench
 from ..data import DatasetError, load_dataset
 from ..outputs import unique_temp
-from .learned_rows import learned_predictor
+from .learned_rows import gp_predictor, learned_predictor
 from .rows import Predictor, Row, declare, prior_kept_text
 
 EXCITATION_ITERATIONS = {"quick": 30, "default": 150, "paper": 150}
@@ -247,22 +247,11 @@ def _gp_residual_row(name: str) -> Row:
         out = Path(ctx.work_dir) / "models" / f"{name}-{key.hexdigest()[:12]}"
         t0 = time.perf_counter()
         model = train_gp_residual(ds, path, out, config, robot=ctx.robot)
-        x_of = {}
-
-        def single(inst, k):  # the model's own per-sample path: one row of (q, qd, qdd)
-            if inst.name not in x_of:
-                x_of[inst.name] = np.concatenate([np.asarray(inst[f], float).reshape(len(inst), -1)
-                                                  for f in model.inputs], axis=1)
-            return model.predict_rows(x_of[inst.name][k:k + 1])[0]
-
         kept = [j + 1 for j, k in enumerate(model.kept_prior) if k]
         ctx.log(f"[bench] {ctx.scenario} {name}: validation RMSE {model.config['val_rmse']:.4f} Nm against the "
                 f"prior's {model.config['val_rmse_prior']:.4f}; joints keeping the prior: {kept or 'none'}")
-        seconds = model.train_seconds
-        return Predictor(predict=model.predict, single_call=single, n_params=model.n_params,
-                         train_seconds=float(seconds if np.isfinite(seconds) else time.perf_counter() - t0),
-                         inputs=f"q, qd, qdd; prior on identified-{RESIDUAL_PRIOR_METHOD} (inertials + friction)",
-                         prior_kept=prior_kept_text(model.kept_prior))
+        return gp_predictor(model, t0, prior_kept=prior_kept_text(model.kept_prior),
+                            inputs=f"q, qd, qdd; prior on identified-{RESIDUAL_PRIOR_METHOD} (inertials + friction)")
 
     return declare(Row(name, "joint_torque", "identified", needs=TORQUE_NEEDS, needs_urdf=True, build=build,
                        more_needs=fit_needs, prior=f"identified-{RESIDUAL_PRIOR_METHOD}"))

@@ -184,9 +184,16 @@ def _build_gp(ds, ctx):
 
     t0 = time.perf_counter()
     model = train_gp(ds, ctx.work_dir / "models" / "gp", GPConfig(seed=ctx.profile.seed), wait=True)
+    return gp_predictor(model, t0)
+
+
+def gp_predictor(model, t0: float, **fields) -> Predictor:
+    """The row of a fitted GP (plain or residual): batch predictions and, per call, the model's own
+    per-sample path (one row of its inputs); ``t0``: when its build began (the training time when the
+    model file does not record one); ``fields``: other Predictor fields."""
     x_of = {}
 
-    def single(inst, k):  # the model's own per-sample path: one row of (q, qd, qdd)
+    def single(inst, k):
         if inst.name not in x_of:
             x_of[inst.name] = np.concatenate([np.asarray(inst[f], float).reshape(len(inst), -1)
                                               for f in model.inputs], axis=1)
@@ -195,7 +202,7 @@ def _build_gp(ds, ctx):
     seconds = model.train_seconds
     return Predictor(predict=model.predict, single_call=single,
                      train_seconds=float(seconds if np.isfinite(seconds) else time.perf_counter() - t0),
-                     n_params=int(model.n_params), inputs=", ".join(model.inputs))
+                     n_params=int(model.n_params), **{"inputs": ", ".join(model.inputs), **fields})
 
 
 declare(Row("gp", "joint_torque", "gp", needs=("q", "qd", "qdd", "tau_m"), needs_urdf=False, build=_build_gp))
