@@ -74,7 +74,8 @@ def test_the_time_order_check_finds_a_random_split_out(tmp_path, one_log):
 
 
 def test_time_split_of_several_logs_keeps_each_log_in_time_order(tmp_path):
-    a, b = write_csv(tmp_path / "a.csv", sine_log(n=1000, seed=1)), write_csv(tmp_path / "b.csv", sine_log(n=1000, seed=2))
+    a = write_csv(tmp_path / "a.csv", sine_log(n=1000, seed=1))
+    b = write_csv(tmp_path / "b.csv", sine_log(n=1000, seed=2))
     import_log(_spec(tmp_path, [a, b], 'by = "time"\n', n_blocks=5), tmp_path / "ds")
     ds = load_dataset(tmp_path / "ds")
     assert _time_order_violations(tmp_path / "ds") == []
