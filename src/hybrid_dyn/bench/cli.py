@@ -21,6 +21,8 @@ def register(sub) -> None:
                    "(e.g. analytic,identified; see hybrid_dyn.bench.rows.FAMILIES)")
     p.add_argument("--rows", default=None, help="comma-separated row names to run instead of the profile's "
                    "(with --families: both; see hybrid_dyn.bench.rows.ROWS)")
+    p.add_argument("--scenarios", default=None, help="comma-separated scenarios of the profile to run, instead of "
+                   "all of them (e.g. --profile real --scenarios real-panda)")
     p.add_argument("--out", default=None, help="report folder (default: reports/<profile>)")
     p.add_argument("--data-root", default=None, help="dataset cache (default: ./data or $HYBRID_DYN_DATA)")
     p.add_argument("--work-root", default=None, help="trained-model cache (default: ./runs or $HYBRID_DYN_RUNS)")
@@ -49,6 +51,15 @@ def cmd_bench(args) -> int:
             profile = dataclasses.replace(profile, robot=args.robot, params=args.params, tool=args.tool)
     if args.workers:
         profile = dataclasses.replace(profile, workers=args.workers)
+    if args.scenarios is not None:
+        if args.data:
+            raise UsageError("--scenarios narrows a profile's scenarios; with --data, name the datasets instead")
+        wanted = _names(args.scenarios)
+        unknown = [s for s in wanted if s not in profile.scenarios]
+        if unknown or not wanted:
+            raise UsageError(f"--scenarios {args.scenarios!r}: {unknown or 'none named'} not among profile "
+                             f"{profile.name!r}'s scenarios ({', '.join(profile.scenarios)})")
+        profile = dataclasses.replace(profile, scenarios=wanted)
     if args.families is not None or args.rows is not None:  # an unknown name is refused by the profile itself
         families, names = _names(args.families), _names(args.rows)
         if not families and not names:

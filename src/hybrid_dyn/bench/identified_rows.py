@@ -26,6 +26,8 @@ Rows:
                 and residual-rnea-bw with their prior on the consistent model, its inertials and
                 its friction (TrainConfig.analytic_params = its file; learn/priors.py); untrained,
                 residual-rnea-identified is identified-consistent
+                gp-residual-identified: a sparse GP on the consistent model's residual
+                (learn/gp_residual.py): hyperparameters by marginal likelihood on train, chosen on val
 """
 from __future__ import annotations
 
@@ -42,8 +44,8 @@ from ..analytic.tare import TARE_SECONDS, tare_samples, tared_base_wrench
 from ..analytic.tip_force import contact_joint_torques, tip_force_from_base_wrench
 from ..data import DatasetError, load_dataset
 from ..outputs import unique_temp
-from .learned_rows import learned_predictor
-from .rows import Predictor, Row, declare
+from .learned_rows import gp_predictor, learned_predictor
+from .rows import Predictor, Row, declare, prior_kept_text
 
 EXCITATION_ITERATIONS = {"quick": 30, "default": 150, "paper": 150}
 LOG_SPLITS = ("train", "val")  # what an imported log's identification sees; never its test split
@@ -227,7 +229,32 @@ def _residual_row(name: str, preset: str) -> Row:
 
     p = get_preset(preset)
     return declare(Row(name, "joint_torque", "identified", needs=tuple(p.inputs) + tuple(p.targets), needs_urdf=True,
-                       build=build, trains=True, more_needs=fit_needs))
+                       build=build, trains=True, more_needs=fit_needs,
+                       # No row is the rnea-bw prior on the consistent set (identified-bw-tared sits on
+                       # sigmoid-friction): the report compares only rows whose prior is a row.
+                       prior=f"identified-{RESIDUAL_PRIOR_METHOD}" if p.prior == "rnea" else None))
+
+
+def _gp_residual_row(name: str) -> Row:
+    """A sparse GP on the residual of the identified model, inertials and friction (learn/gp_residual.py)."""
+    def build(ds, ctx):
+        from ..learn.gp_residual import GPResidualConfig, train_gp_residual
+
+        _, path = _identified(ctx, RESIDUAL_PRIOR_METHOD)
+        config = GPResidualConfig(seed=ctx.profile.seed)
+        # Named by the prior file's content and the config: a refit or a new config never meets an old model.
+        key = hashlib.sha256(Path(path).read_bytes() + json.dumps(config.to_dict(), sort_keys=True).encode())
+        out = Path(ctx.work_dir) / "models" / f"{name}-{key.hexdigest()[:12]}"
+        t0 = time.perf_counter()
+        model = train_gp_residual(ds, path, out, config, robot=ctx.robot)
+        kept = [j + 1 for j, k in enumerate(model.kept_prior) if k]
+        ctx.log(f"[bench] {ctx.scenario} {name}: validation RMSE {model.config['val_rmse']:.4f} Nm against the "
+                f"prior's {model.config['val_rmse_prior']:.4f}; joints keeping the prior: {kept or 'none'}")
+        return gp_predictor(model, t0, prior_kept=prior_kept_text(model.kept_prior),
+                            inputs=f"q, qd, qdd; prior on identified-{RESIDUAL_PRIOR_METHOD} (inertials + friction)")
+
+    return declare(Row(name, "joint_torque", "identified", needs=TORQUE_NEEDS, needs_urdf=True, build=build,
+                       more_needs=fit_needs, prior=f"identified-{RESIDUAL_PRIOR_METHOD}"))
 
 
 # ------------------------------------------------------------------ the rows
@@ -249,3 +276,4 @@ _row("joint_torque", "identified-bw-tared", ("q", "qd", "qdd", "base_wrench", "t
      TARED_INPUTS, single=lambda m, c, i, k: _identified_bw_torque(m, c, i, k))
 for _name, _preset in RESIDUAL_ROWS.items():
     _residual_row(_name, _preset)
+_gp_residual_row("gp-residual-identified")

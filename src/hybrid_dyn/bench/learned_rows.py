@@ -24,7 +24,7 @@ import numpy as np
 from ..analytic.tare import tare_samples, tared_base_wrench
 from ..errors import UsageError
 from ..learn.presets import PRESETS
-from .rows import Predictor, Row, declare
+from .rows import Predictor, Row, declare, prior_kept_text
 
 PRESET_FAMILIES = {
     "seed-net": ("seed-tip-1", "seed-tip-2", "seed-tip-3", "seed-tip-4", "seed-tip-5", "seed-tip-6", "seed-tip-7",
@@ -35,6 +35,10 @@ PRESET_FAMILIES = {
     "delan": ("delan", "delan-friction"),
     "learned": ("tau-mlp-wide",),
 }
+# A residual preset's prior -> the analytic row that computes it (the base wrench tared, as the presets
+# read it unless raw_sensor), for the report's hybrid-against-prior comparison.
+PRIOR_ROWS = {"rnea": "rnea", "rnea-bw": "rnea-bw-tared", "base-wrench": "base-wrench-tared",
+              "momentum-observer": "momentum-observer", "base-momentum": "base-momentum"}
 RAW_SENSOR_LABEL = "raw sensor, untared: reference"  # a preset with raw_sensor=True (what the offset costs)
 TASK_OF_TARGETS = {("tip_force",): "tip_force", ("tau_m",): "joint_torque"}
 PRESET_ROWS: set = set()  # the rows declared here, one per preset (the runner trains them in parallel first)
@@ -84,10 +88,14 @@ def training_summary(config: dict) -> dict:
 def learned_predictor(model, train_seconds: float, inputs: str | None = None) -> Predictor:
     """The row of a trained model: batch predictions, the user's single call, how training ended."""
     single, warmup = user_single_call(model)
+    training = training_summary(model.config)
+    # A net on a physics prior starts as the prior (a zero output layer) and keeps it when no epoch
+    # beats it on validation (best_epoch -1): the whole prior, every output at once.
+    kept = None if model.preset.prior is None else prior_kept_text([training["best_epoch"] == -1])
     return Predictor(predict=model.predict, single_call=single, warmup_calls=warmup,
                      train_seconds=float(train_seconds), n_params=int(model.n_params),
                      inputs=", ".join(model.config.get("inputs", [])) if inputs is None else inputs,
-                     training=training_summary(model.config))
+                     training=training, prior_kept=kept)
 
 
 def user_single_call(model):
@@ -157,7 +165,8 @@ def _declare_presets() -> None:
                 continue
             declare(Row(p.name, task, preset_family(p.name), needs=tuple(p.inputs) + tuple(p.targets),
                         needs_urdf=p.prior is not None, build=_build(p.name), trains=True,
-                        reference=RAW_SENSOR_LABEL if p.raw_sensor else None))
+                        reference=RAW_SENSOR_LABEL if p.raw_sensor else None,
+                        prior=None if p.raw_sensor else PRIOR_ROWS.get(p.prior)))
             PRESET_ROWS.add(p.name)
     odd = [p.name for p in presets if tuple(p.targets) not in TASK_OF_TARGETS]
     if odd:
@@ -175,9 +184,16 @@ def _build_gp(ds, ctx):
 
     t0 = time.perf_counter()
     model = train_gp(ds, ctx.work_dir / "models" / "gp", GPConfig(seed=ctx.profile.seed), wait=True)
+    return gp_predictor(model, t0)
+
+
+def gp_predictor(model, t0: float, **fields) -> Predictor:
+    """The row of a fitted GP (plain or residual): batch predictions and, per call, the model's own
+    per-sample path (one row of its inputs); ``t0``: when its build began (the training time when the
+    model file does not record one); ``fields``: other Predictor fields."""
     x_of = {}
 
-    def single(inst, k):  # the model's own per-sample path: one row of (q, qd, qdd)
+    def single(inst, k):
         if inst.name not in x_of:
             x_of[inst.name] = np.concatenate([np.asarray(inst[f], float).reshape(len(inst), -1)
                                               for f in model.inputs], axis=1)
@@ -186,7 +202,7 @@ def _build_gp(ds, ctx):
     seconds = model.train_seconds
     return Predictor(predict=model.predict, single_call=single,
                      train_seconds=float(seconds if np.isfinite(seconds) else time.perf_counter() - t0),
-                     n_params=int(model.n_params), inputs=", ".join(model.inputs))
+                     n_params=int(model.n_params), **{"inputs": ", ".join(model.inputs), **fields})
 
 
 declare(Row("gp", "joint_torque", "gp", needs=("q", "qd", "qdd", "tau_m"), needs_urdf=False, build=_build_gp))

@@ -261,7 +261,9 @@ PROFILES = {
         train=dict(max_epochs=300, batch_size=256, patience=25, lr_schedule="none"),
         notes=("Panda (Gaz et al. 2019's exciting trajectory, ../shared/data/real or $HYBRID_DYN_REAL_LOGS; the arm "
                "carried no hand, so the analytic model is panda[tool=none]): the log cut into 10 contiguous time "
-               "blocks, split 6/2/2 (benchmarks/real/panda.toml); identified rows fit on its train and val blocks.",
+               "blocks, split in time order: the first 6 train, the next 2 validate, the last 2 test (60/20/20 of "
+               "its 21 s; benchmarks/real/panda.toml): every row is scored on the log's last 4.1 s, after all it "
+               "was fitted on; identified rows fit on its train and val blocks.",
                "KUKA and Baxter: one instance per logged trajectory (10 each), split by trajectory 6/2/2; "
                "SARCOS: its 4,449-row test file is not one continuous trajectory, so it is cut into 10 contiguous "
                "blocks, split 6/2/2 (benchmarks/real/*.toml).",
@@ -274,7 +276,11 @@ PROFILES = {
                "schedule cut the rate during the rise). `tau-mlp-wide` (2 x 128, "
                "dropout 0.2) is not a seed model: it was chosen on the validation split for these small sets.",
                "gp: one exact Gaussian process per joint (ARD RBF + white noise, hyperparameters by marginal "
-               "likelihood on 600 training rows, conditioned on at most 8000), learn/gp.py."),
+               "likelihood on 600 training rows, conditioned on at most 8000), learn/gp.py. gp-residual-identified "
+               "(the Panda): a sparse GP per joint (2000 inducing inputs) on the residual of identified-consistent, "
+               "its hyperparameters by marginal likelihood on train and chosen on val, learn/gp_residual.py.",
+               "Hybrid rows keep their physics prior where their correction does not beat it on validation; the "
+               "section 'Hybrid rows against their physics prior' says where they did."),
     ),
     # The seed's own data conditions (its 3.1): 20 Hz, exact states, no sensor noise or bias.
     "seed-sim": BenchProfile(

@@ -18,6 +18,7 @@ import numpy as np
 from ..data import package_versions
 from .catalog import reference_label
 from .predictions import PREDICTIONS_FILE, Predictions, PredictionsError
+from .hybrids import hybrid_lines
 from .results import CURVES_FILE, read_curves
 from .seed_reference import GAZ2019_VALIDATION_RMSE, SEED_TABLE1, SEED_TABLE2, SEED_TABLE3, seed_dataset_label
 
@@ -414,7 +415,18 @@ def _command(prof: dict) -> str:
     scenarios = prof.get("scenarios") or []
     if prof.get("name") == "data" and scenarios and all(is_dataset_path(s) for s in scenarios):
         return "hybrid-dyn bench " + " ".join(f"--data {s}" for s in scenarios)
-    return f"hybrid-dyn bench --profile {prof.get('name', '?')}"
+    from .profiles import PROFILES
+
+    cmd = f"hybrid-dyn bench --profile {prof.get('name', '?')}"
+    named = PROFILES.get(prof.get("name"))
+    if named is not None:  # the options that narrowed the named profile (bench/cli.py)
+        base = named.to_dict()
+        if list(scenarios) != base["scenarios"]:
+            cmd += f" --scenarios {','.join(scenarios)}"
+        if prof.get("families") != base["families"] or prof.get("rows") != base["rows"]:
+            cmd += f" --families {','.join(prof.get('families') or [])}" if prof.get("families") else ""
+            cmd += f" --rows {','.join(prof.get('rows') or [])}" if prof.get("rows") else ""
+    return cmd
 
 
 def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
@@ -465,7 +477,8 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
     for s, d in meta.get("datasets", {}).items():
         origin = f"config hash `{d['config_hash']}`" if d.get("config_hash") else "imported (no generator config)"
         lines.append(f"- data `{s}`: {origin}, data checksum `{str(d.get('checksum'))[:16]}`"
-                     + (f", read from `{d.get('path')}`, robot `{d['robot']}`" if d.get("robot") else ""))
+                     + (f", read from `{d.get('path')}`, robot `{d['robot']}`" if d.get("robot") else "")
+                     + (f"; split {d['split']}" if d.get("split") else ""))
         lines += [f"  - **import warning**: {w}" for w in d.get("import_warnings") or []]
     notes = prof.get("notes") or []
     if notes:
@@ -474,6 +487,7 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
     if any(_is_capped(r) for r in _contenders(rows)):
         lines += ["", f"{CAP_MARK}: stopped by the epoch cap while still improving; it may not have converged "
                       "(see the learning curves)."]
+    lines += hybrid_lines(rows)
     lines += convergence_lines(rows, curve_figures)
     skipped = meta.get("skipped") or []
     if skipped:

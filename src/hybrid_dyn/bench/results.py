@@ -18,6 +18,7 @@ COLUMNS = [
     "rmse_1", "rmse_2", "rmse_3", "rmse_4", "rmse_5", "rmse_6", "rmse_7", "noise_rms",
     "train_seconds", "infer_us_per_sample", "infer_us_per_call", "n_params", "n_test_samples",
     "epochs", "stopped_by", "best_epoch",  # learned rows only (``training_summary``); empty for analytic rows
+    "prior_kept",  # hybrid rows only: where validation kept the physics prior ("all", "none", "joints 2, 5")
     "error",
 ]
 

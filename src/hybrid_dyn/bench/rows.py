@@ -55,6 +55,9 @@ class Predictor:
     n_params: int = 0
     inputs: str = ""
     training: dict | None = None  # learned rows: ``training_summary`` of the model's config
+    # A hybrid row (a correction on a physics prior): whether validation kept the prior, from
+    # prior_kept_text ("all", "none", "joints 2, 5"); None for a row with no prior.
+    prior_kept: str | None = None
     warmup_calls: int = 1  # untimed calls first (lazy allocations, a stream's window and tare)
 
 
@@ -68,7 +71,9 @@ class Row:
     dataset's robot. build(ds, ctx) -> :class:`Predictor`. trains: a learned row (trained, with
     a loss curve). reference: the label of a reference row (in the tables, never a family's
     best), None for a contender. more_needs(ds) -> fields: what it needs beyond ``needs`` on that
-    dataset (identified rows fit on an imported log's own torques).
+    dataset (identified rows fit on an imported log's own torques). prior: the row that is this
+    hybrid row's physics prior exactly (residual-rnea: rnea), so that the report can set one
+    against the other; None for a row with no such row.
     """
 
     name: str
@@ -80,6 +85,7 @@ class Row:
     trains: bool = False
     reference: str | None = None
     more_needs: Callable | None = None
+    prior: str | None = None
 
     def __post_init__(self):
         where = f"bench row {self.name!r}"
@@ -102,6 +108,16 @@ class Row:
 
 
 ROWS: dict[str, Row] = {}
+
+
+def prior_kept_text(kept) -> str:
+    """Per-output flags "validation kept the prior" in words: "all", "none" or "joints 2, 5" (1-based)."""
+    kept = [bool(k) for k in kept]
+    if all(kept):
+        return "all"
+    if not any(kept):
+        return "none"
+    return "joints " + ", ".join(str(j + 1) for j, k in enumerate(kept) if k)
 
 
 def declare(row: Row) -> Row:

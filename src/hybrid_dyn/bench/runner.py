@@ -42,6 +42,7 @@ from tqdm.auto import tqdm
 from ..analytic.robot import load_robot
 from ..data import Dataset, load_dataset
 from ..data.real import RealLogMissingError
+from ..data.splits import dataset_split_text
 from ..outputs import output_lock, refuse_foreign, unique_temp
 from .catalog import ROWS, get_row  # noqa: F401  (ROWS: every declared row)
 from .integrity import DIGEST_KEY, read_run_json, results_digest
@@ -79,6 +80,8 @@ def score_row(spec: Row, ctx: BenchContext, norm: dict) -> dict:
         raise ValueError(f"the dataset has no {target!r} field")
     pred_obj = spec.build(ds, ctx)
     row.update(inputs=pred_obj.inputs, train_seconds=pred_obj.train_seconds, n_params=pred_obj.n_params)
+    if pred_obj.prior_kept is not None:
+        row["prior_kept"] = pred_obj.prior_kept
     if pred_obj.training is not None:
         t = pred_obj.training
         row.update(epochs=t["epochs"], stopped_by=t["stopped_by"], best_epoch=t["best_epoch"])
@@ -387,6 +390,7 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider
             "scenarios": labels, "skipped": skipped, "machine": machine_info(),
             "datasets": {s: {"path": str(d.path), "checksum": d.checksum, "seed": d.meta.get("seed"),
                              "config_hash": d.meta.get("config_hash"), "robot": d.meta.get("robot"),
+                             "split": dataset_split_text(d),
                              **({"import_warnings": _import_warnings(d)} if _import_warnings(d) else {})}
                          for s, d in datasets.items()}}
     write_results(out_dir / "results.csv", rows)  # also when no row applied: the report reads it

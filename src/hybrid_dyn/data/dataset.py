@@ -324,11 +324,17 @@ def split_by_instance(names: list[str], seed: int, test_frac: float = 0.2, val_f
     names = sorted(names)
     rng = np.random.default_rng(np.random.SeedSequence([seed, 0x5B117]))
     order = [names[i] for i in rng.permutation(len(names))]
-    n = len(order)
-    n_test = max(1, round(test_frac * n)) if n >= 3 else 0
-    n_val = max(1, round(val_frac * (n - n_test))) if n >= 3 else 0
+    n_test, n_val = split_counts(len(order), test_frac, val_frac)
     test, val, train = order[:n_test], order[n_test:n_test + n_val], order[n_test + n_val:]
     return {"train": sorted(train), "val": sorted(val), "test": sorted(test)}
+
+
+def split_counts(n: int, test_frac: float = 0.2, val_frac: float = 0.2) -> tuple[int, int]:
+    """(n_test, n_val) of ``n`` instances: ``test_frac`` of them, then ``val_frac`` of the rest, each at
+    least one when there are three or more (none below three: all train)."""
+    n_test = max(1, round(test_frac * n)) if n >= 3 else 0
+    n_val = max(1, round(val_frac * (n - n_test))) if n >= 3 else 0
+    return n_test, n_val
 
 
 def manifest_text(meta: dict) -> str:

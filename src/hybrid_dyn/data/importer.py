@@ -19,7 +19,8 @@ The importer then
 3. estimates velocities when missing and accelerations always (unless the log
    has them) with a zero-phase filter, segment by segment (:mod:`.derivatives`);
 4. writes a dataset (instances = segments, splits by trajectory, so all segments
-   of one trajectory are in one split) with the report in the manifest.
+   of one trajectory are in one split: at random, in time order or as listed,
+   :mod:`.splits`) with the report in the manifest.
 
 Units after import are the toolkit's SI units (``FIELD_UNITS``): t [s], q [rad],
 qd [rad/s], qdd [rad/s^2], torques [Nm]. ``tau_m`` is the logged joint torque.
@@ -37,12 +38,13 @@ from pathlib import Path
 import numpy as np
 
 from .dataset import (
-    FIELD_UNITS, DatasetError, package_versions, sha256_file, split_by_instance, write_instance, write_manifest,
+    FIELD_UNITS, DatasetError, package_versions, sha256_file, write_instance, write_manifest,
 )
 from .derivatives import DerivativeFilter, differentiate
 from .log_readers import LogTable, natural_key, read_log
 from ..input_checks import angle_unit_problems, empty_split_problems, split_problems
 from .spec_checks import spec_type_problems
+from .splits import SPLIT_NAMES, SplitSpec, split_trajectories
 from ..outputs import output_lock, refuse_foreign, unique_temp
 
 IMPORTER_VERSION = 1
@@ -133,6 +135,8 @@ class LogSpec:
     split_seed: int = 0
     test_frac: float = 0.2
     val_frac: float = 0.2
+    split_by: str = "random"  # splits.SPLIT_MODES: "random", "time" (in time order) or "list"
+    split_lists: dict = field(default_factory=dict)  # by = "list": split -> trajectory names
     notes: str = ""
     spec_file: str | None = None
 
@@ -180,10 +184,16 @@ class LogSpec:
         if self.angle_unit not in ("rad", "deg"):
             problems.append(f"angle_unit must be 'rad' or 'deg', got {self.angle_unit!r}")
         problems += split_problems(self.split_seed, self.test_frac, self.val_frac)  # issue 28: tracebacks before
+        problems += self.split_spec.problems()
         if not re.fullmatch(r"[A-Za-z0-9_.-]+", self.name or ""):
             problems.append(f"name {self.name!r} must be letters, digits, '_', '.', '-'")
         if problems:
             raise LogSpecError("invalid import spec: " + "; ".join(problems))
+
+    @property
+    def split_spec(self) -> SplitSpec:
+        """The ``[split]`` section: how trajectories go to train, val and test (``splits.py``)."""
+        return SplitSpec(self.split_by, self.split_seed, self.test_frac, self.val_frac, dict(self.split_lists))
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -202,7 +212,7 @@ _SPEC_LAYOUT = {
     "time": {"column", "unit", "sample_rate_hz"},
     "trajectories": {"from", "n_blocks", "column"},
     "units": {"angle"},
-    "split": {"seed", "test_frac", "val_frac"},
+    "split": {"seed", "test_frac", "val_frac", "by", *SPLIT_NAMES},
 }
 
 
@@ -258,6 +268,7 @@ def spec_from_dict(doc: dict, base_dir=".", spec_file=None) -> LogSpec:
     if not isinstance(env_defaults, dict) or not all(isinstance(v, str) for v in env_defaults.values()):
         raise LogSpecError(f"[env_defaults]{where} must be a table of NAME = \"path\"")
     split = doc.get("split", {})
+    lists = {k: split[k] for k in SPLIT_NAMES if k in split}
     robot, tool = doc.get("robot", "unknown"), doc.get("tool")
     # A robot's URDF and a tool's are files of the spec too: relative to it, ${VAR} expanded.
     if isinstance(robot, str) and Path(robot).suffix in (".urdf", ".toml"):
@@ -280,6 +291,8 @@ def spec_from_dict(doc: dict, base_dir=".", spec_file=None) -> LogSpec:
             derivatives=DerivativeFilter(**doc.get("derivatives", {})),
             checks=ValidationChecks(**doc.get("checks", {})),
             split_seed=split.get("seed", 0), test_frac=split.get("test_frac", 0.2), val_frac=split.get("val_frac", 0.2),
+            # Lists of trajectories imply by = "list"; a "by" that contradicts them is refused (splits.py).
+            split_by=split.get("by", "list" if lists else "random"), split_lists=lists,
             spec_file=str(spec_file) if spec_file else None,
         )
     except TypeError as err:  # unknown keys in [derivatives] or [checks]
@@ -778,8 +791,12 @@ def _build(spec: LogSpec, segments: list, report: ImportReport, partial: Path) -
     for seg in segments:
         by_traj.setdefault(seg.trajectory, []).append(seg)
     # The split first: fractions that leave a split empty are refused before any instance is written.
-    traj_split = split_by_instance(list(by_traj), spec.split_seed, spec.test_frac, spec.val_frac)
+    # Each trajectory's first sample time [s]: the order of a time split (splits.py).
+    traj_split = split_trajectories(spec.split_spec, {k: min(float(s.fields["t"][0]) for s in v)
+                                                      for k, v in by_traj.items()})
     empty = empty_split_problems(traj_split) if len(by_traj) >= 3 else []  # fewer: warned below
+    if empty and spec.split_by == "list":
+        raise LogSpecError(f"{spec.name}: {empty[0]}: [split] lists no trajectory for it")
     if empty:
         raise LogSpecError(f"{spec.name}: {empty[0]} ({len(by_traj)} trajectories, test_frac = {spec.test_frac}, "
                            f"val_frac = {spec.val_frac} of the rest); choose smaller fractions")
@@ -817,6 +834,7 @@ def _build(spec: LogSpec, segments: list, report: ImportReport, partial: Path) -
                    "notes": spec.notes},
         "fields": {k: units[k] for k in fields_written}, "packages": package_versions(),
         "instances": records, "splits": splits, "trajectory_splits": traj_split,
+        "split": {**spec.split_spec.to_dict(), "text": spec.split_spec.describe(len(by_traj))},
         "import": {**report.summary(), "derivatives": estimated,
                    "velocities": "logged" if "qd" in spec.columns else "estimated",
                    "sources": [{"file": str(f), "sha256": sha256_file(f)} for f in spec.files],

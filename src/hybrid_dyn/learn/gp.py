@@ -363,9 +363,11 @@ def save_gp(model: GPModel, model_dir, train_seconds: float | None = None) -> No
     os.replace(ctmp, cpath)
 
 
-def load_gp(model_dir) -> GPModel:
-    """Open a GP model folder. Refuses a missing or partial folder, a model of another family,
-    a config.json or tensors that do not match the digests saved with them."""
+def load_gp(model_dir, family: str = "gp") -> GPModel:
+    """Open a GP model folder. Refuses a missing or partial folder, a model of another family
+    (``family``: "gp", or "gp-residual" for the residual of a semiparametric GP, which alone predicts
+    only the correction: ``gp_residual.load_gp_residual`` adds its prior), a config.json or tensors
+    that do not match the digests saved with them."""
     model_dir = Path(model_dir)
     cpath, wpath = model_dir / "config.json", model_dir / "model.safetensors"
     config = read_model_config(model_dir, "GP model")
@@ -373,6 +375,10 @@ def load_gp(model_dir) -> GPModel:
         found = config.get("format") if isinstance(config, dict) else type(config).__name__
         raise ModelError(f"{model_dir} is not a GP model ({cpath} has format {found!r}, expected {GP_FORMAT!r}); "
                          f"a PyTorch model ('hybrid_dyn.model') loads with hybrid_dyn.learn.load_model")
+    if config.get("family", "gp") != family:
+        raise ModelError(f"{model_dir} is a {config.get('family')!r} model, not a {family!r} one"
+                         + ("; load it with hybrid_dyn.learn.gp_residual.load_gp_residual (its prior added)"
+                            if config.get("family") == "gp-residual" else ""))
     version = config.get("format_version", 0)
     if isinstance(version, bool) or not isinstance(version, int):  # "1" or null: a traceback before issue 28
         raise ModelError(f"{cpath}: GP format_version must be an integer, got {version!r} (edited?)")
