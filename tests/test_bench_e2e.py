@@ -14,7 +14,9 @@ def test_tiny_bench_writes_every_row_and_column(tmp_path):
     quick = PROFILES["quick"]
     tiny = dataclasses.replace(
         quick, name="tiny",
-        generator_overrides=dict(n_instances=3, trajectories=(1, 1)),
+        # tiny for real: quick's own 30 mismatch-ext instances would override the 3 (the residual GP's
+        # fit alone then took 350 s of this test)
+        generator_overrides=dict(n_instances=3, trajectories=(1, 1)), scenario_overrides={},
         families=("analytic", "identified"),
         rows=("seed-tip-1", "seed-tip-11", "residual-basewrench", "residual-momentum",
               "seed-tau-lstm", "residual-rnea", "residual-rnea-bw", "delan", "delan-friction", "delan-residual"),
