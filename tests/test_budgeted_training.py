@@ -4,8 +4,6 @@ import math
 
 import numpy as np
 import pytest
-import torch
-from safetensors.torch import load_file
 
 from hybrid_dyn.analytic.tare import TARE_SECONDS
 from hybrid_dyn.data import load_dataset
@@ -14,6 +12,7 @@ from hybrid_dyn.errors import UsageError
 from hybrid_dyn.learn import TrainConfig, train_model
 from hybrid_dyn.learn import train as train_mod
 from hybrid_dyn.learn.presets import KINDS, get_preset
+from resume import assert_same_weights, killed_then_resumed
 
 QUICK = dict(batch_size=64, progress=False, num_threads=1)
 
@@ -90,19 +89,8 @@ def test_the_budget_comes_from_the_network_kind_and_is_in_the_fingerprint():
 def test_resume_mid_budget_is_bit_identical(tiny, tmp_path, monkeypatch):
     cfg = TrainConfig.recipe("budget", budget_steps=40, budget_evals=8, warmup_fraction=0.2, **QUICK)
     straight = train_model(tiny, "seed-tip-7", tmp_path / "a", cfg)
-    real_save = train_mod._save_checkpoint
-
-    def save_then_die(out_dir, module, best, opt, info):
-        real_save(out_dir, module, best, opt, info)
-        if info["epoch"] == 3:  # mid-budget: after the warm-up, rounds still to run
-            raise KeyboardInterrupt
-
-    monkeypatch.setattr(train_mod, "_save_checkpoint", save_then_die)
-    with pytest.raises(KeyboardInterrupt):
-        train_model(tiny, "seed-tip-7", tmp_path / "b", cfg)
-    monkeypatch.setattr(train_mod, "_save_checkpoint", real_save)
-    resumed = train_model(tiny, "seed-tip-7", tmp_path / "b", cfg)
-    a, b = load_file(str(tmp_path / "a" / "model.safetensors")), load_file(str(tmp_path / "b" / "model.safetensors"))
-    assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+    # killed mid-budget: after the warm-up, rounds still to run
+    resumed = killed_then_resumed(monkeypatch, tiny, "seed-tip-7", tmp_path / "b", cfg, 3)
+    assert_same_weights(tmp_path / "a", tmp_path / "b")
     assert resumed.config["history"] == straight.config["history"]
     assert resumed.config["stopped_by"] == "budget"

@@ -11,6 +11,7 @@ from hybrid_dyn.data.synthetic import make_synthetic_dataset
 from hybrid_dyn.learn import TrainConfig, train_model
 from hybrid_dyn.learn import train as train_mod
 from hybrid_dyn.learn.presets import get_preset
+from resume import assert_same_weights, killed_then_resumed
 
 QUICK = dict(batch_size=64, progress=False, num_threads=1)
 
@@ -97,20 +98,8 @@ def test_resume_mid_schedule_is_bit_identical(clean_and_biased, tmp_path, monkey
     cut = next(i for i, r in enumerate(rates) if r < cfg.lr)  # the first epoch at a cut rate
     assert cut < len(rates) - 1, rates  # the kill below falls after a cut, with epochs still to run
 
-    real_save = train_mod._save_checkpoint
-
-    def save_then_die(out_dir, module, best, opt, info):
-        real_save(out_dir, module, best, opt, info)
-        if info["epoch"] == cut:
-            raise KeyboardInterrupt
-
-    monkeypatch.setattr(train_mod, "_save_checkpoint", save_then_die)
-    with pytest.raises(KeyboardInterrupt):
-        train_model(clean, "seed-tip-7", tmp_path / "b", cfg)
-    monkeypatch.setattr(train_mod, "_save_checkpoint", real_save)
-    resumed = train_model(clean, "seed-tip-7", tmp_path / "b", cfg)
-    a, b = load_file(str(tmp_path / "a" / "model.safetensors")), load_file(str(tmp_path / "b" / "model.safetensors"))
-    assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+    resumed = killed_then_resumed(monkeypatch, clean, "seed-tip-7", tmp_path / "b", cfg, cut)
+    assert_same_weights(tmp_path / "a", tmp_path / "b")
     assert resumed.config["history"] == straight.config["history"]
     assert resumed.config["stopped_by"] == straight.config["stopped_by"]
 
