@@ -17,14 +17,18 @@ NEEDS = {"base_wrench": ("q", "qd", "base_wrench"), "torques": ("q", "qd", "tau_
          "base_momentum": ("q", "qd", "base_wrench"), "kalman_fusion": ("q", "qd", "base_wrench", "tau_J")}
 
 
+def sine_motion(robot, t, rng, amplitude):
+    """Per-joint sines about home, amplitude drawn from ``amplitude`` [rad], 0.5-2 rad/s: exact q, qd, qdd."""
+    amp, w = rng.uniform(*amplitude, robot.nv), rng.uniform(0.5, 2.0, robot.nv)
+    q = np.array(robot.spec.home) + amp * np.sin(w * t[:, None])
+    return q, amp * w * np.cos(w * t[:, None]), -amp * w**2 * np.sin(w * t[:, None])
+
+
 def stream(robot, n, hz=HZ, seed=0):
     """Exact rigid-body samples of a smooth motion about home with a 20 N tip-force bell at 0.9 s."""
     rng = np.random.default_rng(seed)
     t = np.arange(n) / hz
-    amp, w = rng.uniform(0.1, 0.3, robot.nv), rng.uniform(0.5, 2.0, robot.nv)
-    q = np.array(robot.spec.home) + amp * np.sin(w * t[:, None])
-    qd = amp * w * np.cos(w * t[:, None])
-    qdd = -amp * w**2 * np.sin(w * t[:, None])
+    q, qd, qdd = sine_motion(robot, t, rng, (0.1, 0.3))
     f = 20.0 * np.exp(-((t - 0.9) ** 2) / (2 * 0.1**2))[:, None] * np.array([0.6, 0.0, -0.8])
     jv = robot.tip_jacobian(q)[:, :3]
     tau = robot.inverse_dynamics(q, qd, qdd) - np.einsum("nij,ni->nj", jv, f)
@@ -277,10 +281,7 @@ def contact_stream(robot, n, hz=HZ, seed=0, contact_at=CONTACT_AT):
     a base-sensor offset, and a constant 15 N contact from CONTACT_AT: (samples with true t, true forces)."""
     rng = np.random.default_rng(seed)
     t = np.arange(n) / hz
-    amp, w = rng.uniform(0.05, 0.25, robot.nv), rng.uniform(0.5, 2.0, robot.nv)
-    q = np.array(robot.spec.home) + amp * np.sin(w * t[:, None])
-    qd = amp * w * np.cos(w * t[:, None])
-    qdd = -amp * w**2 * np.sin(w * t[:, None])
+    q, qd, qdd = sine_motion(robot, t, rng, (0.05, 0.25))
     f = np.where(t[:, None] >= contact_at, CONTACT, 0.0)
     jv = robot.tip_jacobian(q)[:, :3]
     tau = robot.inverse_dynamics(q, qd, qdd) - np.einsum("nij,ni->nj", jv, f) + rng.normal(0, 0.02, q.shape)
