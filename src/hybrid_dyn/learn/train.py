@@ -635,56 +635,54 @@ def _next_stop(config: TrainConfig, epoch: int, n_rounds: int, bad_epochs: int, 
     last = epoch + 1 == n_rounds
     if config.budgeted:  # a budget is spent, never cut short: its schedule assumes every step
         return "budget" if last else None
-    reason = _stop_reason(config, bad_epochs, lr_bad_epochs, lr)
-    return reason or ("epoch-cap" if last else None)
-
-
-def _stop_reason(config: TrainConfig, bad_epochs: int, lr_bad_epochs: int, lr: float) -> str | None:
-    """Why an epoch recipe stops after this epoch (None: it goes on). ``epoch-cap``: :func:`_next_stop`."""
     if bad_epochs >= config.patience:
         return "patience"
     if config.lr_schedule == "plateau" and lr <= config.min_lr and lr_bad_epochs >= config.lr_patience:
         return "lr-floor"  # the rate cannot be cut again, and it has plateaued at the floor
-    return None
+    return "epoch-cap" if last else None
 
 
 def _rounds(config: TrainConfig, n: int):
-    """The training plan: (number of rounds, round -> [(batch sample indices, rate or None)]).
+    """The training plan: (number of rounds, steps per round, round -> [(batch sample indices, rate or None)]).
 
     Epoch recipes: a round is an epoch, its batches a permutation of the n training samples
     seeded by (seed, epoch), its rate the optimizer's own (None). Budgeted recipe: a round is
-    ``budget_steps / budget_evals`` steps; global step s takes batch s mod (batches per epoch)
-    of epoch s div (batches per epoch), so batches walk the whole pool and the schedule's rate
-    comes with each step.
+    ``budget_steps / budget_evals`` steps (rounds differ by one step at most); global step s takes
+    batch s mod (batches per epoch) of epoch s div (batches per epoch), so batches walk the whole
+    pool and the schedule's rate comes with each step.
     """
     per_epoch = -(-n // config.batch_size)
 
-    def epoch_batches(epoch, first=0, stop=None):
-        order = np.random.default_rng([config.seed, epoch]).permutation(n)
-        return [np.sort(order[b * config.batch_size:(b + 1) * config.batch_size])
-                for b in range(first, per_epoch if stop is None else stop)]
+    def permutation(epoch):
+        return np.random.default_rng([config.seed, epoch]).permutation(n)
+
+    def batch(order, b):
+        return np.sort(order[b * config.batch_size:(b + 1) * config.batch_size])
 
     if not config.budgeted:
         if config.max_batches_per_epoch:
             per_epoch = min(per_epoch, config.max_batches_per_epoch)
-        return config.max_epochs, lambda r: [(idx, None) for idx in epoch_batches(r, 0, per_epoch)]
+
+        def epoch_round(r):
+            order = permutation(r)
+            return [(batch(order, b), None) for b in range(per_epoch)]
+        return config.max_epochs, per_epoch, epoch_round
     total, n_rounds = config.budget_steps, min(config.budget_evals, config.budget_steps)
 
     def budget_round(r):
-        first, stop = r * total // n_rounds, (r + 1) * total // n_rounds
-        out, cache = [], {}
-        for step in range(first, stop):
-            epoch, b = divmod(step, per_epoch)
-            if epoch not in cache:
-                cache = {epoch: epoch_batches(epoch)}
-            out.append((cache[epoch][b], budget_lr(config, step)))
+        out, epoch, order = [], None, None
+        for step in range(r * total // n_rounds, (r + 1) * total // n_rounds):
+            e, b = divmod(step, per_epoch)
+            if e != epoch:  # a round spans at most a few epochs: each permutation drawn once per round
+                epoch, order = e, permutation(e)
+            out.append((batch(order, b), budget_lr(config, step)))
         return out
 
-    return n_rounds, budget_round
+    return n_rounds, -(-total // n_rounds), budget_round
 
 
 def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint, widths, prior, device, sensor_tare):
-    n_rounds, round_batches = _rounds(config, len(ws_train))
+    n_rounds, steps_per_round, round_batches = _rounds(config, len(ws_train))
     history, bad_epochs, lr_bad_epochs, start_epoch, seconds = [], 0, 0, 0, 0.0
     best_epoch, stopped_by = -1, None
     clip = config.grad_clip if _is_recurrent(preset) else None
@@ -706,7 +704,6 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
         start_epoch, seconds = info["epoch"] + 1, info["train_seconds"]
         lr_bad_epochs, best_epoch, stopped_by = info["lr_bad_epochs"], info["best_epoch"], info["stopped_by"]
     stopped = stopped_by is not None
-    steps_per_round = len(round_batches(0))  # the progress bar's unit; rounds differ by one step at most
     bar = tqdm(total=n_rounds * steps_per_round, initial=start_epoch * steps_per_round, disable=not config.progress,
                desc=f"{preset.name}", unit="batch", dynamic_ncols=True)
     module.train()
