@@ -80,11 +80,16 @@ class DeepLagrangianNetwork(nn.Module):
 
     # ---- batched maps of q (B, nv); samples are independent, so the gradient of
     # a batch sum is the per-sample gradient (far faster than vmap over grad).
+    def _factor(self, out: torch.Tensor) -> torch.Tensor:
+        """L (B, nv, nv) from the L-network's output: softplus-positive diagonal, free strictly lower part."""
+        return (torch.cat([nn.functional.softplus(out[:, :self.nv]), out[:, self.nv:]], 1)
+                @ self.place).reshape(-1, self.nv, self.nv)
+
+    def _mass_from_factor(self, L: torch.Tensor) -> torch.Tensor:
+        return L @ L.transpose(1, 2) + self.eps * torch.eye(self.nv, dtype=L.dtype, device=L.device)
+
     def _mass(self, q: torch.Tensor) -> torch.Tensor:
-        out = self.l_net((q - self.q_mean) / self.q_std)
-        diag = nn.functional.softplus(out[:, : self.nv])
-        L = (torch.cat([diag, out[:, self.nv:]], 1) @ self.place).reshape(-1, self.nv, self.nv)
-        return L @ L.transpose(1, 2) + self.eps * torch.eye(self.nv, dtype=q.dtype, device=q.device)
+        return self._mass_from_factor(self._factor(self.l_net((q - self.q_mean) / self.q_std)))
 
     def _potential(self, q: torch.Tensor) -> torch.Tensor:
         return self.torque_scale * self.v_net((q - self.q_mean) / self.q_std)[:, 0]
@@ -120,7 +125,7 @@ class DeepLagrangianNetwork(nn.Module):
     def terms(self, q, qd, qdd) -> dict:
         """tau [Nm] (B, nv), H [kg m^2] (B, nv, nv), c and g [Nm] (B, nv), all from the Lagrangian."""
         L, c, g = self._factor_coriolis_gravity(q, qd)
-        H = L @ L.transpose(1, 2) + self.eps * torch.eye(self.nv, dtype=q.dtype, device=q.device)
+        H = self._mass_from_factor(L)
         return {"tau": (H @ qdd.unsqueeze(2)).squeeze(2) + c + g, "H": H, "c": c, "g": g}
 
     def _factor_coriolis_gravity(self, q, qd):
@@ -136,7 +141,7 @@ class DeepLagrangianNetwork(nn.Module):
         nv = self.nv
         out, out_dot, slopes = self._forward_with_tangent(self.l_net, q, qd)
         s = torch.cat([torch.sigmoid(out[:, :nv]), torch.ones_like(out[:, nv:])], 1)  # d entries / d out
-        L = (torch.cat([nn.functional.softplus(out[:, :nv]), out[:, nv:]], 1) @ self.place).reshape(-1, nv, nv)
+        L = self._factor(out)
         L_dot = ((s * out_dot) @ self.place).reshape(-1, nv, nv)
         u = _t_apply(L, qd)  # L^T qd
         H_dot_qd = _apply(L_dot, u) + _apply(L, _t_apply(L_dot, qd))
