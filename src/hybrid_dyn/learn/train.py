@@ -238,8 +238,8 @@ STOP_REASONS = ("patience", "lr-floor", "epoch-cap", "budget")
 # residual net counts as DeLaN), from the budget study (benchmarks/budget_study.py, docs/models.md) on
 # seed-sim (80 instances) and paper-noext (40): the MLP's knee (the smallest budget whose doubling gains
 # under 3 % on validation) on both; the others had knees on seed-sim (LSTM 2000, DeLaN 4000) but still
-# gained 8-25 % per doubling on paper-noext, so they are set where the cost allows (conv and LSTM about
-# 3 min a row on a loaded core, DeLaN 6 min) and are known not to have converged there.
+# gained 8-25 % per doubling on paper-noext, so they are set where the cost allows (conv 3-4 min a row,
+# LSTM 4-7, DeLaN 6 on a loaded core) and are known not to have converged there.
 BUDGET_STEPS = {"mlp": 8000, "conv": 16000, "lstm": 4000, "delan": 16000}
 
 
