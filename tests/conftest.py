@@ -1,8 +1,14 @@
-"""Shared fixtures: robots and their DART twins, built once per session."""
+"""Shared fixtures: robots and their DART twins, built once per session.
+
+Helpers that build data (random states, motions, logs) are in ``tests/helpers`` (``import helpers``).
+"""
 import numpy as np
 import pytest
 
 import hybrid_dyn as hd
+from hybrid_dyn.description import available_robots
+
+from helpers.motion import simulate_with_tip_force
 
 
 @pytest.fixture(scope="session")
@@ -15,12 +21,24 @@ def ur5():
     return hd.load_robot("ur5")
 
 
-def random_states(robot, n, seed=0, margin=0.05):
-    """n random (q, qd, qdd) inside the joint limits (wide-limit joints clipped to +-pi)."""
-    rng = np.random.default_rng(seed)
-    lo = np.maximum(robot.q_lower, -np.pi) + margin
-    hi = np.minimum(robot.q_upper, np.pi) - margin
-    q = rng.uniform(lo, hi, (n, robot.nv))
-    qd = rng.normal(0.0, 1.0, (n, robot.nv))
-    qdd = rng.normal(0.0, 3.0, (n, robot.nv))
-    return q, qd, qdd
+@pytest.fixture(scope="session", params=available_robots())
+def described_robot(request):
+    """Every robot declared in ``robots/`` with a full description (URDF, frames), one at a time: a robot
+    is checked against DART, and by every test that takes this fixture, by being declared there."""
+    return hd.load_robot(request.param)
+
+
+@pytest.fixture(scope="module")
+def moving_arm(panda):
+    """A moving arm with a constant tip force, integrated by RK45 on ABA, sampled at 1 kHz;
+    the ground wrench it needs (no noise) and the true acceleration, for the observer's inputs."""
+    force = np.array([6.0, -4.0, 9.0])
+    t, q, qd, tau = simulate_with_tip_force(panda, force, duration=0.3, dt=1e-3)
+    qdd = np.gradient(qd, t, axis=0)  # only to build the sensor reading: the observer never sees it
+    import pinocchio as pin
+
+    data = panda.model.createData()
+    qdd = np.stack([pin.aba(panda.model, data, q[i], qd[i], tau[i] + panda.tip_jacobian(q[i])[:3].T @ force)
+                    for i in range(len(t))])
+    wrench = panda.base_wrench(q, qd, qdd, tip_force=np.tile(force, (len(t), 1)))
+    return t, q, qd, wrench, force

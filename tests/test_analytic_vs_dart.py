@@ -10,7 +10,7 @@ import hybrid_dyn as hd
 from hybrid_dyn.analytic.tip_force import SINGULAR_REGION, tip_force_from_base_wrench, tip_force_from_torques
 from hybrid_dyn.sim.plant import DartPlant
 
-from conftest import random_states
+from helpers.states import random_states
 
 N_STATES = 200
 

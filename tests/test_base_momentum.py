@@ -1,13 +1,11 @@
 """Base momentum observer (analytic/base_momentum.py) against DART and an independently integrated plant."""
 import numpy as np
-import pytest
 
 from hybrid_dyn.analytic.base_momentum import BaseMomentumObserver, wrench_to_tip_force
 from hybrid_dyn.analytic.tip_force import SINGULAR_REGION, force_from_external_wrench, tip_force_from_base_wrench
 from hybrid_dyn.sim.plant import DartPlant
 
-from conftest import random_states
-from test_momentum_observer import simulate_with_tip_force
+from helpers.states import random_states
 
 
 def test_momentum_law_equals_the_base_wrench_method_on_dart(panda):
@@ -43,22 +41,6 @@ def test_moment_weighted_force_matches_the_equal_weight_least_squares():
     # A pure tool-point force is recovered exactly at any weight.
     f = rng.normal(size=(20, 3))
     np.testing.assert_allclose(wrench_to_tip_force(p, np.hstack([f, np.cross(p, f)]), 7.0), f, atol=1e-12)
-
-
-@pytest.fixture(scope="module")
-def moving_arm(panda):
-    """A moving arm with a constant tip force, integrated by RK45 on ABA, sampled at 1 kHz;
-    the ground wrench it needs (no noise) and the true acceleration, for the observer's inputs."""
-    force = np.array([6.0, -4.0, 9.0])
-    t, q, qd, tau = simulate_with_tip_force(panda, force, duration=0.3, dt=1e-3)
-    qdd = np.gradient(qd, t, axis=0)  # only to build the sensor reading: the observer never sees it
-    import pinocchio as pin
-
-    data = panda.model.createData()
-    qdd = np.stack([pin.aba(panda.model, data, q[i], qd[i], tau[i] + panda.tip_jacobian(q[i])[:3].T @ force)
-                    for i in range(len(t))])
-    wrench = panda.base_wrench(q, qd, qdd, tip_force=np.tile(force, (len(t), 1)))
-    return t, q, qd, wrench, force
 
 
 def test_observer_converges_to_the_force_without_acceleration(panda, moving_arm):

@@ -10,7 +10,6 @@ from __future__ import annotations
 import csv
 import json
 import shutil
-from pathlib import Path
 
 import h5py
 import numpy as np
@@ -20,38 +19,11 @@ from hybrid_dyn.analytic.robot import load_robot
 from hybrid_dyn.cli import main as cli_main
 from hybrid_dyn.data import load_dataset
 
-NV = 7
-HOME = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785])
-# A few rows of each kind, to keep the test seconds: analytic (one runs, one needs a base sensor), a tip-force
-# net (no tip force in a log), a seed net (trains one tiny epoch) and a row identified on the log itself.
-ROWS = ["rnea", "rnea-bw", "torques-pinv", "seed-tip-1", "seed-tau-mlp", "identified-ols"]
+from helpers import REPO
+from helpers.bench import tiny_profile
+from helpers.logs import write_log
+
 TINY_TRAIN = ["--workers", "1"]
-
-
-def write_log(folder: Path, n: int = 400, hz: float = 100.0) -> Path:
-    """A 4 s log of slow sines about the Panda's home pose and torques that are any numbers, as a CSV."""
-    t = np.arange(n) / hz
-    w = np.linspace(1.0, 2.5, NV)
-    q = HOME + 0.3 * np.sin(w * t[:, None])
-    qd = 0.3 * w * np.cos(w * t[:, None])
-    tau = np.random.default_rng(0).normal(0, 5, (n, NV))
-    header = ",".join(["t"] + [f"{k}{j}" for k in ("q", "qd", "tau") for j in range(1, NV + 1)])
-    folder.mkdir(parents=True, exist_ok=True)
-    np.savetxt(folder / "log.csv", np.column_stack([t, q, qd, tau]), delimiter=",", header=header, comments="",
-               fmt="%.17g")
-    cols = lambda k: "[" + ", ".join(f'"{k}{j}"' for j in range(1, NV + 1)) + "]"  # noqa: E731
-    spec = folder / "spec.toml"
-    spec.write_text(f'name = "my-panda"\nrobot = "panda"\ntool = "none"\n[source]\nfiles = ["log.csv"]\n'
-                    f'[time]\ncolumn = "t"\n[columns]\nq = {cols("q")}\nqd = {cols("qd")}\ntau_m = {cols("tau")}\n'
-                    '[trajectories]\nfrom = "blocks"\nn_blocks = 10\n[split]\nseed = 0\n')
-    return spec
-
-
-def tiny_profile(data, **kw):
-    from hybrid_dyn.bench.profiles import profile_for_data
-
-    return profile_for_data(data, families=(), rows=tuple(ROWS), workers=1,
-                            train=dict(budget_steps=2, budget_evals=1, batch_size=64, progress=False), **kw)
 
 
 @pytest.fixture(scope="module")
@@ -205,7 +177,7 @@ def test_acceptance_floors_are_a_benchmark_of_their_own(tmp_path, capsys):
         row("real-panda", "rnea", "analytic", 1.6, 1.6),
         row("real-panda", "identified-consistent", "identified", 0.32, 0.32),  # 0.2 <= 0.4
         row("real-panda", "residual-rnea-identified", "identified", 0.288, 0.288)])  # 0.9 <= 1.0
-    spec = importlib.util.spec_from_file_location("acceptance", Path(__file__).parents[1] / "benchmarks" / "acceptance.py")
+    spec = importlib.util.spec_from_file_location("acceptance", REPO / "benchmarks" / "acceptance.py")
     acceptance = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(acceptance)
     assert acceptance.main(["--report", str(tmp_path)]) == 1  # one floor is not met
@@ -266,8 +238,7 @@ def test_the_data_control_divides_each_learned_row_by_its_own_reports_physics(tm
             "paper-noext": {"n_instances": 10 if name == "small" else 40, "trajectories": [5, 10]}}}}))
         write_results(tmp_path / name / "results.csv", [row("rnea", "analytic", rnea), row("rnea-bw", "analytic", 9.0),
                                                          row("seed-tau-mlp", "seed-net", mlp, 12)])
-    spec = importlib.util.spec_from_file_location("data_control",
-                                                  Path(__file__).parents[1] / "benchmarks" / "data_control.py")
+    spec = importlib.util.spec_from_file_location("data_control", REPO / "benchmarks" / "data_control.py")
     control = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(control)
     assert control.main(["--small", str(tmp_path / "small"), "--large", str(tmp_path / "large")]) == 0

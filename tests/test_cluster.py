@@ -23,12 +23,10 @@ from hybrid_dyn.sim.executors import ProcessExecutor, RayExecutor, SerialExecuto
 from hybrid_dyn.sim.generator import generate_dataset
 from hybrid_dyn.sim.scenarios import PulseConfig, scenario_config
 
+from helpers.files import dir_bytes
+
 TINY = dict(n_instances=3, trajectories=(1, 1), standstill=0.2, speed_scale=(0.5, 0.6),
             pulses=PulseConfig(gap=(0.5, 1.0), sigma=(0.2, 0.4)))
-
-
-def dir_bytes(path: Path) -> dict:
-    return {str(p.relative_to(path)): p.read_bytes() for p in sorted(Path(path).rglob("*")) if p.is_file()}
 
 
 @pytest.fixture(scope="module")

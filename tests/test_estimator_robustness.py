@@ -11,17 +11,11 @@ import pytest
 
 from hybrid_dyn.estimator import EstimatorInputError, EstimatorStatus, TipForceEstimator
 
-HZ = 1000.0
+from helpers.motion import CONTACT_AT, HZ, contact_stream, sine_motion
+
 BOUND = 500.0  # EstimatorConfig.max_tip_force's default [N]
 NEEDS = {"base_wrench": ("q", "qd", "base_wrench"), "torques": ("q", "qd", "tau_J"), "momentum": ("q", "qd", "tau_J"),
          "base_momentum": ("q", "qd", "base_wrench"), "kalman_fusion": ("q", "qd", "base_wrench", "tau_J")}
-
-
-def sine_motion(robot, t, rng, amplitude):
-    """Per-joint sines about home, amplitude drawn from ``amplitude`` [rad], 0.5-2 rad/s: exact q, qd, qdd."""
-    amp, w = rng.uniform(*amplitude, robot.nv), rng.uniform(0.5, 2.0, robot.nv)
-    q = np.array(robot.spec.home) + amp * np.sin(w * t[:, None])
-    return q, amp * w * np.cos(w * t[:, None]), -amp * w**2 * np.sin(w * t[:, None])
 
 
 def stream(robot, n, hz=HZ, seed=0):
@@ -272,25 +266,6 @@ def test_any_numeric_layout_gives_what_float64_arrays_give(panda):
 OK_TOLERANCE = 1.0  # N: no "ok" call may err more, once a contact has lasted the method's settling time (the
 # issue's check is 2 N; the worst seen here is 0.65 N, the noise the rule allows on these streams)
 OK_RMS = 0.3  # N: nor may the "ok" calls' RMS error (0.22 N at most here)
-CONTACT = np.array([0.5, -0.6, -0.8]) / np.linalg.norm([0.5, -0.6, -0.8]) * 15.0  # N, from CONTACT_AT
-CONTACT_AT = 1.0  # s
-
-
-def contact_stream(robot, n, hz=HZ, seed=0, contact_at=CONTACT_AT):
-    """Rigid-body samples of a smooth motion with sensor noise (base 0.05 N, tau_J 0.02 Nm, qd 2e-4 rad/s),
-    a base-sensor offset, and a constant 15 N contact from CONTACT_AT: (samples with true t, true forces)."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(n) / hz
-    q, qd, qdd = sine_motion(robot, t, rng, (0.05, 0.25))
-    f = np.where(t[:, None] >= contact_at, CONTACT, 0.0)
-    jv = robot.tip_jacobian(q)[:, :3]
-    tau = robot.inverse_dynamics(q, qd, qdd) - np.einsum("nij,ni->nj", jv, f) + rng.normal(0, 0.02, q.shape)
-    wrench = robot.base_wrench(q, qd, qdd, tip_force=f) + rng.uniform(-1, 1, 6) * np.r_[np.full(3, 2.0), np.full(3, 0.1)]
-    wrench += rng.normal(0, 0.05, wrench.shape) * np.r_[np.ones(3), np.full(3, 0.05)]
-    q_m, qd_m = q + rng.normal(0, 1e-5, q.shape), qd + rng.normal(0, 2e-4, qd.shape)
-    return [dict(q=q_m[k], qd=qd_m[k], base_wrench=wrench[k], tau_J=tau[k], t=t[k]) for k in range(n)], f
-
-
 def settle_calls(est) -> int:
     """The method's longest settling time [calls], over the sensor sets it may run on."""
     stream = est._stream

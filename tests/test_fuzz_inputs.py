@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from hybrid_dyn.errors import HybridDynError
-from timelimit import TimeLimitExceeded, time_limit
+from helpers.timelimit import TimeLimitExceeded, time_limit
 
 N_SPEC_CASES = 300
 N_URDF_CASES = 300

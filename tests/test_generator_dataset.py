@@ -15,17 +15,17 @@ from hybrid_dyn.sim.executors import SerialExecutor
 from hybrid_dyn.sim.generator import generate_dataset
 from hybrid_dyn.sim.scenarios import GeneratorConfig, PulseConfig, scenario_config
 
+from helpers import REPO
+from helpers.files import dir_bytes
+
+HELPERS_ROOT = REPO / "tests"
+
 TINY = dict(n_instances=4, trajectories=(1, 2), standstill=0.2, speed_scale=(0.5, 0.6),
             pulses=PulseConfig(gap=(0.5, 1.0), sigma=(0.2, 0.4)))
 
 
 def tiny_config(seed=0, **kw) -> GeneratorConfig:
     return scenario_config("paper-ext", "quick", seed=seed, **{**TINY, **kw})
-
-
-def dir_bytes(path: Path) -> dict:
-    """Every file of a dataset directory: relative name -> bytes."""
-    return {str(p.relative_to(path)): p.read_bytes() for p in sorted(path.rglob("*")) if p.is_file()}
 
 
 @pytest.fixture(scope="module")
@@ -126,11 +126,11 @@ def test_resume_after_killing_the_process(reference_dataset, tmp_path):
     """SIGKILL a real generator process mid-run, restart, compare with an uninterrupted run."""
     out = tmp_path / "killed"
     script = (
-        "import sys; sys.path.insert(0, %r)\n"
+        "import sys; sys.path[:0] = [%r, %r]\n"  # this file's folder and tests/ (the helpers it imports)
         "from test_generator_dataset import tiny_config\n"
         "from hybrid_dyn.sim.generator import generate_dataset\n"
         "generate_dataset(tiny_config(), %r, workers=1, progress=False)\n"
-    ) % (str(Path(__file__).parent), str(out))
+    ) % (str(Path(__file__).parent), str(HELPERS_ROOT), str(out))
     proc = subprocess.Popen([sys.executable, "-c", script], stderr=subprocess.DEVNULL)
     deadline = time.time() + 120
     while time.time() < deadline and not (out / "instances" / "inst_00000.json").exists():

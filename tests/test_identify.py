@@ -19,7 +19,7 @@ from hybrid_dyn.identify.parameters import (dynamic_to_log_cholesky, from_urdf_f
 from hybrid_dyn.identify.regressor import nominal_body_parameters
 from hybrid_dyn.sim.plant import DartPlant
 
-from conftest import random_states
+from helpers.states import random_states
 
 MISMATCH_PAYLOAD = (0.5, (0.0, 0.0, 0.05))
 

@@ -14,7 +14,7 @@ import hybrid_dyn as hd
 from hybrid_dyn.description import RobotDescriptionError, read_param_file, resolve_robot, robots_dir
 from hybrid_dyn.errors import HybridDynError
 from hybrid_dyn.input_checks import inertial_problems, split_problems, urdf_tree_problems
-from timelimit import time_limit
+from helpers.timelimit import time_limit
 
 LINK = '<link name="{0}"><inertial><mass value="1"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/>' \
        '</inertial></link>'
@@ -164,7 +164,7 @@ def test_split_fractions_that_leave_a_split_empty_are_refused_by_import_and_benc
     run.json); n_blocks = 2 left val and test empty (import only warns: two trajectories cannot make three
     splits), and every bench row then failed with the same numpy message."""
     from hybrid_dyn.cli import main as cli_main
-    from test_bench_data import write_log
+    from helpers.logs import write_log
 
     spec = write_log(tmp_path / "logs", n=200)
     text = spec.read_text()
@@ -189,7 +189,7 @@ def test_split_fractions_that_leave_a_split_empty_are_refused_by_import_and_benc
 def panda_log(tmp_path_factory):
     """A tiny 7-joint Panda log, imported (10 blocks, split 6/2/2)."""
     from hybrid_dyn.cli import main as cli_main
-    from test_bench_data import write_log
+    from helpers.logs import write_log
 
     tmp = tmp_path_factory.mktemp("panda-log")
     spec = write_log(tmp / "logs", n=200)
@@ -239,7 +239,7 @@ def test_an_import_warning_reaches_the_bench_report(tmp_path, capsys):
     """Finding 7: the import's warning that the time column fits 'ms' never reached the bench report,
     which then showed RNEA at 0.552 Nm against 4e-6 with the right unit."""
     from hybrid_dyn.cli import main as cli_main
-    from test_bench_data import write_log
+    from helpers.logs import write_log
 
     spec = write_log(tmp_path / "logs", n=200)
     log = tmp_path / "logs" / "log.csv"
@@ -268,7 +268,7 @@ def test_a_bench_waits_for_a_model_another_bench_is_training_in_a_shared_runs_fo
     from hybrid_dyn.bench.runner import run_bench, work_dir
     from hybrid_dyn.data import load_dataset
     from hybrid_dyn.outputs import output_lock
-    from test_bench_data import tiny_profile
+    from helpers.bench import tiny_profile
 
     profile = tiny_profile([panda_log])
     profile = type(profile)(**{**profile.__dict__, "rows": ("seed-tau-mlp",)})

@@ -6,8 +6,6 @@ from scipy.linalg import solve_discrete_are, solve_discrete_lyapunov
 
 from hybrid_dyn.analytic.kalman import FusionNoise, KalmanTipForce, SteadyStateKalman, momentum_filter
 
-from test_base_momentum import moving_arm  # noqa: F401  (the fixture: an RK45-integrated moving arm)
-
 DT = 0.01
 
 

@@ -5,7 +5,7 @@ import pytest
 
 import hybrid_dyn as hd
 
-from conftest import random_states
+from helpers.states import random_states
 
 
 @pytest.mark.parametrize("name", ["panda", "ur5", "xarm7"])

@@ -17,42 +17,10 @@ from hybrid_dyn.data.importer import (
     LogSpecError, MissingColumnError, StrictImportError, TooManyRowsDroppedError, read_spec,
 )
 
-REPO = Path(__file__).resolve().parents[1]
+from helpers import REPO
+from helpers.logs import CSV_COLUMNS, FS, Q, TAU, sine_log, write_csv
+
 SHARED = Path(os.environ.get("HYBRID_DYN_REAL_LOGS", REPO / "benchmarks" / "real" / "logs"))
-NV = 7
-FS = 100.0
-Q = [f"q{j}" for j in range(1, NV + 1)]
-QD = [f"qd{j}" for j in range(1, NV + 1)]
-TAU = [f"tau{j}" for j in range(1, NV + 1)]
-
-
-def sine_log(n=1000, fs=FS, seed=0):
-    """A 7-joint sine log and its analytic derivatives: q = c + A sin(w t + p)."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(n) / fs
-    c, a = rng.uniform(-1, 1, NV), rng.uniform(0.3, 1.0, NV)
-    w, p = 2 * np.pi * rng.uniform(0.2, 0.5, NV), rng.uniform(0, 2 * np.pi, NV)
-    arg = w * t[:, None] + p
-    q, qd, qdd = c + a * np.sin(arg), a * w * np.cos(arg), -a * w**2 * np.sin(arg)
-    tau = 5.0 * np.sin(arg) + 0.1 * qd  # any torque: the importer passes it through
-    return {"t": t, "q": q, "qd": qd, "qdd": qdd, "tau": tau, "peak_qd": a * w, "peak_qdd": a * w**2}
-
-
-def write_csv(path, log, with_qd=True, rows=None):
-    names = ["t"] + Q + (QD if with_qd else []) + TAU
-    cols = [log["t"][:, None], log["q"]] + ([log["qd"]] if with_qd else []) + [log["tau"]]
-    data = np.concatenate(cols, axis=1)
-    lines = [",".join(names)] + [",".join(repr(float(v)) for v in r) for r in data]
-    if rows:  # row index -> replacement line text
-        for i, text in rows.items():
-            lines[1 + i] = text
-    Path(path).write_text("\n".join(lines) + "\n")
-    return path
-
-
-CSV_COLUMNS = {"q": Q, "qd": QD, "tau_m": TAU}
-
-
 def load_all(path):
     """Every instance of every split, concatenated in time order: dict of arrays."""
     ds = load_dataset(path)

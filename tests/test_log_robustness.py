@@ -9,7 +9,7 @@ import pytest
 from hybrid_dyn.cli import main as cli_main
 from hybrid_dyn.data import import_log, load_dataset
 from hybrid_dyn.data.log_readers import LogReadError
-from test_log_import import sine_log
+from helpers.logs import sine_log
 
 
 def test_a_truncated_matlab_v73_file_is_one_line(tmp_path, capsys):
@@ -70,7 +70,7 @@ def test_degrees_declared_on_a_radian_panda_log_are_refused(tmp_path, capsys):
     """Finding 7: angle = "deg" on a radian log imported (q4 = -0.04 rad lies outside the Panda's
     [-3.07, -0.07], but import checked only a symmetric bound), and the bench printed hundreds of
     JointLimitWarning lines."""
-    from test_bench_data import write_log
+    from helpers.logs import write_log
 
     spec = write_log(tmp_path / "logs", n=200)
     spec.write_text(spec.read_text() + '[units]\nangle = "deg"\n')
@@ -86,7 +86,7 @@ def test_degrees_declared_on_a_radian_panda_log_are_refused(tmp_path, capsys):
 def test_the_panda_joint_bound_is_asymmetric(tmp_path):
     """Joint 4 of the Panda lies in [-3.07, -0.07] rad: +1.0 rad is out of range (the symmetric bound
     +-3.27 let it through), -1.0 is not."""
-    from test_bench_data import HOME, write_log
+    from helpers.logs import HOME, write_log
 
     spec = write_log(tmp_path / "logs", n=400)
     text = (tmp_path / "logs" / "log.csv").read_text().splitlines()

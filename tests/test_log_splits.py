@@ -12,7 +12,7 @@ from hybrid_dyn.data import import_log, load_dataset
 from hybrid_dyn.data.importer import LogSpecError, read_spec
 from hybrid_dyn.data.splits import SplitSpecError
 
-from test_log_import import CSV_COLUMNS, sine_log, write_csv
+from helpers.logs import CSV_COLUMNS, sine_log, write_csv
 
 
 def _time_order_violations(path) -> list[str]:

@@ -14,7 +14,7 @@ from hybrid_dyn.analytic.methods import REGISTRY, Method, MethodStream, register
 from hybrid_dyn.estimator import EstimatorStatus, TipForceEstimator
 from hybrid_dyn.sim.sensors import causal_acceleration
 
-from test_estimator_robustness import contact_stream
+from helpers.motion import contact_stream
 
 HZ = 1000.0
 

@@ -6,37 +6,10 @@ and tau sampled at 1 kHz. Theory: r' = K (tau_ext - r), so after 5/K seconds the
 error is e^-5 = 0.7 % of F; we require under 1 %.
 """
 import numpy as np
-import pinocchio as pin
-from scipy.integrate import solve_ivp
 
 from hybrid_dyn.analytic.momentum_observer import MomentumObserver
 
-
-def simulate_with_tip_force(robot, force, duration, dt):
-    model, data = robot.model, robot.model.createData()
-    q0 = np.array(robot.spec.home)
-    fid = robot.tool_frame_id
-
-    def torque(t, q, qd):
-        # A PD-stabilised arm that compensates gravity and the (known) load, plus a
-        # smooth excitation: it moves by several hundredths of a radian at up to
-        # 0.5 rad/s, so C^T qd matters, while tau_ext = J_v^T F changes slowly:
-        # the observer's lag error, about |d tau_ext/dt| / K, stays well under 1 %.
-        jv = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL_WORLD_ALIGNED)[:3]
-        pd = 20.0 * (q0 - q) - 3.0 * qd
-        return pin.computeGeneralizedGravity(model, data, q) - jv.T @ force + pd + 2.0 * np.sin(2 * np.pi * 1.3 * t + np.arange(robot.nv))
-
-    def rhs(t, x):
-        q, qd = x[: robot.nv], x[robot.nv:]
-        jv = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL_WORLD_ALIGNED)[:3]
-        qdd = pin.aba(model, data, q, qd, torque(t, q, qd) + jv.T @ force)
-        return np.concatenate([qd, qdd])
-
-    t = np.arange(0.0, duration, dt)
-    sol = solve_ivp(rhs, (0.0, t[-1]), np.concatenate([q0, np.zeros(robot.nv)]), t_eval=t, rtol=1e-10, atol=1e-12)
-    q, qd = sol.y[: robot.nv].T, sol.y[robot.nv:].T
-    tau = np.stack([torque(ti, qi, qdi) for ti, qi, qdi in zip(t, q, qd)])
-    return t, q, qd, tau
+from helpers.motion import simulate_with_tip_force
 
 
 def test_observer_converges_to_a_constant_tip_force(panda):

@@ -18,9 +18,10 @@ from hybrid_dyn.cli import main as cli_main
 from hybrid_dyn.data import import_log, load_dataset
 from hybrid_dyn.data.dataset import DatasetError
 from hybrid_dyn.errors import OutputPathError, UsageError
-from hybrid_dyn.sim.executors import SerialExecutor
 from hybrid_dyn.sim.generator import generate_dataset
 from hybrid_dyn.sim.scenarios import PulseConfig, scenario_config
+
+from helpers.files import generate_in_child
 
 TINY = dict(n_instances=2, trajectories=(1, 1), standstill=0.2, speed_scale=(0.5, 0.6),
             pulses=PulseConfig(gap=(0.5, 1.0), sigma=(0.2, 0.4)))
@@ -49,31 +50,11 @@ def quiet(_msg):
 
 
 # ---------------------------------------------------------------- generate: concurrency
-class PausingExecutor:
-    """Serial executor that signals it is inside the run, then waits for the test's go."""
-
-    def __init__(self, started, go):
-        self.started, self.go = started, go
-
-    def map_unordered(self, fn, jobs):
-        self.started.set()
-        assert self.go.wait(120), "the test never said go"
-        yield from SerialExecutor().map_unordered(fn, jobs)
-
-
-def _generate_in_child(out, started, go, result):
-    try:
-        generate_dataset(tiny_config(), out, progress=False, executor=PausingExecutor(started, go), log=quiet)
-        result.put("ok")
-    except BaseException as err:  # report anything to the parent
-        result.put(f"{type(err).__name__}: {err}")
-
-
 def test_second_generate_into_one_folder_is_refused_naming_the_lock(tmp_path):
     out = tmp_path / "ds"
     ctx = mp.get_context("spawn")
     started, go, result = ctx.Event(), ctx.Event(), ctx.Queue()
-    first = ctx.Process(target=_generate_in_child, args=(str(out), started, go, result))
+    first = ctx.Process(target=generate_in_child, args=(tiny_config(), str(out), started, go, result))
     first.start()
     try:
         assert started.wait(120), "the first run never started"
