@@ -14,8 +14,9 @@ import pytest
 from hybrid_dyn.data import load_dataset, read_spec
 from hybrid_dyn.data.real import RealLogMissingError, missing_real_log, real_dataset, real_spec_path
 
+from helpers import REPO
+
 LOG = "panda_gaz_exciting_traj1.csv"
-REPO = Path(__file__).resolve().parents[1]
 
 
 def write_panda_log(folder: Path, n: int = 1200, hz: float = 1000.0) -> dict:

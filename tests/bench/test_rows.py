@@ -3,7 +3,6 @@ the profiles read that declaration; a declaration without what the row reads is 
 import ast
 import csv
 import dataclasses
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,6 +11,8 @@ from hybrid_dyn.bench.catalog import ROWS, select_rows
 from hybrid_dyn.bench.profiles import PROFILES, BenchProfile
 from hybrid_dyn.bench.rows import Predictor, Row, declare
 from hybrid_dyn.errors import UsageError
+
+from helpers import REPO
 
 
 @pytest.fixture
@@ -94,7 +95,7 @@ def test_the_timed_single_call_sees_the_run_in_order_from_its_start():
 
 
 def test_no_import_cycles_in_bench_and_between_dataset_and_store():
-    root = Path(__file__).resolve().parents[1] / "src" / "hybrid_dyn"
+    root = REPO / "src" / "hybrid_dyn"
     for pkg in ("bench", "data"):
         mods = {p.stem for p in (root / pkg).glob("*.py")} - {"__init__"}
         graph = {}
