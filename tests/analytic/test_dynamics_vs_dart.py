@@ -15,10 +15,10 @@ from helpers.states import random_states
 N_STATES = 200
 
 
-@pytest.fixture(scope="module", params=["panda", "ur5", "xarm7"])
-def robot_and_plant(request):
-    robot = hd.load_robot(request.param)
-    return robot, DartPlant(robot)
+@pytest.fixture(scope="module")
+def robot_and_plant(described_robot):
+    """Every robot declared in robots/ (conftest.described_robot) and its DART twin on the same URDF."""
+    return described_robot, DartPlant(described_robot)
 
 
 def test_inverse_dynamics_mass_matrix_base_wrench_match_dart(robot_and_plant):
@@ -42,10 +42,8 @@ def test_single_sample_matches_batch(panda):
     assert panda.base_wrench(q[0], qd[0], qdd[0]).shape == (6,)
 
 
-@pytest.mark.parametrize("name", ["panda", "ur5"])
-def test_tip_force_effect_matches_dart(name):
-    robot = hd.load_robot(name)
-    plant = DartPlant(robot)
+def test_tip_force_effect_matches_dart(robot_and_plant):
+    robot, plant = robot_and_plant
     q, qd, qdd = random_states(robot, N_STATES, seed=2)
     forces = np.random.default_rng(5).normal(0.0, 10.0, (N_STATES, 3))
     tau_model = robot.inverse_dynamics(q, qd, qdd) - np.einsum("nij,ni->nj", robot.tip_jacobian(q)[:, :3], forces)
@@ -56,11 +54,9 @@ def test_tip_force_effect_matches_dart(name):
         np.testing.assert_allclose(W_model[i], plant.base_wrench(), atol=1e-8, rtol=0)
 
 
-@pytest.mark.parametrize("name", ["panda", "ur5"])
-def test_both_baselines_recover_a_dart_tip_force(name):
+def test_both_baselines_recover_a_dart_tip_force(robot_and_plant):
     """Exact data from DART with a known tool-point force: both methods give it back to 1e-6 N."""
-    robot = hd.load_robot(name)
-    plant = DartPlant(robot)
+    robot, plant = robot_and_plant
     q, qd, qdd = random_states(robot, N_STATES, seed=4)
     sigma_min = np.linalg.svd(robot.tip_jacobian(q)[:, :3], compute_uv=False)[:, -1]
     q, qd, qdd = q[sigma_min > SINGULAR_REGION], qd[sigma_min > SINGULAR_REGION], qdd[sigma_min > SINGULAR_REGION]

@@ -1,16 +1,12 @@
 """Finite-difference checks of the tool Jacobian and the tool position."""
 import numpy as np
 import pinocchio as pin
-import pytest
-
-import hybrid_dyn as hd
 
 from helpers.states import random_states
 
 
-@pytest.mark.parametrize("name", ["panda", "ur5", "xarm7"])
-def test_tip_jacobian_matches_central_differences(name):
-    robot = hd.load_robot(name)
+def test_tip_jacobian_matches_central_differences(described_robot):
+    robot = described_robot
     q, _, _ = random_states(robot, 20, seed=11)
     J = robot.tip_jacobian(q)
     assert J.shape == (20, 6, robot.nv)

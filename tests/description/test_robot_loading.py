@@ -16,6 +16,21 @@ def test_shipped_robots_load_with_their_joint_counts():
     assert hd.load_robot("xarm7").nv == 7
 
 
+def test_a_declared_robot_has_its_urdfs_moving_joints_and_a_home_inside_its_limits(described_robot):
+    """Every robot of robots/: nv is the URDF's moving joints less the locked ones (read from the file
+    itself), and the home pose and the motion limits give one value per joint, home inside the limits."""
+    import xml.etree.ElementTree as ET
+
+    robot = described_robot
+    root = ET.parse(robot.spec.urdf_path).getroot()
+    moving = {j.get("name") for j in root.iter("joint") if j.get("type") != "fixed"}
+    assert robot.nv == len(moving - set(robot.spec.locked_joints))
+    assert len(robot.spec.home) == robot.nv
+    assert np.all(robot.q_lower <= robot.spec.home) and np.all(np.array(robot.spec.home) <= robot.q_upper)
+    for limits in (robot.spec.max_velocity, robot.spec.max_acceleration, robot.spec.max_jerk):
+        assert len(limits) in (0, robot.nv) and all(v > 0 for v in limits)
+
+
 def test_panda_mass_matches_the_param_files():
     """Total mass = link 0 + hand + fingers (URDF) + links 1-7 (the JSON), read independently."""
     extra = 0.629769 + 0.73 + 2 * 0.015

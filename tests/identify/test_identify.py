@@ -76,16 +76,25 @@ def test_log_cholesky_gives_consistent_bodies_and_inverts():
 
 
 # -------------------------------------------------------------------- regressor
-@pytest.mark.parametrize("name", ["panda", "ur5"])
-def test_symbolic_regressor_matches_pinocchio(name):
+def test_symbolic_regressor_matches_pinocchio(described_robot):
     from hybrid_dyn.identify.symbolic import regressor_function
 
-    robot = hd.load_robot(name)
+    robot = described_robot
     Yf = regressor_function(robot)
     q, qd, qdd = random_states(robot, 5, seed=3)
     for i in range(5):
         np.testing.assert_allclose(np.array(Yf(q[i], qd[i], qdd[i])), inertial_regressor(robot, q[i], qd[i], qdd[i]),
                                    atol=1e-10)
+
+
+def test_regressor_times_nominal_parameters_is_dart_inverse_dynamics(described_robot):
+    """Every declared robot: its regressor times its URDF's body parameters is DART's inverse dynamics."""
+    plant = DartPlant(described_robot)
+    pi = nominal_body_parameters(described_robot)
+    q, qd, qdd = random_states(described_robot, 5, seed=4)
+    for i in range(5):
+        assert np.abs(inertial_regressor(described_robot, q[i], qd[i], qdd[i]) @ pi
+                      - plant.inverse_dynamics(q[i], qd[i], qdd[i])).max() < 1e-9
 
 
 def test_regressor_times_parameters_is_dart_inverse_dynamics(mismatch_plant):
