@@ -1,4 +1,4 @@
-"""Shared fixtures: robots and their DART twins, built once per session.
+"""Shared fixtures: robots, and data that tests in several folders read, built once per session.
 
 Helpers that build data (random states, motions, logs) are in ``tests/helpers`` (``import helpers``).
 """
@@ -23,3 +23,32 @@ def described_robot(request):
     """Every robot declared in ``robots/`` with a full description (URDF, frames), one at a time: a robot
     is checked against DART, and by every test that takes this fixture, by being declared there."""
     return hd.load_robot(request.param)
+
+
+@pytest.fixture(scope="session")
+def identified_log(panda, tmp_path_factory):
+    """An imported-like dataset (no generator_version, no plant): Gaz friction in tau_m, a small tip force;
+    the model identified on it and its file: (dataset, IdentifiedModel, path)."""
+    from hybrid_dyn.data import load_dataset
+    from hybrid_dyn.data.synthetic import make_synthetic_dataset
+    from hybrid_dyn.identify import identify
+
+    root = tmp_path_factory.mktemp("ident-hybrids")
+    ds = load_dataset(make_synthetic_dataset(root / "d", panda, n_instances=5, n_samples=150, seed=5,
+                                             friction=panda.spec.friction("gaz2019"), contact_free_s=0.6))
+    assert ds.meta.get("generator_version") is None
+    model = identify(ds, "consistent", panda)  # what `hybrid-dyn identify --method consistent` runs
+    return ds, model, model.save(root / "panda_identified.json")
+
+
+@pytest.fixture(scope="session")
+def panda_log(tmp_path_factory):
+    """A tiny 7-joint Panda log, imported (10 blocks, split 6/2/2)."""
+    from hybrid_dyn.cli import main as cli_main
+
+    from helpers.logs import write_log
+
+    tmp = tmp_path_factory.mktemp("panda-log")
+    spec = write_log(tmp / "logs", n=200)
+    assert cli_main(["import", "--spec", str(spec), "--out", str(tmp / "log")]) == 0
+    return tmp / "log"

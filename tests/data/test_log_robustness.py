@@ -9,6 +9,7 @@ import pytest
 from hybrid_dyn.cli import main as cli_main
 from hybrid_dyn.data import import_log, load_dataset
 from hybrid_dyn.data.log_readers import LogReadError
+
 from helpers.logs import sine_log
 
 

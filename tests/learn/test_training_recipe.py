@@ -11,6 +11,7 @@ from hybrid_dyn.data.synthetic import make_synthetic_dataset
 from hybrid_dyn.learn import TrainConfig, train_model
 from hybrid_dyn.learn import train as train_mod
 from hybrid_dyn.learn.presets import get_preset
+
 from helpers.resume import assert_same_weights, killed_then_resumed
 
 QUICK = dict(batch_size=64, progress=False, num_threads=1)

@@ -8,6 +8,8 @@ from hybrid_dyn.bench.catalog import get_row
 from hybrid_dyn.bench.profiles import PROFILES
 from hybrid_dyn.bench.runner import COLUMNS, run_bench
 
+pytestmark = pytest.mark.system
+
 
 @pytest.mark.slow
 def test_tiny_bench_writes_every_row_and_column(tmp_path):

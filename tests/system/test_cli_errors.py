@@ -7,6 +7,8 @@ import pytest
 from hybrid_dyn.cli import main
 from hybrid_dyn.errors import HybridDynError, UsageError
 
+pytestmark = pytest.mark.system
+
 
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory, panda):

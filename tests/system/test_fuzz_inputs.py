@@ -16,7 +16,10 @@ import numpy as np
 import pytest
 
 from hybrid_dyn.errors import HybridDynError
+
 from helpers.timelimit import TimeLimitExceeded, time_limit
+
+pytestmark = pytest.mark.system
 
 N_SPEC_CASES = 300
 N_URDF_CASES = 300
