@@ -31,10 +31,18 @@ def test_report_sets_each_hybrid_against_its_prior_and_says_when_it_kept_it():
             _row("identified-consistent", 0.3), _row("gp-residual-identified", 0.3, prior_kept="all"),
             _row("residual-rnea-identified", 0.27, prior_kept="joints 7"), _row("gp", 6.8)]
     lines = [l for l in hybrid_lines(rows) if l.startswith("- ")]
-    assert len(lines) == 3  # gp has no prior; the priors themselves are not hybrids
-    assert "`residual-rnea` 0.4000 against its prior `rnea` 0.5000 (test RMSE, x0.800); corrected" in lines[0]
-    assert "x1.000); validation kept the prior (no correction)" in lines[1]
-    assert "x0.900); validation kept the prior on joints 7, corrected the rest" in lines[2]
+    # One line per hybrid beside its prior, in results order (gp has no prior; the priors are not hybrids).
+    named = [next(m for m in ("residual-rnea-identified", "gp-residual-identified", "residual-rnea")
+                  if f"`{m}`" in line) for line in lines]
+    assert named == ["residual-rnea", "gp-residual-identified", "residual-rnea-identified"]
+    # Each: its prior, both test RMSEs and their ratio, and what validation kept of the prior.
+    facts = [("`rnea`", "0.4000", "0.5000", "x0.800"), ("`identified-consistent`", "0.3000", "x1.000"),
+             ("`identified-consistent`", "0.2700", "0.3000", "x0.900", "joints 7")]
+    for line, expected in zip(lines, facts):
+        assert all(fact in line for fact in expected), (line, expected)
+    assert "corrected" in lines[0] and "kept" not in lines[0]          # prior_kept none
+    assert "kept the prior" in lines[1] and "corrected" not in lines[1]  # prior_kept all
+    assert "kept the prior" in lines[2] and "corrected" in lines[2]      # prior_kept on some joints
     # A prior that did not run (failed, or not selected): no comparison is claimed.
     assert hybrid_lines([_row("residual-rnea", 0.4), {**_row("rnea", 0.5), "status": "failed"}]) == []
 
