@@ -8,6 +8,21 @@ import hybrid_dyn as hd
 from hybrid_dyn.description import available_robots
 
 
+def pytest_addoption(parser):
+    parser.addoption("--fault-matrix", action="store_true",
+                     help="also run the whole kill-and-resume matrix (tests marked fault_matrix, ~11 min on 2 cores)")
+
+
+def pytest_collection_modifyitems(config, items):
+    """The fault_matrix tests run only with --fault-matrix: deselected otherwise (listed as such)."""
+    if config.getoption("--fault-matrix"):
+        return
+    left_out = [item for item in items if item.get_closest_marker("fault_matrix")]
+    if left_out:
+        config.hook.pytest_deselected(items=left_out)
+        items[:] = [item for item in items if not item.get_closest_marker("fault_matrix")]
+
+
 @pytest.fixture(scope="session")
 def panda():
     return hd.load_robot("panda")

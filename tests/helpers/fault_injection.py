@@ -1,4 +1,8 @@
-"""Kill-and-resume matrix (issue 17): kill `generate` and `train` mid-run, resume, compare the bytes.
+"""Kill-and-resume machinery (issue 17): kill `generate` and `train` mid-run, resume, compare the bytes.
+
+The test is tests/system/test_fault_injection.py; this module holds what it runs, and what the
+killed commands import (``generate_cli`` runs in the child process, which finds it as
+``helpers.fault_injection``).
 
 For every case: an uninterrupted reference run of the command, then the same command killed
 with a signal while work is under way, then the same command again (the resume). A case passes
@@ -21,35 +25,28 @@ The matrix: generate with 1 and 2 workers, and train with one preset of every fa
 net, a conv net, an LSTM, a residual net on physics, DeLaN, tau-mlp-wide with dropout; train has
 no workers option: 1), each under SIGKILL, SIGINT and SIGTERM. The signal goes to the command's
 main process only (kill PID, a scheduler's stop): the command itself must stop its workers.
-Each command runs in its own session, so the orphan count sees exactly its processes.
+Each command runs in its own session, so the orphan count sees exactly its processes, and with
+SIGINT at its default action (a test runner started in the background ignores SIGINT, and an
+ignored signal stays ignored across exec: the command would never see the Ctrl-C).
 
 The commands are the real CLI (`python -m hybrid_dyn.cli ...`). `generate` runs through
 `generate_cli` below, which only shrinks the quick profile to GENERATOR_SIZES so each run takes
-seconds; train uses one tiny dataset made once at the start (the generate reference).
-
-Run:  .venv/bin/python benchmarks/fault_injection.py [--quick] [--out DIR] [--keep]
-Writes DIR/results.json and DIR/results.md (default reports/fault_injection; --quick: a temporary
-folder unless --out is given) and exits 1 if any case fails.
+seconds; train uses one tiny dataset made once (the 1-worker generate reference).
 """
 from __future__ import annotations
 
-import argparse
-import datetime
 import filecmp
 import json
 import os
-import platform
-import shutil
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-BENCH_DIR = Path(__file__).resolve().parent
+REPO = Path(__file__).resolve().parents[2]
+TESTS_DIR = Path(__file__).resolve().parents[1]  # on the child's path: it imports helpers.fault_injection
 
 SIGNALS = ("SIGKILL", "SIGINT", "SIGTERM")
 # One preset per family (hybrid-dyn presets).
@@ -61,8 +58,6 @@ TRAIN_PRESETS = {
     "delan": "DeLaN",
     "tau-mlp-wide": "MLP with dropout",
 }
-QUICK_CASES = [("generate", "SIGKILL", 2, None), ("generate", "SIGINT", 1, None),
-               ("train", "SIGKILL", 1, "tau-mlp-wide"), ("train", "SIGTERM", 1, "seed-tip-5")]
 
 # The quick profile shrunk to six instances of about a second of simulation work each: long enough
 # that a worker is mid-instance when the first instance's record appears (the kill point).
@@ -76,7 +71,7 @@ TIMING_FILES = {"timing.json"}  # wall-clock figures only (docs/models.md, "Whic
 GRACE_S = 3.0  # how long a killed run's workers may take to notice and exit
 EXIT_WAIT_S = 30.0  # how long the main process may take to unwind after SIGINT / SIGTERM
 POLL_S = 0.005
-RUN_TIMEOUT_S = 900.0
+RUN_TIMEOUT_S = 300.0  # a run that takes longer hangs (a reference takes 10-20 s on 2 busy cores)
 
 
 def generate_cli(argv: list[str]) -> int:
@@ -96,7 +91,7 @@ def generate_cli(argv: list[str]) -> int:
 
 
 def generate_argv(out: Path, workers: int) -> list[str]:
-    code = f"import sys; sys.path.insert(0, {str(BENCH_DIR)!r}); import fault_injection as f; " \
+    code = f"import sys; sys.path.insert(0, {str(TESTS_DIR)!r}); from helpers import fault_injection as f; " \
            "sys.exit(f.generate_cli(sys.argv[1:]))"
     return [sys.executable, "-c", code, "generate", "--scenario", "paper-ext", "--profile", "quick",
             "--out", str(out), "--workers", str(workers), "--quiet"]
@@ -154,7 +149,7 @@ def survivors(leader: int, seen: dict[int, int]) -> list[dict]:
 
 
 def end_processes(procs: list[dict]) -> None:
-    """SIGKILL processes this benchmark started (checked by start time), and wait until they are gone."""
+    """SIGKILL processes this test started (checked by start time), and wait until they are gone."""
     for pr in procs:
         info = process_table().get(pr["pid"])
         if info is not None and info["start"] == pr["start"]:
@@ -169,11 +164,16 @@ def end_processes(procs: list[dict]) -> None:
         time.sleep(0.05)
 
 
+def _default_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def launch(argv: list[str], log: Path) -> subprocess.Popen:
-    """Start a command in its own session (its own process group), output to ``log``, no stdin."""
+    """Start a command in its own session (its own process group), output to ``log``, no stdin, SIGINT at
+    its default action whatever the test runner's is."""
     with open(log, "ab") as f:
         return subprocess.Popen(argv, cwd=REPO, stdin=subprocess.DEVNULL, stdout=f, stderr=subprocess.STDOUT,
-                                start_new_session=True)
+                                start_new_session=True, preexec_fn=_default_sigint)
 
 
 def log_tail(log: Path, n: int = 1500) -> str:
@@ -285,9 +285,8 @@ class Case:
         return f"{self.command}-{self.preset or 'w%d' % self.workers}"
 
 
-def matrix(quick: bool) -> list[Case]:
-    if quick:
-        return [Case(*c) for c in QUICK_CASES]
+def matrix() -> list[Case]:
+    """Every case: generate with 1 and 2 workers and train with each of TRAIN_PRESETS, under each signal."""
     cases = [Case("generate", s, w) for w in (1, 2) for s in SIGNALS]
     return cases + [Case("train", s, 1, p) for p in TRAIN_PRESETS for s in SIGNALS]
 
@@ -297,6 +296,7 @@ def case_argv(case: Case, out: Path, data: Path) -> list[str]:
 
 
 def run_case(case: Case, reference: Path, data: Path, work: Path) -> dict:
+    """Kill the case's command mid-run, resume it, and check it against ``reference`` (train reads ``data``)."""
     out, log = work / case.key, work / f"{case.key}.log"
     argv = case_argv(case, out, data)
     t0 = time.perf_counter()
@@ -350,25 +350,14 @@ def run_case(case: Case, reference: Path, data: Path, work: Path) -> dict:
     return res
 
 
-# ------------------------------------------------------------------ report
-COLUMNS = ("case", "signal", "workers", "resumed", "bytes identical", "orphans", "temporaries left", "seconds")
-
-
-def row(r: dict) -> list[str]:
-    return [r["case"], r["signal"], str(r["workers"]), "yes" if r["resumed"] else "NO",
-            "yes" if r["bytes"]["identical"] else "NO", str(r["orphans"]), str(len(r["temporaries"])),
-            f"{r['seconds']:.1f}"]
-
-
-def print_row(cells: list[str], widths=(24, 8, 8, 8, 16, 8, 17, 8)) -> None:
-    print("  ".join(c.ljust(w) for c, w in zip(cells, widths)), flush=True)
-
-
+# ------------------------------------------------------------------ verdicts
 def failure_notes(r: dict) -> list[str]:
+    """What failed in a case's result (``run_case``), one note per check; empty when it passed."""
     notes = []
     k = r["killed"]
     if not k["mid_run"]:
-        notes.append("not killed mid-run (the run finished before the signal)")
+        notes.append(f"not killed mid-run: the run finished before the signal or in spite of it "
+                     f"(signal sent: {k['signal_sent']}, exit status {k['exit_status']})")
     if not k["main_exited"]:
         notes.append(f"the main process did not exit within {EXIT_WAIT_S:g} s of {r['signal']}")
     if not r["resumed"]:
@@ -382,135 +371,3 @@ def failure_notes(r: dict) -> list[str]:
     if r["temporaries"]:
         notes.append(f"temporaries: {r['temporaries']}")
     return notes
-
-
-def git_state() -> dict:
-    def git(*args):
-        res = subprocess.run(["git", *args], cwd=REPO, capture_output=True, text=True)
-        return res.stdout.strip()
-
-    dirty = [line[3:] for line in git("status", "--porcelain", "--untracked-files=no").splitlines()]
-    return {"commit": git("rev-parse", "HEAD"), "modified_tracked_files": dirty}
-
-
-def write_atomic(path: Path, text: str) -> None:
-    from hybrid_dyn.outputs import unique_temp
-
-    tmp = unique_temp(path)
-    tmp.write_text(text)
-    os.replace(tmp, path)
-
-
-def markdown(doc: dict) -> str:
-    lines = ["# Kill-and-resume matrix (issue 17)", "",
-             f"`{doc['command']}` on {doc['date']}, commit `{doc['git']['commit'][:12]}`"
-             + (f" with {len(doc['git']['modified_tracked_files'])} modified tracked file(s) in the work tree"
-                if doc["git"]["modified_tracked_files"] else "") + ".",
-             f"{doc['cpu_count']} cores, load average {doc['load_before']:.2f} before and {doc['load_after']:.2f} "
-             f"after; **wall time {doc['wall_s'] / 60:.1f} min** ({doc['wall_s']:.0f} s) for "
-             f"{len(doc['cases'])} cases and {len(doc['references'])} reference runs.", "",
-             "Each case: an uninterrupted reference run, the same command killed with the signal (sent to its "
-             "main process) once work is under way (generate: the first instance record exists; train: the "
-             "first checkpoint exists), then the same command again. *resumed*: the rerun exited 0 and kept the "
-             "killed run's work (generate: every finished instance file untouched; train: its first new "
-             "checkpoint is the epoch after the killed run's last). *bytes identical*: every file of the "
-             "finished folder equals the reference's (generate: instances, records, generator.json, manifest; "
-             f"train: config.json, model.safetensors, analytic cache; not {', '.join(sorted(TIMING_FILES))}, "
-             f"which holds only the wall-clock time). *orphans*: processes of the killed run alive {GRACE_S:g} s "
-             "after its main process ended (its session, its group, and its descendants seen just before the "
-             "signal). *temporaries left*: `*.partial*` files in or beside the output after the resume. "
-             "*seconds*: killed run, grace period and resume.", "",
-             f"Sizes: generate is the quick profile of paper-ext shrunk to {GENERATOR_SIZES['n_instances']} "
-             f"instances of {GENERATOR_SIZES['trajectories'][0]}-{GENERATOR_SIZES['trajectories'][1]} trajectories; "
-             f"train runs `{' '.join(TRAIN_ARGS)}` on the 1-worker generate reference.", "",
-             "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
-    lines += ["| " + " | ".join(row(r)) + " |" for r in doc["cases"]]
-    failed = [r for r in doc["cases"] if not r["ok"]]
-    lines += ["", f"**{len(doc['cases']) - len(failed)} of {len(doc['cases'])} cases pass**"
-              + (": no case with a difference, an orphan or a temporary left." if not failed else ".")]
-    lines += ["", f"1- and 2-worker generate references identical: {doc['worker_counts_identical']}."
-              if doc["worker_counts_identical"] is not None else ""]
-    if failed:
-        lines += ["", "## Failing cases", ""]
-        for r in failed:
-            lines.append(f"- **{r['case']}, {r['signal']}, {r['workers']} worker(s)**: " + "; ".join(failure_notes(r)))
-    lines += ["", "Per case (killed run's exit status, when it was killed, what was kept):", ""]
-    for r in doc["cases"]:
-        k = r["killed"]
-        lines.append(f"- {r['case']}, {r['signal']}, {r['workers']}: exit {k['exit_status']} after "
-                     f"{k['seconds_to_kill']} s with {k['processes_at_kill']} child process(es); "
-                     f"{r['resume_evidence']}; {len(k['temporaries_after_kill'])} temporary file(s) after the kill")
-    lines += ["", "Reproduce: `.venv/bin/python benchmarks/fault_injection.py` (about the wall time above; "
-              "`--quick` for a 4-case smoke run).", ""]
-    return "\n".join(lines)
-
-
-def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help=f"a {len(QUICK_CASES)}-case subset (smoke run)")
-    ap.add_argument("--out", default=None, help="folder for results.json and results.md "
-                                                "(default reports/fault_injection; --quick: a temporary folder)")
-    ap.add_argument("--keep", action="store_true", help="keep the runs' folders and logs (printed at the end)")
-    args = ap.parse_args()
-    out = Path(args.out) if args.out else (None if args.quick else REPO / "reports" / "fault_injection")
-    if out is None:
-        out = Path(tempfile.mkdtemp(prefix="fault_injection_quick_"))
-    out.mkdir(parents=True, exist_ok=True)
-
-    cases = matrix(args.quick)
-    load_before = os.getloadavg()[0]
-    git = git_state()  # the code under test: the tree as the run starts
-    print(f"kill-and-resume matrix: {len(cases)} cases; load average {load_before:.2f} on {os.cpu_count()} cores",
-          flush=True)
-    t_start = time.perf_counter()
-    work = Path(tempfile.mkdtemp(prefix="fault_injection_"))
-    try:
-        # The uninterrupted references, one per command; the 1-worker dataset is also train's data.
-        references: dict[str, dict] = {}
-        data = work / "ref-generate-w1"
-        needed = {c.reference_key(): c for c in cases}
-        needed.setdefault("generate-w1", Case("generate", "", 1))
-        for key in sorted(needed, key=lambda k: (not k.startswith("generate"), k)):
-            c = needed[key]
-            ref = work / f"ref-{key}"
-            rc, s = run_to_end(case_argv(c, ref, data), work / f"ref-{key}.log")
-            references[key] = {"exit_status": rc, "seconds": round(s, 1)}
-            print(f"reference {key}: exit {rc}, {s:.1f} s", flush=True)
-            if rc != 0:
-                print(log_tail(work / f"ref-{key}.log"), file=sys.stderr)
-                raise SystemExit(f"the reference run {key} failed (exit {rc}); nothing to compare with")
-        both = {"generate-w1", "generate-w2"} <= set(references)
-        same_workers = compare_folders(work / "ref-generate-w1", work / "ref-generate-w2")["identical"] if both else None
-
-        print_row(list(COLUMNS))
-        for c in cases:
-            c.result = run_case(c, work / f"ref-{c.reference_key()}", data, work)
-            print_row(row(c.result))
-            for note in failure_notes(c.result):
-                print(f"    {note}", flush=True)
-    finally:
-        if args.keep:
-            print(f"runs and logs kept in {work}")
-        else:
-            shutil.rmtree(work, ignore_errors=True)
-
-    results = [c.result for c in cases]
-    doc = {"command": "benchmarks/fault_injection.py" + (" --quick" if args.quick else ""),
-           "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
-           "git": git, "python": platform.python_version(), "cpu_count": os.cpu_count(),
-           "load_before": load_before, "load_after": os.getloadavg()[0],
-           "wall_s": round(time.perf_counter() - t_start, 1), "grace_s": GRACE_S,
-           "generator_sizes": {k: list(v) if isinstance(v, tuple) else v for k, v in GENERATOR_SIZES.items()},
-           "train_args": TRAIN_ARGS, "presets": TRAIN_PRESETS, "references": references,
-           "worker_counts_identical": same_workers, "cases": results,
-           "all_ok": all(r["ok"] for r in results)}
-    write_atomic(out / "results.json", json.dumps(doc, indent=1) + "\n")
-    write_atomic(out / "results.md", markdown(doc))
-    failed = sum(not r["ok"] for r in results)
-    print(f"{len(results) - failed}/{len(results)} cases pass; wall time {doc['wall_s']:.0f} s; "
-          f"wrote {out / 'results.json'} and {out / 'results.md'}")
-    return 1 if failed else 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
