@@ -15,7 +15,7 @@ Everything else is built from :data:`REGISTRY`:
   and ``name-val`` (chosen on validation, a labelled reference) (``bench/analytic_rows.py``);
 - the residual priors (``learn/priors.py``) and ``StreamingModel`` (``learn/streaming.py``).
 
-Adding a method is one class and one :func:`register` call (``tests/test_methods.py``
+Adding a method is one class and one :func:`register` call (``tests/analytic/test_methods.py``
 registers a toy one). :func:`run_batch` is what the estimator does over a whole run,
 as a batch: the noise window (tare, measured noise, bandwidth by the rule), then the
 method from the first sample after it.

@@ -7,7 +7,7 @@ copies a trained network's weights into float64 arrays once and evaluates them
 with small numba-compiled kernels (MLP, conv, LSTM): a few microseconds for an
 MLP, ~25-40 us here for residual-base-momentum's 10-step, 32-unit LSTM window,
 whose exp calls and ~75 k multiply-adds are most of it. Results agree with the
-PyTorch path in float64 to 1e-13 (tests/test_fastpath.py).
+PyTorch path in float64 to 1e-13 (tests/learn/test_fastpath.py).
 """
 from __future__ import annotations
 
