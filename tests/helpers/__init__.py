@@ -8,6 +8,8 @@ several folders share:
 - ``logs``: CSV logs and their import specs, written here;
 - ``bench``: a tiny bench profile for imported logs;
 - ``files``: folder snapshots and the generate-in-a-child-process helper;
+- ``messages``: a user-facing message read for what it names (``says``), not word for word;
+- ``fault_injection``: kill a command mid-run, resume it, compare (tests/system/test_fault_injection.py);
 - ``resume``: kill a training run after a checkpoint, then resume it;
 - ``timelimit``: a time limit for one call (a hang fails the test).
 """
