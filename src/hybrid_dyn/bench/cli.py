@@ -26,7 +26,15 @@ def register(sub) -> None:
     p.add_argument("--out", default=None, help="report folder (default: reports/<profile>)")
     p.add_argument("--data-root", default=None, help="dataset cache (default: ./data or $HYBRID_DYN_DATA)")
     p.add_argument("--work-root", default=None, help="trained-model cache (default: ./runs or $HYBRID_DYN_RUNS)")
-    p.add_argument("--workers", type=int, default=None, help="generator processes")
+    p.add_argument("--workers", type=int, default=None, help="local processes generating and training")
+    p.add_argument("--executor", choices=("local", "ray"), default="local",
+                   help="where generation and training jobs run: local processes, or a Ray cluster (docs/cluster.md)")
+    p.add_argument("--ray-address", default=None, help="a running Ray cluster (e.g. auto, ray://head:10001); "
+                   "default with --executor ray: a local Ray instance of --workers CPUs")
+    p.add_argument("--device", default=None, help="training device: cpu, cuda or cuda:N (default: the profile's, "
+                   "auto: CUDA where present)")
+    p.add_argument("--gpus-per-job", type=float, default=0.0,
+                   help="with --executor ray: GPUs each training job reserves (fractions share one GPU)")
     p.set_defaults(func=cmd_bench)
 
     r = sub.add_parser("report", help="redraw a bench report's tables and figures from its files (no training)")
@@ -70,7 +78,13 @@ def cmd_bench(args) -> int:
     if args.data and not args.out:
         raise UsageError("--data needs --out REPORT (the report folder)")
     out = args.out or f"reports/{profile.name}"
-    rows = run_bench(profile, out, data_root=args.data_root, work_root=args.work_root)
+    executor = None
+    if args.executor != "local" or args.ray_address:
+        from ..sim.executors import make_executor
+
+        executor = make_executor(profile.workers, args.executor, args.ray_address)
+    rows = run_bench(profile, out, data_root=args.data_root, work_root=args.work_root, executor=executor,
+                     device=args.device, gpus_per_job=args.gpus_per_job)
     n_ok = sum(r.get("status") == "ok" for r in rows)
     print(f"[bench] {n_ok}/{len(rows)} rows ok; report in {out}/README.md")
     # No row run is no result (a named scenario whose log is missing: each skip and its reason is in the report).

@@ -119,7 +119,7 @@ class BenchProfile:
             raise DatasetError(f"dataset {ds.path} does not name its robot (manifest key 'robot'); give one (--robot)")
         return self.resolve_robot(name)
 
-    def dataset(self, scenario: str, data_root: Path, log=print):
+    def dataset(self, scenario: str, data_root: Path, log=print, executor=None):
         """The scenario's dataset: a dataset path is read as it is; a simulated scenario is generated once
         and cached by its config hash (real-robot logs: imported once, cached by spec and file checksums)."""
         if is_dataset_path(scenario):
@@ -136,7 +136,7 @@ class BenchProfile:
             return load_dataset(path)
         except DatasetError:
             log(f"[bench] generating {scenario} ({self.generator_profile}) into {path}")
-            generate_dataset(cfg, path, workers=self.workers)
+            generate_dataset(cfg, path, workers=self.workers, executor=executor)
             return load_dataset(path)
 
     def generator_config(self, scenario: str, ds):

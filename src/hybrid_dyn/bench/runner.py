@@ -43,6 +43,7 @@ from ..analytic.robot import load_robot
 from ..data import Dataset, load_dataset
 from ..data.real import RealLogMissingError
 from ..data.splits import dataset_split_text
+from ..errors import UsageError
 from ..outputs import output_lock, refuse_foreign, unique_temp
 from .catalog import ROWS, get_row  # noqa: F401  (ROWS: every declared row)
 from .integrity import DIGEST_KEY, read_run_json, results_digest
@@ -159,35 +160,29 @@ def epoch_cost_rank(preset) -> tuple:
     return (-kind, -sum(p.front_units), -p.window, -p.fc_units)
 
 
-def pretrain(jobs: list, workers: int, log=print) -> None:
-    """Train the learned rows in parallel, one single-threaded model per process.
+def pretrain(jobs: list, workers: int, log=print, executor=None) -> None:
+    """Train the learned rows in parallel, one single-threaded model per job.
 
-    Each model's training is seeded on its own, so the result does not depend
-    on the worker count or the order; finished models are reused on a rerun.
-    The dearest models are queued first (:func:`epoch_cost_rank`): queued in
-    declaration order, the DeLaN rows came last and one core idled while the
-    other finished them. The workers die with this process, and an interrupt
-    stops them instead of waiting for every queued model (``process_pool``).
+    ``executor``: where the jobs run (``sim/executors.py``, as for generation): local
+    processes by default (serial for one worker), or a Ray cluster. Each model's training
+    is seeded on its own and reads and writes only paths in its job, so the model files do
+    not depend on the executor, the worker count or the order; finished models are reused
+    on a rerun (on a cluster, the data and model folders must be on a file system every
+    node sees: docs/cluster.md). The dearest models are queued first
+    (:func:`epoch_cost_rank`): queued in declaration order, the DeLaN rows came last and
+    one core idled while the other finished them. Local workers die with this process, and
+    an interrupt stops them instead of waiting for every queued model.
     """
     if not jobs:
         return
+    from ..sim.executors import make_executor
+
     jobs = sorted(jobs, key=lambda job: epoch_cost_rank(job[2]))  # stable: declaration order within a rank
-    if workers <= 1:
-        for job in tqdm(jobs, desc="training", unit="model"):
-            preset, err = _train_job(job)
-            if err:
-                log(f"[bench] training {preset} failed: {err}")
-        return
-    from concurrent.futures import as_completed
-
-    from ..sim.executors import process_pool
-
-    with process_pool(workers) as pool:
-        futures = [pool.submit(_train_job, job) for job in jobs]
-        for fut in tqdm(as_completed(futures), total=len(futures), desc="training", unit="model"):
-            preset, err = fut.result()
-            if err:
-                log(f"[bench] training {preset} failed: {err}")
+    executor = executor or make_executor(workers)
+    results = executor.map_unordered(_train_job, [(job,) for job in jobs])
+    for preset, err in tqdm(results, total=len(jobs), desc="training", unit="model"):
+        if err:
+            log(f"[bench] training {preset} failed: {err}")
 
 
 def _set_torch_threads(n: int) -> None:
@@ -199,7 +194,8 @@ def _set_torch_threads(n: int) -> None:
 
 
 def run_bench(profile: BenchProfile, out_dir, data_root=None, work_root=None, dataset_provider=None,
-              log: Callable[[str], None] = print) -> list[dict]:
+              log: Callable[[str], None] = print, executor=None, device: str | None = None,
+              gpus_per_job: float = 0.0) -> list[dict]:
     """Run every row of ``profile`` on every scenario; write ``out_dir/results.csv`` and the report.
 
     dataset_provider(scenario, profile) -> Dataset; default: generate with the
@@ -208,7 +204,21 @@ def run_bench(profile: BenchProfile, out_dir, data_root=None, work_root=None, da
     so an interrupted bench resumes where it stopped. ``out_dir`` must be new,
     empty or an earlier report of the bench (its ``run.json``); it is locked
     for the run.
+
+    executor: where generation and training jobs run (``sim/executors.make_executor``:
+    local processes of ``profile.workers``, or Ray); device: the training device
+    ("cpu", "cuda", ...; None: the profile's); gpus_per_job: GPUs each training job reserves
+    on a Ray cluster (fractions share a GPU). None of them is part of the profile: they
+    change where a job runs, not what it computes (on CPU, not a byte of it).
     """
+    train_executor = executor
+    if gpus_per_job:
+        from ..sim.executors import RayExecutor
+
+        if not isinstance(executor, RayExecutor):
+            raise UsageError("GPUs per training job (--gpus-per-job) are reserved on a Ray cluster: "
+                             "give --executor ray (a local run uses the GPU --device names)")
+        train_executor = executor.with_gpus(gpus_per_job)
     # The study's networks are tiny: torch's intra-op threads cost more than they
     # give, and on a busy machine they spin (measured: a 2x32 MLP step 0.8 ms on
     # one thread, 118 ms on two with the cores oversubscribed). The bench owns its
@@ -217,12 +227,14 @@ def run_bench(profile: BenchProfile, out_dir, data_root=None, work_root=None, da
     out_dir = Path(out_dir)
     data_root = Path(data_root or os.environ.get("HYBRID_DYN_DATA", "data"))
     work_root = Path(work_root or os.environ.get("HYBRID_DYN_RUNS", "runs"))
-    provider = dataset_provider or (lambda scenario, prof: prof.dataset(scenario, data_root, log=log))
+    provider = dataset_provider or (lambda scenario, prof: prof.dataset(scenario, data_root, log=log,
+                                                                         executor=executor))
     # A missing or corrupt dataset, an unknown robot: refused before the report folder is touched.
     opened = _open_datasets(profile, provider, log)
     with output_lock(out_dir, "report folder"):  # one bench per report folder at a time
         previous = _claim_report_dir(out_dir, profile, log)
-        return _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider, opened, log)
+        return _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider, opened, log,
+                                 train_executor, device)
 
 
 def _claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[dict]:
@@ -304,8 +316,6 @@ def _open_datasets(profile, provider, log) -> list:
         else:
             label = entry
         if label in seen:
-            from ..errors import UsageError
-
             raise UsageError(f"datasets {seen[label]} and {entry} have the same scenario label {label!r} (their "
                              "manifests' 'scenario', or folder names): results.csv could not tell them apart")
         seen[label] = entry
@@ -315,7 +325,8 @@ def _open_datasets(profile, provider, log) -> list:
     return out
 
 
-def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider, opened, log) -> list[dict]:
+def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider, opened, log,
+                      executor=None, device=None) -> list[dict]:
     rows: list[dict] = []
     skipped: list[dict] = []
     datasets = {}
@@ -355,13 +366,15 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider
         predictions.test_data(scenario, test, [t for t in dict.fromkeys(TASK_TARGET.values()) if t in ds.fields])
         # Parallel workers train quietly (one progress bar over the models, not one per process).
         tcfg = profile.train_config()
-        if profile.workers > 1:
+        if profile.workers > 1 or executor is not None:
             tcfg = dataclasses.replace(tcfg, progress=False)
+        if device is not None:
+            tcfg = dataclasses.replace(tcfg, device=device)
         # The presets' rows train in parallel first (the identified residuals need their fit first).
         jobs = [(str(ds.path), ref.name, s.name, str(ctx.work_dir / "models" / s.name), tcfg, profile.torch_threads)
                 for s in specs if s.name in PRESET_ROWS]
         log(f"[bench] {scenario}: training {len(jobs)} learned models on {profile.workers} workers")
-        pretrain(jobs, profile.workers, log=log)
+        pretrain(jobs, profile.workers, log=log, executor=executor)
         for spec in tqdm(specs, desc=f"bench {scenario}", unit="model"):
             t0 = time.perf_counter()
             try:

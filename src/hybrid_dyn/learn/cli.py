@@ -56,6 +56,8 @@ def _train_options(p) -> None:
     p.add_argument("--weight-decay", type=float, default=None,
                    help="decoupled weight decay of the weight matrices (AdamW; default 0: plain Adam)")
     p.add_argument("--max-batches-per-epoch", type=int, default=None)
+    p.add_argument("--train-instances", type=int, default=None,
+                   help="learn from the first N train instances (val cut in proportion; default: all)")
     p.add_argument("--analytic-params", default=None, help="parameter set or JSON for residual models' analytic part")
     p.add_argument("--device", default="auto", help="auto, cpu or cuda")
     p.add_argument("--threads", type=int, default=None, help="PyTorch CPU threads")
@@ -66,7 +68,7 @@ def _config(args):
     from .train import TrainConfig
 
     given = {"max_epochs": args.epochs, "patience": args.patience, "batch_size": args.batch_size, "lr": args.lr,
-             "lr_schedule": args.lr_schedule, "weight_decay": args.weight_decay, "budget_steps": args.budget_steps}
+             "lr_schedule": args.lr_schedule, "weight_decay": args.weight_decay, "budget_steps": args.budget_steps, "train_instances": args.train_instances}
     return TrainConfig.recipe(args.recipe, seed=args.seed, max_batches_per_epoch=args.max_batches_per_epoch,
                               analytic_params=args.analytic_params, device=args.device, num_threads=args.threads,
                               progress=not args.quiet, **{k: v for k, v in given.items() if v is not None})

@@ -83,6 +83,7 @@ from tqdm.auto import tqdm
 
 from ..analytic.tare import TARE_SECONDS, tared_runs
 from ..data import Dataset, load_dataset
+from ..data.splits import first_instances
 from ..data.windows import WindowedSplit, concat_fields
 from ..errors import UsageError
 from ..outputs import json_marker, output_lock, refuse_foreign, refuse_foreign_files
@@ -117,6 +118,9 @@ class TrainConfig:
     preset's network kind's budget, :data:`BUDGET_STEPS` (resolved by :meth:`for_preset`).
     warmup_fraction: share of the budget over which the rate rises linearly to lr.
     budget_evals: validation rounds over the budget (each keeps the weights if best).
+    train_instances: learn from the first N instances of the train split, and the first
+    round(N x n_val / n_train) (at least 1) of the val split, so that train and val shrink
+    together (the data-scaling study, ``bench/studies.py``); None: the whole splits.
     analytic_params: parameter set of the residual models' analytic part
     (None: the robot's nominal URDF; a set name or a JSON path, e.g. identified).
     observer_gain: momentum-observer bandwidth K [1/s] for the momentum prior.
@@ -144,6 +148,7 @@ class TrainConfig:
     budget_steps: int | None = None
     warmup_fraction: float = 0.05
     budget_evals: int = 40
+    train_instances: int | None = None
     analytic_params: str | None = None
     observer_gain: float = 20.0
     tare_seconds: float = TARE_SECONDS
@@ -170,7 +175,7 @@ class TrainConfig:
         for name, least, optional in (("seed", 0, False), ("batch_size", 1, False), ("max_epochs", 1, False),
                                       ("patience", 1, False), ("lr_patience", 1, False),
                                       ("max_batches_per_epoch", 1, True), ("budget_steps", 1, True),
-                                      ("budget_evals", 1, True),
+                                      ("budget_evals", 1, True), ("train_instances", 1, True),
                                       ("num_threads", 1, True)):
             v = getattr(self, name)
             if v is None and optional:
@@ -225,6 +230,8 @@ class TrainConfig:
             d.pop(k)
         if not d["weight_decay"]:  # added later: a run without it keeps the fingerprint it always had
             d.pop("weight_decay")
+        if self.train_instances is None:  # added later: a run on the whole splits keeps its fingerprint
+            d.pop("train_instances")
         if not self.budgeted:  # added later, and meaningless without the budget: older runs keep their fingerprint
             for k in ("budget_steps", "warmup_fraction", "budget_evals"):
                 d.pop(k)
@@ -300,7 +307,8 @@ _CLI_FLAGS = {"seed": "--seed", "batch_size": "--batch-size", "max_epochs": "--e
               "max_batches_per_epoch": "--max-batches-per-epoch", "num_threads": "--threads",
               "device": "--device", "analytic_params": "--analytic-params", "lr": "--lr",
               "lr_schedule": "--lr-schedule", "grad_clip": "--grad-clip", "min_lr": "--min-lr",
-              "weight_decay": "--weight-decay", "budget_steps": "--budget-steps"}
+              "weight_decay": "--weight-decay", "budget_steps": "--budget-steps",
+              "train_instances": "--train-instances"}
 
 
 def _device(name: str) -> torch.device:
@@ -527,6 +535,8 @@ def _train_locked(ds: Dataset, preset: Preset, out_dir: Path, config: TrainConfi
     train, val = ds.split("train"), ds.split("val")
     if not train or not val:
         raise ModelError(f"dataset {ds.path} needs instances in its train and val splits")
+    if config.train_instances is not None:
+        train, val = first_instances(train, val, config.train_instances, ds.path)
     missing = sorted((set(preset.inputs) | set(preset.targets)) - set(ds.fields))
     if missing:
         raise ModelError(f"dataset {ds.path} lacks fields {missing} that preset {preset.name!r} needs")
