@@ -37,6 +37,19 @@ def register(sub) -> None:
                    help="with --executor ray: GPUs each training job reserves (fractions share one GPU)")
     p.set_defaults(func=cmd_bench)
 
+    st = sub.add_parser("study", help="a bench profile rerun with one thing varied (e.g. data-scaling: the "
+                        "learned rows on fewer training instances), summarised beside the profile's report")
+    st.add_argument("name", help="the study (hybrid_dyn.bench.studies.STUDIES: data-scaling)")
+    st.add_argument("--report", default=None, help="the profile's own report, the full-data point "
+                    "(default: reports/<profile>)")
+    st.add_argument("--out", default=None, help="summary folder (default: <report>/<study>)")
+    st.add_argument("--data-root", default=None, help="dataset cache (default: ./data or $HYBRID_DYN_DATA)")
+    st.add_argument("--work-root", default="runs", help="the variants' models and reports (default: ./runs)")
+    st.add_argument("--workers", type=int, default=None, help="local processes training")
+    st.add_argument("--executor", choices=("local", "ray"), default="local")
+    st.add_argument("--ray-address", default=None)
+    st.set_defaults(func=cmd_study)
+
     r = sub.add_parser("report", help="redraw a bench report's tables and figures from its files (no training)")
     r.add_argument("dir", help="a report folder written by hybrid-dyn bench (run.json, results.csv, ...)")
     r.set_defaults(func=cmd_report)
@@ -93,6 +106,23 @@ def cmd_bench(args) -> int:
 
 def _names(text: str | None) -> tuple:
     return tuple(n.strip() for n in (text or "").split(",") if n.strip())
+
+
+def cmd_study(args) -> int:
+    from pathlib import Path
+
+    from ..sim.executors import make_executor
+    from .profiles import get_profile
+    from .studies import get_study, run_study
+
+    study = get_study(args.name)
+    workers = args.workers or get_profile(study.profile).workers
+    executor = make_executor(workers, args.executor, args.ray_address)
+    report = Path(args.report or f"reports/{study.profile}")
+    out = Path(args.out or report / study.name)
+    run_study(study, report, out, work_root=Path(args.work_root), data_root=args.data_root, executor=executor)
+    print(f"[study] {study.name}: summary in {out}/README.md")
+    return 0
 
 
 def cmd_report(args) -> int:
