@@ -30,10 +30,10 @@ from .catalog import get_row
 from .integrity import read_run_json
 from .profiles import get_profile
 from .results import read_results
+from .rows import is_physics_result
 
 UNITS = {"tip_force": "N", "joint_torque": "Nm"}
 LEARNED_FAMILIES = ("seed-net", "residual", "delan", "identified")  # families with trained rows
-PHYSICS_FAMILIES = ("analytic", "identified")
 
 
 @dataclass(frozen=True)
@@ -75,12 +75,6 @@ def _ok(rows) -> list[dict]:
     return [r for r in rows if r.get("status") == "ok" and r.get("val_loss") not in (None, "")]
 
 
-def _is_physics(r) -> bool:
-    row = get_row(r["model"])
-    return row.family in PHYSICS_FAMILIES and not row.trains and not int(float(r.get("n_params") or 0)) \
-        and row.reference is None
-
-
 def choose_rows(full: list[dict]) -> dict:
     """(scenario, task, family) -> the learned row of lowest *validation* loss in the full report, and
     (scenario, task, "physics") -> the physics row of lowest validation loss. Validation, not test: the
@@ -92,7 +86,7 @@ def choose_rows(full: list[dict]) -> dict:
             continue
         if row.trains and row.family in LEARNED_FAMILIES:
             key = (r["scenario"], r["task"], row.family)
-        elif _is_physics(r):
+        elif is_physics_result(r):
             key = (r["scenario"], r["task"], "physics")
         else:
             continue

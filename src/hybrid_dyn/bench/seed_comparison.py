@@ -1,6 +1,7 @@
-"""The seed's Tables 2 and 3 beside a bench report's rows, and the architecture ordering (issue 14).
+"""The seed's Tables 2 and 3 beside a bench report's rows, and the architecture ordering (issues 14, 31).
 
-Reads a report's ``results.csv`` and prints, as markdown:
+A section of every report that holds the seed's nets (``seed_comparison.md``, written by the bench
+and redrawn by ``hybrid-dyn report``), per scenario:
 
 - Table 2: every seed tip-force net (Table 1 #1-#11), our test RMSE [N] beside the seed's,
   and the ratio; then the best and the median of each architecture (MLP #1-3, conv #4-6,
@@ -9,25 +10,22 @@ Reads a report's ``results.csv`` and prints, as markdown:
   (its ``sim-ext`` figures; DeLaN also beside its ``sim-noext`` one).
 - The best analytic rows of each task, which on noise-free data with exact states are
   nearly exact: the bar the seed's nets never had to clear.
-- Beside each net, its training and validation loss at the kept epoch (from the report's
+- Beside each net, its training and validation loss at the kept round (from the report's
   ``curves.json``): a validation loss many times the training loss is a net that fits the
   training instances and does not carry over to others (overfitting), not one that cannot fit.
 
 The seed's figures come from another simulator (CoppeliaSim/Newton) and another data set:
 orientation, not a measurement here.
-
-Run: .venv/bin/python benchmarks/seed_comparison.py --report reports/seed-sim --out reports/seed-sim/seed_comparison.md
 """
 from __future__ import annotations
 
-import argparse
 import statistics
-import sys
-from pathlib import Path
 
-from hybrid_dyn.bench.results import CURVES_FILE, read_curves
-from hybrid_dyn.bench.runner import read_results
-from hybrid_dyn.bench.seed_reference import SEED_TABLE1, SEED_TABLE2, SEED_TABLE3
+from .catalog import ROWS  # noqa: F401  (every row declared, for is_physics_result)
+from .rows import is_physics_result
+from .seed_reference import SEED_TABLE1, SEED_TABLE2, SEED_TABLE3
+
+SEED_COMPARISON_FILE = "seed_comparison.md"
 
 ARCHITECTURES = {"MLP": (1, 2, 3), "conv": (4, 5, 6), "LSTM": (7, 8, 9, 10, 11)}
 TORQUE_NETS = ("seed-tau-mlp", "seed-tau-conv", "seed-tau-lstm", "seed-tau-lstm-opt", "delan", "delan-friction")
@@ -38,7 +36,7 @@ def _order(figures: dict) -> str:
 
 
 def _kept_losses(curve: dict | None) -> str:
-    """'train / val (val/train)' at the kept epoch of a learned row's curve, or '-'."""
+    """'train / val (val/train)' at the kept epoch (epoch recipes) or validation round (budget) of a learned row's curve, or '-'."""
     if not curve or curve.get("best_epoch", -1) < 0:
         return "-"
     e = curve["history"][curve["best_epoch"]]
@@ -52,7 +50,7 @@ def comparison(rows: list[dict], scenario: str, curves: dict | None = None) -> s
            "The seed's figures (Kruzic et al. 2021) are from CoppeliaSim/Newton and another data set: shown for "
            "orientation, not measured here.", "",
            "### Table 2: tip-force nets", "",
-           "| # | architecture (seed Table 1) | RMSE here [N] | epochs (stop) | train / val loss, kept epoch | "
+           "| # | architecture (seed Table 1) | RMSE here [N] | epochs or rounds (stop) | train / val loss, kept epoch or round | "
            "seed RMSE [N] | here / seed |",
            "|---|---|---|---|---|---|---|"]
     ours, seeds = {}, {}
@@ -84,7 +82,7 @@ def comparison(rows: list[dict], scenario: str, curves: dict | None = None) -> s
                 f"- median of each, here: {_order(med_here)}",
                 f"- median of each, seed: {_order(med_seed)}"]
     out += ["", "### Table 3: joint-torque nets", "",
-            "| model | RMSE here [Nm] | epochs (stop) | train / val loss, kept epoch | seed RMSE, sim-ext [Nm] | "
+            "| model | RMSE here [Nm] | epochs or rounds (stop) | train / val loss, kept epoch or round | seed RMSE, sim-ext [Nm] | "
             "here / seed | seed RMSE, sim-noext [Nm] |",
             "|---|---|---|---|---|---|---|"]
     for name in TORQUE_NETS:
@@ -99,28 +97,18 @@ def comparison(rows: list[dict], scenario: str, curves: dict | None = None) -> s
                    f"{'-' if noext is None else f'{noext[2]:.4f}'} |")
     out += ["", "### The analytic rows on the same test split", ""]
     for task, unit in (("tip_force", "N"), ("joint_torque", "Nm")):
-        cand = [r for (t, _), r in ok.items() if t == task and r["family"] in ("analytic", "identified")
-                and not r.get("stopped_by")]  # physics alone: no trained part
+        cand = [r for (t, _), r in ok.items() if t == task and is_physics_result(r)]
         for r in sorted(cand, key=lambda r: float(r["rmse"]))[:3]:
             out.append(f"- {task}: `{r['model']}` {float(r['rmse']):.4f} {unit}")
     return "\n".join(out) + "\n"
 
 
-def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--report", required=True, help="a bench report folder (results.csv)")
-    ap.add_argument("--out", default=None, help="write the markdown here")
-    args = ap.parse_args()
-    rows = read_results(Path(args.report) / "results.csv")
-    curves = read_curves(Path(args.report) / CURVES_FILE)  # {} for a report without learned rows
-    scenarios = list(dict.fromkeys(r["scenario"] for r in rows))
-    text = f"# The seed's tables beside `{args.report}`\n\n`{' '.join(sys.argv)}`\n\n" + \
-        "\n".join(comparison(rows, s, curves) for s in scenarios)
-    print(text)
-    if args.out:
-        Path(args.out).write_text(text)
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+def seed_comparison_text(rows: list[dict], curves: dict | None = None) -> str | None:
+    """The section for every scenario of ``rows`` (results.csv's) that holds a seed net; None when none does."""
+    scenarios = [s for s in dict.fromkeys(r["scenario"] for r in rows)
+                 if any(r["scenario"] == s and r.get("status") == "ok"
+                        and (r["model"] in SEED_TABLE2 or r["model"] in TORQUE_NETS) for r in rows)]
+    if not scenarios:
+        return None
+    return "# The seed's Tables 2 and 3 beside this report\n\n" + "\n".join(comparison(rows, s, curves)
+                                                                          for s in scenarios)
