@@ -479,7 +479,9 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
         origin = f"config hash `{d['config_hash']}`" if d.get("config_hash") else "imported (no generator config)"
         lines.append(f"- data `{s}`: {origin}, data checksum `{str(d.get('checksum'))[:16]}`"
                      + (f", read from `{d.get('path')}`, robot `{d['robot']}`" if d.get("robot") else "")
-                     + (f"; split {d['split']}" if d.get("split") else ""))
+                     + (f"; split {d['split']}" if d.get("split") else "")
+                     + (f"; made or read in {_minutes(d['dataset_seconds'])} min of this invocation"
+                        if d.get("dataset_seconds") is not None else ""))
         lines += [f"  - **import warning**: {w}" for w in d.get("import_warnings") or []]
     notes = prof.get("notes") or []
     if notes:
