@@ -21,7 +21,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -145,7 +144,7 @@ def _train_instances(report: Path) -> int:
 def summarise(study: Study, chosen: dict, points: dict, n_train: int) -> dict:
     """Per (scenario, task): the physics row and each family's learned row, test RMSE per training size."""
     out = {"study": study.name, "profile": study.profile, "full_train_instances": n_train,
-           "sizes": [*study.train_instances, n_train], "command": " ".join(["hybrid-dyn", *sys.argv[1:]]),
+           "sizes": [*study.train_instances, n_train], "command": f"hybrid-dyn study {study.name}",
            "panels": []}
     by_key = {n: {(r["scenario"], r["task"], r["model"]): r for r in rows if r.get("status") == "ok"}
               for n, rows in points.items()}
