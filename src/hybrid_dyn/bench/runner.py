@@ -45,6 +45,7 @@ from ..data.real import RealLogMissingError
 from ..data.splits import dataset_split_text
 from ..errors import UsageError
 from ..outputs import output_lock, refuse_foreign, unique_temp
+from ..timing import time_calls
 from .catalog import ROWS, get_row  # noqa: F401  (ROWS: every declared row)
 from .integrity import DIGEST_KEY, read_run_json, results_digest
 from .learned_rows import PRESET_ROWS
@@ -60,17 +61,13 @@ from .rows import TASK_TARGET, BenchContext, Predictor, Row  # noqa: F401  (re-e
 def _median_call_us(fn, inst, warmup_calls: int = 1, n_calls: int = 200) -> float:
     """The median time [us] of a row's single call on one run, fed its samples in order from the start
     (as a control loop feeds a stream); the first ``warmup_calls`` (at least one, at most all but the
-    last sample) are not timed, then up to ``n_calls`` are."""
+    last sample) are not timed, then up to ``n_calls`` are (``timing.time_calls``)."""
     n = len(inst)
     warm = min(max(1, int(warmup_calls)), n - 1)
     for k in range(warm):
         fn(inst, k)
-    times = []
-    for k in range(warm, min(n, warm + n_calls)):
-        t0 = time.perf_counter()
-        fn(inst, k)
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times) * 1e6)
+    wall, _ = time_calls(lambda k: fn(inst, k), range(warm, min(n, warm + n_calls)))
+    return float(np.median(wall) * 1e6)
 
 
 def score_row(spec: Row, ctx: BenchContext, norm: dict) -> dict:
