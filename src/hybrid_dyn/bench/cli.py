@@ -143,8 +143,7 @@ def cmd_compare(args) -> int:
     for d in (args.a, args.b):
         if not (Path(d) / "results.csv").is_file() or not (Path(d) / "run.json").is_file():
             raise UsageError(f"{d} holds no bench report (results.csv and run.json)")
-    text = compare_reports(Path(args.a), Path(args.b), command=f"hybrid-dyn compare {args.a} {args.b}",
-                           labels=("a", "b"))
+    text = compare_reports(Path(args.a), Path(args.b), command=f"hybrid-dyn compare {args.a} {args.b}")
     print(text)
     if args.out:
         Path(args.out).write_text(text + "\n")

@@ -46,11 +46,12 @@ def data_size(report: Path) -> str:
     return ", ".join(sorted(sizes)) or "the generator's default"
 
 
-def compare_reports(small: Path, large: Path, command: str | None = None, labels=("small", "large")) -> str:
+def compare_reports(small: Path, large: Path, command: str | None = None, labels=None) -> str:
     """Markdown: per scenario and task, every learned row of both reports with its RMSE, its ratio to its own
-    report's best analytic row, its epochs, and the change of the ratio from ``small`` to ``large``."""
+    report's best analytic row, its epochs, and the change of the ratio from ``small`` to ``large``.
+    ``labels``: the two reports' names in the tables (default: their folders' names)."""
     small, large = Path(small), Path(large)
-    a_name, b_name = labels
+    a_name, b_name = labels or (small.name, large.name)
     rows_a, rows_b = read_results(small / "results.csv"), read_results(large / "results.csv")
     a, b = _ok(rows_a), _ok(rows_b)
     pa, pb = best_analytic(rows_a), best_analytic(rows_b)

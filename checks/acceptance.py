@@ -6,10 +6,11 @@ so the report the bench writes does not print them. This benchmark reads a repor
 ``results.csv`` and prints each floor that its scenarios allow, with its numbers and
 ``met`` / ``NOT met`` (rows "for reference" are comparisons with no floor).
 
-Run (after the bench):
-    .venv/bin/python benchmarks/acceptance.py --report reports/default
-    .venv/bin/python benchmarks/acceptance.py --report reports/real --out reports/real/acceptance.md
-    .venv/bin/python benchmarks/acceptance.py --report reports/seed-sim
+The checks of the committed reports are in ``checks/acceptance/<profile>.md`` (not in ``reports/``,
+which holds findings a user can read). Run (after the bench):
+    .venv/bin/python checks/acceptance.py --report reports/default --out checks/acceptance/default.md
+    .venv/bin/python checks/acceptance.py --report reports/real --out checks/acceptance/real.md
+    .venv/bin/python checks/acceptance.py --report reports/seed-sim --out checks/acceptance/seed-sim.md
 
 Exit status: 0 when every floor it could evaluate is met, 1 when one is not, 2 for a folder
 without results.csv.

@@ -13,7 +13,9 @@ tick with t; RMSE [N] (3-D error, all samples) after the 0.5 s noise window. Enc
 
 Floors (issue 27): the README's recommended method <= 0.30 N; every base-sensor-only method <= 0.35 N.
 
-Run: .venv/bin/python benchmarks/tip_force_stream.py [--streams 3] [--seconds 12] [--qd-noise 0]
+An acceptance check (``checks/``), not a benchmark of speed: it prints each floor as met or NOT met.
+
+Run: .venv/bin/python checks/tip_force_stream.py [--streams 3] [--seconds 12] [--qd-noise 0]
 """
 from __future__ import annotations
 
