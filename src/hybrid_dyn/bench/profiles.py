@@ -220,7 +220,7 @@ def profile_for_data(paths, robot: str | None = None, params: str | None = None,
 PROFILES = {
     # make demo: one net of each architecture and family, trained long enough to learn (within
     # about 5 minutes on 2 cores), on a quick mismatch-ext of 30 instances of 5 trajectories. The
-    # torque nets are data-limited (reports/data-control): at 12 instances they learned nothing.
+    # torque nets are data-limited (reports/studies/data-control): at 12 instances they learned nothing.
     "quick": BenchProfile(
         name="quick", scenarios=("mismatch-ext",), generator_profile="quick",
         # The identified rows without their residual nets (those train after the others, one at a time).
@@ -235,13 +235,13 @@ PROFILES = {
         notes=("A demo: one seed net of each architecture (MLP #2, conv #5, LSTM #8, and the torque MLP and LSTM), "
                "the residual nets and DeLaN with friction, on a small mismatch-ext (30 instances of 5 trajectories); "
                "the budgeted recipe at 600 steps of batch 1024 per net. The black-box "
-               "torque nets are data-limited at this size (reports/data-control). The comparisons are in "
+               "torque nets are data-limited at this size (reports/studies/data-control). The comparisons are in "
                "reports/default and reports/seed-sim.",),
     ),
     # Every row on three simulated scenarios (issue 14) under the budgeted recipe (issue 31): a row
     # costs its step budget whatever the data, so the data grew 3x over the epoch-recipe bench's 40
     # instances of 5-10 trajectories (74.2 min from empty caches), whose learned rows were
-    # data-limited (reports/data-control: their RMSE ratios fell with every instance added).
+    # data-limited (reports/studies/data-control: their RMSE ratios fell with every instance added).
     "default": BenchProfile(
         name="default", scenarios=("paper-noext", "paper-ext", "mismatch-ext", "contact-steps", "contact-steps-quiet"),
         generator_profile="default",
