@@ -276,6 +276,10 @@ class StudyRun:
     points: dict = field(default_factory=dict)  # variant -> its results rows
     dirs: dict = field(default_factory=dict)  # variant -> its report folders
 
+    def train_instances(self) -> int:
+        """How many training instances the reference point's models saw (:func:`train_instances_of`)."""
+        return train_instances_of(self.report, self.study.scenarios)
+
 
 def run_study(study: Study, report: Path, out: Path, work_root: Path = Path("runs"), data_root=None,
               executor=None, log=print) -> dict:

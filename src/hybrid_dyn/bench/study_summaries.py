@@ -34,10 +34,8 @@ def _write(out: Path, name: str, lines: list, summary: dict) -> None:
 
 # ---------------------------------------------------------------------------------------- data scaling
 def data_scaling(run, out: Path) -> dict:
-    from .studies import train_instances_of
-
     study = run.study
-    n_train = train_instances_of(run.report, study.scenarios)
+    n_train = run.train_instances()
     points = {n: run.points[f"train-{n}"] for n in study.train_instances}
     summary = summarise(study, run.chosen, points, n_train)
     write_data_scaling(Path(out), summary)
