@@ -126,3 +126,47 @@ def test_a_study_changes_presets_and_budgets_through_the_harness(tmp_path, monke
     assert [e["variant"] for e in line["entries"]] == ["reference", "wide", "longer"]
     assert all(e["status"] == "ok" and e["val_loss"] > 0 for e in line["entries"])
     assert line["entries"][1]["val_loss"] != line["entries"][0]["val_loss"]  # another net, another loss
+
+
+def test_the_compare_summary_sets_each_variant_report_against_the_reference(tmp_path):
+    from hybrid_dyn.bench.results import write_results
+    from hybrid_dyn.bench.study_summaries import compare
+
+    def report(folder, rnea, mlp):
+        folder.mkdir(parents=True)
+        (folder / "run.json").write_text(json.dumps({"profile": {"scenario_overrides": {}}}))
+        write_results(folder / "results.csv", [
+            {"task": "joint_torque", "scenario": "paper-noext", "model": m, "family": f, "status": "ok", "rmse": r,
+             "val_loss": 0.1, "test_loss": 0.1, "nmse": 0.1, "epochs": "", "best_epoch": ""}
+            for m, f, r in (("rnea", "analytic", rnea), ("seed-tau-mlp", "seed-net", mlp))])
+
+    report(tmp_path / "full", 0.25, 1.0)
+    report(tmp_path / "out" / "small", 0.5, 5.0)
+    study = STUDIES["data-control"]
+    run = StudyRun(study, tmp_path / "full", [], ("tau-mlp-wide",), {}, dirs={"small": [tmp_path / "out" / "small"]})
+    compare(run, tmp_path / "out")
+    text = (tmp_path / "out" / "README.md").read_text()
+    assert text.startswith("# Study `data-control` on profile `default`")
+    assert "\n## `" in text and "\n### paper-noext, joint torque" in text  # each comparison one level down
+    assert "small `rnea` 0.500 Nm, default `rnea` 0.250 Nm" in text
+    assert "| seed-tau-mlp | seed-net | 5.000 | 10.00 | - (-) | 1.000 | 4.00 | - (-) | 0.40x |" in text
+
+
+def test_a_real_sets_scenario_overrides_reach_its_import(monkeypatch, tmp_path):
+    from hybrid_dyn.data import real as real_mod
+
+    seen = {}
+
+    def fake_real_dataset(set_name, root, /, log=None, **spec):  # positional-only, as real_dataset's
+        seen[set_name] = spec
+        raise real_mod.RealLogMissingError(set_name, ["x"])
+
+    monkeypatch.setattr(real_mod, "real_dataset", fake_real_dataset)
+    study = STUDIES["interpolation-control"]
+    profile = study.variant_profile("chunks", ("gp",))
+    with pytest.raises(real_mod.RealLogMissingError):
+        profile.dataset("real-kuka", tmp_path)
+    assert seen["real-kuka"] == {"name": "real-kuka-chunks", "trajectories": "blocks", "n_blocks": 4}
+    with pytest.raises(real_mod.RealLogMissingError):
+        study.base_profile().dataset("real-kuka", tmp_path)
+    assert seen["real-kuka"] == {}  # the profile itself imports the log as its spec says
