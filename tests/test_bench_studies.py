@@ -170,3 +170,13 @@ def test_a_real_sets_scenario_overrides_reach_its_import(monkeypatch, tmp_path):
     with pytest.raises(real_mod.RealLogMissingError):
         study.base_profile().dataset("real-kuka", tmp_path)
     assert seen["real-kuka"] == {}  # the profile itself imports the log as its spec says
+
+
+def test_a_budget_is_scaled_from_the_preset_a_row_trains():
+    from hybrid_dyn.bench.studies import _preset
+
+    profile = get_profile("seed-sim")
+    assert _preset(profile, "residual-rnea-identified").name == "residual-rnea"  # the identified residual's net
+    assert _preset(profile, "seed-tau-mlp").kind == "mlp"
+    with pytest.raises(UsageError, match="no step budget"):
+        _preset(profile, "gp")

@@ -348,9 +348,15 @@ def _run_variant(study: Study, variant: str, rows: tuple, where: Path, reference
 
 
 def _preset(profile: BenchProfile, row: str):
+    """The preset a row trains (a residual on the identified model: its preset), for its step budget."""
     from ..learn.presets import get_preset
+    from .identified_rows import RESIDUAL_ROWS
+    from .learned_rows import PRESET_ROWS
 
-    return get_preset(profile.preset(row))
+    name = RESIDUAL_ROWS.get(row, row)
+    if name not in PRESET_ROWS:
+        raise UsageError(f"row {row!r} trains no network preset: it has no step budget to scale (budget_factor)")
+    return get_preset(profile.preset(name))
 
 
 def train_instances_of(report: Path, scenarios: tuple = ()) -> int:
