@@ -15,6 +15,7 @@ call); analytic <= 30 us median (base-momentum, kalman-fusion also <= 60 us p99)
 learned and hybrid <= 100 us median, <= 500 us p99.
 
 Run: .venv/bin/python benchmarks/estimator_latency.py [--repeat 3] [--models runs/.../seed-tip-11 runs/.../residual-basewrench]
+(the committed table: --repeat 3 --out reports/performance/estimator-latency/README.md)
 """
 from __future__ import annotations
 
@@ -22,12 +23,14 @@ import argparse
 import os
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
 import hybrid_dyn as hd
 from hybrid_dyn.analytic.tare import tare_samples
 from hybrid_dyn.estimator import TipForceEstimator
+from hybrid_dyn.timing import time_calls
 
 N_CALLS = 20_000
 
@@ -57,14 +60,13 @@ LATE_BASE_S = 0.7  # the late-joining base sensor's first sample [s]
 
 def measure_block(est, lat, cpu, start, stop, t, q, qd, w, tau, late_base=False):
     """Calls start..stop-1 of the stream; their wall-clock latencies [s] into lat, and the CPU time this
-    thread spent in each [s] into cpu (a call the scheduler preempted has a wall time far above its CPU time)."""
-    for k in range(start, stop):
+    thread spent in each [s] into cpu (a call the scheduler preempted has a wall time far above its CPU time):
+    ``hybrid_dyn.timing.time_calls``."""
+    def call(k):
         wk = None if late_base and t[k] < LATE_BASE_S else w[k]
-        c0 = time.thread_time()
-        t0 = time.perf_counter()
         est.estimate_tip_force(q[k], qd[k], base_wrench=wk, tau_J=tau[k], t=t[k])
-        lat[k] = time.perf_counter() - t0
-        cpu[k] = time.thread_time() - c0
+
+    lat[start:stop], cpu[start:stop] = time_calls(call, range(start, stop), cpu=True)
 
 
 def measure(cases, t, q, qd, w, tau):
@@ -94,7 +96,8 @@ def main(argv=None) -> None:
     ap.add_argument("--repeat", type=int, default=1,
                     help="measure this many times in one process (fresh estimators each time); the table "
                          "gives every run, since the tail of a shared machine moves between runs")
-    ap.add_argument("--out", default=None, help="also write the table to this markdown file (e.g. reports/estimator_latency.md)")
+    ap.add_argument("--out", default=None, help="also write the table to this markdown file (the committed one: "
+                         "reports/performance/estimator-latency/README.md)")
     args = ap.parse_args(argv)
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {0})
@@ -159,8 +162,7 @@ def main(argv=None) -> None:
                 "construction). The floors are judged on all calls, the "
                 "window's included; 'after the window' is the steady state a long control run sees (the first 500 calls "
                 "also tare the sensor and, for kalman_fusion, run its noise probe).", "", *table, ""]
-        from pathlib import Path
-
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         Path(args.out).write_text("\n".join(text))
 
 

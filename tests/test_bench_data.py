@@ -84,7 +84,7 @@ def test_bench_on_an_imported_log_runs_what_applies_and_says_why_the_rest_does_n
     readme = (tmp / "report" / "README.md").read_text()
     assert "## Rows not run" in readme and "`rnea-bw` (joint torque): needs base_wrench" in readme
     assert "hybrid-dyn bench --data " in readme and "panda[tool=none]" in readme  # the variant the log names
-    assert "Floors" not in readme and "NOT met" not in readme  # the project's floors are benchmarks/acceptance.py
+    assert "Floors" not in readme and "NOT met" not in readme  # the project's floors are checks/acceptance.py
     assert meta["datasets"]["my-panda"]["robot"] == "panda[tool=none]"
 
 
@@ -189,7 +189,7 @@ def test_a_robot_known_for_data_only_runs_the_black_box_rows_and_skips_the_urdf_
 
 
 def test_acceptance_floors_are_a_benchmark_of_their_own(tmp_path, capsys):
-    """benchmarks/acceptance.py prints each floor with its numbers and met / NOT met; the report does not."""
+    """checks/acceptance.py prints each floor with its numbers and met / NOT met; the report does not."""
     import importlib.util
 
     from hybrid_dyn.bench.report import write_report
@@ -205,7 +205,7 @@ def test_acceptance_floors_are_a_benchmark_of_their_own(tmp_path, capsys):
         row("real-panda", "rnea", "analytic", 1.6, 1.6),
         row("real-panda", "identified-consistent", "identified", 0.32, 0.32),  # 0.2 <= 0.4
         row("real-panda", "residual-rnea-identified", "identified", 0.288, 0.288)])  # 0.9 <= 1.0
-    spec = importlib.util.spec_from_file_location("acceptance", Path(__file__).parents[1] / "benchmarks" / "acceptance.py")
+    spec = importlib.util.spec_from_file_location("acceptance", Path(__file__).parents[1] / "checks" / "acceptance.py")
     acceptance = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(acceptance)
     assert acceptance.main(["--report", str(tmp_path)]) == 1  # one floor is not met
@@ -251,9 +251,7 @@ def test_a_missing_dataset_is_refused_before_the_report_folder_is_made(tmp_path,
 
 
 def test_the_data_control_divides_each_learned_row_by_its_own_reports_physics(tmp_path, capsys):
-    """benchmarks/data_control.py: two reports on different test instances compare through their analytic rows."""
-    import importlib.util
-
+    """hybrid-dyn compare: two reports on different test instances compare through their analytic rows."""
     from hybrid_dyn.bench.results import write_results
 
     def row(model, family, rmse, epochs=""):
@@ -266,11 +264,7 @@ def test_the_data_control_divides_each_learned_row_by_its_own_reports_physics(tm
             "paper-noext": {"n_instances": 10 if name == "small" else 40, "trajectories": [5, 10]}}}}))
         write_results(tmp_path / name / "results.csv", [row("rnea", "analytic", rnea), row("rnea-bw", "analytic", 9.0),
                                                          row("seed-tau-mlp", "seed-net", mlp, 12)])
-    spec = importlib.util.spec_from_file_location("data_control",
-                                                  Path(__file__).parents[1] / "benchmarks" / "data_control.py")
-    control = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(control)
-    assert control.main(["--small", str(tmp_path / "small"), "--large", str(tmp_path / "large")]) == 0
+    assert cli_main(["compare", str(tmp_path / "small"), str(tmp_path / "large")]) == 0
     out = capsys.readouterr().out
     assert "small `rnea` 0.500 Nm, large `rnea` 0.250 Nm" in out  # the best analytic row of each report
     assert "| seed-tau-mlp | seed-net | 5.000 | 10.00 | 12 (-) | 1.000 | 4.00 | 12 (-) | 0.40x |" in out

@@ -1,4 +1,4 @@
-"""CLI: hybrid-dyn bench (a built-in profile, or any datasets: --data DIR ...) and hybrid-dyn report DIR."""
+"""CLI: hybrid-dyn bench (a built-in profile, or any datasets: --data DIR ...), study NAME, compare A B and report DIR."""
 from __future__ import annotations
 
 
@@ -37,18 +37,27 @@ def register(sub) -> None:
                    help="with --executor ray: GPUs each training job reserves (fractions share one GPU)")
     p.set_defaults(func=cmd_bench)
 
-    st = sub.add_parser("study", help="a bench profile rerun with one thing varied (e.g. data-scaling: the "
-                        "learned rows on fewer training instances), summarised beside the profile's report")
-    st.add_argument("name", help="the study (hybrid_dyn.bench.studies.STUDIES: data-scaling)")
-    st.add_argument("--report", default=None, help="the profile's own report, the full-data point "
+    st = sub.add_parser("study", help="a bench profile rerun with overrides declared as data (e.g. data-scaling: "
+                        "the learned rows on fewer training instances), summarised against the profile's report")
+    st.add_argument("name", help="a study of hybrid_dyn.bench.studies.STUDIES (e.g. data-scaling, "
+                    "convergence-seed-sim, controls-default, data-control; reports/README.md lists them; an unknown "
+                    "name is refused with the list)")
+    st.add_argument("--report", default=None, help="the profile's own report, the study's reference point "
                     "(default: reports/<profile>)")
-    st.add_argument("--out", default=None, help="summary folder (default: <report>/<study>)")
+    st.add_argument("--out", default=None, help="summary folder (default: reports/studies/<study>)")
     st.add_argument("--data-root", default=None, help="dataset cache (default: ./data or $HYBRID_DYN_DATA)")
     st.add_argument("--work-root", default="runs", help="the variants' models and reports (default: ./runs)")
     st.add_argument("--workers", type=int, default=None, help="local processes training")
     st.add_argument("--executor", choices=("local", "ray"), default="local")
     st.add_argument("--ray-address", default=None)
     st.set_defaults(func=cmd_study)
+
+    cmp = sub.add_parser("compare", help="two bench reports side by side: each learned row against its own "
+                         "report's best analytic row (reports on different data test on different samples)")
+    cmp.add_argument("a", help="a report folder (e.g. on less data)")
+    cmp.add_argument("b", help="another report folder (e.g. on more data)")
+    cmp.add_argument("--out", default=None, help="also write the comparison to this markdown file")
+    cmp.set_defaults(func=cmd_compare)
 
     r = sub.add_parser("report", help="redraw a bench report's tables and figures from its files (no training)")
     r.add_argument("dir", help="a report folder written by hybrid-dyn bench (run.json, results.csv, ...)")
@@ -119,9 +128,25 @@ def cmd_study(args) -> int:
     workers = args.workers or get_profile(study.profile).workers
     executor = make_executor(workers, args.executor, args.ray_address)
     report = Path(args.report or f"reports/{study.profile}")
-    out = Path(args.out or report / study.name)
+    out = Path(args.out or Path("reports") / "studies" / study.name)
     run_study(study, report, out, work_root=Path(args.work_root), data_root=args.data_root, executor=executor)
     print(f"[study] {study.name}: summary in {out}/README.md")
+    return 0
+
+
+def cmd_compare(args) -> int:
+    from pathlib import Path
+
+    from ..errors import UsageError
+    from .compare import compare_reports
+
+    for d in (args.a, args.b):
+        if not (Path(d) / "results.csv").is_file() or not (Path(d) / "run.json").is_file():
+            raise UsageError(f"{d} holds no bench report (results.csv and run.json)")
+    text = compare_reports(Path(args.a), Path(args.b), command=f"hybrid-dyn compare {args.a} {args.b}")
+    print(text)
+    if args.out:
+        Path(args.out).write_text(text + "\n")
     return 0
 
 

@@ -221,7 +221,8 @@ def _residual_row(name: str, preset: str) -> Row:
         # The folder is named by the parameter file's content: a refit never meets a model of the old one.
         out = Path(ctx.work_dir) / "models" / f"{name}-{hashlib.sha256(Path(path).read_bytes()).hexdigest()[:12]}"
         t0 = time.perf_counter()
-        model = train_model(ds, preset, out, config=config, wait=True)  # a shared runs/: wait, reuse
+        # the profile's preset_overrides (a study's capacity control) apply here as to every trained preset row
+        model = train_model(ds, ctx.profile.preset(preset), out, config=config, wait=True)  # shared runs/: wait
         train_seconds = getattr(model, "train_seconds", None) or (time.perf_counter() - t0)
         # A learned row: its curve is reported, its single call is the user's (learned_rows.py).
         return learned_predictor(model, train_seconds, inputs=", ".join(model.config.get("inputs", []))

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 from ..data import DatasetError, load_dataset
@@ -48,7 +48,8 @@ class BenchProfile:
     recipe: str = "budget"  # learn.train.RECIPES: the budgeted recipe unless a profile says otherwise
     train: dict = field(default_factory=dict)  # TrainConfig fields on top of the recipe
     generator_overrides: dict = field(default_factory=dict)  # GeneratorConfig fields, every scenario
-    scenario_overrides: dict = field(default_factory=dict)  # scenario -> GeneratorConfig fields, that one only
+    # scenario -> GeneratorConfig fields, that one only (a real set: fields of its import spec, data.real.real_dataset)
+    scenario_overrides: dict = field(default_factory=dict)
     workers: int = 2
     torch_threads: int = 1  # see runner.run_bench: one thread is fastest for these nets
     notes: tuple = ()  # method notes printed in the report (fixed before any result)
@@ -59,16 +60,35 @@ class BenchProfile:
     robot: str | None = None  # a robot name for every dataset (description.ROBOT_NAME_HELP)
     params: str | None = None  # nominal parameter set (a name or a JSON path): analytic rows and residual priors
     tool: str | None = None  # the tool of every dataset's robot ("none": the bare flange)
+    # Preset fields changed in every trained preset row (e.g. {"fc_units": 256}: a study's capacity control);
+    # run.json records it only when set, so that reports written before it existed are of the same profile.
+    preset_overrides: dict = field(default_factory=dict)
 
     def __post_init__(self):
         self.selected_rows()  # an unknown row or family is refused now, not after the data are made
         self.train_config()  # so is an unknown recipe or a bad training field
         if self.robot is not None:
             self.resolve_robot(self.robot)  # a name the toolkit cannot serve is refused now, with the accepted ones
+        if self.preset_overrides:  # an unknown Preset field is refused now
+            from ..learn.presets import Preset
+
+            known = {f.name for f in fields(Preset)} - {"name"}
+            bad = sorted(set(self.preset_overrides) - known)
+            if bad:
+                raise UsageError(f"profile {self.name!r}: preset_overrides {bad} are not Preset fields")
         if self.params is not None and str(self.params).endswith(".json"):
             from ..description import read_param_file
 
             read_param_file(self.params)  # missing, malformed or no rigid body: refused before any work
+
+    def preset(self, name: str):
+        """The preset a preset row ``name`` trains: its own, or with :attr:`preset_overrides` (a new
+        :class:`~hybrid_dyn.learn.presets.Preset`; the name stays, the fields and so the fingerprint change)."""
+        if not self.preset_overrides:
+            return name
+        from ..learn.presets import get_preset
+
+        return get_preset(name).replace(**self.preset_overrides)
 
     def train_config(self):
         from ..learn import TrainConfig
@@ -127,7 +147,8 @@ class BenchProfile:
         if scenario.startswith("real-"):
             from ..data.real import real_dataset
 
-            return load_dataset(real_dataset(scenario, Path(data_root), log=log))
+            spec = self.scenario_overrides.get(scenario, {})  # e.g. another split of the same log
+            return load_dataset(real_dataset(scenario, Path(data_root), log=log, **spec))
         from ..sim.generator import generate_dataset
 
         cfg = self.scenario_config(scenario)
@@ -157,8 +178,12 @@ class BenchProfile:
 
     def to_dict(self) -> dict:
         """The profile as run.json records it (JSON types: lists for tuples), so that a profile and a
-        report's ``run.json["profile"]`` compare equal exactly when they are the same profile."""
-        return json.loads(json.dumps(asdict(self)))
+        report's ``run.json["profile"]`` compare equal exactly when they are the same profile. Fields added
+        after reports were committed (``preset_overrides``) are recorded only when set."""
+        d = json.loads(json.dumps(asdict(self)))
+        if not d["preset_overrides"]:
+            del d["preset_overrides"]
+        return d
 
 
 def is_dataset_path(scenario: str) -> bool:
@@ -195,7 +220,7 @@ def profile_for_data(paths, robot: str | None = None, params: str | None = None,
 PROFILES = {
     # make demo: one net of each architecture and family, trained long enough to learn (within
     # about 5 minutes on 2 cores), on a quick mismatch-ext of 30 instances of 5 trajectories. The
-    # torque nets are data-limited (reports/data-control): at 12 instances they learned nothing.
+    # torque nets are data-limited (reports/studies/data-control): at 12 instances they learned nothing.
     "quick": BenchProfile(
         name="quick", scenarios=("mismatch-ext",), generator_profile="quick",
         # The identified rows without their residual nets (those train after the others, one at a time).
@@ -210,13 +235,13 @@ PROFILES = {
         notes=("A demo: one seed net of each architecture (MLP #2, conv #5, LSTM #8, and the torque MLP and LSTM), "
                "the residual nets and DeLaN with friction, on a small mismatch-ext (30 instances of 5 trajectories); "
                "the budgeted recipe at 600 steps of batch 1024 per net. The black-box "
-               "torque nets are data-limited at this size (reports/data-control). The comparisons are in "
+               "torque nets are data-limited at this size (reports/studies/data-control). The comparisons are in "
                "reports/default and reports/seed-sim.",),
     ),
     # Every row on three simulated scenarios (issue 14) under the budgeted recipe (issue 31): a row
     # costs its step budget whatever the data, so the data grew 3x over the epoch-recipe bench's 40
     # instances of 5-10 trajectories (74.2 min from empty caches), whose learned rows were
-    # data-limited (reports/data-control: their RMSE ratios fell with every instance added).
+    # data-limited (reports/studies/data-control: their RMSE ratios fell with every instance added).
     "default": BenchProfile(
         name="default", scenarios=("paper-noext", "paper-ext", "mismatch-ext", "contact-steps", "contact-steps-quiet"),
         generator_profile="default",

@@ -4,8 +4,8 @@ Everything here is drawn from the bench's files in the report folder, never from
 a live run: results.csv (``results.py``), curves.json, run.json and predictions.h5
 (``predictions.py``), so ``hybrid-dyn report DIR`` redraws the same report without
 retraining or re-simulating. The headline findings are computed from those numbers,
-never typed. The project's own acceptance floors are not here: they are a benchmark
-of their own (``benchmarks/acceptance.py``), since they mean nothing on a user's data.
+never typed. The project's own acceptance floors are not here: they are a check
+of their own (``checks/acceptance.py``), since they mean nothing on a user's data.
 """
 from __future__ import annotations
 

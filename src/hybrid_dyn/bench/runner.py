@@ -45,6 +45,7 @@ from ..data.real import RealLogMissingError
 from ..data.splits import dataset_split_text
 from ..errors import UsageError
 from ..outputs import output_lock, refuse_foreign, unique_temp
+from ..timing import time_calls
 from .catalog import ROWS, get_row  # noqa: F401  (ROWS: every declared row)
 from .integrity import DIGEST_KEY, read_run_json, results_digest
 from .learned_rows import PRESET_ROWS
@@ -60,17 +61,13 @@ from .rows import TASK_TARGET, BenchContext, Predictor, Row  # noqa: F401  (re-e
 def _median_call_us(fn, inst, warmup_calls: int = 1, n_calls: int = 200) -> float:
     """The median time [us] of a row's single call on one run, fed its samples in order from the start
     (as a control loop feeds a stream); the first ``warmup_calls`` (at least one, at most all but the
-    last sample) are not timed, then up to ``n_calls`` are."""
+    last sample) are not timed, then up to ``n_calls`` are (``timing.time_calls``)."""
     n = len(inst)
     warm = min(max(1, int(warmup_calls)), n - 1)
     for k in range(warm):
         fn(inst, k)
-    times = []
-    for k in range(warm, min(n, warm + n_calls)):
-        t0 = time.perf_counter()
-        fn(inst, k)
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times) * 1e6)
+    wall, _ = time_calls(lambda k: fn(inst, k), range(warm, min(n, warm + n_calls)))
+    return float(np.median(wall) * 1e6)
 
 
 def score_row(spec: Row, ctx: BenchContext, norm: dict) -> dict:
@@ -138,9 +135,14 @@ def _train_job(args) -> tuple[str, str | None]:
         ds = load_dataset(dataset_path)
         ds.meta["robot"] = robot  # the bench's robot for this dataset (--robot / --tool), as score_row sees it
         train_model(ds, preset, out_dir, config=train_config, wait=True)  # another bench sharing runs/
-        return preset, None
+        return _preset_name(preset), None
     except Exception as err:  # reported again, with its row, when the row is scored
-        return preset, f"{type(err).__name__}: {err}"
+        return _preset_name(preset), f"{type(err).__name__}: {err}"
+
+
+def _preset_name(preset) -> str:
+    """A job's preset by name (a job carries a name, or a Preset changed by the profile's preset_overrides)."""
+    return preset if isinstance(preset, str) else preset.name
 
 
 def epoch_cost_rank(preset) -> tuple:
@@ -288,6 +290,19 @@ def _record_digest(out_dir: Path) -> None:
     write_json(out_dir / "run.json", meta)
 
 
+def recorded_path(path) -> str:
+    """A dataset's path as run.json and the README record it: relative to the working directory, so that a
+    committed report names no folder of the machine that wrote it (an absolute path given on the command
+    line, ``--data-root /work/x/data``, is recorded as ``data/...`` when run from ``/work/x``)."""
+    path = Path(path)
+    if not path.is_absolute():
+        return str(path)
+    try:
+        return os.path.relpath(path)
+    except ValueError:  # another drive (Windows): no relative path exists
+        return str(path)
+
+
 def work_dir(profile: BenchProfile, scenario: str, ds: Dataset, work_root: Path) -> Path:
     """Where a profile's models of one scenario are cached: one folder per dataset and training
     recipe, so a run with another recipe never meets these models."""
@@ -375,8 +390,8 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider
         if device is not None:
             tcfg = dataclasses.replace(tcfg, device=device)
         # The presets' rows train in parallel first (the identified residuals need their fit first).
-        jobs = [(str(ds.path), ref.name, s.name, str(ctx.work_dir / "models" / s.name), tcfg, profile.torch_threads)
-                for s in specs if s.name in PRESET_ROWS]
+        jobs = [(str(ds.path), ref.name, profile.preset(s.name), str(ctx.work_dir / "models" / s.name), tcfg,
+                 profile.torch_threads) for s in specs if s.name in PRESET_ROWS]
         log(f"[bench] {scenario}: training {len(jobs)} learned models on {profile.workers} workers")
         pretrain(jobs, profile.workers, log=log, executor=executor)
         for spec in tqdm(specs, desc=f"bench {scenario}", unit="model"):
@@ -405,7 +420,7 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider
                                "rows": len(rows), "rows_ok": sum(r.get("status") == "ok" for r in rows)}]
     meta = {"bench_report": 1, "profile": profile.to_dict(), "wall_seconds": wall, "invocations": invocations,
             "scenarios": labels, "skipped": skipped, "machine": machine_info(),
-            "datasets": {s: {"path": str(d.path), "checksum": d.checksum, "seed": d.meta.get("seed"),
+            "datasets": {s: {"path": recorded_path(d.path), "checksum": d.checksum, "seed": d.meta.get("seed"),
                              "config_hash": d.meta.get("config_hash"), "robot": d.meta.get("robot"),
                              "split": dataset_split_text(d), "dataset_seconds": dataset_seconds.get(s),
                              **({"import_warnings": _import_warnings(d)} if _import_warnings(d) else {})}

@@ -3,8 +3,8 @@
 Four recipes (:data:`RECIPES`, ``--recipe``):
 
 - ``budget`` (the bench's): a fixed budget of optimizer steps per network kind
-  (:data:`BUDGET_STEPS`, from the study in ``benchmarks/budget_study.py`` and
-  ``docs/models.md``), a linear warm-up over the first ``warmup_fraction`` of the
+  (:data:`BUDGET_STEPS`, from the budget study in ``docs/models.md``; ``hybrid-dyn
+  study budget`` reruns it), a linear warm-up over the first ``warmup_fraction`` of the
   budget, then a cosine decay of the rate to zero at the last step (Li, Yumer &
   Ramanan, "Budgeted Training", ICLR 2020), batch 1024 at lr 2e-3 (the rate scaled
   as the square root of the batch from 1e-3 at 256, Malladi et al. 2022 for Adam).
@@ -23,11 +23,11 @@ Four recipes (:data:`RECIPES`, ``--recipe``):
   waits ``patience`` = 10 epochs, so a cut rate gets time to pay off; the
   gradient norm of recurrent nets is clipped at ``grad_clip`` (LSTMs on
   standardized inputs can take an exploding step early on). Batch size: see
-  ``docs/models.md`` (a measured sweep, ``benchmarks/learn_speed.py --sweep``).
+  ``docs/models.md`` (a measured sweep; ``hybrid-dyn study batch-size`` for the budget).
 - ``long``: ``default`` with the plateau's patience 10, early stopping's 20 and
   decoupled weight decay 0.1 of the weight matrices (AdamW): it trains the nets that
   ``default`` stops early, and regularizes the ones that overfit a small set, at 1.8-3.7x the
-  epochs on paper-noext's torque rows (``benchmarks/learning_controls.py`` measures what it buys).
+  epochs on paper-noext's torque rows (``reports/studies/controls-default`` measures what it buys).
 
 All keep the weights of the best validation epoch (as Keras'
 ``restore_best_weights``); the untrained model counts as epoch "-1", so a
@@ -242,7 +242,7 @@ LR_SCHEDULES = ("plateau", "none", "cosine")
 STOP_REASONS = ("patience", "lr-floor", "epoch-cap", "budget")
 
 # Optimizer steps of the budgeted recipe per network kind (of the preset's front; a DeLaN with a
-# residual net counts as DeLaN), from the budget study (benchmarks/budget_study.py, docs/models.md) on
+# residual net counts as DeLaN), from the budget study (docs/models.md; hybrid-dyn study budget) on
 # seed-sim (80 instances) and paper-noext (40): the MLP's knee (the smallest budget whose doubling gains
 # under 3 % on validation) on both; the others had knees on seed-sim (LSTM 2000, DeLaN 4000) but still
 # gained 8-25 % per doubling on paper-noext, so they are set where the cost allows (conv 3-4 min a row,
@@ -276,7 +276,7 @@ def budget_lr(config: TrainConfig, step: int) -> float:
 # patience 5, no clipping); "default": the TrainConfig defaults; "long": module docstring.
 RECIPES = {
     "default": {},
-    # Trains further where "default" stops early (docs/models.md, reports/default/controls.md): the
+    # Trains further where "default" stops early (docs/models.md, reports/studies/controls-default): the
     # plateau waits 10 epochs, early stopping 20, weight matrices decay by 0.1. It cost 1.8-3.7x the
     # epochs on paper-noext's torque rows, which the default bench cannot afford in 120 minutes on 2 cores.
     "long": dict(patience=20, lr_patience=10, weight_decay=0.1),
