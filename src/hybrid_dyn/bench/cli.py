@@ -44,7 +44,8 @@ def register(sub) -> None:
                     "name is refused with the list)")
     st.add_argument("--report", default=None, help="the profile's own report, the study's reference point "
                     "(default: reports/<profile>)")
-    st.add_argument("--out", default=None, help="summary folder (default: reports/studies/<study>)")
+    st.add_argument("--out", default=None, help="summary folder (default: the study's, reports/studies/<study>; data-scaling: "
+                    "reports/seed-sim/data-scaling)")
     st.add_argument("--data-root", default=None, help="dataset cache (default: ./data or $HYBRID_DYN_DATA)")
     st.add_argument("--work-root", default="runs", help="the variants' models and reports (default: ./runs)")
     st.add_argument("--workers", type=int, default=None, help="local processes training")
@@ -128,7 +129,7 @@ def cmd_study(args) -> int:
     workers = args.workers or get_profile(study.profile).workers
     executor = make_executor(workers, args.executor, args.ray_address)
     report = Path(args.report or f"reports/{study.profile}")
-    out = Path(args.out or Path("reports") / "studies" / study.name)
+    out = Path(args.out) if args.out else study.default_out()
     run_study(study, report, out, work_root=Path(args.work_root), data_root=args.data_root, executor=executor)
     print(f"[study] {study.name}: summary in {out}/README.md")
     return 0

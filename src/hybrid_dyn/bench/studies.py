@@ -95,6 +95,8 @@ class Study:
     "controls"). tolerance: "controls" only; a variant whose validation loss is lower than the
     reference's by less than this share counts as no gain (the convergence check). keep_variant_reports:
     the variants' bench reports go beside the summary (committed) instead of under ``runs/studies``.
+    out: where the summary goes by default: ``reports/studies/<name>``, or (data-scaling, issue 31) a
+    folder inside its profile's report, ``reports/<profile>/<name>``, beside the report it extends.
     """
 
     name: str
@@ -109,6 +111,11 @@ class Study:
     summary: str = ""
     tolerance: float | None = None
     keep_variant_reports: bool = False
+    out: str | None = None
+
+    def default_out(self) -> Path:
+        """The summary's folder when ``--out`` is not given (:attr:`out`)."""
+        return Path(self.out or Path("reports") / "studies" / self.name)
 
     def __post_init__(self):
         from .study_summaries import SUMMARY_KINDS
@@ -173,13 +180,14 @@ def _controls(name, profile, rows, half, description, **fields) -> Study:
         "weight-decay-1": Overrides(train={"weight_decay": 1.0}),
         "fc-256": Overrides(preset={"fc_units": 256}, rows=tuple(r for r in rows if not r.startswith("delan"))),
         "data-half": Overrides(train={"train_instances": half}),
+        "budget-x2": Overrides(budget_factor=2),
         "recipe-long": Overrides(recipe="long")}, **fields)
 
 
 STUDIES = {s.name: s for s in (
     _study("data-scaling", "seed-sim", "test error against the number of training instances (val in proportion), "
            "the best learned row of each family and task at the same step budget, and the best physics rows",
-           train_instances=(10, 40, 160)),
+           train_instances=(10, 40, 160), out="reports/seed-sim/data-scaling"),
     _study("convergence-seed-sim", "seed-sim", "does more training still pay? The best learned row of each "
            "family and task retrained at twice its step budget; converged when validation gains < 3 %",
            variants={"budget-x2": Overrides(budget_factor=2)}, tolerance=CONVERGED),
