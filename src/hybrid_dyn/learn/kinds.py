@@ -30,6 +30,7 @@ from types import SimpleNamespace
 from typing import Callable
 
 from ..errors import UsageError
+from ..registry import Registry
 
 # The parts a model may hold, by HybridModel attribute: a plain net, or DeLaN's structured model.
 NET_PARTS = ("net",)
@@ -94,27 +95,11 @@ class NetworkKind:
         return tuple(self.parts) == NET_PARTS
 
 
-NETWORK_KINDS: dict[str, NetworkKind] = {}
+NETWORK_KINDS = Registry("network kind", ValueError, UsageError)  # name -> NetworkKind
 KINDS = NETWORK_KINDS.keys()  # the kinds' names, a live view (a kind registered later is in it)
-
-
-def register(kind: NetworkKind) -> NetworkKind:
-    """Declare a network kind: from now on presets, training, the fast path, the bench and tuning know it."""
-    if kind.name in NETWORK_KINDS:
-        raise ValueError(f"network kind {kind.name!r} is declared twice")
-    NETWORK_KINDS[kind.name] = kind
-    return kind
-
-
-def unregister(name: str) -> None:
-    """Remove a kind (a test's toy)."""
-    NETWORK_KINDS.pop(name)
-
-
-def network_kind(name: str) -> NetworkKind:
-    if name not in NETWORK_KINDS:
-        raise UsageError(f"unknown network kind {name!r}; known: {', '.join(KINDS)}")
-    return NETWORK_KINDS[name]
+register = NETWORK_KINDS.register  # declare a kind: presets, training, the fast path, the bench and tuning know it
+unregister = NETWORK_KINDS.unregister  # remove one (a test's toy)
+network_kind = NETWORK_KINDS.lookup  # a kind by name; an unknown one is refused, naming the known ones
 
 
 class _BudgetSteps(Mapping):

@@ -51,6 +51,7 @@ Profiles: ``quick`` (6 short instances, under a minute on 2 cores), ``default``
 from __future__ import annotations
 
 from ..errors import HybridDynError
+from ..registry import Registry
 import dataclasses
 import hashlib
 import json
@@ -312,28 +313,11 @@ class Scenario:
             raise ConfigError(f"scenario {self.name!r}: alternative_plant and a plant_params override contradict")
 
 
-SCENARIO_REGISTRY: dict[str, Scenario] = {}
-# The scenarios' names, in declaration order (a live view: a scenario declared later is in it).
-SCENARIOS = SCENARIO_REGISTRY.keys()
-
-
-def register(scenario: Scenario) -> Scenario:
-    """Declare a scenario: from now on ``scenario_config``, the CLI and the bench know it."""
-    if scenario.name in SCENARIO_REGISTRY:
-        raise ConfigError(f"scenario {scenario.name!r} is declared twice")
-    SCENARIO_REGISTRY[scenario.name] = scenario
-    return scenario
-
-
-def unregister(name: str) -> None:
-    """Remove a scenario (a test's toy)."""
-    SCENARIO_REGISTRY.pop(name)
-
-
-def get_scenario(name: str) -> Scenario:
-    if name not in SCENARIO_REGISTRY:
-        raise ConfigError(f"unknown scenario {name!r}; known: {', '.join(SCENARIOS)}")
-    return SCENARIO_REGISTRY[name]
+SCENARIO_REGISTRY = Registry("scenario", ConfigError)  # name -> Scenario
+SCENARIOS = SCENARIO_REGISTRY.keys()  # the scenarios' names in declaration order, a live view
+register = SCENARIO_REGISTRY.register  # declare a scenario: scenario_config, the CLI and the bench know it
+unregister = SCENARIO_REGISTRY.unregister  # remove one (a test's toy)
+get_scenario = SCENARIO_REGISTRY.lookup  # a scenario by name; an unknown one is refused, naming the known ones
 
 
 def alternative_params(robot: str) -> str:
