@@ -4,7 +4,9 @@ A preset already says what a row reads (its inputs and targets), whether it
 needs a URDF (an analytic prior) and, by ``raw_sensor``, whether it is a
 reference row; what it does not say is its family, declared once in
 :data:`PRESET_FAMILIES`. A preset missing there is refused when this module is
-imported, naming it (a new network type: its net, its preset, and its line here).
+imported, naming it. The family is the preset's, not its network kind's (an MLP
+is ``seed-net`` or ``learned``, an LSTM ``seed-net`` or ``residual``); a new kind
+is declared once in ``learn/kinds.py``, a new preset of it needs its line here.
 
 Rows are declared tip-force presets first, then joint-torque presets, each in
 the order of ``PRESETS``: the order results.csv lists them in.

@@ -155,10 +155,11 @@ def epoch_cost_rank(preset) -> tuple:
     LSTMs 5.0-5.9, the 32-unit residual LSTMs 2.7-4.0, the 16-unit LSTMs 1.4-2.5, conv
     1.1-1.6, MLPs 0.45-1.05.
     """
+    from ..learn.kinds import cost_rank
     from ..learn.presets import get_preset
 
     p = get_preset(preset)
-    kind = {"delan": 3 if p.residual_kind else 2, "lstm": 1}.get(p.kind, 0)
+    kind = cost_rank(p)  # declared with the network kind (learn/kinds.py)
     return (-kind, -sum(p.front_units), -p.window, -p.fc_units)
 
 

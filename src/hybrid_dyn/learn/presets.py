@@ -21,12 +21,12 @@ from dataclasses import asdict, dataclass, field, replace
 
 from ..analytic.estimators import estimator_name
 from ..errors import UsageError
+from .kinds import KINDS, preset_problems  # noqa: F401  (KINDS re-exported: the network kinds' names)
 
 STATE = ["q", "qd", "qdd"]
 TIP_INPUTS = ["base_wrench", "q", "qd", "qdd"]
 TIP_INPUTS_TAU = TIP_INPUTS + ["tau_J"]
 
-KINDS = ("mlp", "conv", "lstm", "delan")
 # The analytic estimators a residual can sit on, by their one name (analytic/estimators.py): the two
 # torque models, and the tip-force methods registered as priors (analytic/methods.py).
 TORQUE_PRIORS = ("rnea", "rnea-bw")
@@ -55,8 +55,9 @@ def prior_file_spelling(kind: str) -> str:
 class Preset:
     """A model architecture with its inputs and outputs.
 
-    kind: "mlp" (current sample only), "conv" (one Conv1d front layer), "lstm"
-    (stacked LSTM front layers) or "delan" (Lagrangian structure, current sample).
+    kind: a network kind of ``learn/kinds.py``: "mlp" (current sample only), "conv" (one
+    Conv1d front layer), "lstm" (stacked LSTM front layers) or "delan" (Lagrangian
+    structure, current sample), or one registered there later.
     inputs / targets: dataset field names (see ``hybrid_dyn.data.FIELD_UNITS``).
     window: samples per input window (1 for MLP and DeLaN).
     front_units: units of each conv/LSTM front layer (conv uses the first only).
@@ -101,7 +102,7 @@ class Preset:
 
     def __post_init__(self):
         if self.kind not in KINDS:
-            raise ValueError(f"preset {self.name!r}: kind must be one of {KINDS}, got {self.kind!r}")
+            raise ValueError(f"preset {self.name!r}: kind must be one of {tuple(KINDS)}, got {self.kind!r}")
         if self.prior is not None:  # one name per estimator; a saved model's older spelling is read as it
             object.__setattr__(self, "prior", estimator_name(self.prior, prior_kinds(), f"prior of preset {self.name!r}"))
         if self.activation not in ("relu", "tanh"):
@@ -110,12 +111,9 @@ class Preset:
             raise ValueError(f"preset {self.name!r}: window must be >= 1")
         if not 0.0 <= self.dropout < 1.0:
             raise ValueError(f"preset {self.name!r}: dropout must be in [0, 1), got {self.dropout}")
-        if self.kind in ("mlp", "delan") and self.window != 1 and self.residual_kind is None:
-            raise ValueError(f"preset {self.name!r}: {self.kind} sees the current sample only (window 1)")
-        if self.kind == "conv" and self.window < self.conv_kernel:
-            raise ValueError(f"preset {self.name!r}: window {self.window} is shorter than the conv kernel")
-        if self.kind in ("conv", "lstm") and not self.front_units:
-            raise ValueError(f"preset {self.name!r}: {self.kind} needs front_units")
+        problems = preset_problems(self)  # what the kind declares a preset of it must give
+        if problems:
+            raise ValueError(f"preset {self.name!r}: {'; '.join(problems)}")
 
     @property
     def is_sequence(self) -> bool:

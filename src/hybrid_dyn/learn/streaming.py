@@ -15,7 +15,7 @@ at every call. A tared base-wrench prior tares the sensor on the first
 
 Out of range: an input more than ``RANGE_SIGMAS`` training standard deviations
 from its training mean (any q, qd, qdd, wrench or torque component) makes the
-estimate "out of training range"; it is still returned.
+estimate "input out of training range" (``EstimatorStatus.OUT_OF_RANGE``); it is still returned.
 """
 from __future__ import annotations
 

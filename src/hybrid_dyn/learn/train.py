@@ -89,6 +89,7 @@ from ..errors import UsageError
 from ..outputs import json_marker, output_lock, refuse_foreign, refuse_foreign_files
 from .model import (MODEL_FORMAT, MODEL_FORMAT_VERSION, TIMING_FORMAT, HybridModel, ModelError, TrainedModel,
                     canonical_json, check_instances, load_model, read_file_metadata, save_model)
+from .kinds import BUDGET_STEPS, clips_gradients  # per network kind, declared with the kind
 from .presets import Preset, get_preset
 from .priors import AnalyticPrior
 
@@ -241,13 +242,8 @@ class TrainConfig:
 LR_SCHEDULES = ("plateau", "none", "cosine")
 STOP_REASONS = ("patience", "lr-floor", "epoch-cap", "budget")
 
-# Optimizer steps of the budgeted recipe per network kind (of the preset's front; a DeLaN with a
-# residual net counts as DeLaN), from the budget study (docs/models.md; hybrid-dyn study budget) on
-# seed-sim (80 instances) and paper-noext (40): the MLP's knee (the smallest budget whose doubling gains
-# under 3 % on validation) on both; the others had knees on seed-sim (LSTM 2000, DeLaN 4000) but still
-# gained 8-25 % per doubling on paper-noext, so they are set where the cost allows (conv 3-4 min a row,
-# LSTM 4-7, DeLaN 6 on a loaded core) and are known not to have converged there.
-BUDGET_STEPS = {"mlp": 8000, "conv": 16000, "lstm": 4000, "delan": 16000}
+# Optimizer steps of the budgeted recipe per network kind: declared with each kind (learn/kinds.py,
+# where the budget study's numbers are explained); BUDGET_STEPS reads them (kind -> steps).
 
 
 def budget_steps_of(preset: Preset) -> int:
@@ -636,7 +632,7 @@ def sensor_tare_seconds(preset: Preset, config: TrainConfig) -> float:
 
 def _is_recurrent(preset: Preset) -> bool:
     """Whether the net has an LSTM (front or residual branch): the nets whose gradients are clipped."""
-    return preset.kind == "lstm" or preset.residual_kind == "lstm"
+    return clips_gradients(preset)  # declared with the kind (learn/kinds.py)
 
 
 def _next_stop(config: TrainConfig, epoch: int, n_rounds: int, bad_epochs: int, lr_bad_epochs: int,

@@ -5,10 +5,11 @@ import sys
 
 
 def register(sub) -> None:
-    from .scenarios import PROFILES, SCENARIOS
+    from .scenarios import PROFILES, SCENARIO_REGISTRY, SCENARIOS
 
     p = sub.add_parser("generate", help="simulate a dataset of a named scenario (DART, 1 kHz)")
-    p.add_argument("--scenario", choices=SCENARIOS, default="paper-ext")
+    p.add_argument("--scenario", choices=SCENARIOS, default="paper-ext",
+                   help=". ".join(f"{s.name}: {s.description}" for s in SCENARIO_REGISTRY.values()))
     p.add_argument("--profile", choices=PROFILES, default="quick",
                    help="quick: under a minute; default: ~0.4 M samples; paper: the seed's 1000 instances")
     p.add_argument("--out", required=True, help="dataset directory or fsspec URL (created in an existing folder; an "

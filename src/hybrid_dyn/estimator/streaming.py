@@ -1,4 +1,4 @@
-"""``estimate_tip_force()`` for control code: a streaming estimator, and its batch twin.
+"""The streaming tip-force estimator, :class:`TipForceEstimator`: one sample in, one force out.
 
 Control engineers call :class:`TipForceEstimator` once per tick of a 1 kHz loop::
 
@@ -10,7 +10,7 @@ The analytic methods are defined once, in ``analytic/methods.py`` (what each
 reads, its bandwidth and the rule that sets it, its streaming step and batch
 run); this module runs them on a stream. What happens in one call:
 
-1. The sample is checked before any state is touched (``estimator_input.py``).
+1. The sample is checked before any state is touched (``estimator/input.py``).
    It is rejected when
    - an argument is not numeric, has the wrong shape, holds NaN/inf, or a
      needed one (base_wrench, tau_J) is missing;
@@ -61,7 +61,7 @@ run); this module runs them on a stream. What happens in one call:
    while the joint torques see a force above ``tare_contact_force`` the tare starts
    over (it never tares over a contact), and the filter runs on the torques alone.
 5. An estimate above ``max_tip_force`` (500 N) is returned with status
-   FORCE_OUT_OF_RANGE ("out of range") and is not kept as the last good one.
+   FORCE_OUT_OF_RANGE ("force out of range") and is not kept as the last good one.
 
 Statuses (``last_status``), first match wins: INPUT_REJECTED (this sample was
 refused; the last good estimate is returned), FORCE_OUT_OF_RANGE (the estimate
@@ -70,7 +70,7 @@ spaced unlike 1 / call_hz), NO_SENSOR ("no usable sensor": this call brings
 nothing the method can estimate from, e.g. kalman-fusion given only a base
 sensor that is not yet tared; the returned force is a prediction), WARMING_UP
 (the window, tare, filter or observer still settles), OUT_OF_RANGE (a learned
-model's input lies outside its training range: "out of training range"), OK.
+model's input lies outside its training range: "input out of training range"), OK.
 
 A known base-sensor offset can be given with ``set_tare_offset``; ``reset``
 tares anew.
@@ -78,28 +78,23 @@ tares anew.
 Threading: an estimator holds per-stream state (filter, window, observer) and
 preallocated buffers, so one instance must be used by one thread at a time;
 use one estimator per control thread. ``estimate_tip_force()`` (the stateless
-batch form) is thread-safe: it keeps one robot model per thread.
+batch form, ``estimator/batch.py``) is thread-safe: it keeps one robot model per thread.
 """
 from __future__ import annotations
 
-import threading
-from dataclasses import dataclass
-from enum import Enum
 from pathlib import Path
 
 import numpy as np
 
-from .analytic.acceleration import (  # noqa: F401  (re-exported: the estimator's public names)
-    DEFAULT_QDD_CUTOFF_HZ, CausalAccelerationFilter, auto_qdd_cutoff, cutoff_grid, qdd_noise_gain, white_noise_rms)
-from .analytic.bandwidth import measure_window
-from .analytic.estimators import ALIASES, estimator_name
-from .analytic.kalman import MAX_BRIDGE_CALLS
-from .analytic.methods import REGISTRY, spec_noise
-from .analytic.robot import InputError, Robot, load_robot
-from .analytic.tare import TARE_SECONDS, StreamingTare, tare_samples, tared_base_wrench
-from .analytic.tip_force import tip_force_from_base_wrench
-from .errors import UsageError
-from .estimator_input import EstimatorInputError, InputGate, RateCheck  # noqa: F401  (re-exported)
+from ..analytic.acceleration import DEFAULT_QDD_CUTOFF_HZ, CausalAccelerationFilter, cutoff_grid
+from ..analytic.bandwidth import measure_window
+from ..analytic.estimators import ALIASES, estimator_name
+from ..analytic.kalman import MAX_BRIDGE_CALLS
+from ..analytic.methods import REGISTRY, spec_noise
+from ..analytic.robot import Robot, load_robot
+from ..analytic.tare import StreamingTare, tare_samples
+from .config import EstimatorConfig, EstimatorStatus
+from .input import EstimatorInputError, InputGate, RateCheck
 
 # The analytic methods, by the estimators' one name (analytic/methods.py registers them; the older
 # spellings base_wrench, torques, momentum, base_momentum, kalman_fusion are accepted).
@@ -107,86 +102,10 @@ METHODS = tuple(REGISTRY)
 METHOD_ALIASES = {a: c for a, c in ALIASES.items() if c in METHODS}
 
 
-class EstimatorStatus(str, Enum):
-    OK = "ok"
-    WARMING_UP = "warming up"            # window, tare, filter or observer still settling
-    INPUT_REJECTED = "input rejected"    # this call's sample was bad; the last good estimate was held
-    FORCE_OUT_OF_RANGE = "out of range"  # the estimate exceeds EstimatorConfig.max_tip_force
-    OUT_OF_RANGE = "out of training range"  # learned model: input outside its training distribution
-    WRONG_RATE = "wrong rate"            # an untimed stream spaced unlike 1 / call_hz (RateCheck)
-    NO_SENSOR = "no usable sensor"       # this call brings nothing the method can estimate from
-
-
 # The statuses as plain names for the per-call path: an Enum member looked up on its class costs ~0.3 us.
 _OK, _WARMING_UP, _OUT_OF_RANGE, _FORCE_OUT_OF_RANGE, _WRONG_RATE, _NO_SENSOR = (
     EstimatorStatus.OK, EstimatorStatus.WARMING_UP, EstimatorStatus.OUT_OF_RANGE, EstimatorStatus.FORCE_OUT_OF_RANGE,
     EstimatorStatus.WRONG_RATE, EstimatorStatus.NO_SENSOR)
-
-
-def _auto_or_positive(name: str, value, unit: str) -> None:
-    if value != "auto" and not (isinstance(value, (int, float)) and value > 0):
-        raise UsageError(f"{name} must be 'auto' or > 0 [{unit}], got {value!r}")
-
-
-@dataclass(frozen=True)
-class EstimatorConfig:
-    """call_hz: the nominal call rate [Hz] the filters and observers are designed for.
-    qdd_cutoff_hz [Hz], momentum_gain (observer bandwidth K [1/s]), fusion_force_rate
-    (kalman-fusion's random-walk intensity of the tip force [N/sqrt(s)]): each method's
-    bandwidth; "auto" (the default): chosen by the rule of ``analytic/bandwidth.py`` from
-    the noise window, as the bench's headline rows choose it; a number: used as is.
-    on_bad_input: "raise" or "hold".
-    tare_seconds: the contact-free start used as the noise window and to tare the base
-    sensor [s]; 0 = no window: trust the sensor's zero, the rule on the specifications.
-    tare_contact_force: a kalman-fusion tare after the window (a base sensor that joins
-    late) starts over while the joint torques see a force above this [N].
-
-    Plausibility bounds (see the module docstring):
-    q_margin: how far q may lie outside the URDF position limits [rad]; encoders
-    read a hair past a limit, 0.1 rad (6 deg) is no measurement of this arm.
-    qd_margin, tau_margin: the fraction by which |qd| may exceed the velocity
-    limit (TOML ``max_velocity``, else the URDF's) and |tau_J| the URDF effort
-    limit; the arm's controller stops at the limits, so 50 % more is a fault.
-    max_tip_force: bound on the estimate [N]. 500 N is beyond what the Panda's
-    87 Nm shoulder can hold 0.2 m from its axis; a larger estimate is a fault
-    (a corrupt sensor, a singular pose), not a contact. It also sets the
-    base-wrench bound. Raise it for a stronger arm.
-    rate_tolerance: the fraction by which a timed stream's step may differ
-    from 1 / call_hz (and an untimed stream's measured rate, ``RateCheck``).
-    """
-
-    call_hz: float = 1000.0
-    qdd_cutoff_hz: float | str = "auto"
-    on_bad_input: str = "raise"
-    momentum_gain: float | str = "auto"
-    tare_seconds: float = TARE_SECONDS
-    q_margin: float = 0.1
-    qd_margin: float = 0.5
-    tau_margin: float = 0.5
-    max_tip_force: float = 500.0
-    rate_tolerance: float = 0.25
-    fusion_force_rate: float | str = "auto"
-    tare_contact_force: float = 1.0
-
-    def __post_init__(self):
-        if self.on_bad_input not in ("raise", "hold"):
-            raise UsageError(f"on_bad_input must be 'raise' or 'hold', got {self.on_bad_input!r}")
-        if not (isinstance(self.call_hz, (int, float)) and self.call_hz > 0):
-            raise UsageError(f"call_hz must be > 0 [Hz], got {self.call_hz!r}")
-        if self.qdd_cutoff_hz != "auto" and not (isinstance(self.qdd_cutoff_hz, (int, float))
-                                                 and 0 < self.qdd_cutoff_hz < 0.5 * self.call_hz):
-            raise UsageError(f"qdd_cutoff_hz must be 'auto' or lie in (0, call_hz / 2) [Hz], got {self.qdd_cutoff_hz!r}")
-        _auto_or_positive("momentum_gain", self.momentum_gain, "1/s")
-        _auto_or_positive("fusion_force_rate", self.fusion_force_rate, "N/sqrt(s)")
-        for name in ("q_margin", "qd_margin", "tau_margin", "tare_seconds"):
-            if not getattr(self, name) >= 0:
-                raise UsageError(f"{name} must be >= 0, got {getattr(self, name)!r}")
-        if not self.max_tip_force > 0:
-            raise UsageError(f"max_tip_force must be > 0 [N], got {self.max_tip_force!r}")
-        if not self.tare_contact_force > 0:
-            raise UsageError(f"tare_contact_force must be > 0 [N], got {self.tare_contact_force!r}")
-        if not 0 < self.rate_tolerance < 1:
-            raise UsageError(f"rate_tolerance must lie in (0, 1), got {self.rate_tolerance!r}")
 
 
 class TipForceEstimator:
@@ -255,7 +174,7 @@ class TipForceEstimator:
         runs: "auto" (the faster of onnxruntime and numba, timed at load), "onnx"
         (float32) or "numba" (float64: agrees with the batch form to round-off).
         """
-        from .learn.streaming import StreamingModel
+        from ..learn.streaming import StreamingModel
 
         model = StreamingModel.load(Path(model_dir), robot=robot, runtime=runtime)
         if config.get("qdd_cutoff_hz", "auto") == "auto":  # the network saw qdd through its training filter
@@ -467,40 +386,3 @@ class TipForceEstimator:
         self._stream.reset()
         self._absent, self._active = [-1, -1], ()
         self._warmup_calls = max(self._warmup_calls, self._calls + 1 + self._stream.settle_calls(self.spec.reads))
-
-
-# ------------------------------------------------------------------ batch form
-_thread_local = threading.local()
-
-
-def _robot_for_thread(name: str) -> Robot:
-    robots = getattr(_thread_local, "robots", None)
-    if robots is None:
-        robots = _thread_local.robots = {}
-    if name not in robots:
-        robots[name] = load_robot(name, num_threads=1)
-    return robots[name]
-
-
-def estimate_tip_force(q, qd, qdd, base_wrench=None, tau_J=None, model=None, robot: str = "panda",
-                       tare_samples: int = 0) -> np.ndarray:
-    """Stateless batch tip-force estimate (N, 3) [N] for offline use.
-
-    model=None: the analytic base-wrench method (needs base_wrench (N, 6));
-    tare_samples > 0 tares the base sensor on that many contact-free first
-    samples (``analytic/tare.py``), as the streaming estimator does.
-    model: a trained model directory (or a loaded model); its inputs decide
-    which of base_wrench / tau_J are needed. Thread-safe.
-    """
-    if model is None:
-        if base_wrench is None:
-            raise InputError("the analytic base-wrench method needs base_wrench (N, 6)")
-        r = _robot_for_thread(robot)
-        if tare_samples > 0:
-            base_wrench = tared_base_wrench(r, np.atleast_2d(q), np.atleast_2d(qd), np.atleast_2d(qdd),
-                                            np.atleast_2d(base_wrench), tare_samples)
-        return tip_force_from_base_wrench(r, q, qd, qdd, base_wrench)
-    from .learn.streaming import StreamingModel
-
-    m = model if isinstance(model, StreamingModel) else StreamingModel.load(Path(model))
-    return m.predict_arrays(q, qd, qdd, base_wrench, tau_J)
