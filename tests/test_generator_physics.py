@@ -2,7 +2,7 @@
 
 - logged base wrench and tau_J against the analytic core (Pinocchio) of the PLANT robot;
 - the logged truth against DART's own integrator (semi-implicit Euler);
-- the applied friction against the reference Gaz law in ``description.py``;
+- the applied friction against the reference Gaz law in ``description/params.py``;
 - sensor noise, the causal acceleration filter, pulses and trajectories against
   their specifications.
 """
