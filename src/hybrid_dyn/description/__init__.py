@@ -1,7 +1,8 @@
 """Robot descriptions: which URDF, which frames, which parameter sets.
 
-A robot is described by a small TOML file in the repository's ``robots/`` folder
-(see ``robots/panda.toml``). This package reads those files, finds the URDF inside
+A robot is described by a small TOML file in the ``robots/`` folder that ships inside
+the package (``hybrid_dyn/resources/robots``, see its ``panda.toml``; ``$HYBRID_DYN_ROBOTS``
+names another folder). This package reads those files, finds the URDF inside
 the installed ``example-robot-data`` package, and rewrites the URDF text when a
 different parameter set or a payload is asked for.
 

@@ -5,19 +5,20 @@ import importlib.metadata
 import os
 from pathlib import Path
 
+from ..resources import resource_dir
 from .base import RobotDescriptionError
 
 
 def robots_dir() -> Path:
     """The folder holding ``<name>.toml`` robot descriptions.
 
-    ``$HYBRID_DYN_ROBOTS`` wins; otherwise the ``robots/`` folder of the checkout
-    this package was installed from (editable install, the documented path).
+    ``$HYBRID_DYN_ROBOTS`` wins; otherwise the descriptions that ship inside the package
+    (``hybrid_dyn/resources/robots``, package data: an installed toolkit has them too).
     """
     env = os.environ.get("HYBRID_DYN_ROBOTS")
     if env:
         return Path(env)
-    return Path(__file__).resolve().parents[3] / "robots"
+    return resource_dir("robots")
 
 
 def example_robot_data_dir() -> Path:
