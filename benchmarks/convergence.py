@@ -31,6 +31,7 @@ import sys
 import time
 from pathlib import Path
 
+from hybrid_dyn.bench.integrity import recorded_profile
 from hybrid_dyn.bench.profiles import BenchProfile, get_profile
 from hybrid_dyn.bench.runner import read_results, work_dir
 from hybrid_dyn.learn import PRESETS, TrainConfig, train_model
@@ -97,8 +98,10 @@ def main() -> int:
     report = Path(args.report)
     run = json.loads((report / "run.json").read_text())
     profile = get_profile(run["profile"]["name"])
-    if profile.to_dict() != run["profile"]:  # the report must be of this code's profile, or its models differ
-        profile = BenchProfile(**{k: tuple(v) if isinstance(v, list) else v for k, v in run["profile"].items()})
+    recorded = recorded_profile(run["profile"])  # an old recipe name is the same recipe (issue 30)
+    if profile.to_dict() != recorded:  # the report must be of this code's profile, or its models differ
+        fields = {("generator_size" if k == "generator_profile" else k): v for k, v in recorded.items()}  # run.json's key
+        profile = BenchProfile(**{k: tuple(v) if isinstance(v, list) else v for k, v in fields.items()})
     # The bench's own thread count: torch's default (one thread per core) oversubscribes the cores
     # when two checks run side by side, and these tiny nets then train 10x slower (measured).
     config = dataclasses.replace(profile.train_config(), num_threads=profile.torch_threads, progress=not args.quiet)

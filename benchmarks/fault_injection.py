@@ -88,8 +88,8 @@ def generate_cli(argv: list[str]) -> int:
     pulses = scenarios.PulseConfig(gap=sizes.pop("pulse_gap"), sigma=sizes.pop("pulse_sigma"))
     full_size = scenarios.scenario_config
 
-    def tiny(name, profile="quick", seed=0, **overrides):
-        return full_size(name, profile, seed=seed, **{**sizes, "pulses": pulses, **overrides})
+    def tiny(name, size="quick", seed=0, **overrides):
+        return full_size(name, size, seed=seed, **{**sizes, "pulses": pulses, **overrides})
 
     scenarios.scenario_config = tiny  # sim/cli.py looks it up when the command runs
     return main(argv)

@@ -85,7 +85,7 @@ SWEEP_BATCHES = (64, 128, 256, 512, 1024)
 # (~20 min measured; DeLaN is half of it). seed-sim, not mismatch-ext, because it generates
 # far faster here: ~10 s per instance against ~100 s for a mismatch-ext instance of 5-10
 # trajectories (one worker, on the loaded machine).
-SWEEP_DATA = dict(scenario="seed-sim", profile="quick", n_instances=12, trajectories=(5, 20), seed=0)
+SWEEP_DATA = dict(scenario="seed-sim", size="quick", n_instances=12, trajectories=(5, 20), seed=0)
 
 
 def sweep_dataset(args):
@@ -96,9 +96,9 @@ def sweep_dataset(args):
     from hybrid_dyn.sim.generator import generate_dataset
     from hybrid_dyn.sim.scenarios import scenario_config
 
-    cfg = scenario_config(args.scenario, SWEEP_DATA["profile"], seed=args.data_seed,
+    cfg = scenario_config(args.scenario, SWEEP_DATA["size"], seed=args.data_seed,
                           n_instances=args.instances, trajectories=tuple(args.trajectories))
-    path = Path(args.data_root) / f"{cfg.scenario}-{cfg.profile}-{cfg.config_hash()}"
+    path = Path(args.data_root) / f"{cfg.scenario}-{cfg.size}-{cfg.config_hash()}"
     try:
         return load_dataset(path)
     except DatasetError:
@@ -332,7 +332,7 @@ def main() -> int:
     sw.add_argument("--sweep", action="store_true", help="run the batch-size sweep instead of the speed table")
     sw.add_argument("--presets", nargs="+", default=list(SWEEP_PRESETS), metavar="PRESET")
     sw.add_argument("--batch-sizes", nargs="+", type=int, default=list(SWEEP_BATCHES), metavar="N")
-    sw.add_argument("--recipe", default="default", help="training recipe (TrainConfig.recipe)")
+    sw.add_argument("--recipe", default="plateau", help="training recipe (TrainConfig.recipe; 'default' until issue 30)")
     sw.add_argument("--seeds", type=int, nargs="+", default=[0], metavar="SEED",
                     help="training seeds (weights and shuffling); the rule uses the mean over them")
     sw.add_argument("--one-seed", nargs="+", default=[], metavar="PRESET",

@@ -124,7 +124,7 @@ def test_train_config_refuses_values_out_of_range(field, value):
 
 
 @pytest.mark.parametrize("args,flag", [
-    (["--epochs", "0"], "--epochs"), (["--patience", "0"], "--patience"), (["--batch-size", "-1"], "--batch-size"),
+    (["--max-epochs", "0"], "--max-epochs"), (["--patience", "0"], "--patience"), (["--batch-size", "-1"], "--batch-size"),
     (["--batch-size", "0"], "--batch-size"), (["--device", "gpu"], "--device"), (["--threads", "-2"], "--threads"),
     (["--device", "cuda:99"], "CUDA device"),
 ])
