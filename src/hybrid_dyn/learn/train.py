@@ -408,7 +408,7 @@ def _load_checkpoint(out_dir: Path, fingerprint: str):
 
 # ------------------------------------------------------------------ training
 def run_fingerprint(preset: Preset, config: TrainConfig, dataset_checksum: str) -> str:
-    return hashlib.sha256(canonical_json({"preset": preset.to_dict(), "train": config.fingerprint_fields(),
+    return hashlib.sha256(canonical_json({"preset": preset.fingerprint_dict(), "train": config.fingerprint_fields(),
                                           "dataset": dataset_checksum}).encode()).hexdigest()
 
 
