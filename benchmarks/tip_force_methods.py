@@ -2,13 +2,13 @@
 chosen on validation (issue 27), without the whole ``reports/default`` (>70 min of CPU).
 
 Generates (or reuses, in --data) the tip-force scenarios of the default bench at a small size
-(``--profile quick``: 6 instances at 100 Hz, 4 at 1 kHz for the contact scenarios; ``default``: the
+(``--size quick``: 6 instances at 100 Hz, 4 at 1 kHz for the contact scenarios; ``default``: the
 default bench's sizes), then runs the bench's own analytic rows on each (``bench/analytic_rows.py``:
 ``name`` = the estimator with its defaults, the bandwidth by the rule of analytic/bandwidth.py;
 ``name-val`` = the bandwidth chosen on the validation split) and prints the test RMSE [N] (the bench's
 metric: sqrt of the mean over samples and axes) with the bandwidths used.
 
-Run: .venv/bin/python benchmarks/tip_force_methods.py [--profile quick] [--data /tmp/tipforce-data]
+Run: .venv/bin/python benchmarks/tip_force_methods.py [--size quick] [--data /tmp/tipforce-data]
 """
 from __future__ import annotations
 
@@ -22,6 +22,7 @@ import hybrid_dyn as hd
 from hybrid_dyn.bench.catalog import ROWS
 from hybrid_dyn.bench.metrics import rmse
 from hybrid_dyn.bench.profiles import get_profile
+from hybrid_dyn.deprecation import DeprecatedFlag
 from hybrid_dyn.bench.rows import BenchContext
 from hybrid_dyn.data import load_dataset
 from hybrid_dyn.sim.generator import generate_dataset
@@ -34,7 +35,9 @@ ROW_NAMES = ("base-wrench-tared", "torques-pinv", "momentum-observer", "momentum
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--profile", default="quick", choices=("quick", "default"))
+    ap.add_argument("--size", default="quick", choices=("quick", "default"), help="the scenarios' generator size")
+    ap.add_argument("--profile", dest="size", choices=("quick", "default"), action=DeprecatedFlag, new="--size",
+                    help=argparse.SUPPRESS)  # its name until issue 30 (a size, not a bench profile)
     ap.add_argument("--data", default=str(Path(tempfile.gettempdir()) / "tipforce-data"))
     ap.add_argument("--scenarios", nargs="*", default=list(SCENARIOS))
     ap.add_argument("--workers", type=int, default=1)
@@ -43,9 +46,9 @@ def main(argv=None) -> None:
     table = {}
     for scenario in args.scenarios:
         # The default bench's sizes where it shrinks a scenario (40 instances of 5-10 trajectories).
-        overrides = get_profile("default").scenario_overrides.get(scenario, {}) if args.profile == "default" else {}
-        cfg = scenario_config(scenario, args.profile, **overrides)
-        path = generate_dataset(cfg, Path(args.data) / f"{scenario}-{args.profile}-{cfg.config_hash()}",
+        overrides = get_profile("default").scenario_overrides.get(scenario, {}) if args.size == "default" else {}
+        cfg = scenario_config(scenario, args.size, **overrides)
+        path = generate_dataset(cfg, Path(args.data) / f"{scenario}-{args.size}-{cfg.config_hash()}",
                                 workers=args.workers, progress=False)
         ds = load_dataset(path)
         ctx = BenchContext(profile=None, scenario=scenario, dataset=ds, robot=robot, work_dir=Path(args.data),
@@ -57,7 +60,7 @@ def main(argv=None) -> None:
             pred = ROWS[name].build(ds, ctx)
             table[scenario, name] = rmse(np.concatenate(pred.predict(test)), target)
             print(f"  {name:24s} RMSE {table[scenario, name]:.4f} N   [{pred.inputs}]", flush=True)
-    print(f"\ntest RMSE [N] by row and scenario ({args.profile} sizes); mean over the scenarios; in brackets the "
+    print(f"\ntest RMSE [N] by row and scenario ({args.size} sizes); mean over the scenarios; in brackets the "
           "ratio to base-wrench-tared (issue 16's floors: <= 0.4 on paper-ext and mismatch-ext, <= 0.6 on contact-steps)")
     print(f"{'row':24s} " + " ".join(f"{s:>28s}" for s in args.scenarios) + f" {'mean':>8s}")
     for name in ROW_NAMES:
