@@ -70,3 +70,9 @@ def test_installed_wheel_loads_the_panda_and_the_real_specs_outside_the_checkout
     assert got["specs"] == sorted(["real-kuka", "real-baxter", "real-sarcos", "real-panda"])
     # The three public logs ship beside their specs; the Panda's (GPL-3.0) does not, and says so.
     assert got["logs_missing"] == {"real-kuka": False, "real-baxter": False, "real-sarcos": False, "real-panda": True}
+    # The installed command imports a shipped log by its set name (the spec and the .mat inside the package).
+    run = subprocess.run([sys.executable, "-m", "hybrid_dyn.cli", "import", "--spec", "real-sarcos", "--out", "sarcos",
+                          "--json"], cwd=elsewhere, env=env, capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr[-3000:]
+    summary = json.loads(run.stdout[run.stdout.index("{"):])
+    assert summary["rows_kept"] == 4449 and (elsewhere / "sarcos" / "manifest.json").is_file()
