@@ -233,7 +233,7 @@ def test_config_hash_round_trip_and_errors():
     assert scenario_config("paper-noext", "quick").pulses is None
     with pytest.raises(ConfigError, match="unknown scenario"):
         scenario_config("paper-extra")
-    with pytest.raises(ConfigError, match="unknown profile"):
+    with pytest.raises(ConfigError, match="unknown size .huge.; known: quick, default, paper"):
         scenario_config("paper-ext", "huge")
     with pytest.raises(ConfigError, match="record_hz"):
         scenario_config("paper-ext", record_hz=300.0)
