@@ -41,7 +41,7 @@ def test_torque_priors_on_an_identified_file_add_exactly_its_friction(panda, log
     inst = ds.split("test")[0]
     tau_f = friction_from_file(path)(inst.qd)
     assert np.abs(tau_f).max() > 0.1  # a friction law that matters
-    for kind in ("rnea", "rnea-basewrench"):
+    for kind in ("rnea", "rnea-bw"):
         with_f = AnalyticPrior(kind, robot, ds.meta["record_hz"])
         without = AnalyticPrior(kind, robot, ds.meta["record_hz"], friction=None)
         np.testing.assert_allclose(with_f.compute(_fields(inst, with_f)) - without.compute(_fields(inst, without)),
@@ -66,14 +66,14 @@ def test_tip_force_priors_take_the_identified_inertials_and_no_friction(panda, l
     ds, model, path = log_like
     robot = hd.load_robot("panda", params=path)
     inst = ds.split("test")[0]
-    prior = AnalyticPrior("basewrench", robot)
+    prior = AnalyticPrior("base-wrench", robot)
     assert prior.friction is None and "friction" not in prior.describe()
     expected = tip_force_from_base_wrench(model.to_robot(), inst.q, inst.qd, inst.qdd, inst.base_wrench)
     np.testing.assert_allclose(prior.compute(_fields(inst, prior)), expected, rtol=0, atol=1e-9)
     nominal = tip_force_from_base_wrench(panda, inst.q, inst.qd, inst.qdd, inst.base_wrench)
     assert np.abs(expected - nominal).max() > 1e-3  # the identified inertials, not the nominal ones
     with pytest.raises(ValueError, match="takes no joint friction"):
-        AnalyticPrior("basewrench", robot, friction=json.loads(path.read_text())["friction"])
+        AnalyticPrior("base-wrench", robot, friction=json.loads(path.read_text())["friction"])
 
 
 def test_nominal_parameter_sets_give_a_rigid_body_prior(panda, log_like):
@@ -129,7 +129,7 @@ def test_bench_identifies_an_imported_log_on_train_and_val_and_scores_on_test(pa
     from hybrid_dyn.bench.runner import BenchContext, score_row, train_split_stats
 
     ds, model, _ = log_like
-    profile = BenchProfile(name="t", scenarios=("log",), recipe="default", train=TINY_TRAINING, workers=1)
+    profile = BenchProfile(name="t", scenarios=("log",), recipe="plateau", train=TINY_TRAINING, workers=1)
     specs = {s.name: s for s in select_rows(families=("identified",))}
     for name in ("identified-consistent", "base-wrench-identified", "residual-rnea-identified",
                  "residual-rnea-bw-identified"):

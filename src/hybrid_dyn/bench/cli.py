@@ -15,8 +15,8 @@ def register(sub) -> None:
                    "(a name such as franka_official, or a parameter JSON path)")
     p.add_argument("--tool", default=None, help="the robot's tool: none (the bare flange) or a tool .urdf path")
     p.add_argument("--recipe", default=None, help="training recipe of the learned rows: budget, "
-                   "default, long or seed (hybrid_dyn.learn.train.RECIPES; default: the profile's, budget for "
-                   "all but real)")
+                   "plateau, long or seed-study (hybrid_dyn.learn.train.RECIPES; default: the profile's, budget for "
+                   "all but real and paper)")
     p.add_argument("--families", default=None, help="comma-separated row families to run instead of the profile's "
                    "(e.g. analytic,identified; see hybrid_dyn.bench.rows.FAMILIES)")
     p.add_argument("--rows", default=None, help="comma-separated row names to run instead of the profile's "
@@ -97,6 +97,13 @@ def cmd_bench(args) -> int:
             raise UsageError("--families and --rows name no row to run")
         profile = dataclasses.replace(profile, families=families, rows=names)
     if args.recipe:  # an unknown recipe is refused by the profile itself
+        from ..learn.train import RECIPE_ALIASES
+
+        if args.recipe in RECIPE_ALIASES:  # an old name: warned once, and recorded (run.json) by its new name
+            from ..deprecation import warn_renamed
+
+            warn_renamed("training recipe", args.recipe, RECIPE_ALIASES[args.recipe])
+            args.recipe = RECIPE_ALIASES[args.recipe]
         profile = dataclasses.replace(profile, recipe=args.recipe)
     if args.data and not args.out:
         raise UsageError("--data needs --out REPORT (the report folder)")

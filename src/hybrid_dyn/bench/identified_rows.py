@@ -130,7 +130,7 @@ def _excitation_dataset(ctx):
     prof = ctx.profile
     root = Path(ctx.data_root)
     root.mkdir(parents=True, exist_ok=True)
-    ex_cfg = ExcitationConfig(max_iter=EXCITATION_ITERATIONS.get(prof.generator_profile, 150), seed=prof.seed)
+    ex_cfg = ExcitationConfig(max_iter=EXCITATION_ITERATIONS.get(prof.generator_size, 150), seed=prof.seed)
     traj_file = root / f"excitation-{file_safe_name(ctx.robot.name)}-{ex_cfg.max_iter}it-seed{prof.seed}.json"
     if traj_file.is_file():
         d = json.loads(traj_file.read_text())

@@ -6,7 +6,7 @@ default  every row on paper-noext, paper-ext and mismatch-ext; the analytic rows
 paper    the study's scale (1000 instances per scenario)
 real     the joint-torque models that need no URDF on the three real-robot logs
          (KUKA and Baxter split by trajectory; SARCOS, one test file of 4,449
-         rows, split by contiguous blocks: see benchmarks/real/sarcos.toml)
+         rows, split by contiguous blocks: see src/hybrid_dyn/resources/real/sarcos.toml)
 
 A profile is data: it names datasets (``scenarios``) and rows. A scenario is a
 name (a simulated scenario of ``sim/scenarios.py``, generated and cached, or a
@@ -23,6 +23,7 @@ from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 from ..data import DatasetError, load_dataset
+from ..deprecation import renamed_field
 from ..errors import UsageError
 from .catalog import select_rows
 from .rows import Row
@@ -31,6 +32,7 @@ from .rows import Row
 STUDY_FAMILIES = ("analytic", "seed-net", "residual", "delan", "identified")
 
 
+@renamed_field("generator_profile", "generator_size", why="a generator size (sim.scenarios.SIZES), not a bench profile")
 @dataclass(frozen=True)
 class BenchProfile:
     """A benchmark: scenarios, the rows to run on them, how to train.
@@ -42,7 +44,7 @@ class BenchProfile:
 
     name: str
     scenarios: tuple
-    generator_profile: str = "quick"
+    generator_size: str = "quick"
     families: tuple = STUDY_FAMILIES
     rows: tuple = ()
     recipe: str = "budget"  # learn.train.RECIPES: the budgeted recipe unless a profile says otherwise
@@ -152,11 +154,11 @@ class BenchProfile:
         from ..sim.generator import generate_dataset
 
         cfg = self.scenario_config(scenario)
-        path = Path(data_root) / f"{scenario}-{self.generator_profile}-{cfg.config_hash()}"
+        path = Path(data_root) / f"{scenario}-{self.generator_size}-{cfg.config_hash()}"
         try:
             return load_dataset(path)
         except DatasetError:
-            log(f"[bench] generating {scenario} ({self.generator_profile}) into {path}")
+            log(f"[bench] generating {scenario} ({self.generator_size}) into {path}")
             generate_dataset(cfg, path, workers=self.workers, executor=executor)
             return load_dataset(path)
 
@@ -173,14 +175,16 @@ class BenchProfile:
         """The generator config of one of this profile's simulated scenarios."""
         from ..sim.scenarios import scenario_config
 
-        return scenario_config(scenario, self.generator_profile, seed=self.seed,
+        return scenario_config(scenario, self.generator_size, seed=self.seed,
                                **{**self.generator_overrides, **self.scenario_overrides.get(scenario, {})})
 
     def to_dict(self) -> dict:
         """The profile as run.json records it (JSON types: lists for tuples), so that a profile and a
-        report's ``run.json["profile"]`` compare equal exactly when they are the same profile. Fields added
-        after reports were committed (``preset_overrides``) are recorded only when set."""
-        d = json.loads(json.dumps(asdict(self)))
+        report's ``run.json["profile"]`` compare equal exactly when they are the same profile. The generator
+        size keeps the key run.json has always recorded it under, ``generator_profile`` (the report reads it);
+        fields added after reports were committed (``preset_overrides``) are recorded only when set."""
+        d = json.loads(json.dumps({("generator_profile" if k == "generator_size" else k): v
+                                   for k, v in asdict(self).items()}))
         if not d["preset_overrides"]:
             del d["preset_overrides"]
         return d
@@ -222,7 +226,7 @@ PROFILES = {
     # about 5 minutes on 2 cores), on a quick mismatch-ext of 30 instances of 5 trajectories. The
     # torque nets are data-limited (reports/studies/data-control): at 12 instances they learned nothing.
     "quick": BenchProfile(
-        name="quick", scenarios=("mismatch-ext",), generator_profile="quick",
+        name="quick", scenarios=("mismatch-ext",), generator_size="quick",
         # The identified rows without their residual nets (those train after the others, one at a time).
         families=("analytic",),
         rows=("seed-tip-2", "seed-tip-5", "seed-tip-8", "residual-basewrench", "residual-base-momentum",
@@ -244,7 +248,7 @@ PROFILES = {
     # data-limited (reports/studies/data-control: their RMSE ratios fell with every instance added).
     "default": BenchProfile(
         name="default", scenarios=("paper-noext", "paper-ext", "mismatch-ext", "contact-steps", "contact-steps-quiet"),
-        generator_profile="default",
+        generator_size="default",
         # tau-mlp-wide (2 x 128, dropout 0.2): the larger-capacity control of the seed torque nets.
         rows=("tau-mlp-wide",),
         scenario_overrides={s: dict(n_instances=120, trajectories=(5, 10))
@@ -267,7 +271,7 @@ PROFILES = {
     # Real logs carry no base wrench or tip force and no URDF ships for these arms:
     # only the joint-torque models that need neither (PROTOCOL 2, issue 8).
     "real": BenchProfile(
-        name="real", scenarios=("real-panda", "real-kuka", "real-baxter", "real-sarcos"), generator_profile="real",
+        name="real", scenarios=("real-panda", "real-kuka", "real-baxter", "real-sarcos"), generator_size="real",
         # Physics where a URDF is (the real Panda, bare flange: analytic, identified on the log, residuals
         # on the nominal and the identified model); the black-box rows and the GP everywhere.
         families=("analytic", "identified"),
@@ -282,11 +286,11 @@ PROFILES = {
         notes=("Panda (Gaz et al. 2019's exciting trajectory, ../shared/data/real or $HYBRID_DYN_REAL_LOGS; the arm "
                "carried no hand, so the analytic model is panda[tool=none]): the log cut into 10 contiguous time "
                "blocks, split in time order: the first 6 train, the next 2 validate, the last 2 test (60/20/20 of "
-               "its 21 s; benchmarks/real/panda.toml): every row is scored on the log's last 4.1 s, after all it "
+               "its 21 s; src/hybrid_dyn/resources/real/panda.toml): every row is scored on the log's last 4.1 s, after all it "
                "was fitted on; identified rows fit on its train and val blocks.",
                "KUKA and Baxter: one instance per logged trajectory (10 each), split by trajectory 6/2/2; "
                "SARCOS: its 4,449-row test file is not one continuous trajectory, so it is cut into 10 contiguous "
-               "blocks, split 6/2/2 (benchmarks/real/*.toml).",
+               "blocks, split 6/2/2 (src/hybrid_dyn/resources/real/*.toml).",
                "Accelerations: KUKA and Baxter by a zero-phase 5 Hz Butterworth derivative of the logged velocity; "
                "SARCOS: logged. Target: the logged joint torque.",
                "nMSE = per-joint test MSE / per-joint test-target variance, averaged over joints.",
@@ -305,7 +309,7 @@ PROFILES = {
     # The seed's own data conditions (its 3.1): 20 Hz, exact states, no sensor noise or bias.
     "seed-sim": BenchProfile(
         # The seed's size (issue 31): 1000 instances of 5-50 trajectories, split 640/160/200 by instance.
-        name="seed-sim", scenarios=("seed-sim",), generator_profile="paper",
+        name="seed-sim", scenarios=("seed-sim",), generator_size="paper",
         notes=("seed-sim reproduces the seed's data conditions (its section 3.1): recorded every 50 ms (20 Hz), "
                "q, qd, qdd exact from the simulator, no sensor noise and no bias, the same bell pulses and "
                "trajectory rules, 5-50 trajectories per instance, at the seed's size: 1000 instances split by "
@@ -315,8 +319,8 @@ PROFILES = {
                "with its first sample, as a streaming estimator starts up; all rows see the same test samples."),
     ),
     "paper": BenchProfile(
-        name="paper", scenarios=("paper-noext", "paper-ext", "mismatch-ext"), generator_profile="paper",
-        recipe="default", train=dict(max_epochs=200, batch_size=256, patience=5),
+        name="paper", scenarios=("paper-noext", "paper-ext", "mismatch-ext"), generator_size="paper",
+        recipe="plateau", train=dict(max_epochs=200, batch_size=256, patience=5),
     ),
 }
 

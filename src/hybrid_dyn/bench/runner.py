@@ -47,7 +47,7 @@ from ..errors import UsageError
 from ..outputs import output_lock, refuse_foreign, unique_temp
 from ..timing import time_calls
 from .catalog import ROWS, get_row  # noqa: F401  (ROWS: every declared row)
-from .integrity import DIGEST_KEY, read_run_json, results_digest
+from .integrity import DIGEST_KEY, read_run_json, recorded_profile, results_digest
 from .learned_rows import PRESET_ROWS
 from .metrics import ErrorReport, base_force_noise_rms, standardized_mse
 from .predictions import PREDICTIONS_FILE, PredictionWriter
@@ -258,7 +258,7 @@ def _claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[d
     marker = out_dir / "run.json"
     old = read_run_json(out_dir)  # refuses a run.json the bench did not write
     if old is not None:
-        if old["profile"] != profile.to_dict():
+        if recorded_profile(old["profile"]) != profile.to_dict():  # issue 30: an old recipe name is the same recipe
             log(f"[bench] {out_dir} held a report of another profile or size: it is replaced, and its "
                 "invocations' wall times are not kept")
             return []

@@ -21,7 +21,8 @@ the sha256 of the tensors' names, dtypes, shapes and bytes) and ``timing.json``
 byte-identical config and weights). Loading refuses a config or tensors that do
 not match their digests, a file older than the tensor digest, a robot the model
 needs a description of and the toolkit lacks, or a robot other than the one
-asked for. Nothing is unpickled.
+asked for. Nothing is unpickled. A file of an older format that spells its prior the
+old way loads with one warning (``model_upgrade.py``, which also upgrades it).
 """
 from __future__ import annotations
 
@@ -44,7 +45,9 @@ from ..analytic.tare import tared_runs
 from .priors import AnalyticPrior
 
 MODEL_FORMAT = "hybrid_dyn.model"
-MODEL_FORMAT_VERSION = 2  # 2: tensor digest in the metadata, wall-clock figures in timing.json
+# 2: tensor digest in the metadata, wall-clock figures in timing.json; 3: the analytic prior by its
+# canonical estimator name (issue 30; older spellings are read with a warning, model_upgrade.py).
+MODEL_FORMAT_VERSION = 3
 TIMING_FORMAT = "hybrid_dyn.model-timing"
 
 
@@ -440,7 +443,9 @@ def load_model(model_dir, robot=None, device: str = "cpu") -> TrainedModel:
         raise ModelError(f"{wpath}: its tensors do not match the sha256 saved with them (corrupted or edited); "
                          f"refusing to load; retrain or restore the file")
     from ..description import available_robots, has_description
+    from .model_upgrade import read_older_spellings
 
+    config = read_older_spellings(config, model_dir)  # formats 1-2: older estimator spellings, one warning
     # The analytic part, and the base sensor's tare, need the robot's model.
     if Preset.from_dict(config["preset"]).prior is not None or config.get("sensor_tare_seconds", 0) > 0:
         if not has_description(config["robot"]):

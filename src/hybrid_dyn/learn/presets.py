@@ -40,15 +40,17 @@ def prior_kinds() -> tuple:
 
 
 PRIORS = (None,) + prior_kinds()
-# How model files (config.json) and training fingerprints spell each prior: as they always have,
-# so that every saved model and every cached training run stays valid (read: either spelling).
-# A prior not listed is spelled by its name.
-PRIOR_FILE_SPELLING = {"rnea": "rnea", "rnea-bw": "rnea-basewrench", "base-wrench": "basewrench",
-                       "momentum-observer": "momentum", "base-momentum": "base-momentum"}
+# How training fingerprints (and the keys of the prior caches) spell each prior: the spellings model
+# files wrote until format 3 (issue 30). Frozen: every trained model and every cached training run is
+# keyed by them, so a run of today finds the models trained before. Files write the canonical names
+# (:meth:`Preset.to_dict`); only these digests keep the old ones. A prior not listed is spelled by its name.
+PRIOR_FINGERPRINT_SPELLING = {"rnea": "rnea", "rnea-bw": "rnea-basewrench", "base-wrench": "basewrench",
+                              "momentum-observer": "momentum", "base-momentum": "base-momentum"}
 
 
-def prior_file_spelling(kind: str) -> str:
-    return PRIOR_FILE_SPELLING.get(kind, kind)
+def prior_fingerprint_spelling(kind: str) -> str:
+    """The prior ``kind`` (a canonical name) as fingerprints and cache keys spell it (:data:`PRIOR_FINGERPRINT_SPELLING`)."""
+    return PRIOR_FINGERPRINT_SPELLING.get(kind, kind)
 
 
 @dataclass(frozen=True)
@@ -66,7 +68,7 @@ class Preset:
     dropout: probability of dropping an FC hidden unit in training (0: none;
     inference never drops).
     prior: the analytic part the network corrects (None: a plain network), by the estimator's
-    one name (older spellings, in brackets, are accepted and mean the same):
+    one name (older spellings, in brackets, are accepted with a warning and mean the same):
       "rnea"              tau = RNEA(q, qd, qdd)
       "rnea-bw"           tau = RNEA(q, qd, qdd) - J_v^T F_bw (F_bw: base-wrench method) ("rnea-basewrench")
       "base-wrench"       F = tip_force_from_base_wrench(q, qd, qdd, base_wrench) ("basewrench")
@@ -120,17 +122,25 @@ class Preset:
         return self.window > 1
 
     def to_dict(self) -> dict:
-        """The preset as model files store it (the prior in its file spelling, :data:`PRIOR_FILE_SPELLING`)."""
+        """The preset as model files store it (JSON types; the prior by its canonical name)."""
         d = asdict(self)
         for k, v in d.items():
             if isinstance(v, tuple):
                 d[k] = list(v)
+        return d
+
+    def fingerprint_dict(self) -> dict:
+        """The preset as training fingerprints hash it: :meth:`to_dict` with the prior in the spelling
+        the fingerprints of every earlier run used (:data:`PRIOR_FINGERPRINT_SPELLING`)."""
+        d = self.to_dict()
         if self.prior is not None:
-            d["prior"] = prior_file_spelling(self.prior)
+            d["prior"] = prior_fingerprint_spelling(self.prior)
         return d
 
     @classmethod
     def from_dict(cls, d: dict) -> "Preset":
+        """The preset of :meth:`to_dict`. An older spelling of the prior warns; ``load_model`` reads a
+        model file's older spellings itself, with one warning per file."""
         d = dict(d)
         known = set(cls.__dataclass_fields__)
         unknown = set(d) - known

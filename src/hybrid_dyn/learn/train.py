@@ -13,10 +13,10 @@ Four recipes (:data:`RECIPES`, ``--recipe``):
   validation loss is measured ``budget_evals`` times over the budget and the best
   weights are kept. The cost of a run is known before it starts.
 
-- ``seed`` (seed 3.2, exactly): Glorot-uniform initialization, Adam at lr 1e-3,
+- ``seed-study`` (the seed study's 3.2, exactly; ``seed`` until issue 30): Glorot-uniform initialization, Adam at lr 1e-3,
   MSE loss on standardized targets, a constant learning rate, and training
   until the validation loss has not improved for 5 consecutive epochs.
-- ``default`` (this toolkit's): the same, plus what an expert adds so that a
+- ``plateau`` (this toolkit's, ``TrainConfig()``'s; ``default`` until issue 30): the same, plus what an expert adds so that a
   net is trained to convergence rather than to its first plateau: the
   learning rate is cut by ``lr_factor`` after ``lr_patience`` epochs without
   improvement (reduce-on-plateau) down to a floor ``min_lr``; early stopping
@@ -24,9 +24,9 @@ Four recipes (:data:`RECIPES`, ``--recipe``):
   gradient norm of recurrent nets is clipped at ``grad_clip`` (LSTMs on
   standardized inputs can take an exploding step early on). Batch size: see
   ``docs/models.md`` (a measured sweep; ``hybrid-dyn study batch-size`` for the budget).
-- ``long``: ``default`` with the plateau's patience 10, early stopping's 20 and
+- ``long``: ``plateau`` with the plateau's patience 10, early stopping's 20 and
   decoupled weight decay 0.1 of the weight matrices (AdamW): it trains the nets that
-  ``default`` stops early, and regularizes the ones that overfit a small set, at 1.8-3.7x the
+  ``plateau`` stops early, and regularizes the ones that overfit a small set, at 1.8-3.7x the
   epochs on paper-noext's torque rows (``reports/studies/controls-default`` measures what it buys).
 
 All keep the weights of the best validation epoch (as Keras'
@@ -98,8 +98,8 @@ STD_FLOOR = 1e-6  # a (nearly) constant column is scaled by 1, not blown up
 
 @dataclass
 class TrainConfig:
-    """How to train: the ``default`` recipe (see the module docstring; ``TrainConfig.recipe("seed")``
-    gives the seed's).
+    """How to train: the ``plateau`` recipe (see the module docstring; ``TrainConfig.recipe("seed-study")``
+    gives the seed study's).
 
     seed: weights and shuffling. batch_size: samples per Adam step.
     max_epochs: upper bound; early stopping usually ends sooner.
@@ -161,8 +161,13 @@ class TrainConfig:
         self.validate()
 
     @classmethod
-    def recipe(cls, name: str = "default", **overrides) -> "TrainConfig":
-        """The named recipe of :data:`RECIPES`, with any field overridden."""
+    def recipe(cls, name: str = "plateau", **overrides) -> "TrainConfig":
+        """The named recipe of :data:`RECIPES` (an old name of :data:`RECIPE_ALIASES` warns), with any field overridden."""
+        if name in RECIPE_ALIASES:
+            from ..deprecation import warn_renamed
+
+            warn_renamed("training recipe", name, RECIPE_ALIASES[name], stacklevel=2)
+            name = RECIPE_ALIASES[name]
         if name not in RECIPES:
             raise UsageError(f"unknown training recipe {name!r}; known: {', '.join(RECIPES)}")
         return cls(**{**RECIPES[name], **overrides})
@@ -268,18 +273,21 @@ def budget_lr(config: TrainConfig, step: int) -> float:
     progress = (step - warm) / max(total - warm, 1)
     return config.lr * 0.5 * (1.0 + math.cos(math.pi * progress))
 
-# Named training recipes (TrainConfig fields). "seed": the seed's 3.2 exactly (constant rate,
-# patience 5, no clipping); "default": the TrainConfig defaults; "long": module docstring.
+# Named training recipes (TrainConfig fields). "seed-study": the seed's 3.2 exactly (constant rate,
+# patience 5, no clipping); "plateau": the TrainConfig defaults; "long": module docstring.
 RECIPES = {
-    "default": {},
-    # Trains further where "default" stops early (docs/models.md, reports/studies/controls-default): the
+    "plateau": {},
+    # Trains further where "plateau" stops early (docs/models.md, reports/studies/controls-default): the
     # plateau waits 10 epochs, early stopping 20, weight matrices decay by 0.1. It cost 1.8-3.7x the
     # epochs on paper-noext's torque rows, which the default bench cannot afford in 120 minutes on 2 cores.
     "long": dict(patience=20, lr_patience=10, weight_decay=0.1),
-    "seed": dict(lr_schedule="none", patience=5, grad_clip=None, min_rel_delta=0.0, batch_size=256, max_epochs=200),
+    "seed-study": dict(lr_schedule="none", patience=5, grad_clip=None, min_rel_delta=0.0, batch_size=256, max_epochs=200),
     # A known cost per row (module docstring): steps by network kind, warm-up, cosine decay to zero.
     "budget": dict(lr_schedule="cosine", batch_size=1024, lr=2e-3),
 }
+# The recipes' names until issue 30 ("default" was also a generator size and a bench profile, "seed"
+# also the random seed): still accepted, with a warning. A recipe's name is in no fingerprint.
+RECIPE_ALIASES = {"default": "plateau", "seed": "seed-study"}
 
 
 def improvement_needed(config: TrainConfig, best_val: float) -> float:
@@ -299,9 +307,9 @@ def _option(field: str) -> str:
     return f"TrainConfig.{field}" + (f" ({flag})" if flag else "")
 
 
-_CLI_FLAGS = {"seed": "--seed", "batch_size": "--batch-size", "max_epochs": "--epochs", "patience": "--patience",
+_CLI_FLAGS = {"seed": "--seed", "batch_size": "--batch-size", "max_epochs": "--max-epochs", "patience": "--patience",
               "max_batches_per_epoch": "--max-batches-per-epoch", "num_threads": "--threads",
-              "device": "--device", "analytic_params": "--analytic-params", "lr": "--lr",
+              "device": "--device", "analytic_params": "--params", "lr": "--lr",
               "lr_schedule": "--lr-schedule", "grad_clip": "--grad-clip", "min_lr": "--min-lr",
               "weight_decay": "--weight-decay", "budget_steps": "--budget-steps",
               "train_instances": "--train-instances"}
@@ -404,7 +412,7 @@ def _load_checkpoint(out_dir: Path, fingerprint: str):
 
 # ------------------------------------------------------------------ training
 def run_fingerprint(preset: Preset, config: TrainConfig, dataset_checksum: str) -> str:
-    return hashlib.sha256(canonical_json({"preset": preset.to_dict(), "train": config.fingerprint_fields(),
+    return hashlib.sha256(canonical_json({"preset": preset.fingerprint_dict(), "train": config.fingerprint_fields(),
                                           "dataset": dataset_checksum}).encode()).hexdigest()
 
 

@@ -54,7 +54,8 @@ def suggest_preset(trial: optuna.Trial, base: Preset) -> Preset:
     space is its network kind's, declared with the kind: ``learn/kinds.py``, :data:`SPACE`)."""
     p = network_kind(base.kind).search(trial, base)
     arch = replace(base, **p)
-    digest = hashlib.sha256(canonical_json(arch.to_dict()).encode()).hexdigest()[:10]
+    # The fingerprint's form (older prior spellings): the tuned preset's name, and so its trials, stay as before.
+    digest = hashlib.sha256(canonical_json(arch.fingerprint_dict()).encode()).hexdigest()[:10]
     return replace(arch, name=f"{base.name}-tuned-{digest}", description=f"{base.name} tuned: {p}")
 
 

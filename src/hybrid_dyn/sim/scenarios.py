@@ -1,4 +1,4 @@
-"""Generator configurations: the named scenarios of PROTOCOL 2 at three sizes.
+"""Generator configurations: the named scenarios of PROTOCOL 2 at three sizes (:data:`SIZES`).
 
 A :class:`GeneratorConfig` fixes everything that decides the bytes of a
 dataset: the plant (which may differ from the nominal model), the trajectories,
@@ -44,12 +44,16 @@ equals its truth. Its instances hold the seed's 5-50 trajectories.
 The controller always uses the nominal model (``load_robot(robot)``), so in
 ``mismatch-ext`` it is wrong and tracking errors grow: they are reported.
 
-Profiles: ``quick`` (6 short instances, under a minute on 2 cores), ``default``
+Sizes: ``quick`` (6 short instances, under a minute on 2 cores), ``default``
 (40 instances, about 0.36 million samples at 100 Hz) and ``paper`` (the seed's
-1000 instances of 5-50 trajectories).
+1000 instances of 5-50 trajectories). A size is not a bench profile (``bench/profiles.py``),
+which names scenarios, rows and training; until issue 30 both were called "profile", and the
+old names (``PROFILES``, the ``profile`` keyword and field) still work with a warning. The
+config's dictionary, and so its hash and every dataset cached by it, keeps the key ``profile``.
 """
 from __future__ import annotations
 
+from ..deprecation import module_aliases, renamed_field, renamed_keyword
 from ..errors import HybridDynError
 from ..registry import Registry
 import dataclasses
@@ -65,12 +69,12 @@ from ..analytic.robot import Robot, SensorMount, load_robot
 GENERATOR_VERSION = 1
 
 QUIET_BASE_NOISE = dict(force=0.05, torque=0.0025)  # contact-steps-quiet's base sensor [N, Nm]
-PROFILES = ("quick", "default", "paper")
+SIZES = ("quick", "default", "paper")
 QDD_SOURCES = ("filter", "exact")
 
 
 class ConfigError(HybridDynError, ValueError):
-    """A generator configuration is inconsistent or names an unknown scenario/profile."""
+    """A generator configuration is inconsistent or names an unknown scenario or size."""
 
 
 @dataclass(frozen=True)
@@ -128,12 +132,16 @@ class ContactStepConfig:
     first_after: float = 1.0         # s, no contact before this (the tare window is the first 0.5 s)
 
 
+@renamed_field("profile", "size", why="a generator size, not a bench profile")
 @dataclass(frozen=True)
 class GeneratorConfig:
-    """Everything that determines a simulated dataset. Units SI unless noted."""
+    """Everything that determines a simulated dataset. Units SI unless noted.
+
+    size: the scenario's size (:data:`SIZES`); stored as ``profile`` in :meth:`to_dict` (module docstring).
+    """
 
     scenario: str = "paper-ext"
-    profile: str = "quick"
+    size: str = "quick"
     robot: str = "panda"
     # Plant (the simulated robot); the controller always uses load_robot(robot).
     plant_params: str | None = None          # parameter set name or JSON path; None: nominal
@@ -144,7 +152,7 @@ class GeneratorConfig:
     n_instances: int = 6
     trajectories: tuple = (5, 5)             # per instance, uniform integers, inclusive
     # Fraction of the published vel/acc/jerk limits, per trajectory; (0.1, 0.4) makes the paper
-    # profile's instances ~200 s long on average, as the seed's (3,919,800 samples at 20 Hz / 1000).
+    # size's instances ~200 s long on average, as the seed's (3,919,800 samples at 20 Hz / 1000).
     speed_scale: tuple = (0.1, 0.4)
     joint_margin: float = 0.1                # rad kept from each joint limit for goals
     standstill: float = 1.0                  # s at rest before, between and after trajectories
@@ -202,7 +210,8 @@ class GeneratorConfig:
 
     # -------------------------------------------------------- (de)serialise
     def to_dict(self) -> dict:
-        d = _jsonable(dataclasses.asdict(self))
+        # The size under its stored key, in its place: the dict is hashed (config_hash) and written to manifests.
+        d = {("profile" if k == "size" else k): v for k, v in _jsonable(dataclasses.asdict(self)).items()}
         if d["contact_steps"] is None:
             del d["contact_steps"]  # configs without contacts keep the hashes they had before the field existed
         if d["qdd_source"] == "filter":
@@ -215,7 +224,10 @@ class GeneratorConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> "GeneratorConfig":
+        """The config of :meth:`to_dict` (a manifest's ``config``): the stored key ``profile`` is the size."""
         d = dict(d)
+        if "profile" in d and "size" not in d:
+            d["size"] = d.pop("profile")
         if d.get("pulses") is not None:
             d["pulses"] = PulseConfig(**{k: tuple(v) for k, v in d["pulses"].items()})
         if d.get("contact_steps") is not None:
@@ -247,7 +259,7 @@ def _jsonable(x):
 
 
 # ------------------------------------------------------------------ the scenarios
-# Generator sizes: instances and trajectories per instance, by size name (PROFILES).
+# Generator sizes: instances and trajectories per instance, by size name (SIZES).
 STANDARD_SIZES = {
     "quick": dict(n_instances=6, trajectories=(5, 5)),
     "default": dict(n_instances=40, trajectories=(5, 20)),
@@ -282,7 +294,7 @@ class Scenario:
     name: what ``scenario_config``, the CLI and the bench call it. description: the plant
     and the external force, one line (what ``hybrid-dyn simulate --help`` and the docs say).
     overrides: :class:`GeneratorConfig` fields on top of the defaults. sizes: generator size
-    (each of :data:`PROFILES`) -> ``n_instances`` and ``trajectories``. seed_dataset: the
+    (each of :data:`SIZES`) -> ``n_instances`` and ``trajectories``. seed_dataset: the
     seed study's data set it mirrors ("sim-noext", "sim-ext"; None: none), for the bench's
     comparison with the seed's published tables. alternative_plant: the plant's inertials
     are the robot's alternative parameter set (:func:`alternative_params`), not the nominal
@@ -299,13 +311,13 @@ class Scenario:
     def __post_init__(self):
         fields = {f.name for f in dataclasses.fields(GeneratorConfig)}
         # The name, the size and the seed are scenario_config's arguments, the sizes this entry's own.
-        reserved = {"scenario", "profile", "seed", "n_instances", "trajectories"}
+        reserved = {"scenario", "size", "profile", "seed", "n_instances", "trajectories"}
         bad = sorted(set(self.overrides) - fields) + sorted(reserved & set(self.overrides))
         if bad:
             raise ConfigError(f"scenario {self.name!r}: overrides {bad} are not GeneratorConfig fields it may set")
-        missing = [p for p in PROFILES if p not in self.sizes]
+        missing = [p for p in SIZES if p not in self.sizes]
         if missing:
-            raise ConfigError(f"scenario {self.name!r}: no size for {', '.join(missing)} (sizes: {', '.join(PROFILES)})")
+            raise ConfigError(f"scenario {self.name!r}: no size for {', '.join(missing)} (sizes: {', '.join(SIZES)})")
         for size, kw in self.sizes.items():
             if set(kw) != {"n_instances", "trajectories"}:
                 raise ConfigError(f"scenario {self.name!r}, size {size!r}: give n_instances and trajectories, got {sorted(kw)}")
@@ -365,15 +377,16 @@ for _scenario in (
     register(_scenario)
 
 
-def scenario_config(name: str, profile: str = "quick", seed: int = 0, **overrides) -> GeneratorConfig:
-    """The configuration of a named scenario (PROTOCOL 2) at a profile size.
+@renamed_keyword("profile", "size", why="a generator size, not a bench profile")
+def scenario_config(name: str, size: str = "quick", seed: int = 0, **overrides) -> GeneratorConfig:
+    """The configuration of a named scenario (PROTOCOL 2) at a size (:data:`SIZES`).
 
     ``overrides`` replace any field, e.g. ``noise=NoiseConfig.off()``.
     """
     scenario = get_scenario(name)
-    if profile not in PROFILES:
-        raise ConfigError(f"unknown profile {profile!r}; known: {', '.join(PROFILES)}")
-    kw = dict(scenario=name, profile=profile, seed=int(seed), **scenario.sizes[profile], **scenario.overrides)
+    if size not in SIZES:
+        raise ConfigError(f"unknown size {size!r}; known: {', '.join(SIZES)}")
+    kw = dict(scenario=name, size=size, seed=int(seed), **scenario.sizes[size], **scenario.overrides)
     # mismatch-ext's plant: the robot's own alternative set (a plant_params override wins).
     if scenario.alternative_plant and "plant_params" not in overrides:
         kw["plant_params"] = alternative_params(overrides.get("robot", GeneratorConfig.robot))
@@ -382,3 +395,7 @@ def scenario_config(name: str, profile: str = "quick", seed: int = 0, **override
         return GeneratorConfig(**kw)
     except TypeError as err:
         raise ConfigError(f"bad generator override: {err}") from err
+
+
+# The old name of SIZES (issue 30), served with a warning.
+__getattr__ = module_aliases(__name__, {"PROFILES": "SIZES"}, globals(), why="generator sizes, not bench profiles")
