@@ -104,13 +104,13 @@ def test_recipes_have_names_of_their_own_and_the_old_ones_warn(no_deprecation):
 
 
 def test_a_run_json_of_an_old_recipe_name_is_the_same_profile(no_deprecation):
-    """A report written with recipe "default" is recognised as the real profile's own on a rerun
+    """A report written with recipe "default" is recognised as the paper profile's own on a rerun
     (bench/runner.py compares run.json's profile with BenchProfile.to_dict())."""
-    real = PROFILES["real"]
-    assert real.recipe == "plateau"
-    recorded = {**real.to_dict(), "recipe": "default"}  # as reports/real/run.json holds it
-    assert recorded != real.to_dict() and recorded_profile(recorded) == real.to_dict()
-    assert recorded_profile({**recorded, "seed": 1}) != real.to_dict()  # anything else still differs
+    paper = PROFILES["paper"]
+    assert paper.recipe == "plateau"
+    recorded = {**paper.to_dict(), "recipe": "default"}  # as a run.json of before the rename holds it
+    assert recorded != paper.to_dict() and recorded_profile(recorded) == paper.to_dict()
+    assert recorded_profile({**recorded, "seed": 1}) != paper.to_dict()  # anything else still differs
 
 
 # --------------------------------------------------------------------------- train flags

@@ -6,6 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hybrid_dyn.description.locations import robots_dir
+
 from hybrid_dyn.data import load_dataset
 from hybrid_dyn.sim import scenarios
 from hybrid_dyn.sim.executors import SerialExecutor
@@ -62,7 +64,7 @@ def test_mismatch_plant_is_the_robots_alternative_parameter_set(tmp_path):
         # ...unless the plant is given
         assert scenario_config("mismatch-ext", robot=robot, plant_params="x.json").plant_params == "x.json"
     # Another robot's declared set: its own, not the Panda's.
-    toml = Path(__file__).resolve().parents[1] / "robots" / "ur5.toml"
+    toml = robots_dir() / "ur5.toml"  # the shipped description (package data)
     own = tmp_path / "arm.toml"
     own.write_text(toml.read_text().replace('name = "ur5"', 'name = "arm"')
                    + '\n[params]\nheavy = "heavy.json"\n')
