@@ -24,13 +24,7 @@ def register(sub) -> None:
     p.add_argument("--scenarios", default=None, help="comma-separated scenarios of the profile to run, instead of "
                    "all of them (e.g. --profile real --scenarios real-panda)")
     p.add_argument("--out", default=None, help="report folder (default: reports/<profile>)")
-    p.add_argument("--data-root", default=None, help="dataset cache (default: ./data or $HYBRID_DYN_DATA)")
-    p.add_argument("--work-root", default=None, help="trained-model cache (default: ./runs or $HYBRID_DYN_RUNS)")
-    p.add_argument("--workers", type=int, default=None, help="local processes generating and training")
-    p.add_argument("--executor", choices=("local", "ray"), default="local",
-                   help="where generation and training jobs run: local processes, or a Ray cluster (docs/cluster.md)")
-    p.add_argument("--ray-address", default=None, help="a running Ray cluster (e.g. auto, ray://head:10001); "
-                   "default with --executor ray: a local Ray instance of --workers CPUs")
+    _where_options(p)
     p.add_argument("--device", default=None, help="training device: cpu, cuda or cuda:N (default: the profile's, "
                    "auto: CUDA where present)")
     p.add_argument("--gpus-per-job", type=float, default=0.0,
@@ -46,11 +40,7 @@ def register(sub) -> None:
                     "(default: reports/<profile>)")
     st.add_argument("--out", default=None, help="summary folder (default: the study's, reports/studies/<study>; data-scaling: "
                     "reports/seed-sim/data-scaling)")
-    st.add_argument("--data-root", default=None, help="dataset cache (default: ./data or $HYBRID_DYN_DATA)")
-    st.add_argument("--work-root", default="runs", help="the variants' models and reports (default: ./runs)")
-    st.add_argument("--workers", type=int, default=None, help="local processes training")
-    st.add_argument("--executor", choices=("local", "ray"), default="local")
-    st.add_argument("--ray-address", default=None)
+    _where_options(st)
     st.set_defaults(func=cmd_study)
 
     cmp = sub.add_parser("compare", help="two bench reports side by side: each learned row against its own "
@@ -63,6 +53,27 @@ def register(sub) -> None:
     r = sub.add_parser("report", help="redraw a bench report's tables and figures from its files (no training)")
     r.add_argument("dir", help="a report folder written by hybrid-dyn bench (run.json, results.csv, ...)")
     r.set_defaults(func=cmd_report)
+
+
+def _where_options(p) -> None:
+    """Where a bench's data, models and jobs go: shared by ``bench`` and ``study`` (a study runs benches)."""
+    p.add_argument("--data-root", default=None, help="dataset cache (default: ./data or $HYBRID_DYN_DATA)")
+    p.add_argument("--work-root", default=None, help="trained-model cache (default: ./runs or $HYBRID_DYN_RUNS)")
+    p.add_argument("--workers", type=int, default=None, help="local processes generating and training")
+    p.add_argument("--executor", choices=("local", "ray"), default="local",
+                   help="where generation and training jobs run: local processes, or a Ray cluster (docs/cluster.md)")
+    p.add_argument("--ray-address", default=None, help="a running Ray cluster (e.g. auto, ray://head:10001); "
+                   "default with --executor ray: a local Ray instance of --workers CPUs")
+
+
+def _executor(args, workers: int, local_pool: bool = False):
+    """The executor ``--executor``/``--ray-address`` name, of ``workers`` local processes or Ray CPUs. For
+    plain local jobs: None (the bench's own pool, of the profile's workers) unless ``local_pool``."""
+    if args.executor == "local" and not args.ray_address and not local_pool:
+        return None
+    from ..sim.executors import make_executor
+
+    return make_executor(workers, args.executor, args.ray_address)
 
 
 def cmd_bench(args) -> int:
@@ -108,12 +119,8 @@ def cmd_bench(args) -> int:
     if args.data and not args.out:
         raise UsageError("--data needs --out REPORT (the report folder)")
     out = args.out or f"reports/{profile.name}"
-    executor = None
-    if args.executor != "local" or args.ray_address:
-        from ..sim.executors import make_executor
-
-        executor = make_executor(profile.workers, args.executor, args.ray_address)
-    rows = run_bench(profile, out, data_root=args.data_root, work_root=args.work_root, executor=executor,
+    rows = run_bench(profile, out, data_root=args.data_root, work_root=args.work_root,
+                     executor=_executor(args, profile.workers),
                      device=args.device, gpus_per_job=args.gpus_per_job)
     n_ok = sum(r.get("status") == "ok" for r in rows)
     print(f"[bench] {n_ok}/{len(rows)} rows ok; report in {out}/README.md")
@@ -128,16 +135,16 @@ def _names(text: str | None) -> tuple:
 def cmd_study(args) -> int:
     from pathlib import Path
 
-    from ..sim.executors import make_executor
     from .profiles import get_profile
+    from .runner import default_work_root
     from .studies import get_study, run_study
 
     study = get_study(args.name)
     workers = args.workers or get_profile(study.profile).workers
-    executor = make_executor(workers, args.executor, args.ray_address)
     report = Path(args.report or f"reports/{study.profile}")
     out = Path(args.out) if args.out else study.default_out()
-    run_study(study, report, out, work_root=Path(args.work_root), data_root=args.data_root, executor=executor)
+    run_study(study, report, out, work_root=default_work_root(args.work_root), data_root=args.data_root,
+              executor=_executor(args, workers, local_pool=True))  # --workers is the study's, not its profile's
     print(f"[study] {study.name}: summary in {out}/README.md")
     return 0
 

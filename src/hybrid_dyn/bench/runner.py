@@ -196,6 +196,11 @@ def _set_torch_threads(n: int) -> None:
     torch.set_num_threads(n)
 
 
+def default_work_root(work_root=None) -> Path:
+    """The trained-model cache: ``work_root``, else ``$HYBRID_DYN_RUNS``, else ./runs."""
+    return Path(work_root or os.environ.get("HYBRID_DYN_RUNS", "runs"))
+
+
 def run_bench(profile: BenchProfile, out_dir, data_root=None, work_root=None, dataset_provider=None,
               log: Callable[[str], None] = print, executor=None, device: str | None = None,
               gpus_per_job: float = 0.0) -> list[dict]:
@@ -229,7 +234,7 @@ def run_bench(profile: BenchProfile, out_dir, data_root=None, work_root=None, da
     _set_torch_threads(profile.torch_threads)
     out_dir = Path(out_dir)
     data_root = Path(data_root or os.environ.get("HYBRID_DYN_DATA", "data"))
-    work_root = Path(work_root or os.environ.get("HYBRID_DYN_RUNS", "runs"))
+    work_root = default_work_root(work_root)
     provider = dataset_provider or (lambda scenario, prof: prof.dataset(scenario, data_root, log=log,
                                                                          executor=executor))
     # A missing or corrupt dataset, an unknown robot: refused before the report folder is touched.
