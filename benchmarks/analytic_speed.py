@@ -1,6 +1,6 @@
 """Per-sample cost of the analytic layer (issue 2).
 
-Prints medians over repeated runs, measured in this one process:
+Prints medians over repeated runs, measured in this one process (``hybrid_dyn.timing.per_item_us``):
   inverse_dynamics   single call, and batched at N=100k (rneaInParallel, all threads and 1 thread)
   base_wrench        single call and batched
   tip_force_from_base_wrench  single call
@@ -10,24 +10,12 @@ Floors (issue 2): batched inverse dynamics <= 3 us/sample; single tip_force_from
 
 Run: .venv/bin/python benchmarks/analytic_speed.py
 """
-import time
-
 import numpy as np
 
 import hybrid_dyn as hd
 from hybrid_dyn.analytic.momentum_observer import MomentumObserver
 from hybrid_dyn.analytic.tip_force import tip_force_from_base_wrench, tip_force_from_torques
-
-
-def median_us(fn, per: int = 1, repeat: int = 7, number: int = 200) -> float:
-    """Median over ``repeat`` runs of the mean time of ``number`` calls, per item, in microseconds."""
-    runs = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        for _ in range(number):
-            fn()
-        runs.append((time.perf_counter() - t0) / number / per * 1e6)
-    return float(np.median(runs))
+from hybrid_dyn.timing import per_item_us
 
 
 def main() -> None:
@@ -44,17 +32,17 @@ def main() -> None:
     obs.step(q1, qd1, tau)
 
     rows = [
-        ("inverse_dynamics, single call", median_us(lambda: robot.inverse_dynamics(q1, qd1, qdd1))),
+        ("inverse_dynamics, single call", per_item_us(lambda: robot.inverse_dynamics(q1, qd1, qdd1))),
         (f"inverse_dynamics, batched N={n}, {robot.num_threads} threads",
-         median_us(lambda: robot.inverse_dynamics(q, qd, qdd), per=n, repeat=5, number=1)),
+         per_item_us(lambda: robot.inverse_dynamics(q, qd, qdd), per=n, repeat=5, number=1)),
         (f"inverse_dynamics, batched N={n}, 1 thread",
-         median_us(lambda: single_robot.inverse_dynamics(q, qd, qdd), per=n, repeat=5, number=1)),
-        ("base_wrench, single call", median_us(lambda: robot.base_wrench(q1, qd1, qdd1))),
+         per_item_us(lambda: single_robot.inverse_dynamics(q, qd, qdd), per=n, repeat=5, number=1)),
+        ("base_wrench, single call", per_item_us(lambda: robot.base_wrench(q1, qd1, qdd1))),
         (f"base_wrench, batched N={n}, {robot.num_threads} threads",
-         median_us(lambda: robot.base_wrench(q, qd, qdd), per=n, repeat=5, number=1)),
-        ("tip_force_from_base_wrench, single call", median_us(lambda: tip_force_from_base_wrench(robot, q1, qd1, qdd1, w))),
-        ("tip_force_from_torques, single call", median_us(lambda: tip_force_from_torques(robot, q1, qd1, qdd1, tau))),
-        ("MomentumObserver.step_force, one step", median_us(lambda: obs.step_force(q1, qd1, tau))),
+         per_item_us(lambda: robot.base_wrench(q, qd, qdd), per=n, repeat=5, number=1)),
+        ("tip_force_from_base_wrench, single call", per_item_us(lambda: tip_force_from_base_wrench(robot, q1, qd1, qdd1, w))),
+        ("tip_force_from_torques, single call", per_item_us(lambda: tip_force_from_torques(robot, q1, qd1, qdd1, tau))),
+        ("MomentumObserver.step_force, one step", per_item_us(lambda: obs.step_force(q1, qd1, tau))),
     ]
     print(f"{'operation':55s} {'median us/sample':>16s}")
     for name, us in rows:

@@ -2,8 +2,8 @@
 
 20,000 single calls on one core (the process is pinned to CPU 0 and torch to
 one thread), fed a recorded-like stream at 1 kHz (smooth motion, sensor noise);
-prints median, p99 and max microseconds for every analytic method, by the bench's
-row names (``analytic/methods.py``), with its defaults (the bandwidth by the rule
+prints median, p99 and max microseconds for every analytic method of the registry
+(``analytic/methods.py``: the estimators' one names, the bench's rows), with its defaults (the bandwidth by the rule
 at the end of the 0.5 s window), plus kalman-fusion with a base sensor that joins
 at 0.7 s (its tare then runs late), and the call that closes the noise window on
 its own. The estimators take turns in blocks of 1000 calls (each keeps its own
@@ -15,6 +15,7 @@ call); analytic <= 30 us median (base-momentum, kalman-fusion also <= 60 us p99)
 learned and hybrid <= 100 us median, <= 500 us p99.
 
 Run: .venv/bin/python benchmarks/estimator_latency.py [--repeat 3] [--models runs/.../seed-tip-11 runs/.../residual-basewrench]
+(the committed table: --repeat 3 --out reports/performance/estimator-latency/README.md)
 """
 from __future__ import annotations
 
@@ -22,14 +23,22 @@ import argparse
 import os
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
 import hybrid_dyn as hd
+from hybrid_dyn.analytic.methods import REGISTRY
 from hybrid_dyn.analytic.tare import tare_samples
 from hybrid_dyn.estimator import TipForceEstimator
+from hybrid_dyn.timing import time_calls
 
 N_CALLS = 20_000
+# Floors per method [us]: every method's median <= 30 (issue 6); the qdd-free ones of issue 16 also p99 <= 60.
+MEDIAN_FLOOR_US = 30.0
+P99_FLOOR_US = {"base-momentum": 60.0, "kalman-fusion": 60.0}
+LATE_JOIN = "kalman-fusion"  # the method also measured with a base sensor that joins late (it may run without)
+assert set(P99_FLOOR_US) | {LATE_JOIN} <= set(REGISTRY), "a floor names a method the registry does not have"
 
 
 def stream(robot, n, seed=0):
@@ -57,14 +66,13 @@ LATE_BASE_S = 0.7  # the late-joining base sensor's first sample [s]
 
 def measure_block(est, lat, cpu, start, stop, t, q, qd, w, tau, late_base=False):
     """Calls start..stop-1 of the stream; their wall-clock latencies [s] into lat, and the CPU time this
-    thread spent in each [s] into cpu (a call the scheduler preempted has a wall time far above its CPU time)."""
-    for k in range(start, stop):
+    thread spent in each [s] into cpu (a call the scheduler preempted has a wall time far above its CPU time):
+    ``hybrid_dyn.timing.time_calls``."""
+    def call(k):
         wk = None if late_base and t[k] < LATE_BASE_S else w[k]
-        c0 = time.thread_time()
-        t0 = time.perf_counter()
         est.estimate_tip_force(q[k], qd[k], base_wrench=wk, tau_J=tau[k], t=t[k])
-        lat[k] = time.perf_counter() - t0
-        cpu[k] = time.thread_time() - c0
+
+    lat[start:stop], cpu[start:stop] = time_calls(call, range(start, stop), cpu=True)
 
 
 def measure(cases, t, q, qd, w, tau):
@@ -94,7 +102,8 @@ def main(argv=None) -> None:
     ap.add_argument("--repeat", type=int, default=1,
                     help="measure this many times in one process (fresh estimators each time); the table "
                          "gives every run, since the tail of a shared machine moves between runs")
-    ap.add_argument("--out", default=None, help="also write the table to this markdown file (e.g. reports/estimator_latency.md)")
+    ap.add_argument("--out", default=None, help="also write the table to this markdown file (the committed one: "
+                         "reports/performance/estimator-latency/README.md)")
     args = ap.parse_args(argv)
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {0})
@@ -109,12 +118,12 @@ def main(argv=None) -> None:
     load_start = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
 
     def build_cases():
-        # Floors: the issue-6 methods <= 30 us median; the qdd-free ones of issue 16 also <= 60 us p99.
-        cases = [(m, TipForceEstimator.analytic(robot, m, call_hz=1000.0), 30.0, p99)
-                 for m, p99 in (("base-wrench", None), ("torques-pinv", None), ("momentum-observer", None),
-                                ("base-momentum", 60.0), ("kalman-fusion", 60.0))]
-        cases.append(("kalman-fusion (base sensor joins at 0.7 s)",
-                      TipForceEstimator.analytic(robot, "kalman-fusion", call_hz=1000.0), 30.0, 60.0))
+        # Every method of the registry, by its one name (the bench's row), with its floors.
+        cases = [(m, TipForceEstimator.analytic(robot, m, call_hz=1000.0), MEDIAN_FLOOR_US, P99_FLOOR_US.get(m))
+                 for m in REGISTRY]
+        cases.append((f"{LATE_JOIN} (base sensor joins at {LATE_BASE_S:g} s)",
+                      TipForceEstimator.analytic(robot, LATE_JOIN, call_hz=1000.0), MEDIAN_FLOOR_US,
+                      P99_FLOOR_US.get(LATE_JOIN)))
         for m in args.models:
             est = TipForceEstimator.load(m, call_hz=1000.0)
             cases.append((f"{est.model.model.preset.name} [{est.model.runtime}]", est, 100.0, 500.0))
@@ -158,9 +167,8 @@ def main(argv=None) -> None:
                 "noise window (it measures the noise and applies the bandwidth rule; every design was made at "
                 "construction). The floors are judged on all calls, the "
                 "window's included; 'after the window' is the steady state a long control run sees (the first 500 calls "
-                "also tare the sensor and, for kalman_fusion, run its noise probe).", "", *table, ""]
-        from pathlib import Path
-
+                f"also tare the sensor and, for {LATE_JOIN}, run its noise probe).", "", *table, ""]
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         Path(args.out).write_text("\n".join(text))
 
 

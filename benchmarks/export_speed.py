@@ -6,7 +6,7 @@ Times one single-window call of the network part of a trained model through:
   onnxruntime   the network exported to ONNX
   numba         hybrid_dyn.learn.fastpath.FastNet
 (TipForceEstimator.load(runtime="auto") keeps whichever of numba and onnxruntime is faster in the loop)
-and checks that each agrees with eager PyTorch. Medians of 2,000 calls, one core.
+and checks that each agrees with eager PyTorch. Medians of 2,000 calls, one core (``hybrid_dyn.timing``).
 
 Run: .venv/bin/python benchmarks/export_speed.py runs/default/mismatch-ext/*/models/seed-tip-11
 """
@@ -21,7 +21,7 @@ import torch
 
 from hybrid_dyn.learn import load_model
 from hybrid_dyn.learn.fastpath import FastNet
-from learn_speed import median_us  # benchmarks/ is the script's folder, hence on sys.path
+from hybrid_dyn.timing import median_call_us
 
 
 def main(argv=None) -> None:
@@ -43,7 +43,7 @@ def main(argv=None) -> None:
         with torch.inference_mode():
             return net(xt)
 
-    rows.append(("pytorch eager", median_us(eager, 2000), 0.0))
+    rows.append(("pytorch eager", median_call_us(eager, 2000), 0.0))
     exported = torch.export.export(net, (xt,)).module()
 
     def exp_call():
@@ -51,7 +51,7 @@ def main(argv=None) -> None:
             return exported(xt)
 
     with torch.inference_mode():
-        rows.append(("torch.export", median_us(exp_call, 2000), float(np.abs(exported(xt).numpy()[0] - ref).max())))
+        rows.append(("torch.export", median_call_us(exp_call, 2000), float(np.abs(exported(xt).numpy()[0] - ref).max())))
     try:
         import onnxruntime as ort
 
@@ -60,13 +60,13 @@ def main(argv=None) -> None:
         opts = ort.SessionOptions()
         opts.intra_op_num_threads = opts.inter_op_num_threads = 1
         sess = ort.InferenceSession(buf.getvalue(), opts, providers=["CPUExecutionProvider"])
-        rows.append(("onnxruntime", median_us(lambda: sess.run(None, {"x": x}), 2000),
+        rows.append(("onnxruntime", median_call_us(lambda: sess.run(None, {"x": x}), 2000),
                      float(np.abs(sess.run(None, {"x": x})[0][0] - ref).max())))
     except Exception as err:  # an exporter that refuses the graph: report it, keep the other rows
         rows.append((f"onnxruntime (unavailable: {type(err).__name__}: {str(err)[:60]})", float("nan"), float("nan")))
     fast = FastNet(net)
     x64 = x[0].astype(np.float64)
-    rows.append(("numba FastNet", median_us(lambda: fast(x64), 2000),
+    rows.append(("numba FastNet", median_call_us(lambda: fast(x64), 2000),
                  float(np.abs(fast(x64) - ref).max())))
     print(f"model {args.model_dir} ({model.preset.name}: {model.preset.kind}, window {model.window})")
     print(f"{'runtime':58s} {'median us':>10s} {'max |diff| vs eager':>20s}")

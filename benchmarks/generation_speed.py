@@ -16,10 +16,8 @@ The machine's load average is printed first: the speed-up needs two otherwise id
 import argparse
 import json
 import os
-import resource
 import shutil
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +28,7 @@ from hybrid_dyn.sim.plant import DartPlant
 from hybrid_dyn.sim.pulses import sample_pulses
 from hybrid_dyn.sim.scenarios import scenario_config
 from hybrid_dyn.sim.trajectories import random_reference
+from hybrid_dyn.timing import Stopwatch
 
 
 def bare_dart_speed(sim: Simulator, steps: int = 1000, repeats: int = 10) -> float:
@@ -41,11 +40,11 @@ def bare_dart_speed(sim: Simulator, steps: int = 1000, repeats: int = 10) -> flo
     runs = []
     for _ in range(repeats):
         plant.set_state(q, np.zeros(7))
-        t0 = time.perf_counter()
-        for _ in range(steps):
-            plant.skel.setForces(tau)
-            plant.world.step()
-        runs.append(steps * sim.config.dt / (time.perf_counter() - t0))
+        with Stopwatch() as sw:
+            for _ in range(steps):
+                plant.skel.setForces(tau)
+                plant.world.step()
+        runs.append(steps * sim.config.dt / sw.wall)
     return float(np.median(runs))
 
 
@@ -55,15 +54,9 @@ def _build_simulator(config_json: str) -> int:
 
 def worker_start_seconds(cfg) -> float:
     """Wall time to start one spawned worker: interpreter, imports, robots, collision model."""
-    t0 = time.perf_counter()
-    list(ProcessExecutor(1).map_unordered(_build_simulator, [(json.dumps(cfg.to_dict(), sort_keys=True),)]))
-    return time.perf_counter() - t0
-
-
-def cpu_seconds() -> float:
-    """CPU time of this process and its finished children (the workers), user + system."""
-    own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
-    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+    with Stopwatch() as sw:
+        list(ProcessExecutor(1).map_unordered(_build_simulator, [(json.dumps(cfg.to_dict(), sort_keys=True),)]))
+    return sw.wall
 
 
 def tree_bytes(path: Path) -> dict:
@@ -89,12 +82,12 @@ def main() -> None:
         ref = random_reference(sim.nominal, rng_traj, args.trajectories, dt=cfg.dt, speed_scale=cfg.speed_scale,
                                is_valid=sim.checker)
         force = sample_pulses(rng_pulse, cfg.pulses).force(ref.t)
-        t0 = time.perf_counter()
-        sim.run(ref.q, ref.qd, ref.qdd, force, rng_noise)
-        loop.append(len(ref) * cfg.dt / (time.perf_counter() - t0))
-        t0 = time.perf_counter()
-        run, _ = simulate_instance(sim, i)
-        full.append(run.attrs["duration_s"] / (time.perf_counter() - t0))
+        with Stopwatch() as sw:
+            sim.run(ref.q, ref.qd, ref.qdd, force, rng_noise)
+        loop.append(len(ref) * cfg.dt / sw.wall)
+        with Stopwatch() as sw:
+            run, _ = simulate_instance(sim, i)
+        full.append(run.attrs["duration_s"] / sw.wall)
         sim_seconds += run.attrs["duration_s"]
     print(f"sim loop + sensors (1 kHz, 100 Hz)  {np.median(loop):7.1f} x real time per core")
     print(f"full instance (plan + sim + sensors){np.median(full):7.1f} x real time per core "
@@ -107,10 +100,10 @@ def main() -> None:
         for rep in range(args.repeats):  # alternate, so a burst of load elsewhere hits both
             for workers in (1, 2):
                 out = Path(tmp) / f"r{rep}w{workers}"
-                t0, c0 = time.perf_counter(), cpu_seconds()
-                generate_dataset(cfg, out, workers=workers, progress=False)
-                walls[workers].append(time.perf_counter() - t0)
-                cores[workers].append((cpu_seconds() - c0) / walls[workers][-1])
+                with Stopwatch() as sw:
+                    generate_dataset(cfg, out, workers=workers, progress=False)
+                walls[workers].append(sw.wall)
+                cores[workers].append(sw.cores)
             same &= tree_bytes(Path(tmp) / f"r{rep}w1") == tree_bytes(Path(tmp) / f"r{rep}w2")
             for workers in (1, 2):
                 shutil.rmtree(Path(tmp) / f"r{rep}w{workers}")

@@ -11,6 +11,7 @@ under 15 % at `default` scale (the default profile's instances: 5-20
 trajectories each). Runs alternate between executors, medians are quoted.
 
 Run: .venv/bin/python benchmarks/scale.py [--scenario paper-ext] [--instances 40] [--repeats 1] [--out FILE]
+(default --out: reports/performance/scale/results.json)
 The machine's load average is printed first: the numbers need two otherwise idle cores.
 """
 import argparse
@@ -18,7 +19,6 @@ import json
 import os
 import shutil
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +27,7 @@ from hybrid_dyn.data import load_dataset
 from hybrid_dyn.sim.executors import ProcessExecutor, RayExecutor, SerialExecutor
 from hybrid_dyn.sim.generator import generate_dataset
 from hybrid_dyn.sim.scenarios import scenario_config
+from hybrid_dyn.timing import Stopwatch
 
 
 def tree_bytes(path: Path) -> dict:
@@ -34,9 +35,9 @@ def tree_bytes(path: Path) -> dict:
 
 
 def timed_generation(cfg, out: Path, executor) -> float:
-    t0 = time.perf_counter()
-    generate_dataset(cfg, out, executor=executor, progress=False)
-    return time.perf_counter() - t0
+    with Stopwatch() as sw:
+        generate_dataset(cfg, out, executor=executor, progress=False)
+    return sw.wall
 
 
 def main() -> None:
@@ -44,7 +45,7 @@ def main() -> None:
     ap.add_argument("--scenario", default="paper-ext")
     ap.add_argument("--instances", type=int, default=None, help="default: the default profile's 40")
     ap.add_argument("--repeats", type=int, default=1)
-    ap.add_argument("--out", default="reports/scale/results.json", help="where to write the numbers as JSON")
+    ap.add_argument("--out", default="reports/performance/scale/results.json", help="where to write the numbers as JSON")
     args = ap.parse_args()
     import ray
 
@@ -61,10 +62,10 @@ def main() -> None:
             dirs = {k: Path(tmp) / f"r{rep}-{k}" for k in walls}
             walls["local-1"].append(timed_generation(cfg, dirs["local-1"], SerialExecutor()))
             walls["local-2"].append(timed_generation(cfg, dirs["local-2"], ProcessExecutor(2)))
-            t0 = time.perf_counter()
-            ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, logging_level="ERROR",
-                     object_store_memory=100 * 2**20)
-            ray_init.append(time.perf_counter() - t0)
+            with Stopwatch() as sw:
+                ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, logging_level="ERROR",
+                         object_store_memory=100 * 2**20)
+            ray_init.append(sw.wall)
             try:
                 walls["ray-2"].append(timed_generation(cfg, dirs["ray-2"], RayExecutor()))  # uses the running Ray
             finally:

@@ -35,8 +35,9 @@ def ur5():
 
 @pytest.fixture(scope="session", params=available_robots())
 def described_robot(request):
-    """Every robot declared in ``robots/`` with a full description (URDF, frames), one at a time: a robot
-    is checked against DART, and by every test that takes this fixture, by being declared there."""
+    """Every robot declared in the robot registry (``hybrid_dyn/resources/robots/``, or ``$HYBRID_DYN_ROBOTS``)
+    with a full description (URDF, frames), one at a time: a robot is checked against DART, and by every
+    test that takes this fixture, by being declared there."""
     return hd.load_robot(request.param)
 
 

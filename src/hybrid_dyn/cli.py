@@ -10,7 +10,9 @@ import importlib
 import signal
 import sys
 import threading
+import warnings
 
+from .deprecation import DeprecatedNameWarning
 from .errors import HybridDynError
 
 # Modules that contribute subcommands; each has register(subparsers).
@@ -45,7 +47,26 @@ def main(argv=None) -> int:
     """Run one command. Exit status: 0 done; 2 a user error (a ``HybridDynError``: one line, no
     traceback); 130/143 interrupted by SIGINT/SIGTERM; any other exception is a bug in the toolkit
     and propagates with its traceback (exit 1)."""
-    args = build_parser().parse_args(argv)
+    formatwarning = warnings.formatwarning
+    warnings.formatwarning = _one_line_deprecation(formatwarning)  # old flags warn while parsing, too
+    try:
+        return _run(build_parser().parse_args(argv))
+    finally:
+        warnings.formatwarning = formatwarning
+
+
+def _one_line_deprecation(formatwarning):
+    """A renamed flag or name is the user's to fix, not a place in the toolkit: ``warning: <message>``."""
+
+    def one_line(message, category, filename, lineno, line=None):
+        if issubclass(category, DeprecatedNameWarning):
+            return f"warning: {message}\n"
+        return formatwarning(message, category, filename, lineno, line)
+
+    return one_line
+
+
+def _run(args) -> int:
     handle_term = _main_thread()
     previous = signal.signal(signal.SIGTERM, _on_sigterm) if handle_term else None
     try:

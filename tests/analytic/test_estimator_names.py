@@ -1,11 +1,15 @@
 """One name per analytic estimator (issue 15, item 5): the bench's names everywhere, the older
-spellings accepted where users give them (the priors' and model files' spellings: learn/test_prior_names.py)."""
+spellings accepted where users give them, with a warning (issue 30) (the priors' and model files'
+spellings: learn/test_prior_names.py)."""
+import warnings
+
 import numpy as np
 import pytest
 
 from hybrid_dyn import TipForceEstimator
 from hybrid_dyn.analytic.estimators import ALIASES, ESTIMATORS
 from hybrid_dyn.bench.catalog import ROWS
+from hybrid_dyn.deprecation import DeprecatedNameWarning
 from hybrid_dyn.estimator import METHODS
 from hybrid_dyn.learn.presets import PRIORS
 from hybrid_dyn.learn.priors import PRIOR_FIELDS
@@ -25,8 +29,11 @@ def test_the_names_are_the_bench_rows_names():
                                       ("momentum", "momentum-observer"), ("base_momentum", "base-momentum"),
                                       ("kalman_fusion", "kalman-fusion")])
 def test_an_old_method_spelling_is_the_same_estimator(old, new, panda):
-    a = TipForceEstimator.analytic(panda, old, call_hz=100.0, tare_seconds=0.0)
-    b = TipForceEstimator.analytic(panda, new, call_hz=100.0, tare_seconds=0.0)
+    with pytest.warns(DeprecatedNameWarning, match=f"estimator method spelling '{old}' is deprecated: use '{new}'"):
+        a = TipForceEstimator.analytic(panda, old, call_hz=100.0, tare_seconds=0.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DeprecatedNameWarning)  # the canonical name is silent
+        b = TipForceEstimator.analytic(panda, new, call_hz=100.0, tare_seconds=0.0)
     assert a.method == b.method == new
     rng = np.random.default_rng(0)
     q0 = np.array(panda.spec.home)

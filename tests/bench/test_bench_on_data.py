@@ -41,7 +41,7 @@ def test_bench_on_an_imported_log_runs_what_applies_and_says_why_the_rest_does_n
     readme = (tmp / "report" / "README.md").read_text()
     assert "## Rows not run" in readme and "`rnea-bw` (joint torque): needs base_wrench" in readme
     assert "hybrid-dyn bench --data " in readme and "panda[tool=none]" in readme  # the variant the log names
-    assert "Floors" not in readme and "NOT met" not in readme  # the project's floors are benchmarks/acceptance.py
+    assert "Floors" not in readme and "NOT met" not in readme  # the project's floors are checks/acceptance.py
     assert meta["datasets"]["my-panda"]["robot"] == "panda[tool=none]"
 
 

@@ -21,7 +21,7 @@ def test_bench_identifies_an_imported_log_on_train_and_val_and_scores_on_test(pa
     from hybrid_dyn.bench.runner import BenchContext, score_row, train_split_stats
 
     ds, model, _ = identified_log
-    profile = BenchProfile(name="t", scenarios=("log",), recipe="default", train=TINY_TRAINING, workers=1)
+    profile = BenchProfile(name="t", scenarios=("log",), recipe="plateau", train=TINY_TRAINING, workers=1)
     specs = {s.name: s for s in select_rows(families=("identified",))}
     for name in ("identified-consistent", "base-wrench-identified", "residual-rnea-identified",
                  "residual-rnea-bw-identified"):

@@ -124,7 +124,7 @@ def test_tiny_bench_carries_the_model_config_into_the_report(tmp_path, panda):
     ds = load_dataset(make_synthetic_dataset(tmp_path / "d", panda, n_instances=4, n_samples=60, seed=3))
     profile = dataclasses.replace(
         PROFILES["quick"], name="tiny", scenarios=("synthetic",), families=(), rows=("base-wrench", "seed-tip-1"),
-        workers=1, recipe="default",
+        workers=1, recipe="plateau",
         train=dict(max_epochs=1, batch_size=64, progress=False))  # one epoch, still improving: the cap stops it
     run_bench(profile, tmp_path / "report", work_root=tmp_path / "runs", dataset_provider=lambda s, p: ds,
               log=lambda m: None)

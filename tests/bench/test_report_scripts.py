@@ -1,23 +1,25 @@
-"""Scripts that read bench reports, loaded by file path: benchmarks/acceptance.py (the project's floors)
-and benchmarks/data_control.py (two reports compared through their analytic rows)."""
+"""What reads bench reports: checks/acceptance.py (the project's floors, a script loaded by file path)
+and ``hybrid-dyn compare`` (two reports compared through their analytic rows)."""
 from __future__ import annotations
 
 import importlib.util
 import json
 
+from hybrid_dyn.cli import main as cli_main
+
 from helpers import REPO
 
 
 def load_script(name: str):
-    """benchmarks/NAME.py as a module (the scripts are not part of the package)."""
-    spec = importlib.util.spec_from_file_location(name, REPO / "benchmarks" / f"{name}.py")
+    """checks/NAME.py as a module (the scripts are not part of the package)."""
+    spec = importlib.util.spec_from_file_location(name, REPO / "checks" / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
 
 
 def test_acceptance_floors_are_a_benchmark_of_their_own(tmp_path, capsys):
-    """benchmarks/acceptance.py prints each floor with its numbers and met / NOT met; the report does not."""
+    """checks/acceptance.py prints each floor with its numbers and met / NOT met; the report does not."""
     from hybrid_dyn.bench.report import write_report
     from hybrid_dyn.bench.results import read_results, write_results
 
@@ -60,7 +62,7 @@ def test_acceptance_floors_are_a_benchmark_of_their_own(tmp_path, capsys):
 
 
 def test_the_data_control_divides_each_learned_row_by_its_own_reports_physics(tmp_path, capsys):
-    """benchmarks/data_control.py: two reports on different test instances compare through their analytic rows."""
+    """hybrid-dyn compare: two reports on different test instances compare through their analytic rows."""
     from hybrid_dyn.bench.results import write_results
 
     def row(model, family, rmse, epochs=""):
@@ -73,7 +75,7 @@ def test_the_data_control_divides_each_learned_row_by_its_own_reports_physics(tm
             "paper-noext": {"n_instances": 10 if name == "small" else 40, "trajectories": [5, 10]}}}}))
         write_results(tmp_path / name / "results.csv", [row("rnea", "analytic", rnea), row("rnea-bw", "analytic", 9.0),
                                                          row("seed-tau-mlp", "seed-net", mlp, 12)])
-    assert load_script("data_control").main(["--small", str(tmp_path / "small"), "--large", str(tmp_path / "large")]) == 0
+    assert cli_main(["compare", str(tmp_path / "small"), str(tmp_path / "large")]) == 0
     out = capsys.readouterr().out
     assert "small `rnea` 0.500 Nm, large `rnea` 0.250 Nm" in out  # the best analytic row of each report
     assert "| seed-tau-mlp | seed-net | 5.000 | 10.00 | 12 (-) | 1.000 | 4.00 | 12 (-) | 0.40x |" in out

@@ -13,14 +13,17 @@ import scipy.io
 
 from hybrid_dyn.cli import main as cli_main
 from hybrid_dyn.data import DatasetError, import_log, load_dataset
+from hybrid_dyn.data.real import real_specs_dir
 from hybrid_dyn.data.importer import (
     LogSpecError, MissingColumnError, StrictImportError, TooManyRowsDroppedError, read_spec,
 )
 
-from helpers import REPO
 from helpers.logs import CSV_COLUMNS, FS, Q, TAU, sine_log, write_csv
 
-SHARED = Path(os.environ.get("HYBRID_DYN_REAL_LOGS", REPO / "benchmarks" / "real" / "logs"))
+SPECS = real_specs_dir()  # the specs that ship with the package (hybrid_dyn/resources/real)
+SHARED = Path(os.environ.get("HYBRID_DYN_REAL_LOGS", SPECS / "logs"))
+
+
 def load_all(path):
     """Every instance of every split, concatenated in time order: dict of arrays."""
     ds = load_dataset(path)
@@ -337,7 +340,7 @@ def test_spec_paths_env_override_and_unknown_keys(tmp_path, monkeypatch):
 
 
 # ---------------------------------------------------------------------------
-# The shipped real logs (benchmarks/real/logs, 4.7 MB: they ship with the repository)
+# The shipped real logs (hybrid_dyn/resources/real/logs, 4.7 MB: they ship with the package)
 
 
 @pytest.mark.parametrize("name,mat,prefix,rows", [
@@ -345,7 +348,7 @@ def test_spec_paths_env_override_and_unknown_keys(tmp_path, monkeypatch):
     ("baxter", "BaxterDirectDynamics.mat", "baxtertraj", 19295),
 ])
 def test_shipped_trajectory_logs(tmp_path, name, mat, prefix, rows):
-    report = import_log(REPO / "benchmarks" / "real" / f"{name}.toml", tmp_path / name)
+    report = import_log(SPECS / f"{name}.toml", tmp_path / name)
     assert (report.rows_read, report.rows_kept, report.trajectories, report.instances) == (rows, rows, 10, 10)
     assert not report.issues and not report.warnings
     ds = load_dataset(tmp_path / name)
@@ -355,7 +358,7 @@ def test_shipped_trajectory_logs(tmp_path, name, mat, prefix, rows):
     assert sum(len(i) for s in splits for i in ds.split(s)) == rows
     # Against the raw matrices: positions, velocities and torques verbatim.
     raw = scipy.io.loadmat(SHARED / mat)
-    spec = read_spec(REPO / "benchmarks" / "real" / f"{name}.toml")
+    spec = read_spec(SPECS / f"{name}.toml")
     inst = ds.instances[f"{prefix}3"]
     m = raw[f"{prefix}3"]
     np.testing.assert_array_equal(inst.q, m[:, :7])
@@ -402,6 +405,18 @@ def test_shipped_sarcos_log_in_contiguous_blocks(tmp_path):
     assert cds.meta["scenario"] == "real-sarcos-chunks" and len(cinsts) == 40 and {len(i) for i in cinsts} == {111, 112}
     np.testing.assert_array_equal(
         np.concatenate([np.concatenate([i.q, i.qd, i.qdd, i.tau_m], axis=1) for i in cinsts]), raw)
+
+
+def test_import_cli_takes_a_shipped_set_by_name(tmp_path, monkeypatch):
+    """``import --spec real-sarcos``: the spec inside the installed package, whose path a user need not know;
+    the same dataset as the spec's path gives. A file of that name in the working folder wins over the set."""
+    monkeypatch.chdir(tmp_path)
+    assert cli_main(["import", "--spec", "real-sarcos", "--out", "by-name"]) == 0
+    assert cli_main(["import", "--spec", str(SPECS / "sarcos.toml"), "--out", "by-path"]) == 0
+    assert load_dataset(tmp_path / "by-name").checksum == load_dataset(tmp_path / "by-path").checksum
+    (tmp_path / "real-sarcos").write_text("not = [a spec")  # a local file named like the set: read as the spec
+    assert cli_main(["import", "--spec", "real-sarcos", "--out", "local"]) == 2
+    assert not (tmp_path / "local").exists()
 
 
 def test_robot_with_a_description_uses_its_joint_limits(tmp_path, panda):

@@ -1,4 +1,4 @@
-"""The real Panda log as the ``real-panda`` set (benchmarks/real/panda.toml), on a tiny CSV made here.
+"""The real Panda log as the ``real-panda`` set (hybrid_dyn/resources/real/panda.toml), on a tiny CSV made here.
 
 The real file (../shared/data/real/panda_gaz_exciting_traj1.csv) is GPL-3.0 data and never enters
 the repository; these tests write a 1.2 s log with its columns into a temporary folder and point
@@ -79,4 +79,5 @@ def test_the_default_folder_is_shared_data_beside_the_repository(monkeypatch):
     monkeypatch.delenv("HYBRID_DYN_REAL_LOGS", raising=False)
     monkeypatch.delenv("HYBRID_DYN_REAL_SPECS", raising=False)
     assert read_spec(real_spec_path("real-panda")).files == [REPO.parent / "shared" / "data" / "real" / LOG]
-    assert not list(REPO.glob(f"benchmarks/**/{LOG}"))  # GPL-3.0 data: never copied into the repository
+    # GPL-3.0 data: never copied into the repository, nor into the package data beside the other logs
+    assert not [p for d in ("src", "benchmarks", "tests") for p in (REPO / d).glob(f"**/{LOG}")]

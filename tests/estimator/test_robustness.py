@@ -128,7 +128,7 @@ def test_floor_no_ok_garbage_and_rejected_samples_leave_no_trace(panda):
     rng = np.random.default_rng(17)
     good = stream(panda, 1340)
     # Two believable but huge loads after the tare window: accepted samples whose estimate is beyond
-    # the bound. Both runs hold them; they must come out "out of range", never "ok".
+    # the bound. Both runs hold them; they must come out "force out of range", never "ok".
     for k in (700, 701, 1100):
         good[k] = dict(good[k], base_wrench=good[k]["base_wrench"] + np.array([0, 0, 800.0, 0, 0, 0]))
     calls = 0
@@ -233,7 +233,7 @@ def test_a_force_beyond_the_bound_is_out_of_range_and_not_held(panda):
     assert est.last_status is EstimatorStatus.OK
     w = good[-2]["base_wrench"] + np.array([0, 0, 700.0, 0, 0, 0])  # 870 N: inside the input bound (1014 N)
     f2 = est.estimate_tip_force(**dict(good[-2], base_wrench=w))
-    assert est.last_status is EstimatorStatus.FORCE_OUT_OF_RANGE and est.last_status.value == "out of range"
+    assert est.last_status is EstimatorStatus.FORCE_OUT_OF_RANGE and est.last_status.value == "force out of range"
     assert np.linalg.norm(f2) > BOUND
     held = est.estimate_tip_force(**dict(good[-1], t="abc"))
     assert est.last_status is EstimatorStatus.INPUT_REJECTED

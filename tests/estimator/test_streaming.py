@@ -31,6 +31,26 @@ def test_streaming_filter_equals_scipy_lfilter(recorded):
     np.testing.assert_allclose(stream, causal_acceleration(recorded.qd, 1.0 / RATE, 20.0), atol=1e-9)
 
 
+@pytest.mark.parametrize("rate, cutoff", [(100.0, 20.0), (1000.0, 20.0), (1000.0, 449.0), (20.0, 7.3)])
+def test_one_filter_serves_the_generator_and_the_stream(rate, cutoff):
+    """The generator's batch filter is scipy.signal.lfilter on the backward difference, bit for bit (the
+    cached datasets were made by lfilter), and the stream at `rate` is the batch at dt = 1 / rate, bit
+    for bit: one kernel, not two filters that agree to round-off."""
+    from scipy import signal
+
+    qd = np.cumsum(np.random.default_rng(int(rate)).normal(size=(3000, 7)), axis=0) * 1e-3
+    dt = 1.0 / rate
+    diff = np.zeros_like(qd)
+    diff[1:] = (qd[1:] - qd[:-1]) / dt
+    b, a = signal.butter(2, cutoff, fs=1.0 / dt)
+    batch = causal_acceleration(qd, dt, cutoff)
+    assert np.array_equal(batch, signal.lfilter(b, a, diff, axis=0))
+    filt = CausalAccelerationFilter(7, rate, cutoff)
+    assert np.array_equal(np.stack([filt.step(v) for v in qd[:1000]]), batch[:1000])
+    assert np.array_equal(filt.replay(qd[1000:]), batch[-1])  # the window replay continues the same state
+    assert np.array_equal(causal_acceleration(qd[:, 0], dt, cutoff), batch[:, 0])  # one joint's (T,) alone
+
+
 def test_streaming_base_wrench_equals_batch(recorded):
     # This set has no sensor offset and may push from t = 0: trust the sensor's zero (no tare, no noise
     # window), at the generator's 20 Hz cutoff.

@@ -15,4 +15,4 @@ several folders share:
 """
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[2]  # the repository root (benchmarks/, robots/, src/)
+REPO = Path(__file__).resolve().parents[2]  # the repository root (benchmarks/, checks/, reports/, src/)

@@ -64,7 +64,7 @@ TRAIN_PRESETS = {
 GENERATOR_SIZES = dict(n_instances=6, trajectories=(4, 6), standstill=0.2, speed_scale=(0.5, 0.6),
                        pulse_gap=(0.5, 1.0), pulse_sigma=(0.2, 0.4))
 # Tiny training: a few short epochs, so the kill at the first checkpoint leaves most of the run to resume.
-TRAIN_ARGS = ["--epochs", "6", "--patience", "100", "--batch-size", "64", "--max-batches-per-epoch", "8",
+TRAIN_ARGS = ["--max-epochs", "6", "--patience", "100", "--batch-size", "64", "--max-batches-per-epoch", "8",
               "--threads", "1", "--device", "cpu", "--quiet"]
 TIMING_FILES = {"timing.json"}  # wall-clock figures only (docs/models.md, "Which bytes are reproducible")
 
@@ -83,8 +83,8 @@ def generate_cli(argv: list[str]) -> int:
     pulses = scenarios.PulseConfig(gap=sizes.pop("pulse_gap"), sigma=sizes.pop("pulse_sigma"))
     full_size = scenarios.scenario_config
 
-    def tiny(name, profile="quick", seed=0, **overrides):
-        return full_size(name, profile, seed=seed, **{**sizes, "pulses": pulses, **overrides})
+    def tiny(name, size="quick", seed=0, **overrides):
+        return full_size(name, size, seed=seed, **{**sizes, "pulses": pulses, **overrides})
 
     scenarios.scenario_config = tiny  # sim/cli.py looks it up when the command runs
     return main(argv)
@@ -93,7 +93,7 @@ def generate_cli(argv: list[str]) -> int:
 def generate_argv(out: Path, workers: int) -> list[str]:
     code = f"import sys; sys.path.insert(0, {str(TESTS_DIR)!r}); from helpers import fault_injection as f; " \
            "sys.exit(f.generate_cli(sys.argv[1:]))"
-    return [sys.executable, "-c", code, "generate", "--scenario", "paper-ext", "--profile", "quick",
+    return [sys.executable, "-c", code, "generate", "--scenario", "paper-ext", "--size", "quick",
             "--out", str(out), "--workers", str(workers), "--quiet"]
 
 

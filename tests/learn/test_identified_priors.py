@@ -28,7 +28,7 @@ def test_torque_priors_on_an_identified_file_add_exactly_its_friction(panda, ide
     inst = ds.split("test")[0]
     tau_f = friction_from_file(path)(inst.qd)
     assert np.abs(tau_f).max() > 0.1  # a friction law that matters
-    for kind in ("rnea", "rnea-basewrench"):
+    for kind in ("rnea", "rnea-bw"):
         with_f = AnalyticPrior(kind, robot, ds.meta["record_hz"])
         without = AnalyticPrior(kind, robot, ds.meta["record_hz"], friction=None)
         np.testing.assert_allclose(with_f.compute(_fields(inst, with_f)) - without.compute(_fields(inst, without)),
@@ -53,14 +53,14 @@ def test_tip_force_priors_take_the_identified_inertials_and_no_friction(panda, i
     ds, model, path = identified_log
     robot = hd.load_robot("panda", params=path)
     inst = ds.split("test")[0]
-    prior = AnalyticPrior("basewrench", robot)
+    prior = AnalyticPrior("base-wrench", robot)
     assert prior.friction is None and "friction" not in prior.describe()
     expected = tip_force_from_base_wrench(model.to_robot(), inst.q, inst.qd, inst.qdd, inst.base_wrench)
     np.testing.assert_allclose(prior.compute(_fields(inst, prior)), expected, rtol=0, atol=1e-9)
     nominal = tip_force_from_base_wrench(panda, inst.q, inst.qd, inst.qdd, inst.base_wrench)
     assert np.abs(expected - nominal).max() > 1e-3  # the identified inertials, not the nominal ones
     with pytest.raises(ValueError, match="takes no joint friction"):
-        AnalyticPrior("basewrench", robot, friction=json.loads(path.read_text())["friction"])
+        AnalyticPrior("base-wrench", robot, friction=json.loads(path.read_text())["friction"])
 
 
 def test_nominal_parameter_sets_give_a_rigid_body_prior(panda, identified_log):

@@ -124,7 +124,7 @@ def test_train_config_refuses_values_out_of_range(field, value):
 
 
 @pytest.mark.parametrize("args,flag", [
-    (["--epochs", "0"], "--epochs"), (["--patience", "0"], "--patience"), (["--batch-size", "-1"], "--batch-size"),
+    (["--max-epochs", "0"], "--max-epochs"), (["--patience", "0"], "--patience"), (["--batch-size", "-1"], "--batch-size"),
     (["--batch-size", "0"], "--batch-size"), (["--device", "gpu"], "--device"), (["--threads", "-2"], "--threads"),
     (["--device", "cuda:99"], "CUDA device"),
 ])
@@ -207,7 +207,7 @@ def test_an_empty_folder_or_a_killed_runs_leftovers_are_fine(ds_path, tmp_path, 
     monkeypatch.setattr(train_mod, "_save_checkpoint", save_then_die)
     with pytest.raises(KeyboardInterrupt):
         train_model(ds, "residual-basewrench", tmp_path / "killed", cfg)
-    assert list((tmp_path / "killed" / "analytic_cache").glob("prior-basewrench-*.h5"))
+    assert list((tmp_path / "killed" / "analytic_cache").glob("prior-base-wrench-*.h5"))
     monkeypatch.setattr(train_mod, "_save_checkpoint", real_save)
     resumed = train_model(ds, "residual-basewrench", tmp_path / "killed", cfg)
     assert (tmp_path / "killed" / "model.safetensors").read_bytes() == \

@@ -158,8 +158,8 @@ def test_single_sample_priors_match_batched_analytic_functions(friction_set, pan
     inst = friction_set.split("train")[0]
     jv = panda.tip_jacobian(inst.q)[:, :3, :]
     f_bw = tip_force_from_base_wrench(panda, inst.q, inst.qd, inst.qdd, inst.base_wrench)
-    expected = {"rnea": panda.inverse_dynamics(inst.q, inst.qd, inst.qdd), "basewrench": f_bw,
-                "rnea-basewrench": panda.inverse_dynamics(inst.q, inst.qd, inst.qdd) - np.einsum("nij,ni->nj", jv, f_bw)}
+    expected = {"rnea": panda.inverse_dynamics(inst.q, inst.qd, inst.qdd), "base-wrench": f_bw,
+                "rnea-bw": panda.inverse_dynamics(inst.q, inst.qd, inst.qdd) - np.einsum("nij,ni->nj", jv, f_bw)}
     for kind, ref in expected.items():
         prior = AnalyticPrior(kind, panda)
         np.testing.assert_allclose(prior.compute({k: inst[k] for k in prior.fields}), ref, atol=1e-9)
@@ -168,19 +168,25 @@ def test_single_sample_priors_match_batched_analytic_functions(friction_set, pan
 
 
 def test_analytic_part_is_cached_per_dataset(friction_set, panda, tmp_path):
-    prior = AnalyticPrior("basewrench", panda)
+    prior = AnalyticPrior("base-wrench", panda)
     insts = friction_set.split("val")
     first = prior.compute_instances(insts, tmp_path, friction_set.checksum)
-    files = list(tmp_path.glob("prior-basewrench-*.h5"))
-    assert len(files) == 1
+    files = list(tmp_path.glob("prior-base-wrench-*.h5"))  # the canonical name (issue 30)
+    assert len(files) == 1 and not list(tmp_path.glob("prior-basewrench-*"))
     prior.compute = None  # a second call must not compute: it reads the cache
     second = prior.compute_instances(insts, tmp_path, friction_set.checksum)
     for a, b in zip(first, second):
         assert np.array_equal(a, b)
+    # A cache written before issue 30 (the older spelling in its name, the same key) is found, renamed.
+    older = files[0].with_name(files[0].name.replace("prior-base-wrench-", "prior-basewrench-"))
+    files[0].rename(older)
+    third = prior.compute_instances(insts, tmp_path, friction_set.checksum)  # prior.compute is None: read, not made
+    assert all(np.array_equal(a, b) for a, b in zip(first, third))
+    assert files[0].is_file() and not older.exists()
     # Another robot parameter set is another cache entry.
-    other = AnalyticPrior("basewrench", hd.load_robot("panda", params="franka_official"))
+    other = AnalyticPrior("base-wrench", hd.load_robot("panda", params="franka_official"))
     other.compute_instances(insts, tmp_path, friction_set.checksum)
-    assert len(list(tmp_path.glob("prior-basewrench-*.h5"))) == 2
+    assert len(list(tmp_path.glob("prior-base-wrench-*.h5"))) == 2
 
 
 def test_training_is_deterministic_and_resumes_after_a_kill(friction_set, tmp_path, monkeypatch):
@@ -225,8 +231,8 @@ def test_sigkilled_training_resumes_to_the_same_model(friction_set, tmp_path):
     import sys
     import time
 
-    args = ["--epochs", "40", "--batch-size", "16", "--threads", "1", "--quiet"]
-    cfg = TrainConfig.recipe("default", max_epochs=40, batch_size=16, progress=False, num_threads=1)  # the CLI's
+    args = ["--max-epochs", "40", "--batch-size", "16", "--threads", "1", "--quiet"]
+    cfg = TrainConfig.recipe("plateau", max_epochs=40, batch_size=16, progress=False, num_threads=1)  # the CLI's
     out = tmp_path / "killed"
     proc = subprocess.Popen([sys.executable, "-m", "hybrid_dyn.cli", "train", "--data", str(friction_set.path),
                              "--preset", "seed-tip-5", "--out", str(out)] + args)
@@ -321,7 +327,7 @@ def test_bad_dataset_or_preset_is_refused(friction_set, tmp_path):
 def test_cli_train_predict_and_tune(friction_set, tmp_path, capsys):
     from hybrid_dyn.cli import main
 
-    common = ["--epochs", "2", "--batch-size", "64", "--max-batches-per-epoch", "3", "--quiet", "--threads", "1"]
+    common = ["--max-epochs", "2", "--batch-size", "64", "--max-batches-per-epoch", "3", "--quiet", "--threads", "1"]
     assert main(["train", "--data", str(friction_set.path), "--preset", "seed-tau-mlp", "--out", str(tmp_path / "m")] + common) == 0
     assert main(["predict", "--model", str(tmp_path / "m"), "--data", str(friction_set.path),
                  "--save", str(tmp_path / "p.h5")]) == 0

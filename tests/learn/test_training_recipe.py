@@ -119,7 +119,7 @@ def test_recurrent_gradients_are_clipped(clean_and_biased, tmp_path, monkeypatch
     assert norms == [1.0, 1.0]
     train_model(clean, "seed-tip-1", tmp_path / "mlp", TrainConfig(max_epochs=1, max_batches_per_epoch=2, **QUICK))
     assert norms == [1.0, 1.0]  # an MLP is not clipped
-    seed = TrainConfig.recipe("seed", max_epochs=1, max_batches_per_epoch=2, **QUICK)
+    seed = TrainConfig.recipe("seed-study", max_epochs=1, max_batches_per_epoch=2, **QUICK)
     assert (seed.lr_schedule, seed.patience, seed.grad_clip) == ("none", 5, None)
     train_model(clean, "seed-tip-7", tmp_path / "seed", seed)
     assert norms == [1.0, 1.0]  # the seed's recipe clips nothing

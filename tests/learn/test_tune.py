@@ -53,7 +53,7 @@ def test_a_killed_worker_leaves_the_study_consistent(tune_set, tmp_path):
     # A worker on a long training run, killed (SIGKILL: no chance to clean up) in the middle of its trial.
     code = ("import sys; from hybrid_dyn.cli import main; sys.exit(main(sys.argv[1:]))")
     args = ["tune", "--data", str(tune_set.path), "--preset", "seed-tau-mlp", "--trials", "1", "--out",
-            str(tmp_path / "t"), "--storage", storage, "--study", "s", "--heartbeat", "1", "--epochs", "100000",
+            str(tmp_path / "t"), "--storage", storage, "--study", "s", "--heartbeat", "1", "--max-epochs", "100000",
             "--patience", "100000", "--batch-size", "8", "--quiet", "--threads", "1"]
     proc = subprocess.Popen([sys.executable, "-c", code, *args], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:

@@ -79,7 +79,7 @@ def test_generate_workers_die_with_their_parent(tmp_path, sig):
     SIGKILL runs no cleanup in the parent (the workers end by the parent-death signal);
     SIGTERM unwinds like Ctrl-C (exit 143) and stops the workers.
     """
-    cmd = [sys.executable, "-m", "hybrid_dyn.cli", "generate", "--profile", "quick", "--workers", "2",
+    cmd = [sys.executable, "-m", "hybrid_dyn.cli", "generate", "--size", "quick", "--workers", "2",
            "--out", str(tmp_path / "ds"), "--quiet"]
     # SIGINT at its default, whatever the test runner's is: the workers' SigIgn is the readiness signal.
     with open(tmp_path / "stderr.txt", "wb") as err:

@@ -147,7 +147,7 @@ def test_cli_generate_quick_profile(tmp_path):
     """The documented command on the quick profile, end to end."""
     out = tmp_path / "quick"
     res = subprocess.run([sys.executable, "-m", "hybrid_dyn.cli", "generate", "--scenario", "mismatch-ext",
-                          "--profile", "quick", "--out", str(out), "--workers", "2", "--quiet"],
+                          "--size", "quick", "--out", str(out), "--workers", "2", "--quiet"],
                          capture_output=True, text=True, timeout=300)
     assert res.returncode == 0, res.stderr
     meta = json.loads((out / "manifest.json").read_text())

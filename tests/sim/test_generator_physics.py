@@ -2,7 +2,7 @@
 
 - logged base wrench and tau_J against the analytic core (Pinocchio) of the PLANT robot;
 - the logged truth against DART's own integrator (semi-implicit Euler);
-- the applied friction against the reference Gaz law in ``description.py``;
+- the applied friction against the reference Gaz law in ``description/params.py``;
 - sensor noise, the causal acceleration filter, pulses and trajectories against
   their specifications.
 """
@@ -233,7 +233,7 @@ def test_config_hash_round_trip_and_errors():
     assert scenario_config("paper-noext", "quick").pulses is None
     with pytest.raises(ConfigError, match="unknown scenario"):
         scenario_config("paper-extra")
-    with pytest.raises(ConfigError, match="unknown profile"):
+    with pytest.raises(ConfigError, match="unknown size .huge.; known: quick, default, paper"):
         scenario_config("paper-ext", "huge")
     with pytest.raises(ConfigError, match="record_hz"):
         scenario_config("paper-ext", record_hz=300.0)

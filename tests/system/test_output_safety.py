@@ -321,7 +321,7 @@ def test_every_command_leaves_a_users_folder_alone(panda_log, tmp_path, capsys):
         "bench": ["bench", "--data", str(panda_log), "--out", str(user), "--rows", "rnea", *roots],
         "report": ["report", str(user)],
         "generate": ["generate", "--scenario", "paper-noext", "--out", str(user), "--quiet"],
-        "train": ["train", "--data", str(panda_log), "--preset", "seed-tau-mlp", "--out", str(user), "--epochs", "1"],
+        "train": ["train", "--data", str(panda_log), "--preset", "seed-tau-mlp", "--out", str(user), "--max-epochs", "1"],
         "import": ["import", "--spec", str(spec), "--out", str(user), "--overwrite"],
     }
     seen = {}

@@ -1,7 +1,10 @@
 """The causal joint-acceleration estimate of a stream, and its cutoff chosen from the data.
 
-qdd is estimated from qd with the generator's filter (``sim/sensors.py``): a
-backward difference, then a 2nd-order Butterworth low-pass at the call rate.
+qdd is estimated from qd as a real arm's controller does it: a backward
+difference, then a 2nd-order Butterworth low-pass, both causal. One compiled
+kernel serves the generator (:func:`causal_acceleration` over a recorded run,
+re-exported by ``sim/sensors.py``) and the streaming estimator
+(:class:`CausalAccelerationFilter`, one call per sample).
 Its cutoff trades noise against lag; :func:`auto_qdd_cutoff` picks it by the
 bandwidth rule of ``analytic/bandwidth.py`` from the noise measured on a window.
 
@@ -20,42 +23,52 @@ from scipy import signal
 
 from .robot import InputError, Robot
 
-DEFAULT_QDD_CUTOFF_HZ = 20.0  # the generator's acceleration filter (sim/sensors.py)
+DEFAULT_QDD_CUTOFF_HZ = 20.0  # the generator's acceleration filter [Hz] (GeneratorConfig.qdd_cutoff_hz)
 
 
-def step_matrix(rate_hz: float, cutoff_hz: float) -> np.ndarray:
-    """The (4, 4) per-call update of the difference + Butterworth filter (one filter design)."""
-    b, a = signal.butter(2, cutoff_hz, fs=rate_hz)
-    b0, b1, b2 = b / a[0]
-    _, a1, a2 = a / a[0]
-    r = rate_hz  # x = r (qd - qd_prev)
-    # y = b0 x + z1;  z1' = b1 x - a1 y + z2;  z2' = b2 x - a2 y;  qd_prev' = qd
-    return np.array([
-        [b0 * r, -b0 * r, 1.0, 0.0],
-        [1.0, 0.0, 0.0, 0.0],
-        [(b1 - a1 * b0) * r, -(b1 - a1 * b0) * r, -a1, 1.0],
-        [(b2 - a2 * b0) * r, -(b2 - a2 * b0) * r, -a2, 0.0],
-    ])
+def butterworth(dt: float, cutoff_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    """The 2nd-order Butterworth low-pass (b, a) at a sample step dt [s] (the one filter design)."""
+    b, a = signal.butter(2, cutoff_hz, fs=1.0 / dt)
+    return b / a[0], a / a[0]
+
+
+def causal_acceleration(qd_measured: np.ndarray, dt: float, cutoff_hz: float = DEFAULT_QDD_CUTOFF_HZ) -> np.ndarray:
+    """qdd estimate [rad/s^2] (T, nv) from measured qd [rad/s] (T, nv) sampled every ``dt`` [s].
+
+    The signal is assumed to start at rest (zero initial filter state), as every
+    generated instance does. The same kernel as the stream's (:class:`CausalAccelerationFilter`),
+    run over every row: bit for bit what ``scipy.signal.lfilter`` gives on the difference
+    (``tests/estimator/test_streaming.py`` holds it to that).
+    """
+    qd = np.asarray(qd_measured, float)
+    rows = np.ascontiguousarray(qd.reshape(len(qd), -1))  # one joint's (T,) too
+    b, a = butterworth(dt, cutoff_hz)
+    out = np.empty_like(rows)
+    if len(rows):
+        _filter_run(b, a, float(dt), np.zeros((3, rows.shape[1])), rows, False, out)
+    return out.reshape(qd.shape)
 
 
 class CausalAccelerationFilter:
-    """Streaming twin of ``sim.sensors.causal_acceleration``: per call one qd in, one qdd out.
+    """The causal acceleration estimate of a stream: per call one qd in, one qdd out.
 
     Backward difference, then a 2nd-order Butterworth low-pass in transposed
-    direct form II. Both are linear, so one step is a single (4 x 4) @ (4 x nv)
-    product on the stacked [qd; qd_prev; z1; z2], done by one compiled call
-    (:func:`_filter_step`). Starts at rest (zero state), like a generated
-    instance: the first call's difference is zero.
+    direct form II, in one compiled call (:func:`_filter_step`): the kernel of
+    :func:`causal_acceleration`, so a stream at rate r gives what the batch form
+    gives at dt = 1 / r, bit for bit. Starts at rest (zero state), like a
+    generated instance: the first call's difference is zero.
     """
 
-    def __init__(self, nv: int, rate_hz: float, cutoff_hz: float, design: np.ndarray | None = None):
-        self._step_matrix = step_matrix(rate_hz, cutoff_hz) if design is None else design
+    def __init__(self, nv: int, rate_hz: float, cutoff_hz: float, design: tuple | None = None):
+        self.dt = 1.0 / float(rate_hz)
+        self._b, self._a = butterworth(self.dt, cutoff_hz) if design is None else design
         self.nv = nv
         self.cutoff_hz = float(cutoff_hz)
-        self._state = np.zeros((4, nv))  # rows: qd (input slot), qd_prev, z1, z2
+        self._state = np.zeros((3, nv))  # rows: qd_prev, z1, z2
         self.reset()
-        _filter_step(self._step_matrix, self._state.copy(), np.zeros(nv), False)  # compile now, not in a control call
-        _filter_run(self._step_matrix, self._state.copy(), np.zeros((1, nv)), False)
+        # Compile now, not in a control call.
+        _filter_step(self._b, self._a, self.dt, self._state.copy(), np.zeros(nv), False)
+        _filter_run(self._b, self._a, self.dt, self._state.copy(), np.zeros((1, nv)), False, np.zeros((1, nv)))
 
     @classmethod
     def from_design(cls, nv: int, rate_hz: float, index: int) -> "CausalAccelerationFilter":
@@ -69,7 +82,7 @@ class CausalAccelerationFilter:
 
     def step(self, qd: np.ndarray) -> np.ndarray:
         """One validated qd (nv,) [rad/s] in, a fresh qdd (nv,) [rad/s^2] out."""
-        out = _filter_step(self._step_matrix, self._state, np.asarray(qd, dtype=float), self._started)
+        out = _filter_step(self._b, self._a, self.dt, self._state, np.asarray(qd, dtype=float), self._started)
         self._started = True
         return out
 
@@ -77,45 +90,42 @@ class CausalAccelerationFilter:
         """Step through rows of qd (n, nv) in one compiled call (a window's replay); returns the last qdd."""
         if not len(qd):
             return None
-        out = _filter_run(self._step_matrix, self._state, np.ascontiguousarray(qd, dtype=float), self._started)
+        qd = np.ascontiguousarray(qd, dtype=float)
+        out = np.empty_like(qd)
+        _filter_run(self._b, self._a, self.dt, self._state, qd, self._started, out)
         self._started = True
-        return out
+        return out[-1]
+
+
+@njit(cache=True, inline="always")
+def _filter_sample(b, a, dt, state, j, qd, first):  # pragma: no cover (compiled)
+    """One sample of joint j: x = (qd - qd_prev) / dt (0 on the first), then transposed direct form II,
+    in scipy.signal.lfilter's order of operations (so the two agree bit for bit). Returns qdd."""
+    x = 0.0 if first else (qd - state[0, j]) / dt
+    y = state[1, j] + b[0] * x
+    state[1, j] = state[2, j] + x * b[1] - y * a[1]
+    state[2, j] = x * b[2] - y * a[2]
+    state[0, j] = qd
+    return y
 
 
 @njit(cache=True)
-def _filter_step(step_matrix, state, qd, started):  # pragma: no cover (compiled)
-    """``CausalAccelerationFilter.step``: state[0] = qd (state[1] too on the first call: a zero first
-    difference), then [qdd; state[1:]] = step_matrix @ state, column by column. Compiled, since the
-    numpy form (an assignment, a 4 x 4 product and a copy) cost ~5 us a call."""
+def _filter_step(b, a, dt, state, qd, started):  # pragma: no cover (compiled)
+    """``CausalAccelerationFilter.step``: one row. Compiled, since the numpy form cost ~5 us a call."""
     nv = qd.shape[0]
     out = np.empty(nv)
     for j in range(nv):
-        state[0, j] = qd[j]
-        if not started:
-            state[1, j] = qd[j]
-        s0, s1, s2, s3 = state[0, j], state[1, j], state[2, j], state[3, j]
-        m = step_matrix
-        out[j] = m[0, 0] * s0 + m[0, 1] * s1 + m[0, 2] * s2 + m[0, 3] * s3
-        for i in range(1, 4):
-            state[i, j] = m[i, 0] * s0 + m[i, 1] * s1 + m[i, 2] * s2 + m[i, 3] * s3
+        out[j] = _filter_sample(b, a, dt, state, j, qd[j], not started)
     return out
 
 
 @njit(cache=True)
-def _filter_run(step_matrix, state, qd_rows, started):  # pragma: no cover (compiled)
-    """``_filter_step`` over the rows of qd_rows (n, nv): the window's replay in one call; the last qdd."""
-    nv = qd_rows.shape[1]
-    out = np.zeros(nv)
-    m = step_matrix
-    for k in range(qd_rows.shape[0]):  # _filter_step written out, with no allocation per row
-        for j in range(nv):
-            state[0, j] = qd_rows[k, j]
-            if not (started or k > 0):
-                state[1, j] = qd_rows[k, j]
-            s0, s1, s2, s3 = state[0, j], state[1, j], state[2, j], state[3, j]
-            out[j] = m[0, 0] * s0 + m[0, 1] * s1 + m[0, 2] * s2 + m[0, 3] * s3
-            for i in range(1, 4):
-                state[i, j] = m[i, 0] * s0 + m[i, 1] * s1 + m[i, 2] * s2 + m[i, 3] * s3
+def _filter_run(b, a, dt, state, qd_rows, started, out):  # pragma: no cover (compiled)
+    """``_filter_step`` over the rows of qd_rows (n, nv) into out (n, nv): a batch, or a window's replay."""
+    for k in range(qd_rows.shape[0]):
+        first = not (started or k > 0)
+        for j in range(qd_rows.shape[1]):
+            out[k, j] = _filter_sample(b, a, dt, state, j, qd_rows[k, j], first)
     return out
 
 
@@ -162,11 +172,11 @@ def filter_settle_calls(rate_hz: float, cutoff_hz: float) -> int:
 @functools.lru_cache(maxsize=8)
 def cutoff_grid(rate_hz: float) -> tuple[np.ndarray, np.ndarray, tuple, np.ndarray]:
     """The cutoffs auto_qdd_cutoff chooses from [Hz] (5 Hz to 0.45 x rate), their noise gains [1/s^2],
-    their filter designs (step matrices) and settling times [calls]: computed once per rate, when an
+    their filter designs ((b, a) at dt = 1 / rate) and settling times [calls]: computed once per rate, when an
     estimator is built, never in a control call."""
     grid = np.geomspace(5.0, 0.45 * rate_hz, 48)
     gains = np.array([qdd_noise_gain(rate_hz, float(fc)) for fc in grid])
-    designs = tuple(step_matrix(rate_hz, float(fc)) for fc in grid)
+    designs = tuple(butterworth(1.0 / rate_hz, float(fc)) for fc in grid)
     settle = np.array([filter_settle_calls(rate_hz, float(fc)) for fc in grid])
     return grid, gains, designs, settle
 

@@ -19,7 +19,7 @@ the (contact-free) noise window:
   recorded at 1 kHz since 10 ms samples hide a step), and its size is what the
   bench's validation split picks for kalman-fusion's force rate on both kinds
   of contact: 1 N/sqrt(s) on paper-ext's bells at 100 Hz, 3 N/sqrt(s) on
-  contact-steps' 1-20 ms steps at 1 kHz (``benchmarks/tip_force_methods.py``);
+  contact-steps' 1-20 ms steps at 1 kHz (the ``-val`` rows of ``reports/default``, chosen on validation);
   one constant rate served one of them at 2x the other's error.
 
 So a quieter sensor widens the band and a noisier one narrows it, whichever

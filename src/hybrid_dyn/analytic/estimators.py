@@ -15,9 +15,11 @@ name                          estimates    what
 ``rnea-bw``                   tau_m        RNEA - J_v^T F, F from ``base-wrench``
 ============================  ===========  =================================================
 
-Older spellings are accepted where users or saved model files give them
-(:data:`ALIASES`: ``basewrench`` and ``base_wrench``, ``torques``, ``momentum``,
-``base_momentum``, ``kalman_fusion``, ``rnea-basewrench``) and mean the same estimator.
+Older spellings (:data:`ALIASES`: ``basewrench`` and ``base_wrench``, ``torques``,
+``momentum``, ``base_momentum``, ``kalman_fusion``, ``rnea-basewrench``) mean the same
+estimator, and are accepted with a warning (``deprecation.DeprecatedNameWarning``) that names
+the canonical one. Model files write the canonical names since format 3 (issue 30); an older
+file's spellings are read by ``learn.model.load_model``, which warns once per file instead.
 """
 from __future__ import annotations
 
@@ -43,13 +45,19 @@ ALIASES = {
 }
 
 
-def estimator_name(name, among=None, what: str = "analytic estimator") -> str:
+def estimator_name(name, among=None, what: str = "analytic estimator", warn: bool = True) -> str:
     """The canonical name of estimator ``name`` (itself or an alias), one of ``among`` (default: all).
 
-    An unknown name is refused with the canonical names it could have been."""
+    An alias warns (``DeprecatedNameWarning``) unless ``warn`` is False (a reader of an older file,
+    which warns about the file once). An unknown name is refused with the canonical names it could
+    have been."""
     among = tuple(ESTIMATORS) if among is None else tuple(among)
     canonical = ALIASES.get(name, name) if isinstance(name, str) else name
     if canonical not in among:
         raise UsageError(f"unknown {what} {name!r}; known: {', '.join(among)} "
                          f"(older spellings accepted: {', '.join(a for a, c in ALIASES.items() if c in among)})")
+    if warn and canonical != name:
+        from ..deprecation import warn_renamed
+
+        warn_renamed(f"{what} spelling", name, canonical, stacklevel=3)
     return canonical

@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .tip_force import damped_solve3
+
 
 @njit(cache=True)
 def _kf_predict(x, P, qv, dt):  # pragma: no cover (compiled)
@@ -89,7 +91,7 @@ def _fusion_step(x, P, y, last_base, last_joint, since, stats, qv, rv, max_bridg
     beta = C^T qd - g are formed here. A sensor back within max_bridge absent calls adds the
     increment over the gap (the trapezoid spanning it); one seen first, or back later, re-anchors.
     The joint increment is projected to the tool by the damped least squares of
-    ``tip_force.damped_force_single``, written out here in the same closed form.
+    ``tip_force.damped_solve3`` (what ``damped_force_single`` runs).
     """
     _kf_predict(x, P, qv, dt)
     update = np.zeros(2, np.bool_)
@@ -146,7 +148,7 @@ def _fusion_step(x, P, y, last_base, last_joint, since, stats, qv, rv, max_bridg
                     for k in range(nv):
                         acc += jac[i, k] * jac[j, k]
                     a[i, j] = acc
-            z = _damped_solve3(a, bvec, singular_region, max_damping)
+            z = damped_solve3(a, bvec, singular_region, max_damping)
             for i in range(3):
                 y[1, i] += z[i]
                 stats[1, i] += z[i]
@@ -165,31 +167,3 @@ def _fusion_step(x, P, y, last_base, last_joint, since, stats, qv, rv, max_bridg
     for c in range(2):
         if update[c]:
             _kf_update(x, P, y, c, rv)
-
-
-@njit(cache=True)
-def _damped_solve3(a, b, singular_region, max_damping):  # pragma: no cover (compiled)
-    """``damped_force_single``'s damping law and adjugate solve for a = J_v J_v^T, b = J_v tau."""
-    a00, a01, a02, a11, a12, a22 = a[0, 0], a[0, 1], a[0, 2], a[1, 1], a[1, 2], a[2, 2]
-    det0 = a00 * (a11 * a22 - a12 * a12) - a01 * (a01 * a22 - a12 * a02) + a02 * (a01 * a12 - a11 * a02)
-    tr = a00 + a11 + a22
-    lam_min = np.inf
-    if det0 < singular_region**2 * tr * tr:
-        lam_min = np.linalg.eigvalsh(a)[0]
-    if lam_min < singular_region**2:
-        dmp = max_damping**2 * (1.0 - max(lam_min, 0.0) / singular_region**2)
-        a00 += dmp
-        a11 += dmp
-        a22 += dmp
-    c00 = a11 * a22 - a12 * a12
-    c01 = a02 * a12 - a01 * a22
-    c02 = a01 * a12 - a02 * a11
-    c11 = a00 * a22 - a02 * a02
-    c12 = a01 * a02 - a00 * a12
-    c22 = a00 * a11 - a01 * a01
-    det = a00 * c00 + a01 * c01 + a02 * c02
-    out = np.empty(3)
-    out[0] = (c00 * b[0] + c01 * b[1] + c02 * b[2]) / det
-    out[1] = (c01 * b[0] + c11 * b[1] + c12 * b[2]) / det
-    out[2] = (c02 * b[0] + c12 * b[1] + c22 * b[2]) / det
-    return out

@@ -10,7 +10,7 @@ it (``prior``), and how to build one stream of it
 
 Everything else is built from :data:`REGISTRY`:
 
-- ``TipForceEstimator.analytic(robot, method=name)`` (``estimator.py``);
+- ``TipForceEstimator.analytic(robot, method=name)`` (``estimator/streaming.py``);
 - the bench's rows ``name`` (the bandwidth by the rule, what the estimator does)
   and ``name-val`` (chosen on validation, a labelled reference) (``bench/analytic_rows.py``);
 - the residual priors (``learn/priors.py``) and ``StreamingModel`` (``learn/streaming.py``).
@@ -27,7 +27,8 @@ from typing import Callable
 
 import numpy as np
 
-from .acceleration import DEFAULT_QDD_CUTOFF_HZ, cutoff_grid, cutoff_index, qdd_noise_per_gain, filter_settle_calls
+from .acceleration import (DEFAULT_QDD_CUTOFF_HZ, causal_acceleration, cutoff_grid, cutoff_index, filter_settle_calls,
+                           qdd_noise_per_gain)
 from .bandwidth import WindowNoise, measure_window, observer_gain, observer_settle_calls
 from .base_momentum import BaseMomentumObserver
 from .estimators import ESTIMATORS
@@ -326,8 +327,6 @@ def run_batch(method: str | Method, robot: Robot, rate_hz: float, q, qd, base_wr
     measured and the bandwidth chosen by the rule (``value``: fixed instead); then the method runs
     from the first sample after it (a qdd method on qdd filtered at its cutoff from the start, as the
     estimator replays the window through it)."""
-    from ..sim.sensors import causal_acceleration
-
     m = REGISTRY[method] if isinstance(method, str) else method
     stream = stream or m.make(robot, rate_hz)
     q, qd = np.asarray(q, float), np.asarray(qd, float)

@@ -1,4 +1,4 @@
-"""CLI: hybrid-dyn bench (a built-in profile, or any datasets: --data DIR ...) and hybrid-dyn report DIR."""
+"""CLI: hybrid-dyn bench (a built-in profile, or any datasets: --data DIR ...), study NAME, compare A B and report DIR."""
 from __future__ import annotations
 
 
@@ -15,8 +15,8 @@ def register(sub) -> None:
                    "(a name such as franka_official, or a parameter JSON path)")
     p.add_argument("--tool", default=None, help="the robot's tool: none (the bare flange) or a tool .urdf path")
     p.add_argument("--recipe", default=None, help="training recipe of the learned rows: budget, "
-                   "default, long or seed (hybrid_dyn.learn.train.RECIPES; default: the profile's, budget for "
-                   "all but real)")
+                   "plateau, long or seed-study (hybrid_dyn.learn.train.RECIPES; default: the profile's, budget for "
+                   "all but real and paper)")
     p.add_argument("--families", default=None, help="comma-separated row families to run instead of the profile's "
                    "(e.g. analytic,identified; see hybrid_dyn.bench.rows.FAMILIES)")
     p.add_argument("--rows", default=None, help="comma-separated row names to run instead of the profile's "
@@ -24,14 +24,56 @@ def register(sub) -> None:
     p.add_argument("--scenarios", default=None, help="comma-separated scenarios of the profile to run, instead of "
                    "all of them (e.g. --profile real --scenarios real-panda)")
     p.add_argument("--out", default=None, help="report folder (default: reports/<profile>)")
-    p.add_argument("--data-root", default=None, help="dataset cache (default: ./data or $HYBRID_DYN_DATA)")
-    p.add_argument("--work-root", default=None, help="trained-model cache (default: ./runs or $HYBRID_DYN_RUNS)")
-    p.add_argument("--workers", type=int, default=None, help="generator processes")
+    _where_options(p)
+    p.add_argument("--device", default=None, help="training device: cpu, cuda or cuda:N (default: the profile's, "
+                   "auto: CUDA where present)")
+    p.add_argument("--gpus-per-job", type=float, default=0.0,
+                   help="with --executor ray: GPUs each training job reserves (fractions share one GPU)")
     p.set_defaults(func=cmd_bench)
+
+    st = sub.add_parser("study", help="a bench profile rerun with overrides declared as data (e.g. data-scaling: "
+                        "the learned rows on fewer training instances), summarised against the profile's report")
+    st.add_argument("name", help="a study of hybrid_dyn.bench.studies.STUDIES (e.g. data-scaling, "
+                    "convergence-seed-sim, controls-default, data-control; reports/README.md lists them; an unknown "
+                    "name is refused with the list)")
+    st.add_argument("--report", default=None, help="the profile's own report, the study's reference point "
+                    "(default: reports/<profile>)")
+    st.add_argument("--out", default=None, help="summary folder (default: the study's, reports/studies/<study>; data-scaling: "
+                    "reports/seed-sim/data-scaling)")
+    _where_options(st)
+    st.set_defaults(func=cmd_study)
+
+    cmp = sub.add_parser("compare", help="two bench reports side by side: each learned row against its own "
+                         "report's best analytic row (reports on different data test on different samples)")
+    cmp.add_argument("a", help="a report folder (e.g. on less data)")
+    cmp.add_argument("b", help="another report folder (e.g. on more data)")
+    cmp.add_argument("--out", default=None, help="also write the comparison to this markdown file")
+    cmp.set_defaults(func=cmd_compare)
 
     r = sub.add_parser("report", help="redraw a bench report's tables and figures from its files (no training)")
     r.add_argument("dir", help="a report folder written by hybrid-dyn bench (run.json, results.csv, ...)")
     r.set_defaults(func=cmd_report)
+
+
+def _where_options(p) -> None:
+    """Where a bench's data, models and jobs go: shared by ``bench`` and ``study`` (a study runs benches)."""
+    p.add_argument("--data-root", default=None, help="dataset cache (default: ./data or $HYBRID_DYN_DATA)")
+    p.add_argument("--work-root", default=None, help="trained-model cache (default: ./runs or $HYBRID_DYN_RUNS)")
+    p.add_argument("--workers", type=int, default=None, help="local processes generating and training")
+    p.add_argument("--executor", choices=("local", "ray"), default="local",
+                   help="where generation and training jobs run: local processes, or a Ray cluster (docs/cluster.md)")
+    p.add_argument("--ray-address", default=None, help="a running Ray cluster (e.g. auto, ray://head:10001); "
+                   "default with --executor ray: a local Ray instance of --workers CPUs")
+
+
+def _executor(args, workers: int, local_pool: bool = False):
+    """The executor ``--executor``/``--ray-address`` name, of ``workers`` local processes or Ray CPUs. For
+    plain local jobs: None (the bench's own pool, of the profile's workers) unless ``local_pool``."""
+    if args.executor == "local" and not args.ray_address and not local_pool:
+        return None
+    from ..sim.executors import make_executor
+
+    return make_executor(workers, args.executor, args.ray_address)
 
 
 def cmd_bench(args) -> int:
@@ -66,11 +108,20 @@ def cmd_bench(args) -> int:
             raise UsageError("--families and --rows name no row to run")
         profile = dataclasses.replace(profile, families=families, rows=names)
     if args.recipe:  # an unknown recipe is refused by the profile itself
+        from ..learn.train import RECIPE_ALIASES
+
+        if args.recipe in RECIPE_ALIASES:  # an old name: warned once, and recorded (run.json) by its new name
+            from ..deprecation import warn_renamed
+
+            warn_renamed("training recipe", args.recipe, RECIPE_ALIASES[args.recipe])
+            args.recipe = RECIPE_ALIASES[args.recipe]
         profile = dataclasses.replace(profile, recipe=args.recipe)
     if args.data and not args.out:
         raise UsageError("--data needs --out REPORT (the report folder)")
     out = args.out or f"reports/{profile.name}"
-    rows = run_bench(profile, out, data_root=args.data_root, work_root=args.work_root)
+    rows = run_bench(profile, out, data_root=args.data_root, work_root=args.work_root,
+                     executor=_executor(args, profile.workers),
+                     device=args.device, gpus_per_job=args.gpus_per_job)
     n_ok = sum(r.get("status") == "ok" for r in rows)
     print(f"[bench] {n_ok}/{len(rows)} rows ok; report in {out}/README.md")
     # No row run is no result (a named scenario whose log is missing: each skip and its reason is in the report).
@@ -79,6 +130,39 @@ def cmd_bench(args) -> int:
 
 def _names(text: str | None) -> tuple:
     return tuple(n.strip() for n in (text or "").split(",") if n.strip())
+
+
+def cmd_study(args) -> int:
+    from pathlib import Path
+
+    from .profiles import get_profile
+    from .runner import default_work_root
+    from .studies import get_study, run_study
+
+    study = get_study(args.name)
+    workers = args.workers or get_profile(study.profile).workers
+    report = Path(args.report or f"reports/{study.profile}")
+    out = Path(args.out) if args.out else study.default_out()
+    run_study(study, report, out, work_root=default_work_root(args.work_root), data_root=args.data_root,
+              executor=_executor(args, workers, local_pool=True))  # --workers is the study's, not its profile's
+    print(f"[study] {study.name}: summary in {out}/README.md")
+    return 0
+
+
+def cmd_compare(args) -> int:
+    from pathlib import Path
+
+    from ..errors import UsageError
+    from .compare import compare_reports
+
+    for d in (args.a, args.b):
+        if not (Path(d) / "results.csv").is_file() or not (Path(d) / "run.json").is_file():
+            raise UsageError(f"{d} holds no bench report (results.csv and run.json)")
+    text = compare_reports(Path(args.a), Path(args.b), command=f"hybrid-dyn compare {args.a} {args.b}")
+    print(text)
+    if args.out:
+        Path(args.out).write_text(text + "\n")
+    return 0
 
 
 def cmd_report(args) -> int:

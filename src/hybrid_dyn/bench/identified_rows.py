@@ -130,7 +130,7 @@ def _excitation_dataset(ctx):
     prof = ctx.profile
     root = Path(ctx.data_root)
     root.mkdir(parents=True, exist_ok=True)
-    ex_cfg = ExcitationConfig(max_iter=EXCITATION_ITERATIONS.get(prof.generator_profile, 150), seed=prof.seed)
+    ex_cfg = ExcitationConfig(max_iter=EXCITATION_ITERATIONS.get(prof.generator_size, 150), seed=prof.seed)
     traj_file = root / f"excitation-{file_safe_name(ctx.robot.name)}-{ex_cfg.max_iter}it-seed{prof.seed}.json"
     if traj_file.is_file():
         d = json.loads(traj_file.read_text())
@@ -221,7 +221,8 @@ def _residual_row(name: str, preset: str) -> Row:
         # The folder is named by the parameter file's content: a refit never meets a model of the old one.
         out = Path(ctx.work_dir) / "models" / f"{name}-{hashlib.sha256(Path(path).read_bytes()).hexdigest()[:12]}"
         t0 = time.perf_counter()
-        model = train_model(ds, preset, out, config=config, wait=True)  # a shared runs/: wait, reuse
+        # the profile's preset_overrides (a study's capacity control) apply here as to every trained preset row
+        model = train_model(ds, ctx.profile.preset(preset), out, config=config, wait=True)  # shared runs/: wait
         train_seconds = getattr(model, "train_seconds", None) or (time.perf_counter() - t0)
         # A learned row: its curve is reported, its single call is the user's (learned_rows.py).
         return learned_predictor(model, train_seconds, inputs=", ".join(model.config.get("inputs", []))

@@ -46,6 +46,17 @@ def is_bench_meta(doc) -> bool:
     return isinstance(doc, dict) and doc.get("bench_report") == 1 and isinstance(doc.get("profile"), dict)
 
 
+def recorded_profile(prof: dict) -> dict:
+    """A run.json's ``profile`` in today's names, to compare with ``BenchProfile.to_dict()``: a training
+    recipe recorded under its name before issue 30 (``default``, ``seed``) is the same recipe renamed
+    (``learn.train.RECIPE_ALIASES``), so that a rerun still recognises its own report."""
+    from ..learn.train import RECIPE_ALIASES
+
+    if isinstance(prof, dict) and prof.get("recipe") in RECIPE_ALIASES:
+        return {**prof, "recipe": RECIPE_ALIASES[prof["recipe"]]}
+    return prof
+
+
 def read_run_json(out_dir) -> dict | None:
     """The run.json of report folder ``out_dir``; None when there is none; refused (``OutputPathError``)
     when it is not the bench's (unreadable, or without the marker)."""

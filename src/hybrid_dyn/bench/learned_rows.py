@@ -4,7 +4,9 @@ A preset already says what a row reads (its inputs and targets), whether it
 needs a URDF (an analytic prior) and, by ``raw_sensor``, whether it is a
 reference row; what it does not say is its family, declared once in
 :data:`PRESET_FAMILIES`. A preset missing there is refused when this module is
-imported, naming it (a new network type: its net, its preset, and its line here).
+imported, naming it. The family is the preset's, not its network kind's (an MLP
+is ``seed-net`` or ``learned``, an LSTM ``seed-net`` or ``residual``); a new kind
+is declared once in ``learn/kinds.py``, a new preset of it needs its line here.
 
 Rows are declared tip-force presets first, then joint-torque presets, each in
 the order of ``PRESETS``: the order results.csv lists them in.
@@ -150,8 +152,9 @@ def _build(preset: str):
         from ..learn import train_model
 
         t0 = time.perf_counter()
-        model = train_model(ds, preset, ctx.work_dir / "models" / preset, config=ctx.profile.train_config(),
-                            wait=True)  # another bench sharing runs/ may be training it: wait, then reuse
+        # the profile's preset_overrides (a study's capacity control) change the preset, not the row's name
+        model = train_model(ds, ctx.profile.preset(preset), ctx.work_dir / "models" / preset,
+                            config=ctx.profile.train_config(), wait=True)  # another bench sharing runs/: wait, reuse
         return learned_predictor(model, getattr(model, "train_seconds", None) or (time.perf_counter() - t0))
 
     return build

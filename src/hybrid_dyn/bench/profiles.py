@@ -6,7 +6,7 @@ default  every row on paper-noext, paper-ext and mismatch-ext; the analytic rows
 paper    the study's scale (1000 instances per scenario)
 real     the joint-torque models that need no URDF on the three real-robot logs
          (KUKA and Baxter split by trajectory; SARCOS, one test file of 4,449
-         rows, split by contiguous blocks: see benchmarks/real/sarcos.toml)
+         rows, split by contiguous blocks: see src/hybrid_dyn/resources/real/sarcos.toml)
 
 A profile is data: it names datasets (``scenarios``) and rows. A scenario is a
 name (a simulated scenario of ``sim/scenarios.py``, generated and cached, or a
@@ -19,10 +19,11 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 from ..data import DatasetError, load_dataset
+from ..deprecation import renamed_field
 from ..errors import UsageError
 from .catalog import select_rows
 from .rows import Row
@@ -31,6 +32,7 @@ from .rows import Row
 STUDY_FAMILIES = ("analytic", "seed-net", "residual", "delan", "identified")
 
 
+@renamed_field("generator_profile", "generator_size", why="a generator size (sim.scenarios.SIZES), not a bench profile")
 @dataclass(frozen=True)
 class BenchProfile:
     """A benchmark: scenarios, the rows to run on them, how to train.
@@ -42,13 +44,14 @@ class BenchProfile:
 
     name: str
     scenarios: tuple
-    generator_profile: str = "quick"
+    generator_size: str = "quick"
     families: tuple = STUDY_FAMILIES
     rows: tuple = ()
     recipe: str = "budget"  # learn.train.RECIPES: the budgeted recipe unless a profile says otherwise
     train: dict = field(default_factory=dict)  # TrainConfig fields on top of the recipe
     generator_overrides: dict = field(default_factory=dict)  # GeneratorConfig fields, every scenario
-    scenario_overrides: dict = field(default_factory=dict)  # scenario -> GeneratorConfig fields, that one only
+    # scenario -> GeneratorConfig fields, that one only (a real set: fields of its import spec, data.real.real_dataset)
+    scenario_overrides: dict = field(default_factory=dict)
     workers: int = 2
     torch_threads: int = 1  # see runner.run_bench: one thread is fastest for these nets
     notes: tuple = ()  # method notes printed in the report (fixed before any result)
@@ -59,16 +62,35 @@ class BenchProfile:
     robot: str | None = None  # a robot name for every dataset (description.ROBOT_NAME_HELP)
     params: str | None = None  # nominal parameter set (a name or a JSON path): analytic rows and residual priors
     tool: str | None = None  # the tool of every dataset's robot ("none": the bare flange)
+    # Preset fields changed in every trained preset row (e.g. {"fc_units": 256}: a study's capacity control);
+    # run.json records it only when set, so that reports written before it existed are of the same profile.
+    preset_overrides: dict = field(default_factory=dict)
 
     def __post_init__(self):
         self.selected_rows()  # an unknown row or family is refused now, not after the data are made
         self.train_config()  # so is an unknown recipe or a bad training field
         if self.robot is not None:
             self.resolve_robot(self.robot)  # a name the toolkit cannot serve is refused now, with the accepted ones
+        if self.preset_overrides:  # an unknown Preset field is refused now
+            from ..learn.presets import Preset
+
+            known = {f.name for f in fields(Preset)} - {"name"}
+            bad = sorted(set(self.preset_overrides) - known)
+            if bad:
+                raise UsageError(f"profile {self.name!r}: preset_overrides {bad} are not Preset fields")
         if self.params is not None and str(self.params).endswith(".json"):
             from ..description import read_param_file
 
             read_param_file(self.params)  # missing, malformed or no rigid body: refused before any work
+
+    def preset(self, name: str):
+        """The preset a preset row ``name`` trains: its own, or with :attr:`preset_overrides` (a new
+        :class:`~hybrid_dyn.learn.presets.Preset`; the name stays, the fields and so the fingerprint change)."""
+        if not self.preset_overrides:
+            return name
+        from ..learn.presets import get_preset
+
+        return get_preset(name).replace(**self.preset_overrides)
 
     def train_config(self):
         from ..learn import TrainConfig
@@ -119,7 +141,7 @@ class BenchProfile:
             raise DatasetError(f"dataset {ds.path} does not name its robot (manifest key 'robot'); give one (--robot)")
         return self.resolve_robot(name)
 
-    def dataset(self, scenario: str, data_root: Path, log=print):
+    def dataset(self, scenario: str, data_root: Path, log=print, executor=None):
         """The scenario's dataset: a dataset path is read as it is; a simulated scenario is generated once
         and cached by its config hash (real-robot logs: imported once, cached by spec and file checksums)."""
         if is_dataset_path(scenario):
@@ -127,16 +149,17 @@ class BenchProfile:
         if scenario.startswith("real-"):
             from ..data.real import real_dataset
 
-            return load_dataset(real_dataset(scenario, Path(data_root), log=log))
+            spec = self.scenario_overrides.get(scenario, {})  # e.g. another split of the same log
+            return load_dataset(real_dataset(scenario, Path(data_root), log=log, **spec))
         from ..sim.generator import generate_dataset
 
         cfg = self.scenario_config(scenario)
-        path = Path(data_root) / f"{scenario}-{self.generator_profile}-{cfg.config_hash()}"
+        path = Path(data_root) / f"{scenario}-{self.generator_size}-{cfg.config_hash()}"
         try:
             return load_dataset(path)
         except DatasetError:
-            log(f"[bench] generating {scenario} ({self.generator_profile}) into {path}")
-            generate_dataset(cfg, path, workers=self.workers)
+            log(f"[bench] generating {scenario} ({self.generator_size}) into {path}")
+            generate_dataset(cfg, path, workers=self.workers, executor=executor)
             return load_dataset(path)
 
     def generator_config(self, scenario: str, ds):
@@ -152,13 +175,19 @@ class BenchProfile:
         """The generator config of one of this profile's simulated scenarios."""
         from ..sim.scenarios import scenario_config
 
-        return scenario_config(scenario, self.generator_profile, seed=self.seed,
+        return scenario_config(scenario, self.generator_size, seed=self.seed,
                                **{**self.generator_overrides, **self.scenario_overrides.get(scenario, {})})
 
     def to_dict(self) -> dict:
         """The profile as run.json records it (JSON types: lists for tuples), so that a profile and a
-        report's ``run.json["profile"]`` compare equal exactly when they are the same profile."""
-        return json.loads(json.dumps(asdict(self)))
+        report's ``run.json["profile"]`` compare equal exactly when they are the same profile. The generator
+        size keeps the key run.json has always recorded it under, ``generator_profile`` (the report reads it);
+        fields added after reports were committed (``preset_overrides``) are recorded only when set."""
+        d = json.loads(json.dumps({("generator_profile" if k == "generator_size" else k): v
+                                   for k, v in asdict(self).items()}))
+        if not d["preset_overrides"]:
+            del d["preset_overrides"]
+        return d
 
 
 def is_dataset_path(scenario: str) -> bool:
@@ -195,9 +224,9 @@ def profile_for_data(paths, robot: str | None = None, params: str | None = None,
 PROFILES = {
     # make demo: one net of each architecture and family, trained long enough to learn (within
     # about 5 minutes on 2 cores), on a quick mismatch-ext of 30 instances of 5 trajectories. The
-    # torque nets are data-limited (reports/data-control): at 12 instances they learned nothing.
+    # torque nets are data-limited (reports/studies/data-control): at 12 instances they learned nothing.
     "quick": BenchProfile(
-        name="quick", scenarios=("mismatch-ext",), generator_profile="quick",
+        name="quick", scenarios=("mismatch-ext",), generator_size="quick",
         # The identified rows without their residual nets (those train after the others, one at a time).
         families=("analytic",),
         rows=("seed-tip-2", "seed-tip-5", "seed-tip-8", "residual-basewrench", "residual-base-momentum",
@@ -210,30 +239,27 @@ PROFILES = {
         notes=("A demo: one seed net of each architecture (MLP #2, conv #5, LSTM #8, and the torque MLP and LSTM), "
                "the residual nets and DeLaN with friction, on a small mismatch-ext (30 instances of 5 trajectories); "
                "the budgeted recipe at 600 steps of batch 1024 per net. The black-box "
-               "torque nets are data-limited at this size (reports/data-control). The comparisons are in "
+               "torque nets are data-limited at this size (reports/studies/data-control). The comparisons are in "
                "reports/default and reports/seed-sim.",),
     ),
-    # Full epochs and the default recipe (issue 14). To train every model of three scenarios within
-    # 120 minutes on 2 cores the data are shrunk, never the training: 40 instances of 5-10
-    # trajectories instead of the generator's default 40 of 5-20 (about 0.6 of its samples). Sized
-    # on measured runs: 18 instances of 5-6 took 19.5 min from empty caches, and its nets overfit
-    # within a few epochs (reports/data-control); 24 of 5-10 took 36.9 min and the black-box and
-    # DeLaN rows still gained from the data (their RMSE ratios fell to 0.41-0.88 from 18 instances).
-    # 40 of 5-10 took 74.2 min from empty caches, another bench beside it (reports/default).
+    # Every row on three simulated scenarios (issue 14) under the budgeted recipe (issue 31): a row
+    # costs its step budget whatever the data, so the data grew 3x over the epoch-recipe bench's 40
+    # instances of 5-10 trajectories (74.2 min from empty caches), whose learned rows were
+    # data-limited (reports/studies/data-control: their RMSE ratios fell with every instance added).
     "default": BenchProfile(
         name="default", scenarios=("paper-noext", "paper-ext", "mismatch-ext", "contact-steps", "contact-steps-quiet"),
-        generator_profile="default",
+        generator_size="default",
         # tau-mlp-wide (2 x 128, dropout 0.2): the larger-capacity control of the seed torque nets.
         rows=("tau-mlp-wide",),
-        scenario_overrides={s: dict(n_instances=40, trajectories=(5, 10))
+        scenario_overrides={s: dict(n_instances=120, trajectories=(5, 10))
                             for s in ("paper-noext", "paper-ext", "mismatch-ext")},
         # contact-steps (1 kHz) tests the physics estimators on steps; the nets' windows are
         # counted in samples and were sized for 100 Hz, so they are not trained on it.
         scenario_families={"contact-steps": ("analytic",), "contact-steps-quiet": ("analytic",)},
         notes=("Training: the budgeted recipe (learn/train.py, docs/models.md): a fixed number of Adam steps per network kind, batch 1024, lr 2e-3 with a 5 % linear warm-up and a cosine decay to zero, the best of 40 validation rounds kept; the cost of a row does not grow with the data. The epoch recipe with patience is `--recipe default`, the seed's (constant rate, patience 5) `--recipe seed`.",
-               "Data: paper-noext, paper-ext and mismatch-ext hold 40 instances of 5-10 trajectories (the generator's "
-               "default is 40 of 5-20), so that the whole bench trains within 120 minutes on 2 cores; the data were "
-               "shrunk, never the training.",
+               "Data: paper-noext, paper-ext and mismatch-ext hold 120 instances of 5-10 trajectories each (split "
+               "by instance 77/19/24), 3x the epoch-recipe bench's 40: under the budget a row's training cost does "
+               "not grow with the data.",
                "Sequence models are scored on every sample: the first L-1 windows of each instance are edge-padded "
                "with its first sample, as a streaming estimator starts up; all rows see the same test samples.",
                "paper-noext has no external force: its tip-force rows are not run.",
@@ -245,35 +271,33 @@ PROFILES = {
     # Real logs carry no base wrench or tip force and no URDF ships for these arms:
     # only the joint-torque models that need neither (PROTOCOL 2, issue 8).
     "real": BenchProfile(
-        name="real", scenarios=("real-panda", "real-kuka", "real-baxter", "real-sarcos"), generator_profile="real",
+        name="real", scenarios=("real-panda", "real-kuka", "real-baxter", "real-sarcos"), generator_size="real",
         # Physics where a URDF is (the real Panda, bare flange: analytic, identified on the log, residuals
         # on the nominal and the identified model); the black-box rows and the GP everywhere.
         families=("analytic", "identified"),
         rows=("residual-rnea", "seed-tau-mlp", "seed-tau-conv", "seed-tau-lstm", "seed-tau-lstm-opt", "tau-mlp-wide",
               "delan", "delan-friction", "gp"),
-        # Patience 25 and a constant rate: the validation trajectories lie partly outside the training
-        # range, so the validation loss first rises and falls only after tens to hundreds of epochs.
-        # The plateau schedule cut the rate during that rise: KUKA's tau-mlp-wide ended at the rate
-        # floor after 15 epochs with its untrained weights (val 1.196, test nMSE 0.952); at a constant
-        # 1e-3 it stops by patience at epoch 236 (val 0.533, nMSE 0.093), and seed-tau-mlp and
-        # seed-tau-lstm gain on validation too (benchmarks/recipe_control.py --set lr_schedule='"none"').
-        recipe="default",  # its own epoch recipe below (issue 29 may revisit it), not the budget
-        train=dict(max_epochs=300, batch_size=256, patience=25, lr_schedule="none"),
+        # The budgeted recipe, as every other profile (issues 26, 29). The epoch recipe this profile had
+        # (patience 25 at a constant rate, up to 300 epochs) stopped 4 rows by the epoch cap: the
+        # validation trajectories lie partly outside the training range, so the validation loss first
+        # rises and falls only after tens to hundreds of epochs (KUKA's tau-mlp-wide: 236 epochs). A
+        # budget runs every row to its full step count (hundreds of passes over these small sets) and
+        # keeps the best of 40 validation rounds, which needs no patience to ride out that rise.
         notes=("Panda (Gaz et al. 2019's exciting trajectory, ../shared/data/real or $HYBRID_DYN_REAL_LOGS; the arm "
                "carried no hand, so the analytic model is panda[tool=none]): the log cut into 10 contiguous time "
                "blocks, split in time order: the first 6 train, the next 2 validate, the last 2 test (60/20/20 of "
-               "its 21 s; benchmarks/real/panda.toml): every row is scored on the log's last 4.1 s, after all it "
+               "its 21 s; src/hybrid_dyn/resources/real/panda.toml): every row is scored on the log's last 4.1 s, after all it "
                "was fitted on; identified rows fit on its train and val blocks.",
                "KUKA and Baxter: one instance per logged trajectory (10 each), split by trajectory 6/2/2; "
                "SARCOS: its 4,449-row test file is not one continuous trajectory, so it is cut into 10 contiguous "
-               "blocks, split 6/2/2 (benchmarks/real/*.toml).",
+               "blocks, split 6/2/2 (src/hybrid_dyn/resources/real/*.toml).",
                "Accelerations: KUKA and Baxter by a zero-phase 5 Hz Butterworth derivative of the logged velocity; "
                "SARCOS: logged. Target: the logged joint torque.",
                "nMSE = per-joint test MSE / per-joint test-target variance, averaged over joints.",
-               "Training: up to 300 epochs at a constant rate, patience 25 (validation trajectories lie partly "
-               "outside the training range: the validation loss first rises and falls only after tens to hundreds "
-               "of epochs, so the seed's patience of 5 stopped after a handful of epochs and the default plateau "
-               "schedule cut the rate during the rise). `tau-mlp-wide` (2 x 128, "
+               "Training: the budgeted recipe (a fixed number of Adam steps per network kind, batch 1024, a cosine "
+               "decay, the best of 40 validation rounds kept): validation trajectories lie partly outside the "
+               "training range, and the validation loss first rises and falls only after tens to hundreds of "
+               "passes, which the best-of-rounds rule rides out without a patience. `tau-mlp-wide` (2 x 128, "
                "dropout 0.2) is not a seed model: it was chosen on the validation split for these small sets.",
                "gp: one exact Gaussian process per joint (ARD RBF + white noise, hyperparameters by marginal "
                "likelihood on 600 training rows, conditioned on at most 8000), learn/gp.py. gp-residual-identified "
@@ -285,17 +309,18 @@ PROFILES = {
     # The seed's own data conditions (its 3.1): 20 Hz, exact states, no sensor noise or bias.
     "seed-sim": BenchProfile(
         # The seed's size (issue 31): 1000 instances of 5-50 trajectories, split 640/160/200 by instance.
-        name="seed-sim", scenarios=("seed-sim",), generator_profile="paper",
+        name="seed-sim", scenarios=("seed-sim",), generator_size="paper",
         notes=("seed-sim reproduces the seed's data conditions (its section 3.1): recorded every 50 ms (20 Hz), "
                "q, qd, qdd exact from the simulator, no sensor noise and no bias, the same bell pulses and "
-               "trajectory rules, 5-50 trajectories per instance.",
+               "trajectory rules, 5-50 trajectories per instance, at the seed's size: 1000 instances split by "
+               "instance 640 train, 160 validation, 200 test (the seed: 3,919,800 samples).",
                "Training: the budgeted recipe (learn/train.py, docs/models.md): a fixed number of Adam steps per network kind, batch 1024, lr 2e-3 with a 5 % linear warm-up and a cosine decay to zero, the best of 40 validation rounds kept; the cost of a row does not grow with the data. The epoch recipe with patience is `--recipe default`, the seed's (constant rate, patience 5) `--recipe seed`.",
                "Sequence models are scored on every sample: the first L-1 windows of each instance are edge-padded "
                "with its first sample, as a streaming estimator starts up; all rows see the same test samples."),
     ),
     "paper": BenchProfile(
-        name="paper", scenarios=("paper-noext", "paper-ext", "mismatch-ext"), generator_profile="paper",
-        recipe="default", train=dict(max_epochs=200, batch_size=256, patience=5),
+        name="paper", scenarios=("paper-noext", "paper-ext", "mismatch-ext"), generator_size="paper",
+        recipe="plateau", train=dict(max_epochs=200, batch_size=256, patience=5),
     ),
 }
 

@@ -4,8 +4,8 @@ Everything here is drawn from the bench's files in the report folder, never from
 a live run: results.csv (``results.py``), curves.json, run.json and predictions.h5
 (``predictions.py``), so ``hybrid-dyn report DIR`` redraws the same report without
 retraining or re-simulating. The headline findings are computed from those numbers,
-never typed. The project's own acceptance floors are not here: they are a benchmark
-of their own (``benchmarks/acceptance.py``), since they mean nothing on a user's data.
+never typed. The project's own acceptance floors are not here: they are a check
+of their own (``checks/acceptance.py``), since they mean nothing on a user's data.
 """
 from __future__ import annotations
 
@@ -20,6 +20,7 @@ from .catalog import reference_label
 from .predictions import PREDICTIONS_FILE, Predictions, PredictionsError
 from .hybrids import hybrid_lines
 from .results import CURVES_FILE, read_curves
+from .seed_comparison import SEED_COMPARISON_FILE, seed_comparison_text
 from .seed_reference import GAZ2019_VALIDATION_RMSE, SEED_TABLE1, SEED_TABLE2, SEED_TABLE3, seed_dataset_label
 
 
@@ -478,7 +479,9 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
         origin = f"config hash `{d['config_hash']}`" if d.get("config_hash") else "imported (no generator config)"
         lines.append(f"- data `{s}`: {origin}, data checksum `{str(d.get('checksum'))[:16]}`"
                      + (f", read from `{d.get('path')}`, robot `{d['robot']}`" if d.get("robot") else "")
-                     + (f"; split {d['split']}" if d.get("split") else ""))
+                     + (f"; split {d['split']}" if d.get("split") else "")
+                     + (f"; made or read in {_minutes(d['dataset_seconds'])} min of this invocation"
+                        if d.get("dataset_seconds") is not None else ""))
         lines += [f"  - **import warning**: {w}" for w in d.get("import_warnings") or []]
     notes = prof.get("notes") or []
     if notes:
@@ -489,6 +492,12 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
                       "(see the learning curves)."]
     lines += hybrid_lines(rows)
     lines += convergence_lines(rows, curve_figures)
+    seed_text = seed_comparison_text(rows, read_curves(out_dir / CURVES_FILE))
+    if seed_text is not None:  # the seed's nets are in this report: its tables beside ours
+        (out_dir / SEED_COMPARISON_FILE).write_text(seed_text)
+        lines += ["", "## The seed's tables", "", f"`{SEED_COMPARISON_FILE}`: the seed's Tables 2 and 3 (Kruzic "
+                  "et al. 2021, another simulator) row by row beside this report's seed nets, the architecture "
+                  "ordering in both, and each net's training and validation loss at the kept round."]
     skipped = meta.get("skipped") or []
     if skipped:
         lines += ["", "## Rows not run", "", "Each row the profile names that does not apply to a dataset, and why:", ""]
@@ -503,6 +512,7 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
                  "and their targets (the figures are drawn from it; `hybrid-dyn report DIR` redraws the report from "
                  "these files)"] if preds is not None else []),
               "- `tip_force.md`, `joint_torque.md` (+ `.tex`): tables in the seed's layout",
+              *([f"- `{SEED_COMPARISON_FILE}`: the seed's Tables 2 and 3 beside this report's"] if seed_text else []),
               *([f"- `{CURVES_FILE}`: each learned row's loss per epoch, how it stopped and the epoch kept "
                  "(the learning-curve figures are drawn from it)"] if curve_figures else []),
               *[f"- `{f}`" for f in figures], ""]

@@ -110,6 +110,14 @@ class Row:
 ROWS: dict[str, Row] = {}
 
 
+def is_physics_result(result: dict) -> bool:
+    """Whether a results.csv row is physics alone: an analytic or identified row with no trained part and no
+    fitted weights (``n_params`` 0; the residual GP on the identified model has them), never a reference."""
+    row = ROWS.get(result["model"])
+    return row is not None and row.family in ("analytic", "identified") and not row.trains \
+        and row.reference is None and not float(result.get("n_params") or 0)
+
+
 def prior_kept_text(kept) -> str:
     """Per-output flags "validation kept the prior" in words: "all", "none" or "joints 2, 5" (1-based)."""
     kept = [bool(k) for k in kept]

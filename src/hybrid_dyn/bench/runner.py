@@ -43,9 +43,11 @@ from ..analytic.robot import load_robot
 from ..data import Dataset, load_dataset
 from ..data.real import RealLogMissingError
 from ..data.splits import dataset_split_text
+from ..errors import UsageError
 from ..outputs import output_lock, refuse_foreign, unique_temp
+from ..timing import time_calls
 from .catalog import ROWS, get_row  # noqa: F401  (ROWS: every declared row)
-from .integrity import DIGEST_KEY, read_run_json, results_digest
+from .integrity import DIGEST_KEY, read_run_json, recorded_profile, results_digest
 from .learned_rows import PRESET_ROWS
 from .metrics import ErrorReport, base_force_noise_rms, standardized_mse
 from .predictions import PREDICTIONS_FILE, PredictionWriter
@@ -59,17 +61,13 @@ from .rows import TASK_TARGET, BenchContext, Predictor, Row  # noqa: F401  (re-e
 def _median_call_us(fn, inst, warmup_calls: int = 1, n_calls: int = 200) -> float:
     """The median time [us] of a row's single call on one run, fed its samples in order from the start
     (as a control loop feeds a stream); the first ``warmup_calls`` (at least one, at most all but the
-    last sample) are not timed, then up to ``n_calls`` are."""
+    last sample) are not timed, then up to ``n_calls`` are (``timing.time_calls``)."""
     n = len(inst)
     warm = min(max(1, int(warmup_calls)), n - 1)
     for k in range(warm):
         fn(inst, k)
-    times = []
-    for k in range(warm, min(n, warm + n_calls)):
-        t0 = time.perf_counter()
-        fn(inst, k)
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times) * 1e6)
+    wall, _ = time_calls(lambda k: fn(inst, k), range(warm, min(n, warm + n_calls)))
+    return float(np.median(wall) * 1e6)
 
 
 def score_row(spec: Row, ctx: BenchContext, norm: dict) -> dict:
@@ -137,9 +135,14 @@ def _train_job(args) -> tuple[str, str | None]:
         ds = load_dataset(dataset_path)
         ds.meta["robot"] = robot  # the bench's robot for this dataset (--robot / --tool), as score_row sees it
         train_model(ds, preset, out_dir, config=train_config, wait=True)  # another bench sharing runs/
-        return preset, None
+        return _preset_name(preset), None
     except Exception as err:  # reported again, with its row, when the row is scored
-        return preset, f"{type(err).__name__}: {err}"
+        return _preset_name(preset), f"{type(err).__name__}: {err}"
+
+
+def _preset_name(preset) -> str:
+    """A job's preset by name (a job carries a name, or a Preset changed by the profile's preset_overrides)."""
+    return preset if isinstance(preset, str) else preset.name
 
 
 def epoch_cost_rank(preset) -> tuple:
@@ -152,42 +155,37 @@ def epoch_cost_rank(preset) -> tuple:
     LSTMs 5.0-5.9, the 32-unit residual LSTMs 2.7-4.0, the 16-unit LSTMs 1.4-2.5, conv
     1.1-1.6, MLPs 0.45-1.05.
     """
+    from ..learn.kinds import cost_rank
     from ..learn.presets import get_preset
 
     p = get_preset(preset)
-    kind = {"delan": 3 if p.residual_kind else 2, "lstm": 1}.get(p.kind, 0)
+    kind = cost_rank(p)  # declared with the network kind (learn/kinds.py)
     return (-kind, -sum(p.front_units), -p.window, -p.fc_units)
 
 
-def pretrain(jobs: list, workers: int, log=print) -> None:
-    """Train the learned rows in parallel, one single-threaded model per process.
+def pretrain(jobs: list, workers: int, log=print, executor=None) -> None:
+    """Train the learned rows in parallel, one single-threaded model per job.
 
-    Each model's training is seeded on its own, so the result does not depend
-    on the worker count or the order; finished models are reused on a rerun.
-    The dearest models are queued first (:func:`epoch_cost_rank`): queued in
-    declaration order, the DeLaN rows came last and one core idled while the
-    other finished them. The workers die with this process, and an interrupt
-    stops them instead of waiting for every queued model (``process_pool``).
+    ``executor``: where the jobs run (``sim/executors.py``, as for generation): local
+    processes by default (serial for one worker), or a Ray cluster. Each model's training
+    is seeded on its own and reads and writes only paths in its job, so the model files do
+    not depend on the executor, the worker count or the order; finished models are reused
+    on a rerun (on a cluster, the data and model folders must be on a file system every
+    node sees: docs/cluster.md). The dearest models are queued first
+    (:func:`epoch_cost_rank`): queued in declaration order, the DeLaN rows came last and
+    one core idled while the other finished them. Local workers die with this process, and
+    an interrupt stops them instead of waiting for every queued model.
     """
     if not jobs:
         return
+    from ..sim.executors import make_executor
+
     jobs = sorted(jobs, key=lambda job: epoch_cost_rank(job[2]))  # stable: declaration order within a rank
-    if workers <= 1:
-        for job in tqdm(jobs, desc="training", unit="model"):
-            preset, err = _train_job(job)
-            if err:
-                log(f"[bench] training {preset} failed: {err}")
-        return
-    from concurrent.futures import as_completed
-
-    from ..sim.executors import process_pool
-
-    with process_pool(workers) as pool:
-        futures = [pool.submit(_train_job, job) for job in jobs]
-        for fut in tqdm(as_completed(futures), total=len(futures), desc="training", unit="model"):
-            preset, err = fut.result()
-            if err:
-                log(f"[bench] training {preset} failed: {err}")
+    executor = executor or make_executor(workers)
+    results = executor.map_unordered(_train_job, [(job,) for job in jobs])
+    for preset, err in tqdm(results, total=len(jobs), desc="training", unit="model"):
+        if err:
+            log(f"[bench] training {preset} failed: {err}")
 
 
 def _set_torch_threads(n: int) -> None:
@@ -198,8 +196,14 @@ def _set_torch_threads(n: int) -> None:
     torch.set_num_threads(n)
 
 
+def default_work_root(work_root=None) -> Path:
+    """The trained-model cache: ``work_root``, else ``$HYBRID_DYN_RUNS``, else ./runs."""
+    return Path(work_root or os.environ.get("HYBRID_DYN_RUNS", "runs"))
+
+
 def run_bench(profile: BenchProfile, out_dir, data_root=None, work_root=None, dataset_provider=None,
-              log: Callable[[str], None] = print) -> list[dict]:
+              log: Callable[[str], None] = print, executor=None, device: str | None = None,
+              gpus_per_job: float = 0.0) -> list[dict]:
     """Run every row of ``profile`` on every scenario; write ``out_dir/results.csv`` and the report.
 
     dataset_provider(scenario, profile) -> Dataset; default: generate with the
@@ -208,7 +212,21 @@ def run_bench(profile: BenchProfile, out_dir, data_root=None, work_root=None, da
     so an interrupted bench resumes where it stopped. ``out_dir`` must be new,
     empty or an earlier report of the bench (its ``run.json``); it is locked
     for the run.
+
+    executor: where generation and training jobs run (``sim/executors.make_executor``:
+    local processes of ``profile.workers``, or Ray); device: the training device
+    ("cpu", "cuda", ...; None: the profile's); gpus_per_job: GPUs each training job reserves
+    on a Ray cluster (fractions share a GPU). None of them is part of the profile: they
+    change where a job runs, not what it computes (on CPU, not a byte of it).
     """
+    train_executor = executor
+    if gpus_per_job:
+        from ..sim.executors import RayExecutor
+
+        if not isinstance(executor, RayExecutor):
+            raise UsageError("GPUs per training job (--gpus-per-job) are reserved on a Ray cluster: "
+                             "give --executor ray (a local run uses the GPU --device names)")
+        train_executor = executor.with_gpus(gpus_per_job)
     # The study's networks are tiny: torch's intra-op threads cost more than they
     # give, and on a busy machine they spin (measured: a 2x32 MLP step 0.8 ms on
     # one thread, 118 ms on two with the cores oversubscribed). The bench owns its
@@ -216,13 +234,15 @@ def run_bench(profile: BenchProfile, out_dir, data_root=None, work_root=None, da
     _set_torch_threads(profile.torch_threads)
     out_dir = Path(out_dir)
     data_root = Path(data_root or os.environ.get("HYBRID_DYN_DATA", "data"))
-    work_root = Path(work_root or os.environ.get("HYBRID_DYN_RUNS", "runs"))
-    provider = dataset_provider or (lambda scenario, prof: prof.dataset(scenario, data_root, log=log))
+    work_root = default_work_root(work_root)
+    provider = dataset_provider or (lambda scenario, prof: prof.dataset(scenario, data_root, log=log,
+                                                                         executor=executor))
     # A missing or corrupt dataset, an unknown robot: refused before the report folder is touched.
     opened = _open_datasets(profile, provider, log)
     with output_lock(out_dir, "report folder"):  # one bench per report folder at a time
         previous = _claim_report_dir(out_dir, profile, log)
-        return _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider, opened, log)
+        return _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider, opened, log,
+                                 train_executor, device)
 
 
 def _claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[dict]:
@@ -243,7 +263,7 @@ def _claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[d
     marker = out_dir / "run.json"
     old = read_run_json(out_dir)  # refuses a run.json the bench did not write
     if old is not None:
-        if old["profile"] != profile.to_dict():
+        if recorded_profile(old["profile"]) != profile.to_dict():  # issue 30: an old recipe name is the same recipe
             log(f"[bench] {out_dir} held a report of another profile or size: it is replaced, and its "
                 "invocations' wall times are not kept")
             return []
@@ -276,6 +296,19 @@ def _record_digest(out_dir: Path) -> None:
     write_json(out_dir / "run.json", meta)
 
 
+def recorded_path(path) -> str:
+    """A dataset's path as run.json and the README record it: relative to the working directory, so that a
+    committed report names no folder of the machine that wrote it (an absolute path given on the command
+    line, ``--data-root /work/x/data``, is recorded as ``data/...`` when run from ``/work/x``)."""
+    path = Path(path)
+    if not path.is_absolute():
+        return str(path)
+    try:
+        return os.path.relpath(path)
+    except ValueError:  # another drive (Windows): no relative path exists
+        return str(path)
+
+
 def work_dir(profile: BenchProfile, scenario: str, ds: Dataset, work_root: Path) -> Path:
     """Where a profile's models of one scenario are cached: one folder per dataset and training
     recipe, so a run with another recipe never meets these models."""
@@ -304,8 +337,6 @@ def _open_datasets(profile, provider, log) -> list:
         else:
             label = entry
         if label in seen:
-            from ..errors import UsageError
-
             raise UsageError(f"datasets {seen[label]} and {entry} have the same scenario label {label!r} (their "
                              "manifests' 'scenario', or folder names): results.csv could not tell them apart")
         seen[label] = entry
@@ -315,15 +346,18 @@ def _open_datasets(profile, provider, log) -> list:
     return out
 
 
-def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider, opened, log) -> list[dict]:
+def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider, opened, log,
+                      executor=None, device=None) -> list[dict]:
     rows: list[dict] = []
     skipped: list[dict] = []
     datasets = {}
     labels = {}
+    dataset_seconds = {}
     predictions = PredictionWriter(out_dir / PREDICTIONS_FILE)
     t_start = time.perf_counter()
     for entry, scenario, ds, ref in opened:
         log(f"[bench] scenario {scenario}: dataset")
+        t_data = time.perf_counter()
         if ds is None:
             try:
                 ds = provider(entry, profile)
@@ -333,6 +367,8 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider
                 continue
             ref = profile.robot_ref(ds)
         labels[scenario] = entry
+        # Making (or finding) the dataset in this invocation: a generation that ran here is part of the wall time.
+        dataset_seconds[scenario] = time.perf_counter() - t_data
         for warning in _import_warnings(ds):  # e.g. a time unit that does not fit: said here and in the README
             log(f"[bench] {scenario}: import warning: {warning}")
         # The analytic model: the profile's robot (or the dataset's), with its tool and nominal parameters.
@@ -355,13 +391,15 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider
         predictions.test_data(scenario, test, [t for t in dict.fromkeys(TASK_TARGET.values()) if t in ds.fields])
         # Parallel workers train quietly (one progress bar over the models, not one per process).
         tcfg = profile.train_config()
-        if profile.workers > 1:
+        if profile.workers > 1 or executor is not None:
             tcfg = dataclasses.replace(tcfg, progress=False)
+        if device is not None:
+            tcfg = dataclasses.replace(tcfg, device=device)
         # The presets' rows train in parallel first (the identified residuals need their fit first).
-        jobs = [(str(ds.path), ref.name, s.name, str(ctx.work_dir / "models" / s.name), tcfg, profile.torch_threads)
-                for s in specs if s.name in PRESET_ROWS]
+        jobs = [(str(ds.path), ref.name, profile.preset(s.name), str(ctx.work_dir / "models" / s.name), tcfg,
+                 profile.torch_threads) for s in specs if s.name in PRESET_ROWS]
         log(f"[bench] {scenario}: training {len(jobs)} learned models on {profile.workers} workers")
-        pretrain(jobs, profile.workers, log=log)
+        pretrain(jobs, profile.workers, log=log, executor=executor)
         for spec in tqdm(specs, desc=f"bench {scenario}", unit="model"):
             t0 = time.perf_counter()
             try:
@@ -388,9 +426,9 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider
                                "rows": len(rows), "rows_ok": sum(r.get("status") == "ok" for r in rows)}]
     meta = {"bench_report": 1, "profile": profile.to_dict(), "wall_seconds": wall, "invocations": invocations,
             "scenarios": labels, "skipped": skipped, "machine": machine_info(),
-            "datasets": {s: {"path": str(d.path), "checksum": d.checksum, "seed": d.meta.get("seed"),
+            "datasets": {s: {"path": recorded_path(d.path), "checksum": d.checksum, "seed": d.meta.get("seed"),
                              "config_hash": d.meta.get("config_hash"), "robot": d.meta.get("robot"),
-                             "split": dataset_split_text(d),
+                             "split": dataset_split_text(d), "dataset_seconds": dataset_seconds.get(s),
                              **({"import_warnings": _import_warnings(d)} if _import_warnings(d) else {})}
                          for s, d in datasets.items()}}
     write_results(out_dir / "results.csv", rows)  # also when no row applied: the report reads it

@@ -53,11 +53,12 @@ GAZ2019_VALIDATION_RMSE = (0.64, 1.01, 0.77, 0.65, 0.42, 0.20, 0.16)
 
 
 def seed_dataset_label(scenario: str) -> str | None:
-    """Which seed data set a toolkit scenario mirrors (PROTOCOL 2)."""
-    if scenario == "paper-noext":
-        return "sim-noext"
-    if scenario in ("paper-ext", "mismatch-ext", "seed-sim"):
-        return "sim-ext"
+    """Which seed data set a toolkit scenario mirrors (PROTOCOL 2): a simulated scenario's declared
+    ``seed_dataset`` (``sim/scenarios.py``), "real" for the real-robot logs, else None."""
+    from ..sim.scenarios import SCENARIO_REGISTRY
+
+    if scenario in SCENARIO_REGISTRY:
+        return SCENARIO_REGISTRY[scenario].seed_dataset
     if scenario.startswith("real"):
         return "real"
     return None

@@ -2,11 +2,13 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 
 def register(sub) -> None:
     p = sub.add_parser("import", help="import a robot log (CSV, npz, .mat, Parquet) described by a TOML spec")
-    p.add_argument("--spec", required=True, help="the import spec (TOML; see docs/bring_your_own_log.md)")
+    p.add_argument("--spec", required=True, help="the import spec (TOML; see docs/bring_your_own_log.md), or the name "
+                   "of a real set whose spec ships with the package (real-kuka, real-baxter, real-sarcos, real-panda)")
     p.add_argument("--out", required=True, help="the dataset directory to write")
     p.add_argument("--overwrite", action="store_true",
                    help="replace an existing dataset at --out (only a hybrid-dyn dataset holding nothing but its own "
@@ -26,8 +28,11 @@ def register(sub) -> None:
 def cmd_import(args) -> int:
     from ..description import parse_robot_name, resolve_robot
     from .importer import import_log, read_spec
+    from .real import REAL_SETS, real_spec_path
 
-    spec = read_spec(args.spec)
+    # A shipped set by name: its spec lives inside the installed package, whose path a user need not know.
+    path = real_spec_path(args.spec) if args.spec in REAL_SETS and not Path(args.spec).exists() else args.spec
+    spec = read_spec(path)
     if args.robot is not None or args.tool is not None:  # the options replace the spec's robot or tool
         base, tool, payload = parse_robot_name(args.robot or spec.robot)
         spec.robot = resolve_robot(base, tool=args.tool if args.tool is not None else tool, payload=payload).name

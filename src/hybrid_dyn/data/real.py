@@ -1,10 +1,11 @@
 """The real-robot logs (KUKA LWR, Baxter, SARCOS, a Franka Panda) as toolkit datasets.
 
-Their import specs live in ``benchmarks/real/*.toml`` of the repository (or in
-the folder named by ``HYBRID_DYN_REAL_SPECS``). The KUKA, Baxter and SARCOS logs
-ship beside them in ``benchmarks/real/logs`` (4.7 MB). The Panda log does not ship
-(its source repository is GPL-3.0): it is read from ``../shared/data/real`` beside
-the repository. ``HYBRID_DYN_REAL_LOGS`` (a folder) overrides where the logs are.
+Their import specs ship inside the package, ``hybrid_dyn/resources/real/*.toml``
+(package data, so an installed toolkit has them; or the folder named by
+``HYBRID_DYN_REAL_SPECS``). The KUKA, Baxter and SARCOS logs ship beside them in
+``resources/real/logs`` (4.7 MB). The Panda log does not ship (its source repository
+is GPL-3.0): it is read from ``../shared/data/real`` beside a checkout of the
+repository. ``HYBRID_DYN_REAL_LOGS`` (a folder) overrides where the logs are.
 :func:`real_dataset` imports a set once and caches it under a key made of the spec,
 the importer version and the log files' checksums, so a changed spec or log is
 re-imported and an unchanged one is not. A set whose log is absent raises
@@ -20,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..resources import resource_dir
 from .dataset import DatasetError, load_dataset
 from .importer import import_log, read_spec, spec_checksum
 
@@ -27,11 +29,11 @@ REAL_SETS = {"real-kuka": "kuka.toml", "real-baxter": "baxter.toml", "real-sarco
              "real-panda": "panda.toml"}
 
 # Where each set's log comes from, for the message when it is absent.
-_SHIPPED = "they ship in benchmarks/real/logs of the repository"
+_SHIPPED = "they ship with the package, in hybrid_dyn/resources/real/logs"
 REAL_LOG_SOURCES = {
     "real-kuka": _SHIPPED, "real-baxter": _SHIPPED, "real-sarcos": _SHIPPED,
     "real-panda": ("it does not ship with the repository (its source is GPL-3.0): it is the project's shared data "
-                   "file ../shared/data/real/panda_gaz_exciting_traj1.csv beside the repository, or build it from "
+                   "file ../shared/data/real/panda_gaz_exciting_traj1.csv beside a checkout of the repository, or build it from "
                    "https://github.com/marcocognetti/FrankaEmikaPandaDynModel, folder "
                    "matlab/data/Exciting_Traj/Trajectory_1/rbt_log/ (its four text files side by side as columns "
                    "t, q1..q7, qd1..qd7, tau1..tau7 with that header; ../shared/data/real/README.md)"),
@@ -48,9 +50,10 @@ class RealLogMissingError(DatasetError):
 
 
 def real_specs_dir() -> Path:
-    """Where the import specs of the real sets are: ``$HYBRID_DYN_REAL_SPECS`` or the repository's ``benchmarks/real``."""
+    """Where the import specs of the real sets are: ``$HYBRID_DYN_REAL_SPECS``, else the ones that ship
+    inside the package (``hybrid_dyn/resources/real``, package data)."""
     env = os.environ.get("HYBRID_DYN_REAL_SPECS")
-    return Path(env) if env else Path(__file__).resolve().parents[3] / "benchmarks" / "real"
+    return Path(env) if env else resource_dir("real")
 
 
 def real_spec_path(name: str) -> Path:

@@ -115,3 +115,18 @@ def dataset_split_text(ds) -> str:
             else "as its manifest lists (how it was made is not recorded)"
     counts = "/".join(f"{sum(len(i) for i in ds.split(s))}" for s in SPLIT_NAMES)
     return f"{how}; train/val/test samples {counts}"
+
+
+def first_instances(train: list, val: list, n_train: int, source="the dataset") -> tuple[list, list]:
+    """The first ``n_train`` instances of a train split and, cut in the same proportion, of its val split.
+
+    val keeps ``round(n_train x len(val) / len(train))`` instances, at least one: a model given less
+    data has less to validate on too, as a user with that much data would (the data-scaling study,
+    ``bench/studies.py``). The splits' own order is kept: a random split is already shuffled by its seed,
+    and a time-ordered one then keeps its earliest instances. Asking for more than the split holds is an
+    error, not a silent use of all of it.
+    """
+    if n_train > len(train):
+        raise DatasetError(f"{source}: {n_train} training instances asked for, the train split holds {len(train)}")
+    n_val = max(1, round(n_train * len(val) / len(train)))
+    return list(train[:n_train]), list(val[:n_val])

@@ -1,6 +1,7 @@
 """CLI: train, predict, tune, and the list of presets."""
 from __future__ import annotations
 
+import argparse
 import json
 
 
@@ -41,12 +42,18 @@ def register(sub) -> None:
 
 
 def _train_options(p) -> None:
-    p.add_argument("--recipe", default="default", help="training recipe: budget (a fixed number of steps "
-                   "per network kind, warm-up and cosine decay; the bench's), default (reduce-on-plateau after 3 epochs, "
-                   "patience 10, LSTM gradients clipped), long (plateau after 10, patience 20, weight decay 0.1) "
-                   "or seed (the seed's: constant rate, patience 5); the options below override it")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--epochs", type=int, default=None, help="maximum epochs (early stopping ends sooner; default 200)")
+    from ..deprecation import DeprecatedFlag
+
+    p.add_argument("--recipe", default="plateau", help="training recipe: budget (a fixed number of steps "
+                   "per network kind, warm-up and cosine decay; the bench's), plateau (the default: reduce-on-plateau "
+                   "after 3 epochs, patience 10, LSTM gradients clipped), long (plateau after 10, patience 20, weight "
+                   "decay 0.1) or seed-study (the seed study's: constant rate, patience 5); the options below override "
+                   "it. The old names default and seed still work, with a warning")
+    p.add_argument("--seed", type=int, default=0, help="random seed of the weights and the shuffling")
+    p.add_argument("--max-epochs", type=int, default=None,
+                   help="maximum epochs (early stopping ends sooner; default 200)")
+    p.add_argument("--epochs", dest="max_epochs", type=int, action=DeprecatedFlag, new="--max-epochs",
+                   help=argparse.SUPPRESS)  # its old name, until issue 30
     p.add_argument("--patience", type=int, default=None, help="epochs without validation improvement before stopping")
     p.add_argument("--batch-size", type=int, default=None)
     p.add_argument("--lr", type=float, default=None, help="initial learning rate (default 1e-3)")
@@ -56,7 +63,12 @@ def _train_options(p) -> None:
     p.add_argument("--weight-decay", type=float, default=None,
                    help="decoupled weight decay of the weight matrices (AdamW; default 0: plain Adam)")
     p.add_argument("--max-batches-per-epoch", type=int, default=None)
-    p.add_argument("--analytic-params", default=None, help="parameter set or JSON for residual models' analytic part")
+    p.add_argument("--train-instances", type=int, default=None,
+                   help="learn from the first N train instances (val cut in proportion; default: all)")
+    p.add_argument("--params", default=None, help="parameter set (a name such as franka_official) or parameter JSON "
+                   "of the residual models' analytic part, as bench --params (default: the robot's nominal set)")
+    p.add_argument("--analytic-params", dest="params", action=DeprecatedFlag, new="--params",
+                   help=argparse.SUPPRESS)  # its old name, until issue 30
     p.add_argument("--device", default="auto", help="auto, cpu or cuda")
     p.add_argument("--threads", type=int, default=None, help="PyTorch CPU threads")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -65,10 +77,11 @@ def _train_options(p) -> None:
 def _config(args):
     from .train import TrainConfig
 
-    given = {"max_epochs": args.epochs, "patience": args.patience, "batch_size": args.batch_size, "lr": args.lr,
-             "lr_schedule": args.lr_schedule, "weight_decay": args.weight_decay, "budget_steps": args.budget_steps}
+    given = {"max_epochs": args.max_epochs, "patience": args.patience, "batch_size": args.batch_size, "lr": args.lr,
+             "lr_schedule": args.lr_schedule, "weight_decay": args.weight_decay, "budget_steps": args.budget_steps,
+             "train_instances": args.train_instances}
     return TrainConfig.recipe(args.recipe, seed=args.seed, max_batches_per_epoch=args.max_batches_per_epoch,
-                              analytic_params=args.analytic_params, device=args.device, num_threads=args.threads,
+                              analytic_params=args.params, device=args.device, num_threads=args.threads,
                               progress=not args.quiet, **{k: v for k, v in given.items() if v is not None})
 
 

@@ -4,7 +4,8 @@ A streaming estimator calls a model once per control cycle with one window.
 PyTorch spends most of such a call in dispatch (about 250 us for a 2-layer LSTM
 on one core here); the arithmetic is a few thousand multiply-adds. This module
 copies a trained network's weights into float64 arrays once and evaluates them
-with small numba-compiled kernels (MLP, conv, LSTM): a few microseconds for an
+with small numba-compiled kernels (MLP, conv, LSTM; each kind names its front
+here in its declaration, ``learn/kinds.py``): a few microseconds for an
 MLP, ~25-40 us here for residual-base-momentum's 10-step, 32-unit LSTM window,
 whose exp calls and ~75 k multiply-adds are most of it. Results agree with the
 PyTorch path in float64 to 1e-13 (tests/learn/test_fastpath.py).
@@ -14,8 +15,6 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 from torch import nn
-
-from .nets import ConvNet, LSTMNet, MLPNet
 
 _ACT = {nn.ReLU: 1, nn.Tanh: 2}
 
@@ -109,25 +108,58 @@ def _dense_stack(h, params, layout, acts):
     return x
 
 
+def _f64(t) -> np.ndarray:
+    return np.ascontiguousarray(t.detach().cpu().double().numpy())
+
+
+def mlp_front(parts):
+    """The MLP's front: the window's last row (the head reads the current sample)."""
+    return lambda x: x[-1]
+
+
+def conv_front(parts):
+    """The conv net's front: Conv1d ('valid') + ReLU, flattened channel-major (numba)."""
+    conv = parts["net"].conv
+    w, b = _f64(conv.weight), _f64(conv.bias)
+    return lambda x: _conv_relu_flat(x, w, b)
+
+
+def lstm_front(parts):
+    """The LSTM's front: the stacked layers over the window (numba), the last step's state."""
+    layers = [(_f64(m.weight_ih_l0.T), _f64(m.weight_hh_l0.T), _f64(m.bias_ih_l0 + m.bias_hh_l0))
+              for m in parts["net"].lstms]  # transposed: see _lstm_layer
+
+    def front(x):
+        h = x
+        for w_ih_t, w_hh_t, b in layers:
+            h = _lstm_layer(h, w_ih_t, w_hh_t, b)
+        return h[-1]
+
+    return front
+
+
+def delan_fast(parts):
+    """DeLaN (and its learned friction) for one sample: (q, qd, qdd) -> tau [Nm]."""
+    return FastDeLaN(parts["delan"], parts.get("friction"))
+
+
 class FastNet:
-    """A float64 copy of an MLPNet, ConvNet or LSTMNet for single windows (L, F) -> (n_out,)."""
+    """A float64 copy of a net kind's network for single windows (L, F) -> (n_out,): its front as the
+    kind declares it (``learn/kinds.py``: ``fast``), then the shared FC head (:func:`_dense_stack`)."""
 
     def __init__(self, net: nn.Module):
-        f64 = lambda t: np.ascontiguousarray(t.detach().cpu().double().numpy())  # noqa: E731
-        self.kind = type(net).__name__
-        if isinstance(net, LSTMNet):
-            self.lstm = [(f64(m.weight_ih_l0.T), f64(m.weight_hh_l0.T), f64(m.bias_ih_l0 + m.bias_hh_l0))
-                         for m in net.lstms]  # transposed: see _lstm_layer
-        elif isinstance(net, ConvNet):
-            self.conv = (f64(net.conv.weight), f64(net.conv.bias))
-        elif not isinstance(net, MLPNet):
-            raise TypeError(f"no fast path for {type(net).__name__}")
+        from .kinds import fast_net_front
+
+        if not hasattr(net, "kind") or not hasattr(net, "head"):
+            raise TypeError(f"no fast path for {type(net).__name__}: not a net kind's network (kind, head)")
+        self.kind = net.kind
+        self._front = fast_net_front(net)
         params, layout, acts = [], [], []  # the head, flat (see _dense_stack)
         mods = list(net.head)
         offset = 0
         for i, m in enumerate(mods):
             if isinstance(m, nn.Linear):
-                w, b = f64(m.weight), f64(m.bias)
+                w, b = _f64(m.weight), _f64(m.bias)
                 params += [w.ravel(), b]
                 layout.append((offset, w.shape[0], w.shape[1]))
                 offset += w.size + b.size
@@ -139,16 +171,7 @@ class FastNet:
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         """x: standardized window (L, F) float64; returns the network output (n_out,)."""
-        if self.kind == "LSTMNet":
-            h = x
-            for w_ih_t, w_hh_t, b in self.lstm:
-                h = _lstm_layer(h, w_ih_t, w_hh_t, b)
-            h = h[-1]
-        elif self.kind == "ConvNet":
-            h = _conv_relu_flat(x, *self.conv)
-        else:
-            h = x[-1]
-        return _dense_stack(np.ascontiguousarray(h), self.head, self.layout, self.acts)
+        return _dense_stack(np.ascontiguousarray(self._front(x)), self.head, self.layout, self.acts)
 
 
 def _softplus(x):

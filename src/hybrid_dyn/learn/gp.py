@@ -2,7 +2,8 @@
 
 One exact GP per joint maps the state x = [q, qd, qdd] to that joint's torque tau_m
 (Rasmussen & Williams 2006, ch. 2; ch. 8 uses it on the SARCOS arm). The choices are
-those of ``benchmarks/real_baselines.py``, where it beat every bench model on SARCOS:
+those of the real-log baselines (``reports/studies/interpolation-control``), where it beat every bench model on
+SARCOS:
 
 - inputs standardized by the training split's mean and standard deviation;
 - kernel k(x, x') = c * exp(-|(x - x') / l|^2 / 2) + s * [x == x'], an ARD squared
@@ -61,7 +62,7 @@ PREDICT_CHUNK = 1024  # samples per kernel block: 1024 x rows x 8 bytes (64 MB a
 
 @dataclass
 class GPConfig:
-    """How a GP model is fitted (defaults: ``benchmarks/real_baselines.py``'s).
+    """How a GP model is fitted (defaults: the real-log baselines', ``reports/studies/interpolation-control``).
 
     hyper_rows: training rows the hyperparameters are fitted on (O(n^3) per L-BFGS step).
     rows: training rows the GP is conditioned on, at most (memory 8 rows^2 bytes).

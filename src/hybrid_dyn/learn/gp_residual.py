@@ -66,10 +66,10 @@ class GPResidualConfig:
 
     hyper_rows: int = 600
     # Chosen on the real Panda's validation blocks (time-ordered split), never its test blocks, by
-    # benchmarks/gp_residual_control.py: validation RMSE 0.3011 / 0.2934 / 0.2834 / 0.2782 Nm at M =
-    # 500 / 1000 / 2000 / 4000 (the prior alone 0.3166), 4000 fitting in 932 s against 196 s on a
-    # shared 2-core machine. The fitted s sat at its lower bound (1e-6) on some joints and validation
-    # chose s x 1000 there: the grid reaches x 1e4.
+    # benchmarks/gp_residual_control.py (retired after commit 87faae1): validation RMSE 0.3011 / 0.2934 /
+    # 0.2834 / 0.2782 Nm at M = 500 / 1000 / 2000 / 4000 (the prior alone 0.3166), 4000 fitting in 932 s
+    # against 196 s on a shared 2-core machine. The fitted s sat at its lower bound (1e-6) on some joints
+    # and validation chose s x 1000 there: the grid reaches x 1e4.
     inducing: int = 2000
     length_scale_factors: tuple = (0.25, 0.5, 1.0)
     noise_factors: tuple = (1.0, 10.0, 100.0, 1000.0, 10000.0)

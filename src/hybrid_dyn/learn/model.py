@@ -21,7 +21,8 @@ the sha256 of the tensors' names, dtypes, shapes and bytes) and ``timing.json``
 byte-identical config and weights). Loading refuses a config or tensors that do
 not match their digests, a file older than the tensor digest, a robot the model
 needs a description of and the toolkit lacks, or a robot other than the one
-asked for. Nothing is unpickled.
+asked for. Nothing is unpickled. A file of an older format that spells its prior the
+old way loads with one warning (``model_upgrade.py``, which also upgrades it).
 """
 from __future__ import annotations
 
@@ -38,14 +39,15 @@ from torch import nn
 
 from ..data.windows import concat_fields, window_index
 from ..errors import HybridDynError
-from .delan import DeepLagrangianNetwork, LearnedGazFriction
-from .nets import build_net
+from .kinds import build_parts, network_kind
 from .presets import Preset
 from ..analytic.tare import tared_runs
 from .priors import AnalyticPrior
 
 MODEL_FORMAT = "hybrid_dyn.model"
-MODEL_FORMAT_VERSION = 2  # 2: tensor digest in the metadata, wall-clock figures in timing.json
+# 2: tensor digest in the metadata, wall-clock figures in timing.json; 3: the analytic prior by its
+# canonical estimator name (issue 30; older spellings are read with a warning, model_upgrade.py).
+MODEL_FORMAT_VERSION = 3
 TIMING_FORMAT = "hybrid_dyn.model-timing"
 
 
@@ -132,19 +134,8 @@ class HybridModel(nn.Module):
         for name, n in (("x_mean", n_in), ("x_std", n_in), ("y_mean", n_out), ("y_std", n_out)):
             self.register_buffer(name, torch.zeros(n) if "mean" in name else torch.ones(n))
         self.delan = self.friction = self.net = None
-        if preset.kind == "delan":
-            nv = widths["q"]
-            if list(preset.inputs[:3]) != ["q", "qd", "qdd"] or n_out != nv:
-                raise ValueError(f"preset {preset.name!r}: DeLaN needs inputs q, qd, qdd first and joint-torque targets")
-            self.delan = DeepLagrangianNetwork(nv, preset.delan_hidden, preset.delan_eps)
-            self.friction = LearnedGazFriction(nv) if preset.friction else None
-            if preset.residual_kind:
-                self.net = build_net(preset.residual_kind, n_in, n_out, preset.window, preset.front_units,
-                                     preset.fc_layers, preset.fc_units, "relu", preset.conv_kernel)
-        else:
-            self.net = build_net(preset.kind, n_in, n_out, preset.window, preset.front_units,
-                                 preset.fc_layers, preset.fc_units, preset.activation, preset.conv_kernel,
-                                 preset.dropout)
+        for name, module in build_parts(preset, n_in, n_out, widths).items():  # the kind's modules (kinds.py),
+            setattr(self, name, module)  # in its declared order: the order of the state dict
         if self.net is not None and (preset.prior is not None or self.delan is not None):
             # A residual branch starts at exactly zero: the hybrid model begins as its
             # physics part and moves away only where the data say so (hidden layers
@@ -345,12 +336,13 @@ class TrainedModel:
                                  f"{self.prior.tare_seconds} s: pass `prior`, computed on the tared wrench")
             prior = self.prior.single(self._split_row(x[-1]))
         if self._fast is None:
-            from .fastpath import FastDeLaN, FastNet
+            from .fastpath import FastNet
 
-            m = self.module
+            m, kind = self.module, network_kind(self.preset.kind)
+            # A net kind's net through FastNet; a structured kind (DeLaN) through its own declared fast path.
+            structured = None if kind.is_net else kind.fast({p: getattr(m, p) for p in kind.parts})
             self._fast = (None if m.net is None else FastNet(m.net), m.x_mean.double().numpy(), m.x_std.double().numpy(),
-                          m.y_mean.double().numpy(), m.y_std.double().numpy(),
-                          None if m.delan is None else FastDeLaN(m.delan, m.friction))
+                          m.y_mean.double().numpy(), m.y_std.double().numpy(), structured)
         net, x_mean, x_std, y_mean, y_std, delan = self._fast
         if delan is not None:
             nv = self.config["widths"]["q"]
@@ -451,7 +443,9 @@ def load_model(model_dir, robot=None, device: str = "cpu") -> TrainedModel:
         raise ModelError(f"{wpath}: its tensors do not match the sha256 saved with them (corrupted or edited); "
                          f"refusing to load; retrain or restore the file")
     from ..description import available_robots, has_description
+    from .model_upgrade import read_older_spellings
 
+    config = read_older_spellings(config, model_dir)  # formats 1-2: older estimator spellings, one warning
     # The analytic part, and the base sensor's tare, need the robot's model.
     if Preset.from_dict(config["preset"]).prior is not None or config.get("sensor_tare_seconds", 0) > 0:
         if not has_description(config["robot"]):

@@ -5,11 +5,17 @@ Every network maps a standardized window x (B, L, F) to a standardized output
 analytic part. Initialization follows the seed (Glorot uniform), with the
 Keras defaults that "Glorot uniform" implied there for recurrent layers:
 orthogonal recurrent weights, zero biases, forget-gate bias 1.
+
+Which preset kind builds which class is declared with the kind (``learn/kinds.py``,
+whose :func:`~hybrid_dyn.learn.kinds.build_net` is re-exported here); ``kind`` on
+each class names it for the fast path (``learn/fastpath.py``).
 """
 from __future__ import annotations
 
 import torch
 from torch import nn
+
+from .kinds import build_net  # noqa: F401  (re-exported: the network of a kind, by its layer sizes)
 
 ACTIVATIONS = {"relu": nn.ReLU, "tanh": nn.Tanh}
 
@@ -31,6 +37,8 @@ def fc_head(n_in: int, n_layers: int, n_units: int, n_out: int, activation: str,
 class MLPNet(nn.Module):
     """Fully connected net on the current sample (the window's last row)."""
 
+    kind = "mlp"
+
     def __init__(self, n_in: int, n_out: int, fc_layers: int, fc_units: int, activation: str, dropout: float = 0.0):
         super().__init__()
         self.head = fc_head(n_in, fc_layers, fc_units, n_out, activation, dropout)
@@ -41,6 +49,8 @@ class MLPNet(nn.Module):
 
 class ConvNet(nn.Module):
     """One Conv1d front layer ('valid' padding, ReLU), flattened, then FC layers."""
+
+    kind = "conv"
 
     def __init__(self, n_in: int, n_out: int, window: int, channels: int, kernel: int,
                  fc_layers: int, fc_units: int, activation: str, dropout: float = 0.0):
@@ -55,6 +65,8 @@ class ConvNet(nn.Module):
 
 class LSTMNet(nn.Module):
     """Stacked LSTM layers (units per layer), the last step's state, then FC layers."""
+
+    kind = "lstm"
 
     def __init__(self, n_in: int, n_out: int, units: tuple, fc_layers: int, fc_units: int, activation: str,
                  dropout: float = 0.0):
@@ -91,18 +103,3 @@ def glorot_init(module: nn.Module) -> None:
                     p.data[h:2 * h] = 1.0  # forget gate (PyTorch order i, f, g, o)
                 elif name.startswith("bias_hh"):
                     nn.init.zeros_(p)
-
-
-def build_net(kind: str, n_in: int, n_out: int, window: int, front_units: tuple, fc_layers: int,
-              fc_units: int, activation: str, conv_kernel: int = 3, dropout: float = 0.0) -> nn.Module:
-    """The network of a preset's ``kind`` (mlp, conv or lstm), Glorot-initialized."""
-    if kind == "mlp":
-        net = MLPNet(n_in, n_out, fc_layers, fc_units, activation, dropout)
-    elif kind == "conv":
-        net = ConvNet(n_in, n_out, window, front_units[0], conv_kernel, fc_layers, fc_units, activation, dropout)
-    elif kind == "lstm":
-        net = LSTMNet(n_in, n_out, tuple(front_units), fc_layers, fc_units, activation, dropout)
-    else:
-        raise ValueError(f"unknown network kind {kind!r}")
-    glorot_init(net)
-    return net

@@ -21,12 +21,12 @@ from dataclasses import asdict, dataclass, field, replace
 
 from ..analytic.estimators import estimator_name
 from ..errors import UsageError
+from .kinds import KINDS, preset_problems  # noqa: F401  (KINDS re-exported: the network kinds' names)
 
 STATE = ["q", "qd", "qdd"]
 TIP_INPUTS = ["base_wrench", "q", "qd", "qdd"]
 TIP_INPUTS_TAU = TIP_INPUTS + ["tau_J"]
 
-KINDS = ("mlp", "conv", "lstm", "delan")
 # The analytic estimators a residual can sit on, by their one name (analytic/estimators.py): the two
 # torque models, and the tip-force methods registered as priors (analytic/methods.py).
 TORQUE_PRIORS = ("rnea", "rnea-bw")
@@ -40,23 +40,26 @@ def prior_kinds() -> tuple:
 
 
 PRIORS = (None,) + prior_kinds()
-# How model files (config.json) and training fingerprints spell each prior: as they always have,
-# so that every saved model and every cached training run stays valid (read: either spelling).
-# A prior not listed is spelled by its name.
-PRIOR_FILE_SPELLING = {"rnea": "rnea", "rnea-bw": "rnea-basewrench", "base-wrench": "basewrench",
-                       "momentum-observer": "momentum", "base-momentum": "base-momentum"}
+# How training fingerprints (and the keys of the prior caches) spell each prior: the spellings model
+# files wrote until format 3 (issue 30). Frozen: every trained model and every cached training run is
+# keyed by them, so a run of today finds the models trained before. Files write the canonical names
+# (:meth:`Preset.to_dict`); only these digests keep the old ones. A prior not listed is spelled by its name.
+PRIOR_FINGERPRINT_SPELLING = {"rnea": "rnea", "rnea-bw": "rnea-basewrench", "base-wrench": "basewrench",
+                              "momentum-observer": "momentum", "base-momentum": "base-momentum"}
 
 
-def prior_file_spelling(kind: str) -> str:
-    return PRIOR_FILE_SPELLING.get(kind, kind)
+def prior_fingerprint_spelling(kind: str) -> str:
+    """The prior ``kind`` (a canonical name) as fingerprints and cache keys spell it (:data:`PRIOR_FINGERPRINT_SPELLING`)."""
+    return PRIOR_FINGERPRINT_SPELLING.get(kind, kind)
 
 
 @dataclass(frozen=True)
 class Preset:
     """A model architecture with its inputs and outputs.
 
-    kind: "mlp" (current sample only), "conv" (one Conv1d front layer), "lstm"
-    (stacked LSTM front layers) or "delan" (Lagrangian structure, current sample).
+    kind: a network kind of ``learn/kinds.py``: "mlp" (current sample only), "conv" (one
+    Conv1d front layer), "lstm" (stacked LSTM front layers) or "delan" (Lagrangian
+    structure, current sample), or one registered there later.
     inputs / targets: dataset field names (see ``hybrid_dyn.data.FIELD_UNITS``).
     window: samples per input window (1 for MLP and DeLaN).
     front_units: units of each conv/LSTM front layer (conv uses the first only).
@@ -65,7 +68,7 @@ class Preset:
     dropout: probability of dropping an FC hidden unit in training (0: none;
     inference never drops).
     prior: the analytic part the network corrects (None: a plain network), by the estimator's
-    one name (older spellings, in brackets, are accepted and mean the same):
+    one name (older spellings, in brackets, are accepted with a warning and mean the same):
       "rnea"              tau = RNEA(q, qd, qdd)
       "rnea-bw"           tau = RNEA(q, qd, qdd) - J_v^T F_bw (F_bw: base-wrench method) ("rnea-basewrench")
       "base-wrench"       F = tip_force_from_base_wrench(q, qd, qdd, base_wrench) ("basewrench")
@@ -101,7 +104,7 @@ class Preset:
 
     def __post_init__(self):
         if self.kind not in KINDS:
-            raise ValueError(f"preset {self.name!r}: kind must be one of {KINDS}, got {self.kind!r}")
+            raise ValueError(f"preset {self.name!r}: kind must be one of {tuple(KINDS)}, got {self.kind!r}")
         if self.prior is not None:  # one name per estimator; a saved model's older spelling is read as it
             object.__setattr__(self, "prior", estimator_name(self.prior, prior_kinds(), f"prior of preset {self.name!r}"))
         if self.activation not in ("relu", "tanh"):
@@ -110,29 +113,34 @@ class Preset:
             raise ValueError(f"preset {self.name!r}: window must be >= 1")
         if not 0.0 <= self.dropout < 1.0:
             raise ValueError(f"preset {self.name!r}: dropout must be in [0, 1), got {self.dropout}")
-        if self.kind in ("mlp", "delan") and self.window != 1 and self.residual_kind is None:
-            raise ValueError(f"preset {self.name!r}: {self.kind} sees the current sample only (window 1)")
-        if self.kind == "conv" and self.window < self.conv_kernel:
-            raise ValueError(f"preset {self.name!r}: window {self.window} is shorter than the conv kernel")
-        if self.kind in ("conv", "lstm") and not self.front_units:
-            raise ValueError(f"preset {self.name!r}: {self.kind} needs front_units")
+        problems = preset_problems(self)  # what the kind declares a preset of it must give
+        if problems:
+            raise ValueError(f"preset {self.name!r}: {'; '.join(problems)}")
 
     @property
     def is_sequence(self) -> bool:
         return self.window > 1
 
     def to_dict(self) -> dict:
-        """The preset as model files store it (the prior in its file spelling, :data:`PRIOR_FILE_SPELLING`)."""
+        """The preset as model files store it (JSON types; the prior by its canonical name)."""
         d = asdict(self)
         for k, v in d.items():
             if isinstance(v, tuple):
                 d[k] = list(v)
+        return d
+
+    def fingerprint_dict(self) -> dict:
+        """The preset as training fingerprints hash it: :meth:`to_dict` with the prior in the spelling
+        the fingerprints of every earlier run used (:data:`PRIOR_FINGERPRINT_SPELLING`)."""
+        d = self.to_dict()
         if self.prior is not None:
-            d["prior"] = prior_file_spelling(self.prior)
+            d["prior"] = prior_fingerprint_spelling(self.prior)
         return d
 
     @classmethod
     def from_dict(cls, d: dict) -> "Preset":
+        """The preset of :meth:`to_dict`. An older spelling of the prior warns; ``load_model`` reads a
+        model file's older spellings itself, with one warning per file."""
         d = dict(d)
         known = set(cls.__dataclass_fields__)
         unknown = set(d) - known

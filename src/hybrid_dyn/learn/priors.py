@@ -16,9 +16,11 @@ an identified one):
   batch run from its one definition, at the bandwidth ``observer_gain``
 
 The kinds are the estimators' one name (``analytic/estimators.py``); the older
-spellings ``rnea-basewrench``, ``basewrench`` and ``momentum`` are accepted, and
-model files keep writing them (``presets.PRIOR_FILE_SPELLING``), so every saved
-model loads, and predicts, as before.
+spellings ``rnea-basewrench``, ``basewrench`` and ``momentum`` are accepted with a
+warning. Model files (from format 3) and cache file names write the canonical names;
+the cache keys and training fingerprints keep hashing the older spellings
+(``presets.PRIOR_FINGERPRINT_SPELLING``), so every saved model and cache is found, and
+predicts, as before.
 
 On an identified parameter file (``hybrid-dyn identify``; ``TrainConfig.analytic_params``)
 the two torque priors are the identified model itself: its inertials and the
@@ -57,7 +59,7 @@ from ..analytic.estimators import estimator_name
 from ..analytic.methods import REGISTRY, add_listener
 from ..analytic.tare import tare_samples, tared_base_wrench
 from ..analytic.tip_force import base_wrench_force_core, contact_joint_torques, tip_force_from_base_wrench
-from .presets import prior_file_spelling
+from .presets import prior_fingerprint_spelling
 
 # The fields each prior reads: the two torque models here, every tip-force method registered as a prior
 # from its one definition (analytic/methods.py; base-momentum reads qdd only for the tare).
@@ -129,8 +131,9 @@ class AnalyticPrior:
         self._friction = friction_from_dict(friction, f"the {kind} prior's friction") if friction else None
 
     def describe(self) -> dict:
-        """What identifies this prior's values (part of the cache key and the model config)."""
-        return {"kind": prior_file_spelling(self.kind), "robot": self.robot.name, "params": self.robot.params_name,
+        """What identifies this prior's values (the model config; the cache key hashes it with the kind's
+        fingerprint spelling, :meth:`cache_path`)."""
+        return {"kind": self.kind, "robot": self.robot.name, "params": self.robot.params_name,
                 "payload": repr(self.robot.payload), "sensor_mount": repr(self.robot.sensor_mount),
                 "record_hz": self.record_hz, "observer_gain": self.observer_gain,
                 "tare_seconds": self.tare_seconds,
@@ -202,13 +205,24 @@ class AnalyticPrior:
         jv = pin.computeFrameJacobian(s.model, s.data, q, s.tool, pin.LOCAL_WORLD_ALIGNED)[:3]
         return pin.rnea(s.model, s.data, q, qd, qdd) + self.friction_torque(qd) - jv.T @ f_bw
 
+    def cache_path(self, cache_dir, dataset_checksum: str) -> Path:
+        """The cache file of this prior on a dataset: ``prior-<kind>-<key>.h5``, the key a digest of the
+        dataset checksum and :meth:`describe` with the kind in its fingerprint spelling (the keys of every
+        cache written before issue 30). A cache under the older file name (``prior-basewrench-<key>.h5``)
+        is renamed to this one."""
+        ident = {"dataset": dataset_checksum, **self.describe(), "kind": prior_fingerprint_spelling(self.kind)}
+        key = hashlib.sha256(json.dumps(ident, sort_keys=True).encode()).hexdigest()[:20]
+        path = Path(cache_dir) / f"prior-{self.kind}-{key}.h5"
+        older = Path(cache_dir) / f"prior-{prior_fingerprint_spelling(self.kind)}-{key}.h5"
+        if older != path and older.is_file() and not path.exists():
+            os.replace(older, path)  # the same values; the model folder's lock is held by its one training run
+        return path
+
     def compute_instances(self, instances, cache_dir=None, dataset_checksum: str | None = None) -> list[np.ndarray]:
         """The prior for every instance; cached under ``cache_dir`` when a dataset checksum is given."""
         cache = None
         if cache_dir is not None and dataset_checksum:
-            key = hashlib.sha256(json.dumps({"dataset": dataset_checksum, **self.describe()},
-                                            sort_keys=True).encode()).hexdigest()[:20]
-            cache = Path(cache_dir) / f"prior-{prior_file_spelling(self.kind)}-{key}.h5"
+            cache = self.cache_path(cache_dir, dataset_checksum)
         names = [inst.name for inst in instances]
         if cache is not None and cache.is_file():
             try:

@@ -1,18 +1,19 @@
 """Training throughput, measured the same way by every benchmark that quotes it.
 
 :func:`bare_step` is the floor any training loop is judged against: forward, backward and an Adam
-step of a model's module on one batch already in memory, nothing else. :func:`interleaved_rates`
-times several such steps in turn within every repeat, so that load from other processes on a
-shared machine falls on all of them alike, and returns medians [samples/s].
+step of a model's module on one batch already in memory, nothing else. Steps are timed by the
+toolkit's one timer, :func:`hybrid_dyn.timing.interleaved_rates` (several steps in turn within every
+repeat, so that load from other processes on a shared machine falls on all of them alike; medians
+[samples/s]), re-exported here.
 """
 from __future__ import annotations
 
 import copy
-import time
 
 import numpy as np
 import torch
 
+from ..timing import interleaved_rates  # noqa: F401  (re-exported: the timer of every training throughput)
 from .train import _batches
 
 
@@ -34,22 +35,6 @@ def bare_step(model, ws, batch: int, oracle: bool = False):
         loss.backward()
         opt.step()
     return step, len(idx)
-
-
-def interleaved_rates(steps_and_sizes: list, n_steps: int, repeats: int) -> list[float]:
-    """Median samples/s of each step, timed in turn within every repeat, so that load from other
-    processes on a shared machine falls on all of them alike."""
-    for step, _ in steps_and_sizes:
-        for _ in range(3):
-            step()
-    rates = [[] for _ in steps_and_sizes]
-    for _ in range(repeats):
-        for (step, size), out in zip(steps_and_sizes, rates):
-            t0 = time.perf_counter()
-            for _ in range(n_steps):
-                step()
-            out.append(n_steps * size / (time.perf_counter() - t0))
-    return [float(np.median(r)) for r in rates]
 
 
 def training_windows(model, ds):

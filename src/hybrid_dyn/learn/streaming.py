@@ -15,12 +15,11 @@ at every call. A tared base-wrench prior tares the sensor on the first
 
 Out of range: an input more than ``RANGE_SIGMAS`` training standard deviations
 from its training mean (any q, qd, qdd, wrench or torque component) makes the
-estimate "out of training range"; it is still returned.
+estimate "input out of training range" (``EstimatorStatus.OUT_OF_RANGE``); it is still returned.
 """
 from __future__ import annotations
 
 import copy
-import time
 import warnings
 from pathlib import Path
 
@@ -30,6 +29,7 @@ import torch
 from ..analytic.methods import REGISTRY
 from ..analytic.tare import StreamingTare, tare_samples, tared_runs
 from ..data.windows import window_index
+from ..timing import median_call_us
 from .model import ModelError, TrainedModel, load_model
 from .priors import AnalyticPrior
 
@@ -80,13 +80,8 @@ class _OnnxNet:
 
 
 def _median_call_seconds(fn, x, n: int = 200) -> float:
-    fn(x)
-    times = []
-    for _ in range(n):
-        t0 = time.perf_counter()
-        fn(x)
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times))
+    """Median time of one call ``fn(x)`` [s], after one untimed call (``timing.median_call_us``)."""
+    return median_call_us(lambda: fn(x), n, warmup=1) * 1e-6
 
 
 class StreamingModel:

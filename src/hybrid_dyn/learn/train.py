@@ -3,8 +3,8 @@
 Four recipes (:data:`RECIPES`, ``--recipe``):
 
 - ``budget`` (the bench's): a fixed budget of optimizer steps per network kind
-  (:data:`BUDGET_STEPS`, from the study in ``benchmarks/budget_study.py`` and
-  ``docs/models.md``), a linear warm-up over the first ``warmup_fraction`` of the
+  (:data:`BUDGET_STEPS`, from the budget study in ``docs/models.md``; ``hybrid-dyn
+  study budget`` reruns it), a linear warm-up over the first ``warmup_fraction`` of the
   budget, then a cosine decay of the rate to zero at the last step (Li, Yumer &
   Ramanan, "Budgeted Training", ICLR 2020), batch 1024 at lr 2e-3 (the rate scaled
   as the square root of the batch from 1e-3 at 256, Malladi et al. 2022 for Adam).
@@ -13,21 +13,21 @@ Four recipes (:data:`RECIPES`, ``--recipe``):
   validation loss is measured ``budget_evals`` times over the budget and the best
   weights are kept. The cost of a run is known before it starts.
 
-- ``seed`` (seed 3.2, exactly): Glorot-uniform initialization, Adam at lr 1e-3,
+- ``seed-study`` (the seed study's 3.2, exactly; ``seed`` until issue 30): Glorot-uniform initialization, Adam at lr 1e-3,
   MSE loss on standardized targets, a constant learning rate, and training
   until the validation loss has not improved for 5 consecutive epochs.
-- ``default`` (this toolkit's): the same, plus what an expert adds so that a
+- ``plateau`` (this toolkit's, ``TrainConfig()``'s; ``default`` until issue 30): the same, plus what an expert adds so that a
   net is trained to convergence rather than to its first plateau: the
   learning rate is cut by ``lr_factor`` after ``lr_patience`` epochs without
   improvement (reduce-on-plateau) down to a floor ``min_lr``; early stopping
   waits ``patience`` = 10 epochs, so a cut rate gets time to pay off; the
   gradient norm of recurrent nets is clipped at ``grad_clip`` (LSTMs on
   standardized inputs can take an exploding step early on). Batch size: see
-  ``docs/models.md`` (a measured sweep, ``benchmarks/learn_speed.py --sweep``).
-- ``long``: ``default`` with the plateau's patience 10, early stopping's 20 and
+  ``docs/models.md`` (a measured sweep; ``hybrid-dyn study batch-size`` for the budget).
+- ``long``: ``plateau`` with the plateau's patience 10, early stopping's 20 and
   decoupled weight decay 0.1 of the weight matrices (AdamW): it trains the nets that
-  ``default`` stops early, and regularizes the ones that overfit a small set, at 1.8-3.7x the
-  epochs on paper-noext's torque rows (``benchmarks/learning_controls.py`` measures what it buys).
+  ``plateau`` stops early, and regularizes the ones that overfit a small set, at 1.8-3.7x the
+  epochs on paper-noext's torque rows (``reports/studies/controls-default`` measures what it buys).
 
 All keep the weights of the best validation epoch (as Keras'
 ``restore_best_weights``); the untrained model counts as epoch "-1", so a
@@ -83,11 +83,13 @@ from tqdm.auto import tqdm
 
 from ..analytic.tare import TARE_SECONDS, tared_runs
 from ..data import Dataset, load_dataset
+from ..data.splits import first_instances
 from ..data.windows import WindowedSplit, concat_fields
 from ..errors import UsageError
 from ..outputs import json_marker, output_lock, refuse_foreign, refuse_foreign_files
 from .model import (MODEL_FORMAT, MODEL_FORMAT_VERSION, TIMING_FORMAT, HybridModel, ModelError, TrainedModel,
                     canonical_json, check_instances, load_model, read_file_metadata, save_model)
+from .kinds import BUDGET_STEPS, clips_gradients  # per network kind, declared with the kind
 from .presets import Preset, get_preset
 from .priors import AnalyticPrior
 
@@ -96,8 +98,8 @@ STD_FLOOR = 1e-6  # a (nearly) constant column is scaled by 1, not blown up
 
 @dataclass
 class TrainConfig:
-    """How to train: the ``default`` recipe (see the module docstring; ``TrainConfig.recipe("seed")``
-    gives the seed's).
+    """How to train: the ``plateau`` recipe (see the module docstring; ``TrainConfig.recipe("seed-study")``
+    gives the seed study's).
 
     seed: weights and shuffling. batch_size: samples per Adam step.
     max_epochs: upper bound; early stopping usually ends sooner.
@@ -117,6 +119,9 @@ class TrainConfig:
     preset's network kind's budget, :data:`BUDGET_STEPS` (resolved by :meth:`for_preset`).
     warmup_fraction: share of the budget over which the rate rises linearly to lr.
     budget_evals: validation rounds over the budget (each keeps the weights if best).
+    train_instances: learn from the first N instances of the train split, and the first
+    round(N x n_val / n_train) (at least 1) of the val split, so that train and val shrink
+    together (the data-scaling study, ``bench/studies.py``); None: the whole splits.
     analytic_params: parameter set of the residual models' analytic part
     (None: the robot's nominal URDF; a set name or a JSON path, e.g. identified).
     observer_gain: momentum-observer bandwidth K [1/s] for the momentum prior.
@@ -144,6 +149,7 @@ class TrainConfig:
     budget_steps: int | None = None
     warmup_fraction: float = 0.05
     budget_evals: int = 40
+    train_instances: int | None = None
     analytic_params: str | None = None
     observer_gain: float = 20.0
     tare_seconds: float = TARE_SECONDS
@@ -155,8 +161,13 @@ class TrainConfig:
         self.validate()
 
     @classmethod
-    def recipe(cls, name: str = "default", **overrides) -> "TrainConfig":
-        """The named recipe of :data:`RECIPES`, with any field overridden."""
+    def recipe(cls, name: str = "plateau", **overrides) -> "TrainConfig":
+        """The named recipe of :data:`RECIPES` (an old name of :data:`RECIPE_ALIASES` warns), with any field overridden."""
+        if name in RECIPE_ALIASES:
+            from ..deprecation import warn_renamed
+
+            warn_renamed("training recipe", name, RECIPE_ALIASES[name], stacklevel=2)
+            name = RECIPE_ALIASES[name]
         if name not in RECIPES:
             raise UsageError(f"unknown training recipe {name!r}; known: {', '.join(RECIPES)}")
         return cls(**{**RECIPES[name], **overrides})
@@ -170,7 +181,7 @@ class TrainConfig:
         for name, least, optional in (("seed", 0, False), ("batch_size", 1, False), ("max_epochs", 1, False),
                                       ("patience", 1, False), ("lr_patience", 1, False),
                                       ("max_batches_per_epoch", 1, True), ("budget_steps", 1, True),
-                                      ("budget_evals", 1, True),
+                                      ("budget_evals", 1, True), ("train_instances", 1, True),
                                       ("num_threads", 1, True)):
             v = getattr(self, name)
             if v is None and optional:
@@ -225,6 +236,8 @@ class TrainConfig:
             d.pop(k)
         if not d["weight_decay"]:  # added later: a run without it keeps the fingerprint it always had
             d.pop("weight_decay")
+        if self.train_instances is None:  # added later: a run on the whole splits keeps its fingerprint
+            d.pop("train_instances")
         if not self.budgeted:  # added later, and meaningless without the budget: older runs keep their fingerprint
             for k in ("budget_steps", "warmup_fraction", "budget_evals"):
                 d.pop(k)
@@ -234,13 +247,8 @@ class TrainConfig:
 LR_SCHEDULES = ("plateau", "none", "cosine")
 STOP_REASONS = ("patience", "lr-floor", "epoch-cap", "budget")
 
-# Optimizer steps of the budgeted recipe per network kind (of the preset's front; a DeLaN with a
-# residual net counts as DeLaN), from the budget study (benchmarks/budget_study.py, docs/models.md) on
-# seed-sim (80 instances) and paper-noext (40): the MLP's knee (the smallest budget whose doubling gains
-# under 3 % on validation) on both; the others had knees on seed-sim (LSTM 2000, DeLaN 4000) but still
-# gained 8-25 % per doubling on paper-noext, so they are set where the cost allows (conv 3-4 min a row,
-# LSTM 4-7, DeLaN 6 on a loaded core) and are known not to have converged there.
-BUDGET_STEPS = {"mlp": 8000, "conv": 16000, "lstm": 4000, "delan": 16000}
+# Optimizer steps of the budgeted recipe per network kind: declared with each kind (learn/kinds.py,
+# where the budget study's numbers are explained); BUDGET_STEPS reads them (kind -> steps).
 
 
 def budget_steps_of(preset: Preset) -> int:
@@ -265,18 +273,21 @@ def budget_lr(config: TrainConfig, step: int) -> float:
     progress = (step - warm) / max(total - warm, 1)
     return config.lr * 0.5 * (1.0 + math.cos(math.pi * progress))
 
-# Named training recipes (TrainConfig fields). "seed": the seed's 3.2 exactly (constant rate,
-# patience 5, no clipping); "default": the TrainConfig defaults; "long": module docstring.
+# Named training recipes (TrainConfig fields). "seed-study": the seed's 3.2 exactly (constant rate,
+# patience 5, no clipping); "plateau": the TrainConfig defaults; "long": module docstring.
 RECIPES = {
-    "default": {},
-    # Trains further where "default" stops early (docs/models.md, reports/default/controls.md): the
+    "plateau": {},
+    # Trains further where "plateau" stops early (docs/models.md, reports/studies/controls-default): the
     # plateau waits 10 epochs, early stopping 20, weight matrices decay by 0.1. It cost 1.8-3.7x the
     # epochs on paper-noext's torque rows, which the default bench cannot afford in 120 minutes on 2 cores.
     "long": dict(patience=20, lr_patience=10, weight_decay=0.1),
-    "seed": dict(lr_schedule="none", patience=5, grad_clip=None, min_rel_delta=0.0, batch_size=256, max_epochs=200),
+    "seed-study": dict(lr_schedule="none", patience=5, grad_clip=None, min_rel_delta=0.0, batch_size=256, max_epochs=200),
     # A known cost per row (module docstring): steps by network kind, warm-up, cosine decay to zero.
     "budget": dict(lr_schedule="cosine", batch_size=1024, lr=2e-3),
 }
+# The recipes' names until issue 30 ("default" was also a generator size and a bench profile, "seed"
+# also the random seed): still accepted, with a warning. A recipe's name is in no fingerprint.
+RECIPE_ALIASES = {"default": "plateau", "seed": "seed-study"}
 
 
 def improvement_needed(config: TrainConfig, best_val: float) -> float:
@@ -296,11 +307,12 @@ def _option(field: str) -> str:
     return f"TrainConfig.{field}" + (f" ({flag})" if flag else "")
 
 
-_CLI_FLAGS = {"seed": "--seed", "batch_size": "--batch-size", "max_epochs": "--epochs", "patience": "--patience",
+_CLI_FLAGS = {"seed": "--seed", "batch_size": "--batch-size", "max_epochs": "--max-epochs", "patience": "--patience",
               "max_batches_per_epoch": "--max-batches-per-epoch", "num_threads": "--threads",
-              "device": "--device", "analytic_params": "--analytic-params", "lr": "--lr",
+              "device": "--device", "analytic_params": "--params", "lr": "--lr",
               "lr_schedule": "--lr-schedule", "grad_clip": "--grad-clip", "min_lr": "--min-lr",
-              "weight_decay": "--weight-decay", "budget_steps": "--budget-steps"}
+              "weight_decay": "--weight-decay", "budget_steps": "--budget-steps",
+              "train_instances": "--train-instances"}
 
 
 def _device(name: str) -> torch.device:
@@ -400,7 +412,7 @@ def _load_checkpoint(out_dir: Path, fingerprint: str):
 
 # ------------------------------------------------------------------ training
 def run_fingerprint(preset: Preset, config: TrainConfig, dataset_checksum: str) -> str:
-    return hashlib.sha256(canonical_json({"preset": preset.to_dict(), "train": config.fingerprint_fields(),
+    return hashlib.sha256(canonical_json({"preset": preset.fingerprint_dict(), "train": config.fingerprint_fields(),
                                           "dataset": dataset_checksum}).encode()).hexdigest()
 
 
@@ -527,6 +539,8 @@ def _train_locked(ds: Dataset, preset: Preset, out_dir: Path, config: TrainConfi
     train, val = ds.split("train"), ds.split("val")
     if not train or not val:
         raise ModelError(f"dataset {ds.path} needs instances in its train and val splits")
+    if config.train_instances is not None:
+        train, val = first_instances(train, val, config.train_instances, ds.path)
     missing = sorted((set(preset.inputs) | set(preset.targets)) - set(ds.fields))
     if missing:
         raise ModelError(f"dataset {ds.path} lacks fields {missing} that preset {preset.name!r} needs")
@@ -626,7 +640,7 @@ def sensor_tare_seconds(preset: Preset, config: TrainConfig) -> float:
 
 def _is_recurrent(preset: Preset) -> bool:
     """Whether the net has an LSTM (front or residual branch): the nets whose gradients are clipped."""
-    return preset.kind == "lstm" or preset.residual_kind == "lstm"
+    return clips_gradients(preset)  # declared with the kind (learn/kinds.py)
 
 
 def _next_stop(config: TrainConfig, epoch: int, n_rounds: int, bad_epochs: int, lr_bad_epochs: int,

@@ -4,6 +4,7 @@ The search space is the seed's (3.3): the number of LSTM layers and their
 units, the number of fully connected layers and their units, and the
 activation. Conv presets search the conv width instead of the LSTM layers,
 MLPs only the FC part; DeLaN searches the depth and width of its networks.
+Each network kind declares its own (``learn/kinds.py``, ``search``).
 Each trial trains a full model with early stopping and reports its best
 validation loss (standardized MSE).
 
@@ -44,39 +45,17 @@ import optuna
 from ..data import Dataset, load_dataset
 from ..errors import UsageError
 from .model import canonical_json
+from .kinds import SPACE, network_kind  # noqa: F401  (SPACE re-exported: the searched values)
 from .presets import Preset, get_preset
 from .train import TrainConfig, train_model
 
-SPACE = {
-    "lstm_layers": (1, 2, 3),
-    "lstm_units": (8, 16, 32, 64),
-    "conv_units": (8, 16, 32, 64),
-    "fc_layers": (1, 2, 3),
-    "fc_units": (8, 16, 32, 64),
-    "activation": ("relu", "tanh"),
-    "delan_layers": (1, 2, 3),
-    "delan_units": (32, 64, 128),
-}
-
-
 def suggest_preset(trial: optuna.Trial, base: Preset) -> Preset:
-    """The base preset with the searched hyperparameters replaced by the trial's choice."""
-    p = {}
-    if base.kind == "delan":
-        depth = trial.suggest_categorical("delan_layers", SPACE["delan_layers"])
-        width = trial.suggest_categorical("delan_units", SPACE["delan_units"])
-        p["delan_hidden"] = (width,) * depth
-    else:
-        if base.kind == "lstm":
-            n = trial.suggest_categorical("lstm_layers", SPACE["lstm_layers"])
-            p["front_units"] = (trial.suggest_categorical("lstm_units", SPACE["lstm_units"]),) * n
-        elif base.kind == "conv":
-            p["front_units"] = (trial.suggest_categorical("conv_units", SPACE["conv_units"]),)
-        p["fc_layers"] = trial.suggest_categorical("fc_layers", SPACE["fc_layers"])
-        p["fc_units"] = trial.suggest_categorical("fc_units", SPACE["fc_units"])
-        p["activation"] = trial.suggest_categorical("activation", SPACE["activation"])
+    """The base preset with the searched hyperparameters replaced by the trial's choice (the search
+    space is its network kind's, declared with the kind: ``learn/kinds.py``, :data:`SPACE`)."""
+    p = network_kind(base.kind).search(trial, base)
     arch = replace(base, **p)
-    digest = hashlib.sha256(canonical_json(arch.to_dict()).encode()).hexdigest()[:10]
+    # The fingerprint's form (older prior spellings): the tuned preset's name, and so its trials, stay as before.
+    digest = hashlib.sha256(canonical_json(arch.fingerprint_dict()).encode()).hexdigest()[:10]
     return replace(arch, name=f"{base.name}-tuned-{digest}", description=f"{base.name} tuned: {p}")
 
 

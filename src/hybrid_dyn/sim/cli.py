@@ -1,16 +1,23 @@
 """CLI: ``hybrid-dyn generate``, the DART dataset generator."""
 from __future__ import annotations
 
+import argparse
 import sys
 
 
 def register(sub) -> None:
-    from .scenarios import PROFILES, SCENARIOS
+    from ..deprecation import DeprecatedFlag
+    from .scenarios import SCENARIO_REGISTRY, SCENARIOS, SIZES
 
     p = sub.add_parser("generate", help="simulate a dataset of a named scenario (DART, 1 kHz)")
-    p.add_argument("--scenario", choices=SCENARIOS, default="paper-ext")
-    p.add_argument("--profile", choices=PROFILES, default="quick",
-                   help="quick: under a minute; default: ~0.4 M samples; paper: the seed's 1000 instances")
+    p.add_argument("--scenario", choices=SCENARIOS, default="paper-ext",
+                   help=". ".join(f"{s.name}: {s.description}" for s in SCENARIO_REGISTRY.values()))
+    p.add_argument("--size", choices=SIZES, default="quick",
+                   help="the dataset's size: quick: under a minute; default: ~0.4 M samples; paper: the seed's "
+                        "1000 instances")
+    # Its old name, until issue 30 (a size, not a bench profile).
+    p.add_argument("--profile", dest="size", choices=SIZES, action=DeprecatedFlag, new="--size",
+                   help=argparse.SUPPRESS)
     p.add_argument("--out", required=True, help="dataset directory or fsspec URL (created in an existing folder; an "
                                                  "interrupted run there resumes; one run at a time)")
     p.add_argument("--seed", type=int, default=0)
@@ -55,7 +62,7 @@ def cmd_generate(args) -> int:
 
     _check_args(args)
     overrides = {"noise": NoiseConfig.off()} if args.no_noise else {}
-    cfg = scenario_config(args.scenario, args.profile, seed=args.seed, **overrides)
+    cfg = scenario_config(args.scenario, args.size, seed=args.seed, **overrides)
     executor = make_executor(args.workers, args.executor, args.ray_address)
     out = generate_dataset(cfg, args.out, executor=executor, progress=not args.quiet)
     store = DatasetStore(out)

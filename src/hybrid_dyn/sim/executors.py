@@ -144,18 +144,27 @@ class RayExecutor:
     None to start a local Ray instance with ``workers`` CPUs (this machine).
     If Ray is already initialised in this process, that instance is used.
     At most ``2 x (cluster CPUs)`` tasks are in flight, as for local processes.
+    gpus_per_task: GPUs each task reserves (fractions share one: a study net uses a
+    sliver of a GPU); 0 for CPU jobs. Ray hides the GPUs from a task that reserved none.
     """
 
-    def __init__(self, workers: int | None = None, address: str | None = None):
+    def __init__(self, workers: int | None = None, address: str | None = None, gpus_per_task: float = 0.0):
         try:
             import ray  # noqa: F401
         except ImportError as err:
             raise MissingDependencyError("the ray executor needs Ray: pip install 'hybrid-dyn[cluster]'") from err
         if workers is not None and workers < 1:
             raise UsageError(f"workers must be >= 1, got {workers}")
+        if not gpus_per_task >= 0:
+            raise UsageError(f"GPUs per task must be >= 0, got {gpus_per_task}")
         self.address = address
         self.requested_workers = workers
         self.workers = workers or 1
+        self.gpus_per_task = float(gpus_per_task)
+
+    def with_gpus(self, gpus_per_task: float) -> "RayExecutor":
+        """The same cluster, its tasks each reserving ``gpus_per_task`` GPUs (the training jobs on GPU nodes)."""
+        return RayExecutor(self.requested_workers, self.address, gpus_per_task)
 
     def _connect(self) -> bool:
         """Initialise Ray if needed; True when this executor started it (and must shut it down)."""
@@ -175,7 +184,8 @@ class RayExecutor:
 
         started = self._connect()
         self.workers = max(1, int(ray.cluster_resources().get("CPU", 1)))
-        task = ray.remote(num_cpus=1, max_retries=3)(fn)  # a task whose worker died is rerun
+        # A task whose worker died is rerun.
+        task = ray.remote(num_cpus=1, num_gpus=self.gpus_per_task, max_retries=3)(fn)
         jobs = iter(jobs)
         pending = []
         try:

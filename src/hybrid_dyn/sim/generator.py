@@ -509,7 +509,7 @@ def _generate_locked(config, store, workers, progress, executor, log, tqdm, lock
         store.remove("manifest.json")  # no longer describes complete data
 
     ex = executor or make_executor(workers)
-    bar = tqdm(total=config.n_instances, initial=len(records), desc=f"generate {config.scenario}/{config.profile}",
+    bar = tqdm(total=config.n_instances, initial=len(records), desc=f"generate {config.scenario}/{config.size}",
                unit="inst", disable=not progress)
     try:
         for rec in ex.map_unordered(_instance_job, [(config_json, i, store.location) for i in todo]):
@@ -520,7 +520,8 @@ def _generate_locked(config, store, workers, progress, executor, log, tqdm, lock
 
     ordered = [records[i] for i in range(config.n_instances)]
     store.write_text("manifest.json", manifest_text({
-        "robot": config.robot, "scenario": config.scenario, "profile": config.profile, "seed": config.seed,
+        # The size under the key the config stores it by (scenarios.GeneratorConfig.to_dict: hashes stay).
+        "robot": config.robot, "scenario": config.scenario, "profile": config.size, "seed": config.seed,
         "record_hz": config.record_hz, "dt": config.dt, "generator_version": GENERATOR_VERSION,
         "config": config.to_dict(), "config_hash": chash,
         "fields": {k: FIELD_UNITS[k] for k in FIELDS},

@@ -1,4 +1,4 @@
-"""Generator configurations: the named scenarios of PROTOCOL 2 at three sizes.
+"""Generator configurations: the named scenarios of PROTOCOL 2 at three sizes (:data:`SIZES`).
 
 A :class:`GeneratorConfig` fixes everything that decides the bytes of a
 dataset: the plant (which may differ from the nominal model), the trajectories,
@@ -6,15 +6,17 @@ the controller, friction, external pulses, sensor noise, rates and the seed.
 Its :meth:`~GeneratorConfig.config_hash` is a stable digest of all of that (the
 benchmark harness caches datasets by it).
 
-Scenarios (PROTOCOL 2):
+Scenarios (PROTOCOL 2), each declared once as a :class:`Scenario` in :data:`SCENARIO_REGISTRY`
+(its description, its config fields, its sizes; a new one is one :func:`register` call):
 
 =============== ======================================================== ==============
 name            plant                                                    external force
 =============== ======================================================== ==============
 ``paper-noext`` URDF inertials (Gaz 2019) + Gaz sigmoid friction         none
 ``paper-ext``   same                                                     bell pulses
-``mismatch-ext``manufacturer inertials + 0.5 kg tool + Gaz friction,     bell pulses
-                base sensor mounted 1 mm / 1 deg off its nominal pose
+``mismatch-ext``the robot's alternative inertials (the Panda: the        bell pulses
+                manufacturer's) + 0.5 kg tool + Gaz friction, base
+                sensor mounted 1 mm / 1 deg off its nominal pose
 ``contact-steps``as paper-ext, recorded at 1 kHz                         step and trapezoid
                                                                          contacts
 ``contact-steps-quiet`` as contact-steps, base sensor noise 0.05 N      as contact-steps
@@ -42,13 +44,18 @@ equals its truth. Its instances hold the seed's 5-50 trajectories.
 The controller always uses the nominal model (``load_robot(robot)``), so in
 ``mismatch-ext`` it is wrong and tracking errors grow: they are reported.
 
-Profiles: ``quick`` (6 short instances, under a minute on 2 cores), ``default``
+Sizes: ``quick`` (6 short instances, under a minute on 2 cores), ``default``
 (40 instances, about 0.36 million samples at 100 Hz) and ``paper`` (the seed's
-1000 instances of 5-50 trajectories).
+1000 instances of 5-50 trajectories). A size is not a bench profile (``bench/profiles.py``),
+which names scenarios, rows and training; until issue 30 both were called "profile", and the
+old names (``PROFILES``, the ``profile`` keyword and field) still work with a warning. The
+config's dictionary, and so its hash and every dataset cached by it, keeps the key ``profile``.
 """
 from __future__ import annotations
 
+from ..deprecation import module_aliases, renamed_field, renamed_keyword
 from ..errors import HybridDynError
+from ..registry import Registry
 import dataclasses
 import hashlib
 import json
@@ -61,14 +68,13 @@ from ..analytic.robot import Robot, SensorMount, load_robot
 # Bump when the generator's algorithm changes what a config produces.
 GENERATOR_VERSION = 1
 
-SCENARIOS = ("paper-noext", "paper-ext", "mismatch-ext", "contact-steps", "contact-steps-quiet", "seed-sim")
 QUIET_BASE_NOISE = dict(force=0.05, torque=0.0025)  # contact-steps-quiet's base sensor [N, Nm]
-PROFILES = ("quick", "default", "paper")
+SIZES = ("quick", "default", "paper")
 QDD_SOURCES = ("filter", "exact")
 
 
 class ConfigError(HybridDynError, ValueError):
-    """A generator configuration is inconsistent or names an unknown scenario/profile."""
+    """A generator configuration is inconsistent or names an unknown scenario or size."""
 
 
 @dataclass(frozen=True)
@@ -126,12 +132,16 @@ class ContactStepConfig:
     first_after: float = 1.0         # s, no contact before this (the tare window is the first 0.5 s)
 
 
+@renamed_field("profile", "size", why="a generator size, not a bench profile")
 @dataclass(frozen=True)
 class GeneratorConfig:
-    """Everything that determines a simulated dataset. Units SI unless noted."""
+    """Everything that determines a simulated dataset. Units SI unless noted.
+
+    size: the scenario's size (:data:`SIZES`); stored as ``profile`` in :meth:`to_dict` (module docstring).
+    """
 
     scenario: str = "paper-ext"
-    profile: str = "quick"
+    size: str = "quick"
     robot: str = "panda"
     # Plant (the simulated robot); the controller always uses load_robot(robot).
     plant_params: str | None = None          # parameter set name or JSON path; None: nominal
@@ -142,7 +152,7 @@ class GeneratorConfig:
     n_instances: int = 6
     trajectories: tuple = (5, 5)             # per instance, uniform integers, inclusive
     # Fraction of the published vel/acc/jerk limits, per trajectory; (0.1, 0.4) makes the paper
-    # profile's instances ~200 s long on average, as the seed's (3,919,800 samples at 20 Hz / 1000).
+    # size's instances ~200 s long on average, as the seed's (3,919,800 samples at 20 Hz / 1000).
     speed_scale: tuple = (0.1, 0.4)
     joint_margin: float = 0.1                # rad kept from each joint limit for goals
     standstill: float = 1.0                  # s at rest before, between and after trajectories
@@ -200,7 +210,8 @@ class GeneratorConfig:
 
     # -------------------------------------------------------- (de)serialise
     def to_dict(self) -> dict:
-        d = _jsonable(dataclasses.asdict(self))
+        # The size under its stored key, in its place: the dict is hashed (config_hash) and written to manifests.
+        d = {("profile" if k == "size" else k): v for k, v in _jsonable(dataclasses.asdict(self)).items()}
         if d["contact_steps"] is None:
             del d["contact_steps"]  # configs without contacts keep the hashes they had before the field existed
         if d["qdd_source"] == "filter":
@@ -213,7 +224,10 @@ class GeneratorConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> "GeneratorConfig":
+        """The config of :meth:`to_dict` (a manifest's ``config``): the stored key ``profile`` is the size."""
         d = dict(d)
+        if "profile" in d and "size" not in d:
+            d["size"] = d.pop("profile")
         if d.get("pulses") is not None:
             d["pulses"] = PulseConfig(**{k: tuple(v) for k, v in d["pulses"].items()})
         if d.get("contact_steps") is not None:
@@ -244,14 +258,15 @@ def _jsonable(x):
     return x
 
 
-# The profiles' sizes: instances and trajectories per instance.
-_PROFILE_SIZES = {
+# ------------------------------------------------------------------ the scenarios
+# Generator sizes: instances and trajectories per instance, by size name (SIZES).
+STANDARD_SIZES = {
     "quick": dict(n_instances=6, trajectories=(5, 5)),
     "default": dict(n_instances=40, trajectories=(5, 20)),
     "paper": dict(n_instances=1000, trajectories=(5, 50)),
 }
 # contact-steps records at 1 kHz: fewer, shorter instances (the default size is ~0.5 M samples).
-_CONTACT_STEPS_SIZES = {
+CONTACT_STEPS_SIZES = {
     "quick": dict(n_instances=4, trajectories=(2, 2)),
     "default": dict(n_instances=10, trajectories=(3, 5)),
     "paper": dict(n_instances=100, trajectories=(5, 20)),
@@ -260,7 +275,7 @@ _CONTACT_STEPS_SIZES = {
 # ~4.1 k samples; the seed: 3,919,800 / 1000). default: 40 instances, ~2.3 h simulated,
 # ~0.16 M samples, ~5 min on 2 free cores (10 on a shared machine); paper: the seed's 1000 instances,
 # ~4 M samples (the seed: 3.9 M). quick: 6 instances of 5 trajectories, ~4.6 k samples, seconds.
-_SEED_SIM_SIZES = {
+SEED_SIM_SIZES = {
     "quick": dict(n_instances=6, trajectories=(5, 5)),
     "default": dict(n_instances=40, trajectories=(5, 50)),
     "paper": dict(n_instances=1000, trajectories=(5, 50)),
@@ -272,32 +287,115 @@ MISMATCH_SENSOR_TRANSLATION = (0.001, 0.0, 0.0)  # 1 mm
 MISMATCH_SENSOR_ROTATION = tuple(float(v) for v in np.deg2rad(1.0) * np.array([1.0, 1.0, 0.0]) / np.sqrt(2.0))  # 1 deg tilt
 
 
-def scenario_config(name: str, profile: str = "quick", seed: int = 0, **overrides) -> GeneratorConfig:
-    """The configuration of a named scenario (PROTOCOL 2) at a profile size.
+@dataclass(frozen=True)
+class Scenario:
+    """One named scenario: everything that distinguishes it, declared in one place.
+
+    name: what ``scenario_config``, the CLI and the bench call it. description: the plant
+    and the external force, one line (what ``hybrid-dyn simulate --help`` and the docs say).
+    overrides: :class:`GeneratorConfig` fields on top of the defaults. sizes: generator size
+    (each of :data:`SIZES`) -> ``n_instances`` and ``trajectories``. seed_dataset: the
+    seed study's data set it mirrors ("sim-noext", "sim-ext"; None: none), for the bench's
+    comparison with the seed's published tables. alternative_plant: the plant's inertials
+    are the robot's alternative parameter set (:func:`alternative_params`), not the nominal
+    one the controller uses; a robot that declares none is refused.
+    """
+
+    name: str
+    description: str
+    overrides: dict = field(default_factory=dict)
+    sizes: dict = field(default_factory=lambda: dict(STANDARD_SIZES))
+    seed_dataset: str | None = None
+    alternative_plant: bool = False
+
+    def __post_init__(self):
+        fields = {f.name for f in dataclasses.fields(GeneratorConfig)}
+        # The name, the size and the seed are scenario_config's arguments, the sizes this entry's own.
+        reserved = {"scenario", "size", "profile", "seed", "n_instances", "trajectories"}
+        bad = sorted(set(self.overrides) - fields) + sorted(reserved & set(self.overrides))
+        if bad:
+            raise ConfigError(f"scenario {self.name!r}: overrides {bad} are not GeneratorConfig fields it may set")
+        missing = [p for p in SIZES if p not in self.sizes]
+        if missing:
+            raise ConfigError(f"scenario {self.name!r}: no size for {', '.join(missing)} (sizes: {', '.join(SIZES)})")
+        for size, kw in self.sizes.items():
+            if set(kw) != {"n_instances", "trajectories"}:
+                raise ConfigError(f"scenario {self.name!r}, size {size!r}: give n_instances and trajectories, got {sorted(kw)}")
+        if self.alternative_plant and "plant_params" in self.overrides:
+            raise ConfigError(f"scenario {self.name!r}: alternative_plant and a plant_params override contradict")
+
+
+SCENARIO_REGISTRY = Registry("scenario", ConfigError)  # name -> Scenario
+SCENARIOS = SCENARIO_REGISTRY.keys()  # the scenarios' names in declaration order, a live view
+register = SCENARIO_REGISTRY.register  # declare a scenario: scenario_config, the CLI and the bench know it
+unregister = SCENARIO_REGISTRY.unregister  # remove one (a test's toy)
+get_scenario = SCENARIO_REGISTRY.lookup  # a scenario by name; an unknown one is refused, naming the known ones
+
+
+def alternative_params(robot: str) -> str:
+    """The name of ``robot``'s alternative parameter set: the one set its description
+    (``robots/<name>.toml``, ``[params]``) declares besides its default. The Panda's is
+    ``franka_official`` (the manufacturer's inertials; its default is Gaz et al. 2019's)."""
+    from ..description import RobotDescriptionError, load_spec, parse_robot_name
+
+    try:
+        spec = load_spec(parse_robot_name(robot)[0])
+    except RobotDescriptionError as err:
+        raise ConfigError(f"a plant from an alternative parameter set needs a robot description: {err}") from err
+    others = [name for name in spec.param_sets if name != spec.default_params]
+    if len(others) != 1:
+        found = f"declares {', '.join(others)}" if others else "declares none"
+        raise ConfigError(f"robot {spec.name!r} needs exactly one parameter set besides its default "
+                          f"({spec.default_params or 'the URDF'}) for a mismatched plant, and {found} "
+                          f"({spec.source}, [params]); or give plant_params=NAME or a JSON path")
+    return others[0]
+
+
+for _scenario in (
+    Scenario("paper-noext", "URDF inertials (Gaz 2019) + Gaz sigmoid friction; no external force",
+             overrides=dict(pulses=None), seed_dataset="sim-noext"),
+    Scenario("paper-ext", "as paper-noext, with the seed's bell pulses at the tool", seed_dataset="sim-ext"),
+    Scenario("mismatch-ext", "the robot's alternative inertials + a 0.5 kg tool + Gaz friction, the base sensor "
+             "1 mm / 1 deg off its nominal pose; bell pulses",
+             overrides=dict(payload=MISMATCH_PAYLOAD, sensor_translation=MISMATCH_SENSOR_TRANSLATION,
+                            sensor_rotation=MISMATCH_SENSOR_ROTATION),
+             seed_dataset="sim-ext", alternative_plant=True),
+    Scenario("contact-steps", "as paper-ext, recorded at 1 kHz; step and trapezoid contacts instead of pulses",
+             overrides=dict(pulses=None, contact_steps=ContactStepConfig(), record_hz=1000.0),
+             sizes=CONTACT_STEPS_SIZES),
+    Scenario("contact-steps-quiet", "as contact-steps, the base sensor's noise 0.05 N (0.0025 Nm) instead of "
+             "0.2 N (0.01 Nm)",
+             overrides=dict(pulses=None, contact_steps=ContactStepConfig(), record_hz=1000.0,
+                            noise=NoiseConfig(**QUIET_BASE_NOISE)),
+             sizes=CONTACT_STEPS_SIZES),
+    # The seed's 3.1: a 50 ms step, the simulator's exact states, noise-free sensors.
+    Scenario("seed-sim", "as paper-ext, recorded as the seed's 3.1: every 50 ms, exact simulator states "
+             "(qdd too), no noise or bias",
+             overrides=dict(record_hz=20.0, qdd_source="exact", noise=NoiseConfig.off()),
+             sizes=SEED_SIM_SIZES, seed_dataset="sim-ext"),
+):
+    register(_scenario)
+
+
+@renamed_keyword("profile", "size", why="a generator size, not a bench profile")
+def scenario_config(name: str, size: str = "quick", seed: int = 0, **overrides) -> GeneratorConfig:
+    """The configuration of a named scenario (PROTOCOL 2) at a size (:data:`SIZES`).
 
     ``overrides`` replace any field, e.g. ``noise=NoiseConfig.off()``.
     """
-    if name not in SCENARIOS:
-        raise ConfigError(f"unknown scenario {name!r}; known: {', '.join(SCENARIOS)}")
-    if profile not in PROFILES:
-        raise ConfigError(f"unknown profile {profile!r}; known: {', '.join(PROFILES)}")
-    sizes = {"contact-steps": _CONTACT_STEPS_SIZES, "contact-steps-quiet": _CONTACT_STEPS_SIZES,
-             "seed-sim": _SEED_SIM_SIZES}.get(name, _PROFILE_SIZES)
-    kw = dict(scenario=name, profile=profile, seed=int(seed), **sizes[profile])
-    if name == "paper-noext":
-        kw["pulses"] = None
-    if name == "mismatch-ext":
-        kw.update(plant_params="franka_official", payload=MISMATCH_PAYLOAD,
-                  sensor_translation=MISMATCH_SENSOR_TRANSLATION, sensor_rotation=MISMATCH_SENSOR_ROTATION)
-    if name in ("contact-steps", "contact-steps-quiet"):
-        kw.update(pulses=None, contact_steps=ContactStepConfig(), record_hz=1000.0)
-    if name == "contact-steps-quiet":
-        kw.update(noise=NoiseConfig(**QUIET_BASE_NOISE))
-    if name == "seed-sim":
-        # The seed's 3.1: a 50 ms step, the simulator's exact states, noise-free sensors.
-        kw.update(record_hz=20.0, qdd_source="exact", noise=NoiseConfig.off())
+    scenario = get_scenario(name)
+    if size not in SIZES:
+        raise ConfigError(f"unknown size {size!r}; known: {', '.join(SIZES)}")
+    kw = dict(scenario=name, size=size, seed=int(seed), **scenario.sizes[size], **scenario.overrides)
+    # mismatch-ext's plant: the robot's own alternative set (a plant_params override wins).
+    if scenario.alternative_plant and "plant_params" not in overrides:
+        kw["plant_params"] = alternative_params(overrides.get("robot", GeneratorConfig.robot))
     kw.update(overrides)
     try:
         return GeneratorConfig(**kw)
     except TypeError as err:
         raise ConfigError(f"bad generator override: {err}") from err
+
+
+# The old name of SIZES (issue 30), served with a warning.
+__getattr__ = module_aliases(__name__, {"PROFILES": "SIZES"}, globals(), why="generator sizes, not bench profiles")

@@ -1,0 +1,379 @@
+"""Studies: a bench profile run again with overrides declared as data, and what changed.
+
+A study (:class:`Study`) is a bench profile plus named *variants*, each an :class:`Overrides` of the
+profile's
+
+- data: GeneratorConfig fields for every simulated scenario (``data``) or one scenario
+  (``scenario_data``; for a real set, fields of its import spec: another split of the same log);
+- training: TrainConfig fields (``train``), the recipe (``recipe``), or each row's own step budget
+  scaled (``budget_factor``: every row then runs as a bench of its own);
+- presets: Preset fields of every trained preset row (``preset``, e.g. a wider net);
+
+which rows the variants rerun (named, or ``"best"``: the best learned row of each family and task, chosen
+on the full report's *validation* loss, never its test figures), and the kind of summary it writes
+(:data:`SUMMARY_KINDS`, in ``study_summaries.py``). Every variant runs through the harness
+(``run_bench``: the same data caches, resume, test split and scoring). The study's reference point is
+the profile's own report (``hybrid-dyn bench --profile P`` first), or, when the study changes the
+profile under every variant (``base``), that changed profile, run as the variant ``base``.
+
+``hybrid-dyn study NAME`` runs one of :data:`STUDIES` (variants' bench reports under
+``runs/studies/NAME/``, or beside the summary for a study that keeps them; the summary in
+``reports/studies/NAME/``). ``reports/README.md`` lists what each committed study folder holds.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import UsageError
+from .catalog import get_row, select_rows
+from .integrity import read_run_json
+from .profiles import BenchProfile, get_profile
+from .results import read_results
+from .rows import is_physics_result
+
+UNITS = {"tip_force": "N", "joint_torque": "Nm"}
+LEARNED_FAMILIES = ("seed-net", "residual", "delan", "identified")  # families with trained rows
+BASE = "base"  # the variant name of a study's reference point when it changes the profile (Study.base)
+
+
+@dataclass(frozen=True)
+class Overrides:
+    """What a variant changes in the profile (every field optional; see the module's docstring)."""
+
+    data: dict = field(default_factory=dict)  # GeneratorConfig fields, every simulated scenario
+    scenario_data: dict = field(default_factory=dict)  # scenario -> GeneratorConfig or import-spec fields
+    train: dict = field(default_factory=dict)  # TrainConfig fields (train_instances: fewer training instances)
+    recipe: str | None = None  # learn.train.RECIPES
+    preset: dict = field(default_factory=dict)  # Preset fields of every trained preset row
+    budget_factor: float | None = None  # each row's own step budget (budgeted recipe) times this
+    rows: tuple = ()  # rerun only these of the study's rows (e.g. a capacity change that means nothing to DeLaN)
+
+    def is_empty(self) -> bool:
+        return self == Overrides()
+
+    def on_top_of(self, under: "Overrides") -> "Overrides":
+        """These overrides applied after ``under`` (a study's base), field by field."""
+        scenario_data = {s: {**under.scenario_data.get(s, {}), **self.scenario_data.get(s, {})}
+                         for s in {**under.scenario_data, **self.scenario_data}}
+        return Overrides(data={**under.data, **self.data}, scenario_data=scenario_data,
+                         train={**under.train, **self.train}, recipe=self.recipe or under.recipe,
+                         preset={**under.preset, **self.preset},
+                         budget_factor=self.budget_factor or under.budget_factor, rows=self.rows or under.rows)
+
+    def apply(self, profile: BenchProfile, name: str, rows: tuple, families: tuple = (),
+              scenarios: tuple = ()) -> BenchProfile:
+        """``profile`` renamed, running ``rows`` (and ``families``) on ``scenarios`` (all: empty), changed."""
+        scenario_overrides = {s: {**profile.scenario_overrides.get(s, {}), **self.scenario_data.get(s, {})}
+                              for s in {**profile.scenario_overrides, **self.scenario_data}}
+        return dataclasses.replace(
+            profile, name=name, rows=tuple(rows), families=tuple(families),
+            scenarios=tuple(scenarios) or profile.scenarios, recipe=self.recipe or profile.recipe,
+            train={**profile.train, **self.train}, generator_overrides={**profile.generator_overrides, **self.data},
+            scenario_overrides=scenario_overrides, preset_overrides={**profile.preset_overrides, **self.preset})
+
+    def describe(self) -> str:
+        """The changes in words, for the summary's tables."""
+        parts = [f"{k}={v}" for k, v in self.data.items()]
+        parts += [f"{s}: " + ", ".join(f"{k}={v}" for k, v in f.items()) for s, f in self.scenario_data.items()]
+        parts += ([f"recipe {self.recipe}"] if self.recipe else []) + [f"{k}={v}" for k, v in self.train.items()]
+        parts += [f"preset {k}={v}" for k, v in self.preset.items()]
+        parts += [f"budget x{self.budget_factor:g}"] if self.budget_factor else []
+        return "; ".join(parts) or "none"
+
+
+@dataclass(frozen=True)
+class Study:
+    """A profile plus named variants (:class:`Overrides`), the rows they rerun and the summary it writes.
+
+    train_instances: the data-scaling shorthand, one variant ``train-N`` per size (val cut in
+    proportion). rows: row names, or "best" (chosen on the full report's validation loss); families:
+    whole families besides ``rows``. scenarios: the profile's scenarios the variants run on (all: empty).
+    base: overrides under every variant (then the reference point is run too, as variant ``base``).
+    summary: a key of :data:`SUMMARY_KINDS` (default: "data-scaling" with train_instances, else
+    "controls"). tolerance: "controls" only; a variant whose validation loss is lower than the
+    reference's by less than this share counts as no gain (the convergence check). keep_variant_reports:
+    the variants' bench reports go beside the summary (committed) instead of under ``runs/studies``.
+    out: where the summary goes by default: ``reports/studies/<name>``, or (data-scaling, issue 31) a
+    folder inside its profile's report, ``reports/<profile>/<name>``, beside the report it extends.
+    """
+
+    name: str
+    profile: str
+    description: str
+    train_instances: tuple = ()
+    variants: dict = field(default_factory=dict)
+    rows: object = "best"
+    families: tuple = ()
+    scenarios: tuple = ()
+    base: Overrides = field(default_factory=Overrides)
+    summary: str = ""
+    tolerance: float | None = None
+    keep_variant_reports: bool = False
+    out: str | None = None
+
+    def default_out(self) -> Path:
+        """The summary's folder when ``--out`` is not given (:attr:`out`)."""
+        return Path(self.out or Path("reports") / "studies" / self.name)
+
+    def __post_init__(self):
+        from .study_summaries import SUMMARY_KINDS
+
+        variants = dict(self.variants)
+        variants.update({f"train-{int(n)}": Overrides(train={"train_instances": int(n)}) for n in self.train_instances})
+        object.__setattr__(self, "variants", variants)
+        object.__setattr__(self, "summary", self.summary or ("data-scaling" if self.train_instances else "controls"))
+        where = f"study {self.name!r}"
+        if not variants or BASE in variants or any("/" in v or not v for v in variants):
+            raise UsageError(f"{where}: declare one or more variants, named (not {BASE!r}, no '/')")
+        if self.summary not in SUMMARY_KINDS:
+            raise UsageError(f"{where}: summary must be one of {', '.join(SUMMARY_KINDS)}, got {self.summary!r}")
+        if self.rows == "best" and not self.base.is_empty():
+            raise UsageError(f"{where}: rows 'best' are chosen on the profile's own report; a study with a base "
+                             "change has none: name its rows")
+        if self.rows != "best":
+            select_rows(names=tuple(self.rows), families=self.families)  # an unknown row or family is refused now
+        profile = self.base_profile()
+        unknown = [s for s in (*self.scenarios, *self.base.scenario_data,
+                               *(s for v in variants.values() for s in v.scenario_data)) if s not in profile.scenarios]
+        if unknown:
+            raise UsageError(f"{where}: scenarios {unknown} are not profile {self.profile!r}'s")
+        for v in (BASE, *variants):  # a bad recipe, training or preset field is refused at declaration
+            self.variant_profile(v, ())
+
+    def base_profile(self) -> BenchProfile:
+        """The bench profile this study varies (``profiles.PROFILES``)."""
+        return get_profile(self.profile)
+
+    def overrides(self, variant: str) -> Overrides:
+        """What ``variant`` changes in the profile (the base's changes included)."""
+        return self.base if variant == BASE else self.variants[variant].on_top_of(self.base)
+
+    def variant_profile(self, variant: str, rows: tuple, families: tuple = ()) -> BenchProfile:
+        """The profile of one variant, running ``rows`` (and ``families``) on the study's scenarios."""
+        base = self.base_profile()
+        over = self.overrides(variant)
+        profile = over.apply(base, f"{base.name}--{self.name}-{variant}", rows, families, self.scenarios)
+        # The report of a variant says so (its notes are the profile's, which describe the unchanged data).
+        return dataclasses.replace(profile, notes=(*base.notes, f"Study `{self.name}`, variant `{variant}` of "
+                                                   f"profile `{base.name}`: {over.describe()}."))
+
+
+def _study(name, profile, description, **fields) -> Study:
+    return Study(name=name, profile=profile, description=description, **fields)
+
+
+# The default profile's torque rows on paper-noext, the scenario of its floors (issue 14's controls).
+DEFAULT_TORQUE_ROWS = ("seed-tau-mlp", "seed-tau-conv", "seed-tau-lstm", "seed-tau-lstm-opt", "tau-mlp-wide",
+                       "residual-rnea-bw", "delan-friction")
+# The budget and batch-size studies' data: seed-sim at 80 instances of 5-20 trajectories (issue 26).
+SEED_SIM_80 = Overrides(data={"n_instances": 80, "trajectories": (5, 20)})
+ONE_PER_FAMILY = ("seed-tau-mlp", "seed-tip-4", "seed-tau-lstm-opt", "residual-rnea", "delan-friction")
+CONVERGED = 0.03  # a doubled budget that gains less than this on validation: converged (issue 26)
+
+
+def _controls(name, profile, rows, half, description, **fields) -> Study:
+    """What limits the learned rows: regularisation, capacity, data or the recipe (issue 14's controls)."""
+    return _study(name, profile, description, rows=rows, variants={
+        "weight-decay-0.1": Overrides(train={"weight_decay": 0.1}),
+        "weight-decay-1": Overrides(train={"weight_decay": 1.0}),
+        "fc-256": Overrides(preset={"fc_units": 256}, rows=tuple(r for r in rows if not r.startswith("delan"))),
+        "data-half": Overrides(train={"train_instances": half}),
+        "budget-x2": Overrides(budget_factor=2),
+        "recipe-long": Overrides(recipe="long")}, **fields)
+
+
+STUDIES = {s.name: s for s in (
+    _study("data-scaling", "seed-sim", "test error against the number of training instances (val in proportion), "
+           "the best learned row of each family and task at the same step budget, and the best physics rows",
+           train_instances=(10, 40, 160), out="reports/seed-sim/data-scaling"),
+    _study("convergence-seed-sim", "seed-sim", "does more training still pay? The best learned row of each "
+           "family and task retrained at twice its step budget; converged when validation gains < 3 %",
+           variants={"budget-x2": Overrides(budget_factor=2)}, tolerance=CONVERGED),
+    _study("convergence-default", "default", "the convergence check of the default profile's best learned rows "
+           "(twice the step budget; converged when validation gains < 3 %)",
+           variants={"budget-x2": Overrides(budget_factor=2)}, tolerance=CONVERGED),
+    _controls("controls-seed-sim", "seed-sim", ("seed-tip-10", "seed-tip-4", "seed-tau-mlp", "delan-friction"), 320,
+              "what limits the learned rows on seed-sim: weight decay, capacity (FC 256), half the training "
+              "instances, or the epoch recipe `long` instead of the budget"),
+    _controls("controls-default", "default", DEFAULT_TORQUE_ROWS, 38,
+              "what limits the default profile's torque rows on paper-noext: weight decay, capacity, half the "
+              "training instances, or the epoch recipe `long`", scenarios=("paper-noext",)),
+    _study("data-trade", "default", "what shrinking the default bench's data would cost its torque rows on "
+           "paper-noext: the first half of the training instances against all of them",
+           rows=("seed-tau-mlp", "seed-tau-lstm", "seed-tau-lstm-opt", "residual-rnea-bw", "delan-friction"),
+           scenarios=("paper-noext",), variants={"data-half": Overrides(train={"train_instances": 38})}),
+    _study("data-control", "default", "does the data or the architecture limit the learned rows? The default "
+           "profile on 18 instances of 5-6 trajectories against its own report, each learned row divided by "
+           "its report's best analytic row", summary="compare", keep_variant_reports=True,
+           rows=("tau-mlp-wide",), families=("analytic", "seed-net", "residual", "delan"),
+           scenarios=("paper-noext", "paper-ext", "mismatch-ext"),
+           variants={"small": Overrides(scenario_data={s: {"n_instances": 18, "trajectories": (5, 6)}
+                                                       for s in ("paper-noext", "paper-ext", "mismatch-ext")})}),
+    _study("interpolation-control", "real", "how much of the real logs' error is unseen trajectories? gp and "
+           "tau-mlp-wide again on the same logs cut into short chunks split at random (test states among "
+           "training states: optimistic by design, not the benchmark's protocol)", rows=("gp", "tau-mlp-wide"),
+           variants={"chunks": Overrides(scenario_data={
+               "real-kuka": {"name": "real-kuka-chunks", "trajectories": "blocks", "n_blocks": 4},
+               "real-baxter": {"name": "real-baxter-chunks", "trajectories": "blocks", "n_blocks": 4},
+               "real-sarcos": {"name": "real-sarcos-chunks", "trajectories": "blocks", "n_blocks": 40},
+               "real-panda": {"name": "real-panda-chunks", "trajectories": "blocks", "n_blocks": 40,
+                              "split_by": "random"}})}),
+    _study("budget", "seed-sim", "the budgeted recipe's step counts: one row per family at 0.5x, 2x and 4x its "
+           "step budget on seed-sim at 80 instances", base=SEED_SIM_80, rows=ONE_PER_FAMILY,
+           variants={f"budget-x{f:g}": Overrides(budget_factor=f) for f in (0.5, 2, 4)}),
+    _study("batch-size", "seed-sim", "batch size at equal samples seen: 256 (4x the steps, lr 1e-3) and 4096 "
+           "(a quarter, lr 4e-3) against the recipe's 1024 (lr 2e-3), on seed-sim at 80 instances",
+           base=SEED_SIM_80, rows=("seed-tau-mlp", "delan-friction"),
+           variants={"batch-256": Overrides(train={"batch_size": 256, "lr": 1e-3}, budget_factor=4),
+                     "batch-4096": Overrides(train={"batch_size": 4096, "lr": 4e-3}, budget_factor=0.25)}),
+)}
+
+
+def get_study(name: str) -> Study:
+    if name not in STUDIES:
+        raise UsageError(f"unknown study {name!r}; known: {', '.join(STUDIES)}")
+    return STUDIES[name]
+
+
+def _ok(rows) -> list[dict]:
+    return [r for r in rows if r.get("status") == "ok" and r.get("val_loss") not in (None, "")]
+
+
+def choose_rows(full: list[dict]) -> dict:
+    """(scenario, task, family) -> the learned row of lowest *validation* loss in the full report, and
+    (scenario, task, "physics") -> the physics row of lowest validation loss. Validation, not test: the
+    study must not pick its rows on the figures it reports."""
+    best = {}
+    for r in _ok(full):
+        row = get_row(r["model"])
+        if row.reference is not None:
+            continue
+        if row.trains and row.family in LEARNED_FAMILIES:
+            key = (r["scenario"], r["task"], row.family)
+        elif is_physics_result(r):
+            key = (r["scenario"], r["task"], "physics")
+        else:
+            continue
+        if key not in best or float(r["val_loss"]) < float(best[key]["val_loss"]):
+            best[key] = r
+    return best
+
+
+def read_full_report(study: Study, report: Path) -> list[dict]:
+    """The profile's own report: the study's reference point. Refused unless it is a report of that profile."""
+    meta = read_run_json(report)
+    if meta is None or not (report / "results.csv").is_file():
+        raise UsageError(f"{report} holds no bench report; run `hybrid-dyn bench --profile {study.profile} "
+                         f"--out {report}` first (the study's full-data point)")
+    if meta["profile"] != study.base_profile().to_dict():
+        raise UsageError(f"{report} is a report of another profile or size than {study.profile!r}: rerun the bench")
+    return read_results(report / "results.csv")
+
+
+@dataclass
+class StudyRun:
+    """What a summary is written from: the reference point and every variant's results."""
+
+    study: Study
+    report: Path  # the reference point's report folder (the profile's own, or the variant ``base``'s)
+    reference: list  # its results.csv rows (on the study's scenarios)
+    rows: tuple  # the rows the variants reran
+    chosen: dict  # rows "best": choose_rows of the reference; else {}
+    points: dict = field(default_factory=dict)  # variant -> its results rows
+    dirs: dict = field(default_factory=dict)  # variant -> its report folders
+
+    def train_instances(self) -> int:
+        """How many training instances the reference point's models saw (:func:`train_instances_of`)."""
+        return train_instances_of(self.report, self.study.scenarios)
+
+
+def run_study(study: Study, report: Path, out: Path, work_root: Path = Path("runs"), data_root=None,
+              executor=None, log=print) -> dict:
+    """Run every variant through the harness (resumable: each is a bench report), then write the summary
+    to ``out`` (:data:`SUMMARY_KINDS`); returns the summary's data. ``report``: the profile's own report
+    (the reference point; not read for a study with a ``base`` change, whose reference is run here)."""
+    from .study_summaries import SUMMARY_KINDS
+
+    out, report = Path(out), Path(report)
+    variant_root = out if study.keep_variant_reports else Path(work_root) / "studies" / study.name
+    run_args = dict(data_root=data_root, work_root=work_root, executor=executor, log=log)
+    if study.base.is_empty():
+        reference = read_full_report(study, report)
+    else:
+        report = variant_root / BASE
+        reference = _run_variant(study, BASE, _named_rows(study), report, **run_args)[0]
+    if study.scenarios:
+        reference = [r for r in reference if r["scenario"] in study.scenarios]
+    chosen = choose_rows(reference) if study.rows == "best" else {}
+    rows = tuple(dict.fromkeys(r["model"] for k, r in chosen.items() if k[2] != "physics")) if chosen \
+        else _named_rows(study)
+    if study.rows != "best" and study.base.is_empty():
+        missing = [r for r in study.rows if r not in {x["model"] for x in reference}]
+        if missing:
+            raise UsageError(f"study {study.name}: rows {missing} are not in {report}: run them in the bench first")
+    run = StudyRun(study, report, reference, rows, chosen)
+    for variant in study.variants:
+        log(f"[study] {study.name}: variant {variant} ({study.variants[variant].describe()})")
+        run.points[variant], run.dirs[variant] = _run_variant(study, variant, rows, variant_root / variant,
+                                                              reference_report=report, **run_args)
+    return SUMMARY_KINDS[study.summary](run, out)
+
+
+def _named_rows(study: Study) -> tuple:
+    return () if study.rows == "best" else tuple(study.rows)
+
+
+def _run_variant(study: Study, variant: str, rows: tuple, where: Path, reference_report: Path | None = None,
+                 **run_args) -> tuple[list, list]:
+    """One variant's bench (one per row when it scales each row's budget): (its results rows, its folders)."""
+    from .runner import run_bench
+
+    over = study.overrides(variant)
+    only = [r for r in rows if not over.rows or r in over.rows]
+    if "train_instances" in over.train and reference_report is not None:
+        n, n_train = over.train["train_instances"], train_instances_of(reference_report, study.scenarios)
+        if n >= n_train:
+            raise UsageError(f"study {study.name}: {n} training instances asked for, the full report trained on "
+                             f"{n_train}")
+    if not over.budget_factor:
+        profile = study.variant_profile(variant, tuple(only), study.families)
+        return run_bench(profile, where, **run_args), [where]
+    results, dirs = [], []
+    for row in only:  # each row's own budget, scaled: one bench per row
+        profile = study.variant_profile(variant, (row,))
+        budget = profile.train_config().for_preset(_preset(profile, row)).budget_steps
+        if budget is None:
+            raise UsageError(f"study {study.name}: budget_factor needs the budgeted recipe (profile {study.profile!r}"
+                             f" trains {row} under {profile.recipe!r})")
+        steps = max(1, round(budget * over.budget_factor))
+        profile = dataclasses.replace(profile, name=f"{profile.name}-{row}",
+                                      train={**profile.train, "budget_steps": steps})
+        results += run_bench(profile, where / row, **run_args)
+        dirs.append(where / row)
+    return results, dirs
+
+
+def _preset(profile: BenchProfile, row: str):
+    """The preset a row trains (a residual on the identified model: its preset), for its step budget."""
+    from ..learn.presets import get_preset
+    from .identified_rows import RESIDUAL_ROWS
+    from .learned_rows import PRESET_ROWS
+
+    name = RESIDUAL_ROWS.get(row, row)
+    if name not in PRESET_ROWS:
+        raise UsageError(f"row {row!r} trains no network preset: it has no step budget to scale (budget_factor)")
+    return get_preset(profile.preset(name))
+
+
+def train_instances_of(report: Path, scenarios: tuple = ()) -> int:
+    """How many training instances the report's models saw: its dataset's train split (the smallest of
+    its datasets, or of those of ``scenarios``)."""
+    from ..data import load_dataset
+
+    datasets = {s: d for s, d in (read_run_json(report).get("datasets") or {}).items()
+                if not scenarios or s in scenarios}
+    if not datasets:
+        raise UsageError(f"{report} records no dataset{' of ' + ', '.join(scenarios) if scenarios else ''}")
+    return min(len(load_dataset(info["path"]).split("train")) for info in datasets.values())

@@ -1,0 +1,288 @@
+"""Reading a log's rows and checking them: trajectories, columns, the row checks, segments.
+
+:func:`validate_log` reads the tables (``log_readers.py``), cuts them into
+trajectories, extracts the mapped signals in SI units and checks every row
+(:class:`_RowChecks`: cells, ranges, time, next samples); what it finds goes to the
+:class:`~.import_report.ImportReport` by row. A bad row is dropped, a gap starts a new
+segment, and the kept runs come back as :class:`Segment` s.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..input_checks import angle_unit_problems
+from .import_report import ImportReport, RowIssue
+from .import_spec import ANGLE_SIGNALS, JOINT_SIGNALS, TIME_UNITS, LogSpec, LogSpecError, MissingColumnError
+from .log_readers import LogTable, read_log
+
+@dataclass
+class Segment:
+    trajectory: str
+    table: LogTable
+    rows: np.ndarray  # 0-based rows of the table
+    fields: dict
+    next_qd: np.ndarray | None = None
+
+
+def _resolve(ref, table: LogTable, signal: str) -> list[int]:
+    """Column indices (0-based) of a column reference."""
+    refs = ref if isinstance(ref, list) else [ref]
+    idx, missing = [], []
+    for r in refs:
+        if isinstance(r, bool) or not isinstance(r, (int, str)):
+            raise LogSpecError(f"column reference {r!r} for {signal} must be a 1-based number, 'a-b' or a name")
+        if isinstance(r, int):
+            if 1 <= r <= len(table.columns):
+                idx.append(r - 1)
+            else:
+                missing.append(str(r))
+            continue
+        if r in table.columns:
+            idx.append(table.columns.index(r))
+            continue
+        group = [i for i, c in enumerate(table.columns) if c.startswith(r + "[")]
+        m = re.fullmatch(r"\s*(\d+)\s*-\s*(\d+)\s*", r)
+        if group:
+            idx += group
+        elif m:
+            a, b = int(m.group(1)), int(m.group(2))
+            if 1 <= a <= b <= len(table.columns):
+                idx += list(range(a - 1, b))
+            else:
+                missing.append(r)
+        else:
+            missing.append(r)
+    if missing:
+        shown = table.columns if len(table.columns) <= 40 else table.columns[:40] + ["..."]
+        raise MissingColumnError(f"{table.source.name}:{table.name}: columns {missing} for {signal} are not in the log "
+                                 f"({len(table.columns)} columns: {shown})")
+    return idx
+
+
+def _trajectories(spec: LogSpec, tables: list[LogTable]) -> list[tuple[str, LogTable, np.ndarray]]:
+    """(trajectory name, table, 0-based rows) for each trajectory."""
+    out = []
+    names = [t.name for t in tables]
+    for table in tables:
+        # The same variable name in several files: prefix the file's name.
+        base = table.name if names.count(table.name) == 1 else f"{table.source.stem}_{table.name}"
+        rows = np.arange(len(table))
+        if spec.trajectories == "tables":
+            out.append((base, table, rows))
+        elif spec.trajectories == "blocks":
+            if spec.n_blocks > len(rows):  # 1e9 blocks hung array_split (issue 28's fuzz)
+                raise LogSpecError(f"n_blocks = {spec.n_blocks} is more than the {len(rows)} rows of "
+                                   f"{table.source.name}:{table.name}")
+            for k, block in enumerate(np.array_split(rows, spec.n_blocks)):
+                if len(block):
+                    out.append((f"{base}_b{k:02d}", table, block))
+        else:
+            col = _resolve(spec.trajectory_column, table, "trajectory_column")
+            if len(col) != 1:
+                raise LogSpecError(f"trajectory_column must be one column, got {len(col)}")
+            ids = table.data[:, col[0]]
+            for v in sorted(set(ids[np.isfinite(ids)].tolist())):
+                out.append((f"{base}_{v:g}", table, rows[ids == v]))
+    return [(re.sub(r"[^A-Za-z0-9_.-]", "_", n), t, r) for n, t, r in out]
+
+
+def _robot_limits(spec: LogSpec, nv: int):
+    """Per-joint (lower, upper) q bounds [rad]: the robot's limits widened by ``limit_margin`` if it has a
+    description (both sides: the Panda's joint 4 lies in [-3.07, -0.07], not within +-3.07), else
+    +-``q_abs_max``."""
+    from ..description import resolve_robot
+
+    if not resolve_robot(spec.robot).described:
+        return np.full(nv, -spec.checks.q_abs_max), np.full(nv, spec.checks.q_abs_max)
+    from ..analytic.robot import load_robot
+
+    robot = load_robot(spec.robot)
+    if robot.nv != nv:
+        raise LogSpecError(f"robot {spec.robot!r} has {robot.nv} joints but the log maps {nv}")
+    margin = spec.checks.limit_margin
+    return np.maximum(robot.q_lower, -1e3) - margin, np.minimum(robot.q_upper, 1e3) + margin
+
+
+def validate_log(spec: LogSpec, report: ImportReport) -> tuple[list, list]:
+    """Read, check and cut the log into segments; every problem goes to ``report``."""
+    tables = []
+    for f in spec.files:
+        tables += read_log(f, spec.format, spec.variables, spec.delimiter)
+    segments, limits, q_peak = [], None, 0.0
+    for traj, table, rows in _trajectories(spec, tables):
+        data, t = _extract(spec, table, rows)
+        if limits is None:
+            limits = _robot_limits(spec, data["q"].shape[1])
+        q_peak = max(q_peak, float(np.abs(data["q"][np.isfinite(data["q"])]).max(initial=0.0)))  # units check
+        report.rows_read += len(rows)
+        checks = _RowChecks(table, rows, report)
+        checks.cells(data, t)
+        checks.ranges(data, limits, spec.checks.qd_abs_max)
+        checks.time(t, spec.checks.jump_factor)
+        checks.next_samples(data, spec.checks.next_tol)
+        if not checks.keep.any():
+            continue
+        report.trajectories += 1
+        kept_t = t[checks.keep]
+        dt = 1.0 / spec.sample_rate_hz if spec.sample_rate_hz else float(np.median(np.diff(kept_t))) if len(kept_t) > 1 else 1.0
+        min_len = spec.derivatives.min_samples(dt) if "qdd" not in spec.columns else 1
+        for seg in checks.segments(min_len):
+            fields = {s: v[seg] for s, v in data.items() if s not in ("q_next", "qd_next")}
+            fields["t"] = t[seg]
+            nxt = data["qd_next"][seg[-1]] if "qd_next" in data and np.isfinite(data["qd_next"][seg[-1]]).all() else None
+            segments.append(Segment(traj, table, rows[seg], fields, nxt))
+            report.rows_kept += len(seg)
+    bad_unit = angle_unit_problems(spec.angle_unit, q_peak)
+    if bad_unit:
+        raise LogSpecError(f"{spec.name}: {bad_unit[0]}")
+    warning = _timebase_warning(segments, spec) if "qdd" not in spec.columns else None
+    return segments, [warning] if warning else []
+
+
+def _extract(spec: LogSpec, table: LogTable, rows: np.ndarray):
+    """The mapped signals of some rows of a table, in SI units, and their times t [s]."""
+    cols = {s: _resolve(ref, table, s) for s, ref in spec.columns.items()}
+    widths = {s: len(c) for s, c in cols.items() if s in JOINT_SIGNALS}
+    if len(set(widths.values())) != 1:
+        raise LogSpecError(f"joint signals must have one width (the number of joints), got {widths}")
+    for s, w in (("base_wrench", 6), ("tip_force", 3)):
+        if s in cols and len(cols[s]) != w:
+            raise LogSpecError(f"{s} needs {w} columns, the spec maps {len(cols[s])}")
+    deg = np.pi / 180 if spec.angle_unit == "deg" else 1.0
+    data = {s: table.data[np.ix_(rows, c)] * (deg if s in ANGLE_SIGNALS else 1.0) for s, c in cols.items()}
+    if spec.time is None:
+        # Original row numbers: a dropped row leaves a gap of one step, as it would in time.
+        return data, rows / spec.sample_rate_hz
+    tcol = _resolve(spec.time, table, "time")
+    if len(tcol) != 1:
+        raise LogSpecError(f"time must be one column, got {len(tcol)}")
+    return data, table.data[rows, tcol[0]] * TIME_UNITS[spec.time_unit]
+
+
+class _RowChecks:
+    """The row checks of one trajectory. Each check reports what it finds by row and
+    marks the row to drop (``keep`` false) or to start a new segment (``split``)."""
+
+    def __init__(self, table: LogTable, rows: np.ndarray, report: ImportReport):
+        self.table, self.rows, self.report = table, rows, report
+        self.keep = np.ones(len(rows), bool)
+        self.split = np.zeros(len(rows), bool)
+
+    def flag(self, i: int, kind: str, detail: str, action: str, n_rows: int = 1) -> None:
+        r = int(self.rows[i])
+        line = None if self.table.first_line is None else self.table.first_line + r
+        self.report.issues.append(RowIssue(str(self.table.source), self.table.name, r + 1, kind, detail, action,
+                                           line, n_rows))
+        if action == "drop":
+            self.keep[i : i + n_rows] = False
+        else:
+            self.split[i] = True
+
+    def cells(self, data: dict, t: np.ndarray) -> None:
+        """Unreadable, empty or NaN cells in a mapped column or the time."""
+        signals = {s: v for s, v in data.items() if s not in ("q_next", "qd_next")}
+        finite = np.isfinite(np.concatenate(list(signals.values()) + [t[:, None]], axis=1)).all(axis=1)
+        messages = {}
+        for r, msg in self.table.cell_problems:
+            messages.setdefault(r, []).append(msg)
+        for i in np.flatnonzero(~finite):
+            bad = [f"{s}[{j + 1}]" for s, v in signals.items() for j in np.flatnonzero(~np.isfinite(v[i]))]
+            bad += ["t"] if not np.isfinite(t[i]) else []
+            msgs = messages.get(int(self.rows[i]), [])
+            kind = "missing_cells" if any("cells" in m for m in msgs) else "nan"
+            self.flag(i, kind, "no value in " + ", ".join(bad) + (f" ({'; '.join(msgs)})" if msgs else ""), "drop")
+
+    def ranges(self, data: dict, q_limits: tuple, qd_max: float) -> None:
+        """Unit mistakes, by range: q outside the joint bounds (lower, upper), |qd| beyond qd_max."""
+        lo, hi = q_limits
+        for i in np.flatnonzero(self.keep):
+            over = np.flatnonzero((data["q"][i] < lo) | (data["q"][i] > hi))
+            if len(over):
+                j = over[0]
+                self.flag(i, "unit_range", f"q[{j + 1}] = {data['q'][i, j]:.4g} rad is outside [{lo[j]:.3g}, "
+                          f"{hi[j]:.3g}] rad (degrees logged as radians?)", "drop")
+                continue
+            over = np.flatnonzero(np.abs(data["qd"][i]) > qd_max) if "qd" in data else []
+            if len(over):
+                j = over[0]
+                self.flag(i, "unit_range", f"qd[{j + 1}] = {data['qd'][i, j]:.4g} rad/s is beyond +-{qd_max:.3g} rad/s "
+                          f"(deg/s logged as rad/s?)", "drop")
+
+    def time(self, t: np.ndarray, jump_factor: float) -> None:
+        """Time that does not increase (row dropped) and gaps (a new segment)."""
+        last, last_i = -np.inf, None
+        for i in np.flatnonzero(self.keep):
+            if t[i] <= last:
+                self.flag(i, "time_order", f"t = {t[i]:.6g} s is not after t = {last:.6g} s of row "
+                          f"{self.rows[last_i] + 1}", "drop")
+            else:
+                last, last_i = t[i], i
+        kept = np.flatnonzero(self.keep)
+        if len(kept) > 2:
+            steps = np.diff(t[kept])
+            median = float(np.median(steps))
+            for k in np.flatnonzero(steps > jump_factor * median):
+                self.flag(kept[k + 1], "time_jump", f"gap of {steps[k]:.4g} s after row {self.rows[kept[k]] + 1} "
+                          f"({steps[k] / median:.1f} x the median step {median:.4g} s)", "split")
+
+    def next_samples(self, data: dict, tol: float) -> None:
+        """A row must be the previous row's logged next sample (q_next, qd_next), else samples are missing."""
+        for s_next, s in (("q_next", "q"), ("qd_next", "qd")):
+            if s_next not in data or s not in data:
+                continue
+            pairs = np.flatnonzero(self.keep[:-1] & self.keep[1:])
+            err = np.abs(data[s_next][pairs] - data[s][pairs + 1]).max(axis=1)
+            for k, e in zip(pairs[err > tol], err[err > tol]):
+                if not self.split[k + 1]:
+                    self.flag(k + 1, "discontinuity", f"{s} differs from the previous row's {s_next} by {e:.3g}: "
+                              f"samples missing?", "split")
+
+    def segments(self, min_len: int) -> list[np.ndarray]:
+        """Runs of kept, consecutive rows without a split; shorter than ``min_len``: dropped and reported."""
+        kept = np.flatnonzero(self.keep)
+        breaks = np.flatnonzero((np.diff(kept) > 1) | self.split[kept[1:]]) + 1
+        out = []
+        for seg in np.split(kept, breaks):
+            if len(seg) >= min_len:
+                out.append(seg)
+            else:
+                self.flag(seg[0], "short_segment", f"segment of {len(seg)} rows (rows {self.rows[seg[0]] + 1}-"
+                          f"{self.rows[seg[-1]] + 1}) is shorter than the {min_len} the derivative filter needs",
+                          "drop", n_rows=len(seg))
+        return out
+
+
+def _timebase_warning(segments: list, spec: LogSpec) -> str | None:
+    """Least-squares ratio of the position increments to qd x dt over all segments: 1 if the
+    time base and the units of q and qd agree. Otherwise the warning names the time unit
+    (or sample rate) whose scale makes the increments fit the logged velocities."""
+    tol = spec.checks.timebase_tol
+    dq, vdt = [], []
+    for seg in segments:
+        f = seg.fields
+        if "qd" in f and len(f["t"]) > 1:
+            dq.append(np.diff(f["q"], axis=0).ravel())
+            vdt.append((0.5 * (f["qd"][1:] + f["qd"][:-1]) * np.diff(f["t"])[:, None]).ravel())
+    if not dq:
+        return None
+    dq, vdt = np.concatenate(dq), np.concatenate(vdt)
+    if not vdt @ vdt > 0:
+        return None
+    ratio = float(dq @ vdt / (vdt @ vdt))
+    if abs(ratio - 1) <= tol:
+        return None
+    head = f"the position increments are {ratio:.4g} x the logged velocity times the time step"
+    if spec.time is None:  # the time base is the declared rate: the fitting rate scales by 1 / ratio
+        return (f"{head}: the velocities fit a sample rate of {spec.sample_rate_hz / ratio:.3g} Hz, "
+                f"not the declared {spec.sample_rate_hz:g} Hz (or are q and qd in different units?)")
+    # Seconds per logged time unit that make the increments fit; a unit fits within the tolerance.
+    scale = TIME_UNITS[spec.time_unit] * ratio
+    fits = [u for u, s in TIME_UNITS.items() if abs(scale / s - 1) <= tol]
+    if fits:
+        return (f"{head}: the time column fits the unit {fits[0]!r}, not the declared {spec.time_unit!r} "
+                f"(set [time] unit = \"{fits[0]}\")")
+    return (f"{head}: no time unit fits (one logged time unit would be {scale:.4g} s); a wrong time column, "
+            f"or q and qd in different units?")

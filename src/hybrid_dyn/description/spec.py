@@ -1,0 +1,118 @@
+"""A robot's description as its TOML file gives it (:class:`RobotSpec`), and the names of the described robots."""
+from __future__ import annotations
+
+import os
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .base import RobotDescriptionError
+from .locations import example_robot_data_dir, robots_dir
+from .params import GazFriction
+
+
+@dataclass(frozen=True)
+class Payload:
+    """A point mass rigidly attached at the tool frame.
+
+    mass [kg]; offset [m] from the tool frame origin, in tool-frame axes.
+    """
+
+    mass: float
+    offset: tuple = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """What a ``robots/<name>.toml`` says about a robot."""
+
+    name: str
+    urdf_path: Path
+    tool_frame: str
+    base_sensor_frame: str
+    locked_joints: dict = field(default_factory=dict)
+    home: tuple = ()
+    max_velocity: tuple = ()
+    max_acceleration: tuple = ()
+    max_jerk: tuple = ()
+    param_sets: dict = field(default_factory=dict)  # name -> JSON path
+    default_params: str | None = None
+    friction_files: dict = field(default_factory=dict)  # name -> JSON path
+    source: Path | None = None
+    # The arm's last link, where a tool mounts, and the name of the tool the URDF
+    # itself carries there ("none": the URDF ends at the flange).
+    flange: str | None = None
+    default_tool: str = "none"
+    # The tool mounted instead of the URDF's own (a variant): None keeps the URDF's,
+    # "none" is the bare flange, a Path a tool URDF (see ``with_tool``).
+    tool: str | Path | None = None
+
+    def friction(self, name: str = "gaz2019") -> GazFriction | None:
+        """The named friction law, or None when this robot ships none."""
+        path = self.friction_files.get(name)
+        return GazFriction.from_json(path) if path else None
+
+
+def available_robots() -> list[str]:
+    """Robots with a full description (URDF, frames): every part of the toolkit applies."""
+    return sorted(p.stem for p in robots_dir().glob("*.toml") if p.stem != "data_only")
+
+
+def data_only_robots() -> list[str]:
+    """Arms known by name only (``robots/data_only.toml``): data-only models apply."""
+    path = robots_dir() / "data_only.toml"
+    if not path.is_file():
+        return []
+    return sorted(tomllib.loads(path.read_text()).get("robots", {}))
+
+
+def known_robots() -> list[str]:
+    """Every robot name a model file may carry."""
+    return sorted(set(available_robots()) | set(data_only_robots()))
+
+
+def load_spec(name_or_path: str | os.PathLike) -> RobotSpec:
+    """Read a robot description by name (``"panda"``) or TOML path."""
+    p = Path(name_or_path)
+    if p.suffix == ".toml":
+        toml_path = p
+    else:
+        toml_path = robots_dir() / f"{name_or_path}.toml"
+    if not toml_path.is_file():
+        raise RobotDescriptionError(
+            f"unknown robot {str(name_or_path)!r}: no {toml_path}; available: {', '.join(available_robots()) or 'none'}"
+        )
+    try:
+        doc = tomllib.loads(toml_path.read_text())
+    except tomllib.TOMLDecodeError as err:
+        raise RobotDescriptionError(f"{toml_path} is not valid TOML: {err}") from err
+    for key in ("name", "urdf", "tool_frame", "base_sensor_frame"):
+        if key not in doc:
+            raise RobotDescriptionError(f"{toml_path} lacks the key {key!r}")
+    here = toml_path.parent
+    # example-robot-data first (the shipped descriptions), then beside the TOML (a user's own URDF).
+    urdf = example_robot_data_dir() / doc["urdf"]
+    if not urdf.is_file() and (here / doc["urdf"]).is_file():
+        urdf = here / doc["urdf"]
+    if not urdf.is_file():
+        raise RobotDescriptionError(f"{toml_path}: URDF {doc['urdf']!r} is neither in example-robot-data ({urdf}) "
+                                    f"nor beside the TOML ({here / doc['urdf']})")
+    params = dict(doc.get("params", {}))
+    default_params = params.pop("default", None)
+    return RobotSpec(
+        name=doc["name"],
+        urdf_path=urdf,
+        tool_frame=doc["tool_frame"],
+        base_sensor_frame=doc["base_sensor_frame"],
+        locked_joints={k: float(v) for k, v in doc.get("locked_joints", {}).items()},
+        home=tuple(doc.get("home", ())),
+        max_velocity=tuple(doc.get("max_velocity", ())),
+        max_acceleration=tuple(doc.get("max_acceleration", ())),
+        max_jerk=tuple(doc.get("max_jerk", ())),
+        param_sets={k: here / v for k, v in params.items()},
+        default_params=default_params,
+        friction_files={k: here / v for k, v in doc.get("friction", {}).items()},
+        source=toml_path,
+        flange=doc.get("flange"),
+        default_tool=str(doc.get("tool", "none")),
+    )

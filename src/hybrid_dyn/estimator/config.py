@@ -1,0 +1,94 @@
+"""The streaming estimator's configuration and its statuses.
+
+:class:`EstimatorConfig` holds a stream's rate, each method's bandwidth ("auto": the
+rule of ``analytic/bandwidth.py``) and the plausibility bounds of the input gate
+(``estimator/input.py``); :class:`EstimatorStatus` says what one call's estimate is
+worth. Why each bound is what it is: ``estimator/streaming.py``'s module docstring.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+
+from ..analytic.tare import TARE_SECONDS
+from ..errors import UsageError
+
+
+class EstimatorStatus(str, Enum):
+    """What one call's estimate is worth (``TipForceEstimator.last_status``); the first that applies wins,
+    in the order of ``estimator/streaming.py``'s module docstring."""
+
+    OK = "ok"
+    WARMING_UP = "warming up"            # window, tare, filter or observer still settling
+    INPUT_REJECTED = "input rejected"    # this call's sample was bad; the last good estimate was held
+    # Each "out of range" says what is out of it: the estimate, or a learned model's input.
+    FORCE_OUT_OF_RANGE = "force out of range"  # the estimate exceeds EstimatorConfig.max_tip_force
+    OUT_OF_RANGE = "input out of training range"  # learned model: input outside its training distribution
+    WRONG_RATE = "wrong rate"            # an untimed stream spaced unlike 1 / call_hz (RateCheck)
+    NO_SENSOR = "no usable sensor"       # this call brings nothing the method can estimate from
+
+
+def _auto_or_positive(name: str, value, unit: str) -> None:
+    if value != "auto" and not (isinstance(value, (int, float)) and value > 0):
+        raise UsageError(f"{name} must be 'auto' or > 0 [{unit}], got {value!r}")
+
+
+@dataclass(frozen=True)
+class EstimatorConfig:
+    """call_hz: the nominal call rate [Hz] the filters and observers are designed for.
+    qdd_cutoff_hz [Hz], momentum_gain (observer bandwidth K [1/s]), fusion_force_rate
+    (kalman-fusion's random-walk intensity of the tip force [N/sqrt(s)]): each method's
+    bandwidth; "auto" (the default): chosen by the rule of ``analytic/bandwidth.py`` from
+    the noise window, as the bench's headline rows choose it; a number: used as is.
+    on_bad_input: "raise" or "hold".
+    tare_seconds: the contact-free start used as the noise window and to tare the base
+    sensor [s]; 0 = no window: trust the sensor's zero, the rule on the specifications.
+    tare_contact_force: a kalman-fusion tare after the window (a base sensor that joins
+    late) starts over while the joint torques see a force above this [N].
+
+    Plausibility bounds (see the module docstring):
+    q_margin: how far q may lie outside the URDF position limits [rad]; encoders
+    read a hair past a limit, 0.1 rad (6 deg) is no measurement of this arm.
+    qd_margin, tau_margin: the fraction by which |qd| may exceed the velocity
+    limit (TOML ``max_velocity``, else the URDF's) and |tau_J| the URDF effort
+    limit; the arm's controller stops at the limits, so 50 % more is a fault.
+    max_tip_force: bound on the estimate [N]. 500 N is beyond what the Panda's
+    87 Nm shoulder can hold 0.2 m from its axis; a larger estimate is a fault
+    (a corrupt sensor, a singular pose), not a contact. It also sets the
+    base-wrench bound. Raise it for a stronger arm.
+    rate_tolerance: the fraction by which a timed stream's step may differ
+    from 1 / call_hz (and an untimed stream's measured rate, ``RateCheck``).
+    """
+
+    call_hz: float = 1000.0
+    qdd_cutoff_hz: float | str = "auto"
+    on_bad_input: str = "raise"
+    momentum_gain: float | str = "auto"
+    tare_seconds: float = TARE_SECONDS
+    q_margin: float = 0.1
+    qd_margin: float = 0.5
+    tau_margin: float = 0.5
+    max_tip_force: float = 500.0
+    rate_tolerance: float = 0.25
+    fusion_force_rate: float | str = "auto"
+    tare_contact_force: float = 1.0
+
+    def __post_init__(self):
+        if self.on_bad_input not in ("raise", "hold"):
+            raise UsageError(f"on_bad_input must be 'raise' or 'hold', got {self.on_bad_input!r}")
+        if not (isinstance(self.call_hz, (int, float)) and self.call_hz > 0):
+            raise UsageError(f"call_hz must be > 0 [Hz], got {self.call_hz!r}")
+        if self.qdd_cutoff_hz != "auto" and not (isinstance(self.qdd_cutoff_hz, (int, float))
+                                                 and 0 < self.qdd_cutoff_hz < 0.5 * self.call_hz):
+            raise UsageError(f"qdd_cutoff_hz must be 'auto' or lie in (0, call_hz / 2) [Hz], got {self.qdd_cutoff_hz!r}")
+        _auto_or_positive("momentum_gain", self.momentum_gain, "1/s")
+        _auto_or_positive("fusion_force_rate", self.fusion_force_rate, "N/sqrt(s)")
+        for name in ("q_margin", "qd_margin", "tau_margin", "tare_seconds"):
+            if not getattr(self, name) >= 0:
+                raise UsageError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+        if not self.max_tip_force > 0:
+            raise UsageError(f"max_tip_force must be > 0 [N], got {self.max_tip_force!r}")
+        if not self.tare_contact_force > 0:
+            raise UsageError(f"tare_contact_force must be > 0 [N], got {self.tare_contact_force!r}")
+        if not 0 < self.rate_tolerance < 1:
+            raise UsageError(f"rate_tolerance must lie in (0, 1), got {self.rate_tolerance!r}")

@@ -1,0 +1,388 @@
+"""The streaming tip-force estimator, :class:`TipForceEstimator`: one sample in, one force out.
+
+Control engineers call :class:`TipForceEstimator` once per tick of a 1 kHz loop::
+
+    est = TipForceEstimator.analytic("panda", method="base-momentum")
+    F = est.estimate_tip_force(q, qd, base_wrench=w, t=t)   # (3,) N, base frame
+    est.last_status                                         # EstimatorStatus.OK, ...
+
+The analytic methods are defined once, in ``analytic/methods.py`` (what each
+reads, its bandwidth and the rule that sets it, its streaming step and batch
+run); this module runs them on a stream. What happens in one call:
+
+1. The sample is checked before any state is touched (``estimator/input.py``).
+   It is rejected when
+   - an argument is not numeric, has the wrong shape, holds NaN/inf, or a
+     needed one (base_wrench, tau_J) is missing;
+   - it is physically implausible for the robot description (the bounds are
+     ``EstimatorConfig`` fields): q more than ``q_margin`` (0.1 rad) outside the
+     URDF position limits; |qd| above the velocity limit by more than
+     ``qd_margin`` (50 %); |tau_J| above the URDF effort limit by more than
+     ``tau_margin`` (50 %); a base-wrench force component above
+     ``max_tip_force + 3 m g`` [N] (the arm's weight and up to 2 g of inertial
+     load on top of the largest believable contact), or a moment component above
+     that times the arm's reach [Nm] (the sum of its joint offsets: no point of
+     the arm lies farther from the base);
+   - its time breaks the stream: t not increasing, t missing once the stream
+     has given t (the first call with t makes a stream timed until ``reset``), or
+     a step off 1/call_hz by more than ``rate_tolerance`` (25 %). The filter and
+     the observer are designed for that step, so a wrong ``call_hz`` (a 100 Hz
+     recording fed to a 1 kHz estimator errs 10 N) or a gap (a lost tick) is
+     refused rather than silently mis-filtered; 25 % lets a loop's jitter through
+     and stops any rate off by 2x. A wrong rate is refused at every call; after a
+     gap, the sample one period after the refused one resumes the stream: the
+     filter and observers restart (a finished tare is kept) and it warms up anew
+     for the method's settling time.
+   A rejected sample raises :class:`EstimatorInputError` (a ``ValueError`` that
+   names the argument), or with ``on_bad_input="hold"`` returns the last good
+   estimate with ``last_status = INPUT_REJECTED`` (``last_rejection`` says why).
+   It never enters the filter, observer, tare, window or time state: the calls
+   after it give exactly what they give without it. An untimed stream is checked
+   for its rate from its own samples (``RateCheck``: q's increments against
+   qd / call_hz): a stream at another rate says "wrong rate".
+2. The first ``tare_seconds`` of calls are the noise window (nothing may touch
+   the arm then; status "warming up"). On it the base sensor is tared
+   (``analytic/tare.py``), the sensors' white noise is measured, and the
+   method's bandwidth (qdd cutoff, observer gain, Kalman force rate) is chosen by
+   the one rule of ``analytic/bandwidth.py`` (a number given in the config
+   instead of "auto" is used as is). Without a window (``tare_seconds=0``) the
+   rule runs on the sensors' specifications. Every filter design happens when
+   the estimator is built, and the close is split over two calls: the window's
+   last call measures the noise, the first call after it picks the bandwidth
+   (and the method starts there).
+3. Where the method needs it, qdd is estimated from qd causally, with the
+   generator's filter (``analytic/acceleration.py``) at the call rate; the
+   window is replayed through the chosen filter, so that it runs as if from the start.
+4. The method gives the force. Its transient after a start, a gap, or (for
+   kalman-fusion, which takes whichever sensors a call brings) a sensor joining
+   or leaving is its settling time: "warming up" until it has passed. A sensor
+   absent for up to 5 calls (alternating sensors) is bridged, not a leave. A
+   base sensor that joins kalman-fusion after the window is tared when it comes;
+   while the joint torques see a force above ``tare_contact_force`` the tare starts
+   over (it never tares over a contact), and the filter runs on the torques alone.
+5. An estimate above ``max_tip_force`` (500 N) is returned with status
+   FORCE_OUT_OF_RANGE ("force out of range") and is not kept as the last good one.
+
+Statuses (``last_status``), first match wins: INPUT_REJECTED (this sample was
+refused; the last good estimate is returned), FORCE_OUT_OF_RANGE (the estimate
+exceeds ``max_tip_force``), WRONG_RATE (an untimed stream whose samples are
+spaced unlike 1 / call_hz), NO_SENSOR ("no usable sensor": this call brings
+nothing the method can estimate from, e.g. kalman-fusion given only a base
+sensor that is not yet tared; the returned force is a prediction), WARMING_UP
+(the window, tare, filter or observer still settles), OUT_OF_RANGE (a learned
+model's input lies outside its training range: "input out of training range"), OK.
+
+A known base-sensor offset can be given with ``set_tare_offset``; ``reset``
+tares anew.
+
+Threading: an estimator holds per-stream state (filter, window, observer) and
+preallocated buffers, so one instance must be used by one thread at a time;
+use one estimator per control thread. ``estimate_tip_force()`` (the stateless
+batch form, ``estimator/batch.py``) is thread-safe: it keeps one robot model per thread.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..analytic.acceleration import DEFAULT_QDD_CUTOFF_HZ, CausalAccelerationFilter, cutoff_grid
+from ..analytic.bandwidth import measure_window
+from ..analytic.estimators import ALIASES, estimator_name
+from ..analytic.kalman import MAX_BRIDGE_CALLS
+from ..analytic.methods import REGISTRY, spec_noise
+from ..analytic.robot import Robot, load_robot
+from ..analytic.tare import StreamingTare, tare_samples
+from .config import EstimatorConfig, EstimatorStatus
+from .input import EstimatorInputError, InputGate, RateCheck
+
+# The analytic methods, by the estimators' one name (analytic/methods.py registers them; the older
+# spellings base_wrench, torques, momentum, base_momentum, kalman_fusion are accepted).
+METHODS = tuple(REGISTRY)
+METHOD_ALIASES = {a: c for a, c in ALIASES.items() if c in METHODS}
+
+
+# The statuses as plain names for the per-call path: an Enum member looked up on its class costs ~0.3 us.
+_OK, _WARMING_UP, _OUT_OF_RANGE, _FORCE_OUT_OF_RANGE, _WRONG_RATE, _NO_SENSOR = (
+    EstimatorStatus.OK, EstimatorStatus.WARMING_UP, EstimatorStatus.OUT_OF_RANGE, EstimatorStatus.FORCE_OUT_OF_RANGE,
+    EstimatorStatus.WRONG_RATE, EstimatorStatus.NO_SENSOR)
+
+
+class TipForceEstimator:
+    """Streaming tip-force estimator; see the module docstring."""
+
+    def __init__(self, robot: Robot, method: str, config: EstimatorConfig | None = None, model=None):
+        self.robot = robot
+        self.config = c = config or EstimatorConfig()
+        self.model = model
+        nv = robot.nv
+        if method == "learned":
+            self.spec, self._stream = None, None
+            sensors = tuple(model.inputs) + tuple(getattr(model.model.prior, "fields", None) or ())
+            self._needs_qdd, self._optional = True, frozenset()
+        else:
+            method = estimator_name(method, REGISTRY, "estimator method")
+            self.spec = REGISTRY[method]
+            self._stream = self.spec.make(robot, float(c.call_hz))  # builds (and compiles) everything it runs
+            sensors, self._needs_qdd = self.spec.reads, self.spec.needs_qdd
+            self._optional = frozenset(sensors) if self.spec.any_of else frozenset()
+        self.method = method
+        self._gate = InputGate(robot, c, "base_wrench" in sensors, "tau_J" in sensors, self._optional)
+        self._rate = RateCheck(nv, float(c.call_hz), c.rate_tolerance)
+        # The bandwidth: a number in the config, or None for the rule at the window's end.
+        param = None if self.spec is None else self.spec.parameter
+        value = "auto" if param is None else getattr(c, param, "auto")  # a method's own parameter: the rule
+        self._fixed = None if value == "auto" else float(value)
+        cutoff = c.qdd_cutoff_hz if c.qdd_cutoff_hz != "auto" else (
+            model.qdd_cutoff_hz if model is not None else DEFAULT_QDD_CUTOFF_HZ)
+        self._qdd_cutoff_start = float(cutoff)
+        self._qdd_filter = CausalAccelerationFilter(nv, c.call_hz, self._qdd_cutoff_start)
+        if self._needs_qdd and self.spec is not None:
+            cutoff_grid(float(c.call_hz))  # every design the rule may pick, now
+        self._tare = None
+        # The noise window: where the method tares, or chooses its bandwidth by the rule.
+        n_window = tare_samples(c.call_hz, c.tare_seconds) if self.spec is not None and (
+            self.spec.tares or self._fixed is None) else 0
+        if self.spec is not None and self.spec.tares and n_window:
+            self._tare = StreamingTare(robot, n_window)
+        self._window_calls = n_window
+        # The noise window's samples, preallocated (a row per call; presence per optional sensor).
+        self._win_q, self._win_qd = np.zeros((n_window, nv)), np.zeros((n_window, nv))
+        self._win_w, self._win_tau = np.zeros((n_window, 6)), np.zeros((n_window, nv))
+        self._win_has = np.zeros((n_window, 2), dtype=bool)
+        self.reset()
+
+    # ------------------------------------------------------------ factories
+    @classmethod
+    def analytic(cls, robot: str | Robot = "panda", method: str = "base-wrench", params=None,
+                 **config) -> "TipForceEstimator":
+        """A model-free estimator, by the estimators' one name (``analytic/methods.py``): "base-wrench",
+        "torques-pinv" (needs tau_J), "momentum-observer" (needs tau_J), "base-momentum" (needs
+        base_wrench) or "kalman-fusion" (base_wrench, tau_J or both per call); the older spellings
+        (``METHOD_ALIASES``: "base_wrench", "torques", "momentum", "base_momentum", "kalman_fusion") mean the same."""
+        method = estimator_name(method, REGISTRY, "estimator method")
+        if not isinstance(robot, Robot):
+            robot = load_robot(robot, params=params, num_threads=1)
+        return cls(robot, method, EstimatorConfig(**config))
+
+    @classmethod
+    def load(cls, model_dir, robot: str | None = None, runtime: str = "auto", **config) -> "TipForceEstimator":
+        """An estimator around a trained tip-force model (seed net, residual net, ...).
+
+        The model's analytic part (if any) comes with it. ``robot``: when given,
+        a model trained for another robot is refused. ``runtime``: how the network
+        runs: "auto" (the faster of onnxruntime and numba, timed at load), "onnx"
+        (float32) or "numba" (float64: agrees with the batch form to round-off).
+        """
+        from ..learn.streaming import StreamingModel
+
+        model = StreamingModel.load(Path(model_dir), robot=robot, runtime=runtime)
+        if config.get("qdd_cutoff_hz", "auto") == "auto":  # the network saw qdd through its training filter
+            config = {**config, "qdd_cutoff_hz": model.qdd_cutoff_hz}
+        cfg = EstimatorConfig(**config)
+        return cls(model.robot, "learned", cfg, model=model)
+
+    # --------------------------------------------------------------- state
+    def reset(self) -> None:
+        """Forget all history (filter, observer, window, tare); the next calls warm up again."""
+        self._qdd_filter = CausalAccelerationFilter(self.robot.nv, self.config.call_hz, self._qdd_cutoff_start)
+        self.qdd_cutoff_hz = self._qdd_cutoff_start if (self._needs_qdd and self._window_calls == 0) else None
+        self._gate.reset()
+        self._rate.reset()
+        if self._tare is not None:
+            self._tare.reset()
+        if self.model is not None:
+            self.model.reset()
+        if self._stream is not None:
+            self._stream.reset()
+        self._calls = 0
+        self._win_has[:] = False
+        self._absent = [-1, -1]  # calls each sensor has been absent from the method (-1: never given)
+        self._active = ()  # the sensors the method currently estimates from (kalman-fusion)
+        self._base_tared = self._tare is None  # the base wrench may enter the method
+        self.bandwidth = None  # the method's bandwidth parameter in use (spec.parameter), once chosen
+        if self.spec is None:
+            self._warmup_calls = self.model.warmup_calls(self.config.call_hz)
+        elif self._window_calls == 0:  # no window: the configured value, or the rule on the specifications
+            self.bandwidth = self._stream.close_window(spec_noise(self.robot), None, self._fixed)
+            self._use_bandwidth()
+            self._warmup_calls = 1 + self._stream.settle_calls(self.spec.reads)  # the first call starts it
+        else:
+            self._warmup_calls = self._window_calls + 1
+        self._window_noise = None  # measured by the window's last call, applied by the next
+        self._last_good = np.zeros(3)
+        self.fusion_noise = None
+        self.last_status = EstimatorStatus.WARMING_UP
+        self.last_rejection = None  # why the latest rejected sample was refused (hold mode)
+
+    @property
+    def _active_tare(self):
+        """The tare of the analytic base-wrench method, or of a learned model's base-wrench prior."""
+        return self._tare if self._tare is not None else getattr(self.model, "_tare", None)
+
+    @property
+    def tare_offset(self) -> np.ndarray | None:
+        """The base-sensor offset in use (6,) [N, Nm], or None when this estimator does not tare."""
+        tare = self._active_tare
+        return None if tare is None else tare.offset.copy()
+
+    def set_tare_offset(self, offset) -> None:
+        """Use a known base-sensor offset (6,) [N, Nm] and skip the tare window."""
+        tare = self._active_tare
+        if tare is None:
+            raise ValueError("this estimator does not use the base sensor's tare")
+        tare.set_offset(offset)
+
+    # ---------------------------------------------------------------- call
+    def estimate_tip_force(self, q, qd, base_wrench=None, tau_J=None, t=None) -> np.ndarray:
+        """One sample in, the tip force (3,) [N] in the base frame out; see ``last_status``."""
+        try:
+            q, qd, base_wrench, tau_J, t, resumed = self._gate.accept(q, qd, base_wrench, tau_J, t)
+        except EstimatorInputError as err:
+            if self.config.on_bad_input == "raise":
+                raise
+            self.last_status = EstimatorStatus.INPUT_REJECTED
+            self.last_rejection = str(err)
+            return self._last_good.copy()
+        if resumed:
+            self._restart_dynamics()
+        wrong_rate = False
+        if t is not None:
+            self._gate.last_t = t
+        else:
+            wrong_rate = self._rate.update(q, qd)
+        k = self._calls
+        in_window = k < self._window_calls
+        tare = self._tare
+        taring = tare is not None and not tare.done
+        # qdd only where the method (or the window's tare) needs it: the observers need none.
+        qdd = self._qdd_filter.step(qd) if (self._needs_qdd or taring) else None
+        self._calls += 1
+        if self.spec is None:
+            return self._finish(*self.model.step(q, qd, qdd, base_wrench, tau_J, t), wrong_rate, True)
+        tared = base_wrench
+        if tare is not None and base_wrench is not None:
+            tared = tare.update(q, qd, qdd, base_wrench)
+        if in_window:
+            self._record(k, q, qd, base_wrench, tau_J)
+            self._stream.window_step(q, qd, qdd, base_wrench, tau_J)
+            if self._calls == self._window_calls:  # the window's last call measures its noise...
+                self._window_noise = self._measure_window()
+            return self._finish(self._last_good, True, wrong_rate, True)
+        if self._window_noise is not None:  # ...and the next one applies the rule: no call does both
+            self._close_window(self._window_noise)
+            if self.spec.needs_qdd:
+                qdd = self._qdd_filter.step(qd)  # this sample through the chosen filter, after the window's replay
+        if taring and tau_J is not None and self._last_good.dot(self._last_good) > self.config.tare_contact_force ** 2:
+            tare.reset()  # a late tare must not average over a contact the torques see: start over
+        if not self._base_tared and tare.done:
+            self._base_tared = True
+        w_in = tared if self._base_tared else None
+        usable = True
+        if self._optional:
+            usable = self._track_sensors(w_in is not None, tau_J is not None)
+        f = self._stream.step(q, qd, qdd, w_in, tau_J)
+        return self._finish(f, True, wrong_rate, usable)
+
+    def _finish(self, f, in_range, wrong_rate, usable) -> np.ndarray:
+        """The status of this call's estimate f, and f (a copy); a force within the bound is kept."""
+        status = _OK if in_range else _OUT_OF_RANGE
+        if self._calls < self._warmup_calls:
+            status = _WARMING_UP
+        if not usable:
+            status = _NO_SENSOR
+        if wrong_rate:
+            status = _WRONG_RATE
+        if not f.dot(f) <= self.config.max_tip_force ** 2:  # NaN compares False: flagged too
+            status = _FORCE_OUT_OF_RANGE  # returned, but never held as the last good estimate
+        else:
+            self._last_good = f
+        self.last_status = status
+        return f.copy()
+
+    def _track_sensors(self, has_base: bool, has_joint: bool) -> bool:
+        """kalman-fusion: which sensors the filter estimates from. A sensor back within
+        MAX_BRIDGE_CALLS is bridged; one that joins or leaves beyond that restarts the warm-up for the
+        new set's settling time. Returns whether any sensor is usable now."""
+        for i, has in enumerate((has_base, has_joint)):
+            if has:
+                self._absent[i] = 0
+            elif self._absent[i] >= 0:
+                self._absent[i] += 1
+        active = tuple(name for i, name in enumerate(("base_wrench", "tau_J"))
+                       if 0 <= self._absent[i] <= MAX_BRIDGE_CALLS)
+        if active != self._active:
+            self._active = active
+            if active:
+                self._warmup_calls = max(self._warmup_calls, self._calls + self._stream.settle_calls(active))
+        return bool(active)
+
+    # ------------------------------------------------------- noise window
+    def _record(self, k, q, qd, w, tau) -> None:
+        self._win_q[k] = q
+        self._win_qd[k] = qd
+        if w is not None:
+            self._win_w[k] = w
+            self._win_has[k, 0] = True
+        if tau is not None:
+            self._win_tau[k] = tau
+            self._win_has[k, 1] = True
+
+    def _measure_window(self):
+        """The window's white noise (``bandwidth.measure_window``) on the samples each sensor came with."""
+        has = self._win_has
+        rows = lambda x, i: x[has[:, i]] if has[:, i].sum() >= 8 else None  # noqa: E731
+        return measure_window(self._win_q, self._win_qd, rows(self._win_w, 0), rows(self._win_tau, 1))
+
+    def _close_window(self, noise) -> None:
+        """The first call after the noise window: set the bandwidth by the rule (or the config's) from the
+        window's noise, replay the window through the chosen qdd filter, start the method at this call. No
+        design happens here: the rule picks among designs made when the estimator was built (``cutoff_grid``)."""
+        self._window_noise = None
+        tare = self._tare
+        offset = tare.offset if tare is not None and tare.done else None
+        if offset is None and tare is not None:  # the base sensor did not fill the window: no model error from it
+            self._stream_stats_drop_base()
+        self.bandwidth = self._stream.close_window(noise, offset, self._fixed)
+        self._use_bandwidth(replay=self._win_qd)
+        self._base_tared = tare is None or tare.done
+        self._absent, self._active = [-1, -1], ()
+        # A qdd method has no transient (its filter was replayed); an observer settles; kalman-fusion settles
+        # for the sensors it gets (``_track_sensors``).
+        self._warmup_calls = self._calls
+        if not self._optional and not self.spec.needs_qdd:
+            self._warmup_calls += self._stream.settle_calls(self.spec.reads)
+
+    def _stream_stats_drop_base(self) -> None:
+        kalman = getattr(self._stream, "kalman", None)
+        if kalman is not None:
+            kalman.stats[0] = 0.0
+
+    def _use_bandwidth(self, replay=None):
+        """Apply the chosen qdd cutoff (a precomputed design), replaying ``replay`` (n, nv) through it;
+        returns the replay's last qdd (None without one)."""
+        kalman = getattr(self._stream, "kalman", None)
+        self.fusion_noise = None if kalman is None else kalman.noise
+        if self.spec.parameter != "qdd_cutoff_hz":
+            return None
+        grid = cutoff_grid(float(self.config.call_hz))[0]
+        hit = np.flatnonzero(np.isclose(grid, self.bandwidth, rtol=1e-12))
+        self._qdd_filter = (CausalAccelerationFilter.from_design(self.robot.nv, self.config.call_hz, int(hit[0]))
+                            if len(hit) else CausalAccelerationFilter(self.robot.nv, self.config.call_hz, self.bandwidth))
+        self.qdd_cutoff_hz = self.bandwidth
+        return None if replay is None else self._qdd_filter.replay(replay)
+
+    def _restart_dynamics(self) -> None:
+        """After a gap in a timed stream: the filter and the method restart (a finished tare and the
+        bandwidth are kept), and it warms up for the method's settling time."""
+        self._qdd_filter.reset()
+        self._rate.reset()
+        if self.model is not None:
+            self.model.reset()
+            self._warmup_calls = max(self._warmup_calls, self._calls + self.model.warmup_calls(self.config.call_hz))
+            return
+        if self._calls < self._window_calls:  # a gap inside the window: the window goes on (its noise is measured)
+            return
+        self._stream.reset()
+        self._absent, self._active = [-1, -1], ()
+        self._warmup_calls = max(self._warmup_calls, self._calls + 1 + self._stream.settle_calls(self.spec.reads))

@@ -1,0 +1,25 @@
+"""The seed's Tables 2 and 3 as a report section: our figure, the seed's, and their ratio, row by row."""
+from hybrid_dyn.bench.seed_comparison import seed_comparison_text
+from hybrid_dyn.bench.seed_reference import SEED_TABLE2, SEED_TABLE3
+
+
+def _row(model, task, rmse, family="seed-net"):
+    return dict(scenario="seed-sim", task=task, model=model, family=family, status="ok", rmse=str(rmse),
+                epochs="40", stopped_by="budget")
+
+
+def test_no_seed_net_no_section():
+    assert seed_comparison_text([_row("rnea", "joint_torque", 0.9, family="analytic")]) is None
+
+
+def test_each_seed_net_beside_the_seeds_figure_with_the_ratio():
+    tip_seed = SEED_TABLE2["seed-tip-4"][2]
+    tau_seed = SEED_TABLE3[("seed-tau-mlp", "sim-ext")][2]
+    rows = [_row("seed-tip-4", "tip_force", 2 * tip_seed), _row("seed-tau-mlp", "joint_torque", 3 * tau_seed),
+            _row("rnea", "joint_torque", 0.5, family="analytic")]
+    text = seed_comparison_text(rows)
+    tip_line = next(line for line in text.splitlines() if line.startswith("| 4 |"))
+    assert f"{2 * tip_seed:.4f}" in tip_line and f"{tip_seed:.4f}" in tip_line and "| 2.00 |" in tip_line
+    tau_line = next(line for line in text.splitlines() if line.startswith("| seed-tau-mlp |"))
+    assert "| 3.00 |" in tau_line
+    assert "`rnea` 0.5000 Nm" in text  # the physics bar on the same test split

@@ -1,0 +1,164 @@
+"""One name per concept (issue 30, item 4): a generator *size* is not a bench *profile*, the training
+recipes have names of their own, ``train`` takes ``--params`` and ``--max-epochs`` as ``bench`` and
+TrainConfig say. Every old name still works, with a DeprecatedNameWarning naming the new one, and
+nothing a cache or a report is keyed by moves: config hashes, fingerprints, run.json's profile."""
+import dataclasses
+import json
+import subprocess
+import sys
+import warnings
+
+import pytest
+
+from hybrid_dyn.bench.integrity import recorded_profile
+from hybrid_dyn.bench.profiles import PROFILES, BenchProfile
+from hybrid_dyn.cli import build_parser
+from hybrid_dyn.deprecation import DeprecatedNameWarning
+from hybrid_dyn.learn.train import RECIPE_ALIASES, RECIPES, TrainConfig
+from hybrid_dyn.sim.scenarios import SIZES, GeneratorConfig, scenario_config
+
+pytestmark = pytest.mark.system
+
+
+@pytest.fixture
+def no_deprecation():
+    """Inside: a DeprecatedNameWarning is an error (the new names are silent)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DeprecatedNameWarning)
+        yield
+
+
+# --------------------------------------------------------------------------- generator sizes
+def test_a_generator_size_keeps_the_config_hash_it_had_as_a_profile(no_deprecation):
+    # The hashes every cached dataset is stored under (also in test_seed_sim and test_contact_steps).
+    assert scenario_config("paper-ext", size="default").config_hash() == "c6b41661db23d34c"
+    assert scenario_config("mismatch-ext", "default").config_hash() == "59028684ff8f137c"
+    cfg = scenario_config("seed-sim", size="paper")
+    assert cfg.size == "paper" and cfg.to_dict()["profile"] == "paper" and "size" not in cfg.to_dict()
+    assert list(cfg.to_dict())[:2] == ["scenario", "profile"]  # the stored key, in its place
+    assert GeneratorConfig.from_dict(cfg.to_dict()) == cfg  # a manifest's config reads back
+    assert SIZES == ("quick", "default", "paper")
+
+
+def test_the_old_profile_keyword_field_and_constant_warn_and_mean_the_size():
+    with pytest.warns(DeprecatedNameWarning, match="scenario_config\\(\\) keyword 'profile' is deprecated: use 'size'"):
+        old = scenario_config("paper-ext", profile="default")
+    assert old == scenario_config("paper-ext", size="default")
+    with pytest.warns(DeprecatedNameWarning, match="GeneratorConfig field 'profile'"):
+        assert GeneratorConfig(profile="paper").size == "paper"
+    with pytest.warns(DeprecatedNameWarning, match="GeneratorConfig field 'profile'"):
+        assert old.profile == "default"
+    with pytest.raises(TypeError, match="both 'size' and its old name 'profile'"):
+        scenario_config("paper-ext", size="quick", profile="paper")
+    import hybrid_dyn.sim as sim
+    import hybrid_dyn.sim.scenarios as scenarios
+
+    for module in (sim, scenarios):
+        with pytest.warns(DeprecatedNameWarning, match="PROFILES' is deprecated: use .*SIZES"):
+            assert module.PROFILES == SIZES
+    with pytest.raises(AttributeError):
+        scenarios.NOT_A_NAME
+
+
+def test_generate_takes_size_and_its_old_flag_warns(capsys):
+    parser = build_parser()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DeprecatedNameWarning)
+        assert parser.parse_args(["generate", "--size", "paper", "--out", "x"]).size == "paper"
+        assert parser.parse_args(["generate", "--out", "x"]).size == "quick"
+    with pytest.warns(DeprecatedNameWarning, match="flag '--profile' is deprecated: use '--size'"):
+        assert parser.parse_args(["generate", "--profile", "default", "--out", "x"]).size == "default"
+    with pytest.raises(SystemExit):  # the old flag keeps its choices
+        parser.parse_args(["generate", "--profile", "huge", "--out", "x"])
+
+
+def test_a_bench_profile_names_its_generator_size_and_run_json_keeps_the_key(no_deprecation):
+    quick = PROFILES["quick"]
+    assert quick.generator_size == "quick" and PROFILES["seed-sim"].generator_size == "paper"
+    d = quick.to_dict()  # what run.json records, and report.py quotes as "generator profile"
+    assert d["generator_profile"] == "quick" and "generator_size" not in d
+    assert list(d)[:3] == ["name", "scenarios", "generator_profile"]
+
+
+def test_the_old_generator_profile_field_warns():
+    with pytest.warns(DeprecatedNameWarning, match="BenchProfile field 'generator_profile'.*'generator_size'"):
+        old = BenchProfile(name="t", scenarios=("paper-ext",), generator_profile="default", families=("analytic",))
+    assert old.generator_size == "default" and old.to_dict()["generator_profile"] == "default"
+    with pytest.warns(DeprecatedNameWarning):
+        assert old.generator_profile == "default"
+    assert dataclasses.replace(old, seed=1).generator_size == "default"  # replace() goes by the new name
+
+
+# --------------------------------------------------------------------------- training recipes
+def test_recipes_have_names_of_their_own_and_the_old_ones_warn(no_deprecation):
+    assert set(RECIPES) == {"plateau", "long", "seed-study", "budget"}
+    assert not set(RECIPES) & {"default", "seed"}  # a generator size, a bench profile; the random seed
+    assert TrainConfig.recipe() == TrainConfig.recipe("plateau") == TrainConfig()
+    for old, new in RECIPE_ALIASES.items():
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecatedNameWarning)
+            by_old = TrainConfig.recipe(old, seed=3)
+        # the same fields, so the same fingerprint (the old recipe under its new name)
+        assert by_old == TrainConfig.recipe(new, seed=3)
+        assert by_old.fingerprint_fields() == TrainConfig.recipe(new, seed=3).fingerprint_fields()
+    with pytest.warns(DeprecatedNameWarning, match="training recipe 'seed' is deprecated: use 'seed-study'"):
+        assert TrainConfig.recipe("seed").lr_schedule == "none"
+
+
+def test_a_run_json_of_an_old_recipe_name_is_the_same_profile(no_deprecation):
+    """A report written with recipe "default" is recognised as the paper profile's own on a rerun
+    (bench/runner.py compares run.json's profile with BenchProfile.to_dict())."""
+    paper = PROFILES["paper"]
+    assert paper.recipe == "plateau"
+    recorded = {**paper.to_dict(), "recipe": "default"}  # as a run.json of before the rename holds it
+    assert recorded != paper.to_dict() and recorded_profile(recorded) == paper.to_dict()
+    assert recorded_profile({**recorded, "seed": 1}) != paper.to_dict()  # anything else still differs
+
+
+# --------------------------------------------------------------------------- train flags
+def _train_config(argv):
+    from hybrid_dyn.learn.cli import _config
+
+    return _config(build_parser().parse_args(["train", "--data", "d", "--preset", "seed-tip-1", "--out", "m"] + argv))
+
+
+def test_train_takes_params_and_max_epochs(no_deprecation):
+    cfg = _train_config(["--params", "franka_official", "--max-epochs", "7"])
+    assert cfg.analytic_params == "franka_official" and cfg.max_epochs == 7
+    assert _train_config([]).max_epochs == 200 and _train_config([]).analytic_params is None
+    assert _train_config(["--recipe", "seed-study"]) == TrainConfig.recipe("seed-study", progress=True)
+
+
+def test_the_old_train_flags_warn_and_set_the_same_fields():
+    with pytest.warns(DeprecatedNameWarning) as caught:
+        cfg = _train_config(["--analytic-params", "franka_official", "--epochs", "7", "--recipe", "default"])
+    said = sorted(str(w.message) for w in caught)
+    assert said == ["flag '--analytic-params' is deprecated: use '--params'",
+                    "flag '--epochs' is deprecated: use '--max-epochs'",
+                    "training recipe 'default' is deprecated: use 'plateau'"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DeprecatedNameWarning)
+        assert cfg == _train_config(["--params", "franka_official", "--max-epochs", "7", "--recipe", "plateau"])
+
+
+def test_the_command_line_prints_a_deprecation_as_one_line(tmp_path):
+    """From a shell: the warning is one ``warning:`` line naming the new flag, and the command goes on."""
+    run = subprocess.run([sys.executable, "-m", "hybrid_dyn.cli", "train", "--data", str(tmp_path / "none"),
+                          "--preset", "seed-tip-1", "--out", str(tmp_path / "m"), "--epochs", "0"],
+                         capture_output=True, text=True)
+    assert run.returncode == 2
+    lines = run.stderr.strip().splitlines()
+    assert lines[0] == "warning: flag '--epochs' is deprecated: use '--max-epochs'"
+    assert lines[-1].startswith("error: TrainConfig.max_epochs (--max-epochs) must be an integer >= 1")
+
+
+def test_bench_records_an_old_recipe_by_its_new_name(monkeypatch):
+    import hybrid_dyn.bench.runner as runner
+    from hybrid_dyn.cli import main
+
+    seen = {}
+    monkeypatch.setattr(runner, "run_bench", lambda profile, out, **kw: seen.setdefault("profile", profile) and [])
+    with pytest.warns(DeprecatedNameWarning, match="training recipe 'seed' is deprecated: use 'seed-study'"):
+        main(["bench", "--profile", "quick", "--recipe", "seed", "--out", "unused"])
+    assert seen["profile"].recipe == "seed-study" and json.loads(json.dumps(seen["profile"].to_dict()))["recipe"] == \
+        "seed-study"
