@@ -16,7 +16,7 @@ from hybrid_dyn.sim.scenarios import (
     SCENARIOS, ConfigError, NoiseConfig, PulseConfig, Scenario, alternative_params, scenario_config,
 )
 
-TINY_SIZES = {size: dict(n_instances=3, trajectories=(1, 1)) for size in scenarios.PROFILES}
+TINY_SIZES = {size: dict(n_instances=3, trajectories=(1, 1)) for size in scenarios.SIZES}
 
 
 @pytest.fixture
