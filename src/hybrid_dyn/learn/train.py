@@ -1,7 +1,9 @@
 """Training: Adam on standardized MSE, a learning-rate schedule, early stopping; deterministic and resumable.
 
 The loop, and its public entry :func:`train_model`. What a run is (:class:`TrainConfig`), the
-four named recipes and the budgeted schedule are in ``recipes.py``.
+four named recipes and the budgeted schedule are in ``recipes.py``; the checkpoint files in
+``checkpoints.py``; what a model folder may hold in ``model_folder.py``; the dataset's checks and
+the batches in ``training_data.py``.
 
 All recipes keep the weights of the best validation epoch (as Keras'
 ``restore_best_weights``); the untrained model counts as epoch "-1", so a
@@ -40,17 +42,12 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
-import json
-import os
-import re
 import time
 from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 import torch
-from safetensors import safe_open
-from safetensors.torch import save_file
 from tqdm.auto import tqdm
 
 from ..analytic.tare import tared_runs
@@ -58,17 +55,17 @@ from ..data import Dataset, load_dataset
 from ..data.splits import first_instances
 from ..data.windows import WindowedSplit
 from ..errors import UsageError
-from ..outputs import json_marker, output_lock, refuse_foreign, refuse_foreign_files
-from .model import (MODEL_FORMAT, MODEL_FORMAT_VERSION, TIMING_FORMAT, HybridModel, ModelError, TrainedModel,
-                    canonical_json, check_instances, load_model, read_file_metadata, save_model)
+from ..outputs import output_lock
+from .checkpoints import _load_checkpoint, _restore_optimizer, _save_checkpoint
+from .model import (MODEL_FORMAT, MODEL_FORMAT_VERSION, HybridModel, ModelError, TrainedModel, canonical_json,
+                    check_instances, load_model, save_model)
 from .kinds import clips_gradients  # declared with the network kind
+from .model_folder import _refuse_foreign_files, _reuse
 from .presets import Preset, get_preset
 from .priors import AnalyticPrior
 from .recipes import TrainConfig, _option, budget_lr, improvement_needed
 from .recipes import BUDGET_STEPS, RECIPE_ALIASES, RECIPES  # noqa: F401  (re-exported: imported from here before recipes.py)
-
-STD_FLOOR = 1e-6  # a (nearly) constant column is scaled by 1, not blown up
-
+from .training_data import _batches, _check_robot_and_widths, _stats, evaluate_split, field_widths
 
 STOP_REASONS = ("patience", "lr-floor", "epoch-cap", "budget")
 
@@ -101,73 +98,6 @@ def _deterministic(num_threads: int | None = None):
         torch.set_num_threads(threads)
 
 
-def field_widths(instance, names) -> dict:
-    return {n: int(np.asarray(instance[n]).reshape(len(instance), -1).shape[1]) for n in names}
-
-
-def _stats(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    a = a.astype(np.float64)
-    mean, std = a.mean(0), a.std(0)
-    return mean, np.where(std < STD_FLOOR, 1.0, std)
-
-
-# ------------------------------------------------------------- checkpoints
-def _optimizer_tensors(opt: torch.optim.Optimizer) -> tuple[dict, dict]:
-    sd = opt.state_dict()
-    tensors = {}
-    for pid, st in sd["state"].items():
-        for k, v in st.items():
-            tensors[f"opt.{pid}.{k}"] = torch.as_tensor(v).detach().cpu().contiguous()
-    return tensors, {"param_groups": sd["param_groups"]}
-
-
-def _restore_optimizer(opt: torch.optim.Optimizer, tensors: dict, meta: dict) -> None:
-    state: dict = {}
-    for key, v in tensors.items():
-        _, pid, k = key.split(".", 2)
-        state.setdefault(int(pid), {})[k] = v
-    opt.load_state_dict({"state": state, "param_groups": meta["param_groups"]})
-
-
-def _save_checkpoint(out_dir: Path, module, best_state, opt, info: dict) -> None:
-    tensors = {f"model.{k}": v.detach().cpu().contiguous() for k, v in module.state_dict().items()}
-    tensors.update({f"best.{k}": v.detach().cpu().contiguous() for k, v in best_state.items()})
-    opt_tensors, opt_meta = _optimizer_tensors(opt)
-    tensors.update(opt_tensors)
-    # Dropout draws its masks from torch's global generator: its state is part of
-    # where training stands, or a resumed run drops other units than a straight one.
-    tensors["rng.cpu"] = torch.get_rng_state()
-    device = next(module.buffers()).device
-    if device.type == "cuda":
-        tensors["rng.cuda"] = torch.cuda.get_rng_state(device).cpu()
-    info = dict(info, optimizer=opt_meta)
-    tmp = out_dir / "checkpoint.safetensors.partial"
-    save_file(tensors, str(tmp), metadata={"fingerprint": info["fingerprint"], "epoch": str(info["epoch"])})
-    jtmp = out_dir / "checkpoint.json.partial"
-    jtmp.write_text(json.dumps(info, indent=1))
-    os.replace(tmp, out_dir / "checkpoint.safetensors")
-    os.replace(jtmp, out_dir / "checkpoint.json")
-
-
-def _load_checkpoint(out_dir: Path, fingerprint: str):
-    jpath, tpath = out_dir / "checkpoint.json", out_dir / "checkpoint.safetensors"
-    if not jpath.is_file() or not tpath.is_file():
-        return None
-    try:
-        info = json.loads(jpath.read_text())
-        with safe_open(str(tpath), framework="pt") as f:
-            meta = f.metadata() or {}
-            tensors = {k: f.get_tensor(k) for k in f.keys()}
-    except Exception:  # a checkpoint torn by a kill is discarded: the run restarts cleanly
-        return None
-    if info.get("fingerprint") != fingerprint:
-        raise ModelError(f"{out_dir} holds a checkpoint of another run (other preset, config or data); "
-                         "choose another --out or delete it")
-    if meta.get("fingerprint") != fingerprint or meta.get("epoch") != str(info["epoch"]):
-        return None  # the two files are from different epochs (killed between the renames)
-    return info, tensors
-
-
 # ------------------------------------------------------------------ training
 def run_fingerprint(preset: Preset, config: TrainConfig, dataset_checksum: str) -> str:
     return hashlib.sha256(canonical_json({"preset": preset.fingerprint_dict(), "train": config.fingerprint_fields(),
@@ -198,92 +128,6 @@ def train_model(dataset, preset, out_dir, config: TrainConfig | None = None, wai
         _refuse_foreign_files(out_dir)
         return _train_locked(ds, preset, out_dir, config, fingerprint, device)
 
-
-def _reuse(out_dir: Path, fingerprint: str) -> TrainedModel:
-    # A user's config.json (no toolkit format at all) is refused as theirs; another of our formats (a GP's)
-    # gets load_model's own message.
-    if json_marker(out_dir / "config.json", "format") is None:
-        refuse_foreign(out_dir, "model folder", f"its config.json lacks the format {MODEL_FORMAT!r}")
-    model = load_model(out_dir)
-    if model.config.get("fingerprint") != fingerprint:
-        raise ModelError(f"{out_dir} holds a finished model of another run (other preset, config or data); "
-                         "choose another --out or delete it")
-    return model
-
-
-# What training writes into its folder (and nothing else is replaced there).
-_OWN_TEMPORARY = re.compile(r"(model\.safetensors|config\.json|timing\.json|checkpoint\.safetensors|checkpoint\.json)"
-                            r"\.partial")
-_OWN_CACHE = re.compile(r"prior-[a-z-]+-[0-9a-f]+\.h5(\.partial)?")
-
-
-def _safetensors_metadata(path: Path) -> dict | None:
-    try:
-        with safe_open(str(path), framework="pt") as f:
-            return f.metadata() or {}
-    except Exception:  # safetensors raises its own error types: unreadable is simply not ours
-        return None
-
-
-def _json_doc(path: Path) -> dict | None:
-    try:
-        doc = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return None
-    return doc if isinstance(doc, dict) else None
-
-
-def _is_own(path: Path) -> bool:
-    """Whether ``path`` (in a model folder without config.json) is something training wrote.
-
-    Proof is in the content, not the name alone: our metadata or JSON keys. Temporaries
-    and prior caches are known by name (a temporary is partial by nature).
-    """
-    name = path.name
-    if path.is_dir():
-        return name == "analytic_cache" and all(p.is_file() and _OWN_CACHE.fullmatch(p.name) for p in path.iterdir())
-    if not path.is_file():
-        return False
-    if _OWN_TEMPORARY.fullmatch(name):
-        return True
-    if name == "model.safetensors":  # killed between writing the weights and the config
-        return read_file_metadata(_safetensors_metadata(path) or {}).get("format") == MODEL_FORMAT
-    if name == "checkpoint.safetensors":
-        return "fingerprint" in (_safetensors_metadata(path) or {})
-    if name == "checkpoint.json":
-        doc = _json_doc(path) or {}
-        return {"fingerprint", "epoch", "history"} <= set(doc)
-    if name == "timing.json":
-        return (_json_doc(path) or {}).get("format") == TIMING_FORMAT
-    return False
-
-
-def _refuse_foreign_files(out_dir: Path) -> None:
-    """An output folder must be missing, empty, or hold only what training writes."""
-    refuse_foreign_files(out_dir, "model folder", _is_own)
-
-
-# Fields with one column per joint; the others have fixed widths.
-JOINT_FIELDS = ("q", "qd", "qdd", "tau_m", "tau_J")
-FIXED_WIDTHS = {"base_wrench": 6, "tip_force": 3}
-
-
-def _check_robot_and_widths(ds: Dataset, widths: dict, robot) -> None:
-    """The dataset's field widths fit its robot (nv columns per joint field), before any training.
-
-    robot: the loaded Robot when the dataset's robot has a description, else None (a
-    data-only arm: the joint fields need only agree with each other).
-    """
-    joint = {f: w for f, w in widths.items() if f in JOINT_FIELDS}
-    nv = robot.nv if robot is not None else None
-    for f, w in sorted(widths.items()):
-        if f in FIXED_WIDTHS and w != FIXED_WIDTHS[f]:
-            raise ModelError(f"dataset {ds.path}: field {f} has {w} columns, expected {FIXED_WIDTHS[f]}")
-    if nv is not None and any(w != nv for w in joint.values()):
-        raise ModelError(f"dataset {ds.path} is labelled robot {ds.meta['robot']!r} ({nv} joints), but its joint "
-                         f"fields have {joint} columns: another robot's data, or the wrong robot name")
-    if len(set(joint.values())) > 1:
-        raise ModelError(f"dataset {ds.path}: joint fields disagree in width: {joint}")
 
 
 def _train_locked(ds: Dataset, preset: Preset, out_dir: Path, config: TrainConfig, fingerprint: str,
@@ -368,27 +212,6 @@ def _optimizer(module: torch.nn.Module, config: TrainConfig) -> torch.optim.Opti
     return torch.optim.AdamW([g for g in groups if g["params"]], lr=config.lr)
 
 
-def _batches(ws: WindowedSplit, idx: np.ndarray, device):
-    x, y = ws[idx]
-    p = ws.extra["prior"][idx] if "prior" in ws.extra else None
-    to = lambda a: torch.from_numpy(np.ascontiguousarray(a)).to(device)  # noqa: E731
-    return to(x), to(y), (None if p is None else to(p))
-
-
-def evaluate_split(module: HybridModel, ws: WindowedSplit, device, batch_size: int = 4096) -> float:
-    """Standardized MSE over a whole split (every sample weighs the same)."""
-    module.eval()
-    total, n = 0.0, 0
-    with torch.no_grad():
-        for s in range(0, len(ws), batch_size):
-            idx = np.arange(s, min(s + batch_size, len(ws)))
-            x, y, p = _batches(ws, idx, device)
-            total += float(module.standardized_loss(module(x, p), y)) * len(idx)
-            n += len(idx)
-    module.train()
-    return total / max(n, 1)
-
-
 def sensor_tare_seconds(preset: Preset, config: TrainConfig) -> float:
     """The contact-free start [s] on which the net's base-wrench input is tared (0: raw sensor)."""
     if "base_wrench" not in preset.inputs or preset.raw_sensor:
@@ -451,6 +274,8 @@ def _rounds(config: TrainConfig, n: int):
         return out
 
     return n_rounds, -(-total // n_rounds), budget_round
+
+
 
 
 def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint, widths, prior, device, sensor_tare):
