@@ -278,6 +278,42 @@ def _rounds(config: TrainConfig, n: int):
 
 
 
+def _state_copy(module) -> dict:
+    """A detached copy of the module's weights and buffers: a candidate for the best epoch's."""
+    return {k: v.detach().clone() for k, v in module.state_dict().items()}
+
+
+def _restore(module, opt, tensors: dict, info: dict, device) -> dict:
+    """Weights, optimizer and torch's generators as a checkpoint left them; returns the best weights."""
+    module.load_state_dict({k[6:]: v for k, v in tensors.items() if k.startswith("model.")})
+    best_state = {k[5:]: v.to(device) for k, v in tensors.items() if k.startswith("best.")}
+    _restore_optimizer(opt, {k: v for k, v in tensors.items() if k.startswith("opt.")}, info["optimizer"])
+    if "rng.cpu" in tensors:  # checkpoints written before the generator state was saved lack it
+        torch.set_rng_state(tensors["rng.cpu"])
+    if "rng.cuda" in tensors and device.type == "cuda":
+        torch.cuda.set_rng_state(tensors["rng.cuda"], device)
+    return best_state
+
+
+def _train_round(module, opt, ws_train, batches, clip, device, bar) -> list[float]:
+    """One round's optimizer steps (an epoch, or a share of the budget); returns each step's loss."""
+    losses = []
+    for idx, step_lr in batches:
+        if step_lr is not None:
+            for group in opt.param_groups:
+                group["lr"] = step_lr
+        x, y, p = _batches(ws_train, idx, device)
+        opt.zero_grad(set_to_none=True)
+        loss = module.standardized_loss(module(x, p), y)
+        loss.backward()
+        if clip is not None:
+            torch.nn.utils.clip_grad_norm_(module.parameters(), clip)
+        opt.step()
+        losses.append(float(loss.detach()))
+        bar.update(1)
+    return losses
+
+
 def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint, widths, prior, device, sensor_tare):
     n_rounds, steps_per_round, round_batches = _rounds(config, len(ws_train))
     history, bad_epochs, lr_bad_epochs, start_epoch, seconds = [], 0, 0, 0, 0.0
@@ -285,18 +321,12 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
     clip = config.grad_clip if _is_recurrent(preset) else None
     # The untrained model is the first candidate: a residual model starts as its physics
     # part (zero-initialized branch), and keeps it when training never beats it on validation.
-    best_state = {k: v.detach().clone() for k, v in module.state_dict().items()}
+    best_state = _state_copy(module)
     best_val = initial_val = evaluate_split(module, ws_val, device)
     resumed = _load_checkpoint(out_dir, fingerprint)
     if resumed is not None:
         info, tensors = resumed
-        module.load_state_dict({k[6:]: v for k, v in tensors.items() if k.startswith("model.")})
-        best_state = {k[5:]: v.to(device) for k, v in tensors.items() if k.startswith("best.")}
-        _restore_optimizer(opt, {k: v for k, v in tensors.items() if k.startswith("opt.")}, info["optimizer"])
-        if "rng.cpu" in tensors:  # checkpoints written before the generator state was saved lack it
-            torch.set_rng_state(tensors["rng.cpu"])
-        if "rng.cuda" in tensors and device.type == "cuda":
-            torch.cuda.set_rng_state(tensors["rng.cuda"], device)
+        best_state = _restore(module, opt, tensors, info, device)
         history, best_val, bad_epochs = info["history"], info["best_val"], info["bad_epochs"]
         start_epoch, seconds = info["epoch"] + 1, info["train_seconds"]
         lr_bad_epochs, best_epoch, stopped_by = info["lr_bad_epochs"], info["best_epoch"], info["stopped_by"]
@@ -309,27 +339,14 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
             if stopped:
                 break
             t0 = time.perf_counter()
-            losses = []
-            for idx, step_lr in round_batches(epoch):
-                if step_lr is not None:
-                    for group in opt.param_groups:
-                        group["lr"] = step_lr
-                x, y, p = _batches(ws_train, idx, device)
-                opt.zero_grad(set_to_none=True)
-                loss = module.standardized_loss(module(x, p), y)
-                loss.backward()
-                if clip is not None:
-                    torch.nn.utils.clip_grad_norm_(module.parameters(), clip)
-                opt.step()
-                losses.append(float(loss.detach()))
-                bar.update(1)
+            losses = _train_round(module, opt, ws_train, round_batches(epoch), clip, device, bar)
             val = evaluate_split(module, ws_val, device)
             seconds += time.perf_counter() - t0
             lr = opt.param_groups[0]["lr"]  # the rate the round's last step trained with
             history.append({"epoch": epoch, "train_loss": float(np.mean(losses)), "val_loss": val, "lr": lr})
             if val < best_val - improvement_needed(config, best_val):
                 best_val, bad_epochs, lr_bad_epochs, best_epoch = val, 0, 0, epoch
-                best_state = {k: v.detach().clone() for k, v in module.state_dict().items()}
+                best_state = _state_copy(module)
             else:
                 bad_epochs += 1
                 lr_bad_epochs += 1
@@ -350,7 +367,22 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
 
     module.load_state_dict(best_state)
     module.eval()
-    config_doc = {
+    outcome = {"history": history, "stopped_by": stopped_by, "best_epoch": best_epoch, "val_loss": best_val,
+               "initial_val_loss": initial_val, "train_samples": len(ws_train)}
+    config_doc = _model_config(module, preset, config, ds, widths, prior, sensor_tare, fingerprint, outcome)
+    module.cpu()
+    save_model(module, config_doc, out_dir, train_seconds=seconds)
+    for name in ("checkpoint.safetensors", "checkpoint.json"):
+        (out_dir / name).unlink(missing_ok=True)
+    return load_model(out_dir)
+
+
+def _model_config(module, preset, config, ds, widths, prior, sensor_tare, fingerprint, outcome: dict) -> dict:
+    """The trained model's config.json: what it reads and predicts, its normalization, its data and training
+    config, and how training went (``outcome``: history, stopped_by, best_epoch, val_loss, initial_val_loss,
+    train_samples)."""
+    history, stopped_by = outcome["history"], outcome["stopped_by"]
+    return {
         "format": MODEL_FORMAT, "format_version": MODEL_FORMAT_VERSION,
         "preset": preset.to_dict(), "inputs": list(preset.inputs), "targets": list(preset.targets),
         "window": preset.window, "widths": widths, "robot": ds.meta["robot"],
@@ -360,13 +392,9 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
         "normalization": {k: getattr(module, k).cpu().double().tolist() for k in ("x_mean", "x_std", "y_mean", "y_std")},
         "dataset": {"path": str(ds.path), "checksum": ds.checksum, "scenario": ds.meta.get("scenario")},
         "train_config": asdict(config), "fingerprint": fingerprint, "history": history,
-        "epochs": len(history), "stopped_by": stopped_by, "best_epoch": best_epoch,
-        "stopped_early": stopped_by in ("patience", "lr-floor"), "val_loss": best_val, "initial_val_loss": initial_val,
+        "epochs": len(history), "stopped_by": stopped_by, "best_epoch": outcome["best_epoch"],
+        "stopped_early": stopped_by in ("patience", "lr-floor"), "val_loss": outcome["val_loss"],
+        "initial_val_loss": outcome["initial_val_loss"],
         "n_params": sum(p.numel() for p in module.parameters()),
-        "train_samples": len(ws_train), "torch": torch.__version__,
+        "train_samples": outcome["train_samples"], "torch": torch.__version__,
     }  # no wall-clock figures: they would make two identical runs' files differ (timing.json has them)
-    module.cpu()
-    save_model(module, config_doc, out_dir, train_seconds=seconds)
-    for name in ("checkpoint.safetensors", "checkpoint.json"):
-        (out_dir / name).unlink(missing_ok=True)
-    return load_model(out_dir)
