@@ -137,6 +137,32 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
     figures += curve_figures
     _remove_stale_figures(out_dir, figures)
     failed = [r for r in rows if r.get("status") != "ok"]
+    lines = _what_was_run(meta, prof)
+    notes = prof.get("notes") or []
+    if notes:
+        lines += ["", "## Method notes", ""] + [f"- {n}" for n in notes]
+    lines += ["", "## Headline findings", ""] + findings(rows)
+    if any(_is_capped(r) for r in _contenders(rows)):
+        lines += ["", f"{CAP_MARK}: stopped by the epoch cap while still improving; it may not have converged "
+                      "(see the learning curves)."]
+    lines += hybrid_lines(rows)
+    lines += convergence_lines(rows, curve_figures)
+    seed_text = seed_comparison_text(rows, read_curves(out_dir / CURVES_FILE))
+    if seed_text is not None:  # the seed's nets are in this report: its tables beside ours
+        (out_dir / SEED_COMPARISON_FILE).write_text(seed_text)
+        lines += ["", "## The seed's tables", "", f"`{SEED_COMPARISON_FILE}`: the seed's Tables 2 and 3 (Kruzic "
+                  "et al. 2021, another simulator) row by row beside this report's seed nets, the architecture "
+                  "ordering in both, and each net's training and validation loss at the kept round."]
+    lines += _left_out_lines(meta, notes_out, failed)
+    lines += _files_lines(out_dir, preds, seed_text, curve_figures, figures)
+    (out_dir / "README.md").write_text("\n".join(lines))
+    for note in notes_out:
+        log(f"[report] {note}")
+    return notes_out
+
+
+def _what_was_run(meta: dict, prof: dict) -> list[str]:
+    """The README's title, provenance and "What was run" section: scenarios, training, machine, datasets."""
     machine = meta.get("machine")
     labels = meta.get("scenarios") or {s: s for s in prof.get("scenarios", [])}
     command = _command(prof)
@@ -169,21 +195,12 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
                      + (f"; made or read in {_minutes(d['dataset_seconds'])} min of this invocation"
                         if d.get("dataset_seconds") is not None else ""))
         lines += [f"  - **import warning**: {w}" for w in d.get("import_warnings") or []]
-    notes = prof.get("notes") or []
-    if notes:
-        lines += ["", "## Method notes", ""] + [f"- {n}" for n in notes]
-    lines += ["", "## Headline findings", ""] + findings(rows)
-    if any(_is_capped(r) for r in _contenders(rows)):
-        lines += ["", f"{CAP_MARK}: stopped by the epoch cap while still improving; it may not have converged "
-                      "(see the learning curves)."]
-    lines += hybrid_lines(rows)
-    lines += convergence_lines(rows, curve_figures)
-    seed_text = seed_comparison_text(rows, read_curves(out_dir / CURVES_FILE))
-    if seed_text is not None:  # the seed's nets are in this report: its tables beside ours
-        (out_dir / SEED_COMPARISON_FILE).write_text(seed_text)
-        lines += ["", "## The seed's tables", "", f"`{SEED_COMPARISON_FILE}`: the seed's Tables 2 and 3 (Kruzic "
-                  "et al. 2021, another simulator) row by row beside this report's seed nets, the architecture "
-                  "ordering in both, and each net's training and validation loss at the kept round."]
+    return lines
+
+
+def _left_out_lines(meta: dict, notes_out: list[str], failed: list[dict]) -> list[str]:
+    """The README's sections on what is not in the report: rows not run, figures not redrawn, failed rows."""
+    lines = []
     skipped = meta.get("skipped") or []
     if skipped:
         lines += ["", "## Rows not run", "", "Each row the profile names that does not apply to a dataset, and why:", ""]
@@ -193,19 +210,20 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
         lines += ["", "## Not redrawn", ""] + [f"- {n}" for n in notes_out]
     if failed:
         lines += ["", "## Failed rows", ""] + [f"- {r['scenario']} {r['model']}: {r.get('error', '')}" for r in failed]
-    lines += ["", "## Files", "", "- `results.csv`: one row per (task, scenario, model), stable columns",
-              *([f"- `{PREDICTIONS_FILE}` ({_megabytes(out_dir / PREDICTIONS_FILE)}): every row's test predictions "
-                 "and their targets (the figures are drawn from it; `hybrid-dyn report DIR` redraws the report from "
-                 "these files)"] if preds is not None else []),
-              "- `tip_force.md`, `joint_torque.md` (+ `.tex`): tables in the seed's layout",
-              *([f"- `{SEED_COMPARISON_FILE}`: the seed's Tables 2 and 3 beside this report's"] if seed_text else []),
-              *([f"- `{CURVES_FILE}`: each learned row's loss per epoch, how it stopped and the epoch kept "
-                 "(the learning-curve figures are drawn from it)"] if curve_figures else []),
-              *[f"- `{f}`" for f in figures], ""]
-    (out_dir / "README.md").write_text("\n".join(lines))
-    for note in notes_out:
-        log(f"[report] {note}")
-    return notes_out
+    return lines
+
+
+def _files_lines(out_dir: Path, preds, seed_text, curve_figures: list[str], figures: list[str]) -> list[str]:
+    """The README's "Files" section: what the report folder holds."""
+    return ["", "## Files", "", "- `results.csv`: one row per (task, scenario, model), stable columns",
+            *([f"- `{PREDICTIONS_FILE}` ({_megabytes(out_dir / PREDICTIONS_FILE)}): every row's test predictions "
+               "and their targets (the figures are drawn from it; `hybrid-dyn report DIR` redraws the report from "
+               "these files)"] if preds is not None else []),
+            "- `tip_force.md`, `joint_torque.md` (+ `.tex`): tables in the seed's layout",
+            *([f"- `{SEED_COMPARISON_FILE}`: the seed's Tables 2 and 3 beside this report's"] if seed_text else []),
+            *([f"- `{CURVES_FILE}`: each learned row's loss per epoch, how it stopped and the epoch kept "
+               "(the learning-curve figures are drawn from it)"] if curve_figures else []),
+            *[f"- `{f}`" for f in figures], ""]
 
 
 def _minutes(seconds) -> str:

@@ -32,11 +32,26 @@ def _figures(out_dir: Path, rows, preds: Predictions | None, seed: int = 0) -> l
     import matplotlib
 
     matplotlib.use("Agg")
+
+    ok = _contenders(rows)  # the figures compare families' best rows: reference rows are in the tables
+    made = _rmse_bars(out_dir, ok)
+    for scenario in (preds.scenarios() if preds is not None else []):
+        test = preds.test(scenario)
+        if not test:
+            continue
+        k = int(np.random.default_rng(seed).integers(len(test)))
+        made += _traces(out_dir, ok, preds, scenario, test, k)
+        # Error vs contact force magnitude, tip force (where tip-force rows ran).
+        if any(r["task"] == "tip_force" and r["scenario"] == scenario for r in ok) and "tip_force" in test[k]:
+            made.append(_error_vs_force(out_dir, ok, preds, scenario, test))
+    return made
+
+
+def _rmse_bars(out_dir: Path, ok) -> list[str]:
+    """``rmse_by_family_<task>.png``: the best model per family, per scenario and task."""
     import matplotlib.pyplot as plt
 
     made = []
-    ok = _contenders(rows)  # the figures compare families' best rows: reference rows are in the tables
-    # RMSE bars: best model per family, per scenario and task.
     for task, unit in (("tip_force", "N"), ("joint_torque", "Nm")):
         scen = list(dict.fromkeys(r["scenario"] for r in ok if r["task"] == task))
         if not scen:
@@ -54,59 +69,65 @@ def _figures(out_dir: Path, rows, preds: Predictions | None, seed: int = 0) -> l
             ax.set_ylabel(f"test RMSE [{unit}]")
             ax.tick_params(axis="x", labelsize=7, rotation=30)
         made.append(_save(fig, out_dir, f"rmse_by_family_{task}.png", dpi=110))
-
-    for scenario in (preds.scenarios() if preds is not None else []):
-        test = preds.test(scenario)
-        if not test:
-            continue
-        k = int(np.random.default_rng(seed).integers(len(test)))
-        inst = test[k]
-        for task, target, unit in (("tip_force", "tip_force", "N"), ("joint_torque", "tau_m", "Nm")):
-            models = [r for r in ok if r["task"] == task and r["scenario"] == scenario]
-            if not models or target not in inst:
-                continue
-            picks = {}
-            for fam in ("analytic", "seed-net", "residual", "delan", "identified"):
-                b = _best(models, task, scenario, lambda r, fam=fam: r["family"] == fam)
-                if b:
-                    picks[b["model"]] = preds.get(scenario, task, b["model"])
-            y = inst[target]
-            t = inst["t"] - inst["t"][0]
-            n = y.shape[1]
-            fig, axes = plt.subplots(n, 1, figsize=(9, 1.6 * n + 0.6), sharex=True, squeeze=False)
-            for j in range(n):
-                ax = axes[j, 0]
-                ax.plot(t, y[:, j], "k-", lw=1.2, label="measured")
-                for name, row_preds in picks.items():
-                    if row_preds is not None:
-                        ax.plot(t, row_preds[k][:, j], lw=0.9, label=name)
-                ax.set_ylabel(f"{'xyz'[j] if n == 3 else f'joint {j + 1}'} [{unit}]", fontsize=8)
-            axes[0, 0].legend(fontsize=7, ncol=3, loc="upper right")
-            axes[-1, 0].set_xlabel("t [s]")
-            fig.suptitle(f"{scenario}, test instance {inst['name']}: {task.replace('_', ' ')}", fontsize=10)
-            made.append(_save(fig, out_dir, f"traces_{task}_{scenario}.png", dpi=100))
-        # Error vs contact force magnitude, tip force (where tip-force rows ran).
-        if any(r["task"] == "tip_force" and r["scenario"] == scenario for r in ok) and "tip_force" in inst:
-            f_true = np.concatenate([i.get("tip_force_truth", i["tip_force"]) for i in test])
-            mag = np.linalg.norm(f_true, axis=1)
-            bins = np.array([0, 1, 5, 10, 15, 20, np.inf])
-            which = np.digitize(mag, bins) - 1
-            fig, ax = plt.subplots(figsize=(6.5, 3.8))
-            for fam in ("analytic", "seed-net", "residual"):
-                b = _best(ok, "tip_force", scenario, lambda r, fam=fam: r["family"] == fam)
-                fam_preds = preds.get(scenario, "tip_force", b["model"]) if b else None
-                if fam_preds is None:
-                    continue
-                err = np.linalg.norm(np.concatenate(fam_preds) - np.concatenate([i["tip_force"] for i in test]), axis=1)
-                vals = [np.sqrt(np.mean(err[which == i] ** 2)) if (which == i).any() else np.nan for i in range(len(bins) - 1)]
-                ax.plot(range(len(vals)), vals, "o-", label=f"{fam}: {b['model']}")
-            ax.set_xticks(range(len(bins) - 1), ["0-1", "1-5", "5-10", "10-15", "15-20", ">20"])
-            ax.set_xlabel("|F_tip| true [N]")
-            ax.set_ylabel("RMS of |error| [N]")
-            ax.set_title(f"{scenario}: tip-force error vs contact force")
-            ax.legend(fontsize=8)
-            made.append(_save(fig, out_dir, f"error_vs_force_{scenario}.png", dpi=110))
     return made
+
+
+def _traces(out_dir: Path, ok, preds: Predictions, scenario: str, test, k: int) -> list[str]:
+    """``traces_<task>_<scenario>.png``: test instance ``k``'s target and each family's best row over time."""
+    import matplotlib.pyplot as plt
+
+    made = []
+    inst = test[k]
+    for task, target, unit in (("tip_force", "tip_force", "N"), ("joint_torque", "tau_m", "Nm")):
+        models = [r for r in ok if r["task"] == task and r["scenario"] == scenario]
+        if not models or target not in inst:
+            continue
+        picks = {}
+        for fam in ("analytic", "seed-net", "residual", "delan", "identified"):
+            b = _best(models, task, scenario, lambda r, fam=fam: r["family"] == fam)
+            if b:
+                picks[b["model"]] = preds.get(scenario, task, b["model"])
+        y = inst[target]
+        t = inst["t"] - inst["t"][0]
+        n = y.shape[1]
+        fig, axes = plt.subplots(n, 1, figsize=(9, 1.6 * n + 0.6), sharex=True, squeeze=False)
+        for j in range(n):
+            ax = axes[j, 0]
+            ax.plot(t, y[:, j], "k-", lw=1.2, label="measured")
+            for name, row_preds in picks.items():
+                if row_preds is not None:
+                    ax.plot(t, row_preds[k][:, j], lw=0.9, label=name)
+            ax.set_ylabel(f"{'xyz'[j] if n == 3 else f'joint {j + 1}'} [{unit}]", fontsize=8)
+        axes[0, 0].legend(fontsize=7, ncol=3, loc="upper right")
+        axes[-1, 0].set_xlabel("t [s]")
+        fig.suptitle(f"{scenario}, test instance {inst['name']}: {task.replace('_', ' ')}", fontsize=10)
+        made.append(_save(fig, out_dir, f"traces_{task}_{scenario}.png", dpi=100))
+    return made
+
+
+def _error_vs_force(out_dir: Path, ok, preds: Predictions, scenario: str, test) -> str:
+    """``error_vs_force_<scenario>.png``: the RMS tip-force error of each family's best row by contact force."""
+    import matplotlib.pyplot as plt
+
+    f_true = np.concatenate([i.get("tip_force_truth", i["tip_force"]) for i in test])
+    mag = np.linalg.norm(f_true, axis=1)
+    bins = np.array([0, 1, 5, 10, 15, 20, np.inf])
+    which = np.digitize(mag, bins) - 1
+    fig, ax = plt.subplots(figsize=(6.5, 3.8))
+    for fam in ("analytic", "seed-net", "residual"):
+        b = _best(ok, "tip_force", scenario, lambda r, fam=fam: r["family"] == fam)
+        fam_preds = preds.get(scenario, "tip_force", b["model"]) if b else None
+        if fam_preds is None:
+            continue
+        err = np.linalg.norm(np.concatenate(fam_preds) - np.concatenate([i["tip_force"] for i in test]), axis=1)
+        vals = [np.sqrt(np.mean(err[which == i] ** 2)) if (which == i).any() else np.nan for i in range(len(bins) - 1)]
+        ax.plot(range(len(vals)), vals, "o-", label=f"{fam}: {b['model']}")
+    ax.set_xticks(range(len(bins) - 1), ["0-1", "1-5", "5-10", "10-15", "15-20", ">20"])
+    ax.set_xlabel("|F_tip| true [N]")
+    ax.set_ylabel("RMS of |error| [N]")
+    ax.set_title(f"{scenario}: tip-force error vs contact force")
+    ax.legend(fontsize=8)
+    return _save(fig, out_dir, f"error_vs_force_{scenario}.png", dpi=110)
 
 
 def learning_curve_figures(out_dir: Path, curves: dict) -> list[str]:
