@@ -1,6 +1,7 @@
 """Simulation: the DART plant and the dataset generator."""
 from ..deprecation import module_aliases
-from .generator import generate_dataset, simulate_instance
+from .generator import generate_dataset
+from .instances import simulate_instance
 from .scenarios import (
     SCENARIO_REGISTRY, SCENARIOS, SIZES, ConfigError, GeneratorConfig, NoiseConfig, PulseConfig, Scenario,
     scenario_config,
