@@ -23,7 +23,9 @@ from pathlib import Path
 import numpy as np
 
 from hybrid_dyn.sim.executors import ProcessExecutor
-from hybrid_dyn.sim.generator import Simulator, _simulator_for, generate_dataset, instance_rngs, simulate_instance
+from hybrid_dyn.sim.generator import generate_dataset
+from hybrid_dyn.sim.instances import _simulator_for, instance_rngs, simulate_instance
+from hybrid_dyn.sim.simulator import Simulator
 from hybrid_dyn.sim.plant import DartPlant
 from hybrid_dyn.sim.pulses import sample_pulses
 from hybrid_dyn.sim.scenarios import scenario_config

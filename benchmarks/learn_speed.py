@@ -54,7 +54,7 @@ LOOP_FLOOR, DELAN_FLOOR = 0.7, 2.0
 
 
 def loop_table(args) -> int:
-    from hybrid_dyn.learn.train import BUDGET_STEPS
+    from hybrid_dyn.learn.recipes import BUDGET_STEPS
 
     torch.set_num_threads(1)
     with tempfile.TemporaryDirectory() as tmp:

@@ -1,5 +1,5 @@
 """Files by concept (issue 30): no source file over FILE_LINES lines, no function over FUNCTION_LINES
-outside compiled (numba) kernels, except the allow-listed ones being split now.
+outside compiled (numba) kernels, except the allow-listed ones (none now).
 
 A test rather than a script to remember: every run of the suite refuses a new oversized file or
 function. ``PYTHONPATH=tests python tests/system/test_source_sizes.py`` prints every one, allowed or not.
@@ -16,20 +16,11 @@ pytestmark = pytest.mark.system
 SRC = REPO / "src" / "hybrid_dyn"
 FILE_LINES = 500
 FUNCTION_LINES = 80
-# Over the limits when this test was written. Being split by others now (issue 30, item 6), or not yet
-# taken up; remove an entry once its file or function is within the limits (the test warns when one is).
-ALLOWED_FILES = {
-    "learn/train.py": "config, recipes, CLI flags, checkpoints, file ownership, the loop: being split",
-    "bench/report.py": "being split",
-    "sim/generator.py": "the simulator, the instance loop, the dataset writer: not split yet",
-}
-ALLOWED_FUNCTIONS = {
-    "learn/train.py:_fit": "being split with train.py",
-    "bench/report.py:_figures": "being split with report.py",
-    "bench/report.py:write_report": "being split with report.py",
-    "bench/runner.py:_run_bench_locked": "runner.py is being edited by others",
-    "identify/excitation.py:design_excitation": "not split yet",
-}
+# Exceptions to the limits, each with why: none since issue 30, item 6 split the last ones by concept
+# (learn/train.py, bench/report.py, sim/generator.py and the long functions). Remove an entry once its file
+# or function is within the limits (the test warns when one is).
+ALLOWED_FILES: dict[str, str] = {}
+ALLOWED_FUNCTIONS: dict[str, str] = {}
 COMPILED = {"njit", "jit", "vectorize", "guvectorize", "cfunc"}  # numba decorators: kernels written out
 
 

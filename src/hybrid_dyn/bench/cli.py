@@ -108,7 +108,7 @@ def cmd_bench(args) -> int:
             raise UsageError("--families and --rows name no row to run")
         profile = dataclasses.replace(profile, families=families, rows=names)
     if args.recipe:  # an unknown recipe is refused by the profile itself
-        from ..learn.train import RECIPE_ALIASES
+        from ..learn.recipes import RECIPE_ALIASES
 
         if args.recipe in RECIPE_ALIASES:  # an old name: warned once, and recorded (run.json) by its new name
             from ..deprecation import warn_renamed

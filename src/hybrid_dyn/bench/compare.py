@@ -17,7 +17,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from .report import best_row
+from .report_tables import best_row
 from .results import read_results
 
 LEARNED = ("seed-net", "residual", "delan")  # the families a comparison reads (trained, no identified fit)
@@ -29,7 +29,7 @@ def _ok(rows: list[dict]) -> dict:
 
 
 def best_analytic(rows: list[dict]) -> dict:
-    """(scenario, task) -> (model, rmse) of the lowest-RMSE analytic row (``report.best_row``)."""
+    """(scenario, task) -> (model, rmse) of the lowest-RMSE analytic row (``report_tables.best_row``)."""
     best = {}
     for scenario, task in {(r["scenario"], r["task"]) for r in rows}:
         r = best_row(rows, task, scenario, lambda r: r["family"] == "analytic")

@@ -49,8 +49,8 @@ def is_bench_meta(doc) -> bool:
 def recorded_profile(prof: dict) -> dict:
     """A run.json's ``profile`` in today's names, to compare with ``BenchProfile.to_dict()``: a training
     recipe recorded under its name before issue 30 (``default``, ``seed``) is the same recipe renamed
-    (``learn.train.RECIPE_ALIASES``), so that a rerun still recognises its own report."""
-    from ..learn.train import RECIPE_ALIASES
+    (``learn.recipes.RECIPE_ALIASES``), so that a rerun still recognises its own report."""
+    from ..learn.recipes import RECIPE_ALIASES
 
     if isinstance(prof, dict) and prof.get("recipe") in RECIPE_ALIASES:
         return {**prof, "recipe": RECIPE_ALIASES[prof["recipe"]]}

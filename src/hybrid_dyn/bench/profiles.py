@@ -47,7 +47,7 @@ class BenchProfile:
     generator_size: str = "quick"
     families: tuple = STUDY_FAMILIES
     rows: tuple = ()
-    recipe: str = "budget"  # learn.train.RECIPES: the budgeted recipe unless a profile says otherwise
+    recipe: str = "budget"  # learn.recipes.RECIPES: the budgeted recipe unless a profile says otherwise
     train: dict = field(default_factory=dict)  # TrainConfig fields on top of the recipe
     generator_overrides: dict = field(default_factory=dict)  # GeneratorConfig fields, every scenario
     # scenario -> GeneratorConfig fields, that one only (a real set: fields of its import spec, data.real.real_dataset)

@@ -378,62 +378,83 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider
         datasets[scenario] = ds
         ctx = BenchContext(profile, scenario, ds, robot, work_dir(profile, scenario, ds, work_root),
                            data_root, log=log, source=entry)
-        norm = train_split_stats(ds)
-        specs = []
-        for r in profile.selected_rows():
-            reason = profile.skip_reason(r, ds)
-            if reason is None:
-                specs.append(r)
-            else:
-                log(f"[bench] {scenario}: skipping {r.name} ({r.task}): {reason}")
-                skipped.append({"scenario": scenario, "task": r.task, "model": r.name, "reason": reason})
-        test = ds.split("test")
-        predictions.test_data(scenario, test, [t for t in dict.fromkeys(TASK_TARGET.values()) if t in ds.fields])
-        # Parallel workers train quietly (one progress bar over the models, not one per process).
-        tcfg = profile.train_config()
-        if profile.workers > 1 or executor is not None:
-            tcfg = dataclasses.replace(tcfg, progress=False)
-        if device is not None:
-            tcfg = dataclasses.replace(tcfg, device=device)
-        # The presets' rows train in parallel first (the identified residuals need their fit first).
-        jobs = [(str(ds.path), ref.name, profile.preset(s.name), str(ctx.work_dir / "models" / s.name), tcfg,
-                 profile.torch_threads) for s in specs if s.name in PRESET_ROWS]
-        log(f"[bench] {scenario}: training {len(jobs)} learned models on {profile.workers} workers")
-        pretrain(jobs, profile.workers, log=log, executor=executor)
-        for spec in tqdm(specs, desc=f"bench {scenario}", unit="model"):
-            t0 = time.perf_counter()
-            try:
-                row = score_row(spec, ctx, norm)
-            except Exception as err:  # a failed model is a row, not a crash
-                row = {"task": spec.task, "scenario": scenario, "model": spec.name, "family": spec.family,
-                       "status": "failed", "error": f"{type(err).__name__}: {err}"}
-                log(f"[bench] {spec.name} FAILED: {err}\n{traceback.format_exc(limit=3)}")
-            rows.append(row)
-            if row["status"] == "ok":  # first: a row in results.csv always has its predictions (report checks them)
-                predictions.row(scenario, spec.task, spec.name, [i.name for i in test],
-                                ctx.cache.pop((spec.task, spec.name)))
-            write_results(out_dir / "results.csv", rows)
-            _record_digest(out_dir)  # an interrupted bench's rows stay checkable by ``hybrid-dyn report``
-            write_curves(out_dir / CURVES_FILE, rows)
-            log(f"[bench] {scenario} {spec.task:12s} {spec.name:22s} rmse={row.get('rmse', float('nan')):.4g} "
-                f"({time.perf_counter() - t0:.1f} s)" if row["status"] == "ok" else
-                f"[bench] {scenario} {spec.name} failed")
+        _bench_scenario(profile, out_dir, ctx, ref, predictions, rows, skipped, log, executor, device)
     wall = time.perf_counter() - t_start
-    # Keep every invocation (``previous``, read when the folder was claimed): a rerun
-    # that reuses cached data and models is fast, and the first, full run's wall
-    # time must not be overwritten by it.
-    invocations = previous + [{"finished": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "wall_seconds": wall,
-                               "rows": len(rows), "rows_ok": sum(r.get("status") == "ok" for r in rows)}]
-    meta = {"bench_report": 1, "profile": profile.to_dict(), "wall_seconds": wall, "invocations": invocations,
-            "scenarios": labels, "skipped": skipped, "machine": machine_info(),
-            "datasets": {s: {"path": recorded_path(d.path), "checksum": d.checksum, "seed": d.meta.get("seed"),
-                             "config_hash": d.meta.get("config_hash"), "robot": d.meta.get("robot"),
-                             "split": dataset_split_text(d), "dataset_seconds": dataset_seconds.get(s),
-                             **({"import_warnings": _import_warnings(d)} if _import_warnings(d) else {})}
-                         for s, d in datasets.items()}}
+    meta = _run_meta(profile, previous, wall, rows, labels, skipped, datasets, dataset_seconds)
     write_results(out_dir / "results.csv", rows)  # also when no row applied: the report reads it
     meta[DIGEST_KEY] = results_digest(out_dir / "results.csv", meta)  # what ``hybrid-dyn report`` checks against
     write_json(out_dir / "run.json", meta)
     # The report is drawn from the files just written, exactly as ``hybrid-dyn report`` redraws it.
     write_report(out_dir, read_results(out_dir / "results.csv"), meta, log=log)
     return rows
+
+
+def _bench_scenario(profile, out_dir, ctx: BenchContext, ref, predictions, rows, skipped, log,
+                    executor=None, device=None) -> None:
+    """One scenario's rows: those that apply are trained (the learned ones, in parallel) and scored, each
+    written to results.csv, predictions.h5 and curves.json as it finishes; ``rows`` and ``skipped`` grow."""
+    scenario, ds = ctx.scenario, ctx.dataset
+    norm = train_split_stats(ds)
+    specs = _applicable_rows(profile, scenario, ds, skipped, log)
+    test = ds.split("test")
+    predictions.test_data(scenario, test, [t for t in dict.fromkeys(TASK_TARGET.values()) if t in ds.fields])
+    # Parallel workers train quietly (one progress bar over the models, not one per process).
+    tcfg = profile.train_config()
+    if profile.workers > 1 or executor is not None:
+        tcfg = dataclasses.replace(tcfg, progress=False)
+    if device is not None:
+        tcfg = dataclasses.replace(tcfg, device=device)
+    # The presets' rows train in parallel first (the identified residuals need their fit first).
+    jobs = [(str(ds.path), ref.name, profile.preset(s.name), str(ctx.work_dir / "models" / s.name), tcfg,
+             profile.torch_threads) for s in specs if s.name in PRESET_ROWS]
+    log(f"[bench] {scenario}: training {len(jobs)} learned models on {profile.workers} workers")
+    pretrain(jobs, profile.workers, log=log, executor=executor)
+    for spec in tqdm(specs, desc=f"bench {scenario}", unit="model"):
+        t0 = time.perf_counter()
+        try:
+            row = score_row(spec, ctx, norm)
+        except Exception as err:  # a failed model is a row, not a crash
+            row = {"task": spec.task, "scenario": scenario, "model": spec.name, "family": spec.family,
+                   "status": "failed", "error": f"{type(err).__name__}: {err}"}
+            log(f"[bench] {spec.name} FAILED: {err}\n{traceback.format_exc(limit=3)}")
+        rows.append(row)
+        if row["status"] == "ok":  # first: a row in results.csv always has its predictions (report checks them)
+            predictions.row(scenario, spec.task, spec.name, [i.name for i in test],
+                            ctx.cache.pop((spec.task, spec.name)))
+        write_results(out_dir / "results.csv", rows)
+        _record_digest(out_dir)  # an interrupted bench's rows stay checkable by ``hybrid-dyn report``
+        write_curves(out_dir / CURVES_FILE, rows)
+        log(f"[bench] {scenario} {spec.task:12s} {spec.name:22s} rmse={row.get('rmse', float('nan')):.4g} "
+            f"({time.perf_counter() - t0:.1f} s)" if row["status"] == "ok" else
+            f"[bench] {scenario} {spec.name} failed")
+
+
+def _applicable_rows(profile: BenchProfile, scenario: str, ds: Dataset, skipped: list, log) -> list:
+    """The profile's rows that apply to ``ds``; each that does not is logged and added to ``skipped``."""
+    specs = []
+    for r in profile.selected_rows():
+        reason = profile.skip_reason(r, ds)
+        if reason is None:
+            specs.append(r)
+        else:
+            log(f"[bench] {scenario}: skipping {r.name} ({r.task}): {reason}")
+            skipped.append({"scenario": scenario, "task": r.task, "model": r.name, "reason": reason})
+    return specs
+
+
+def _run_meta(profile: BenchProfile, previous: list, wall: float, rows: list, labels: dict, skipped: list,
+              datasets: dict, dataset_seconds: dict) -> dict:
+    """run.json (before its digest): the profile, every invocation's wall time, the scenarios and rows not run,
+    the machine and each dataset."""
+    # Keep every invocation (``previous``, read when the folder was claimed): a rerun
+    # that reuses cached data and models is fast, and the first, full run's wall
+    # time must not be overwritten by it.
+    invocations = previous + [{"finished": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "wall_seconds": wall,
+                               "rows": len(rows), "rows_ok": sum(r.get("status") == "ok" for r in rows)}]
+    return {"bench_report": 1, "profile": profile.to_dict(), "wall_seconds": wall, "invocations": invocations,
+            "scenarios": labels, "skipped": skipped, "machine": machine_info(),
+            "datasets": {s: {"path": recorded_path(d.path), "checksum": d.checksum, "seed": d.meta.get("seed"),
+                             "config_hash": d.meta.get("config_hash"), "robot": d.meta.get("robot"),
+                             "split": dataset_split_text(d), "dataset_seconds": dataset_seconds.get(s),
+                             **({"import_warnings": _import_warnings(d)} if _import_warnings(d) else {})}
+                         for s, d in datasets.items()}}

@@ -45,7 +45,7 @@ class Overrides:
     data: dict = field(default_factory=dict)  # GeneratorConfig fields, every simulated scenario
     scenario_data: dict = field(default_factory=dict)  # scenario -> GeneratorConfig or import-spec fields
     train: dict = field(default_factory=dict)  # TrainConfig fields (train_instances: fewer training instances)
-    recipe: str | None = None  # learn.train.RECIPES
+    recipe: str | None = None  # learn.recipes.RECIPES
     preset: dict = field(default_factory=dict)  # Preset fields of every trained preset row
     budget_factor: float | None = None  # each row's own step budget (budgeted recipe) times this
     rows: tuple = ()  # rerun only these of the study's rows (e.g. a capacity change that means nothing to DeLaN)

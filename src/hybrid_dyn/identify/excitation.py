@@ -94,8 +94,6 @@ def design_excitation(robot: Robot, config: ExcitationConfig = ExcitationConfig(
     """
     import casadi as ca
 
-    from .symbolic import regressor_function
-
     cfg = config
     nv, L = robot.nv, cfg.harmonics
     if len(robot.spec.max_velocity) != nv or len(robot.spec.max_acceleration) != nv:
@@ -109,40 +107,76 @@ def design_excitation(robot: Robot, config: ExcitationConfig = ExcitationConfig(
     wl = w * np.arange(1, L + 1)
 
     # Decision vector x = [q0 (nv), a (nv L), b (nv L)]; q, qd, qdd are linear in x.
-    def basis(t):
-        t = np.asarray(t, float)[:, None]
-        s, c = np.sin(wl * t), np.cos(wl * t)
-        return s / wl, -c / wl, c, s, -s * wl, c * wl  # q: a, b; qd: a, b; qdd: a, b
-
-    def linear_maps(t):
-        """Matrices P (T nv x n_x) with q = P_q x etc., rows time-major."""
-        qa, qb, va, vb, aa, ab = basis(t)
-        T = len(t)
-        n_x = nv * (1 + 2 * L)
-        P = {k: np.zeros((T * nv, n_x)) for k in ("q", "qd", "qdd")}
-        for j in range(nv):
-            rows = np.arange(T) * nv + j
-            sa = slice(nv + j * L, nv + (j + 1) * L)
-            sb = slice(nv + nv * L + j * L, nv + nv * L + (j + 1) * L)
-            P["q"][rows, j] = 1.0
-            for key, (ma, mb) in (("q", (qa, qb)), ("qd", (va, vb)), ("qdd", (aa, ab))):
-                P[key][rows, sa] = ma
-                P[key][rows, sb] = mb
-        return P
-
     x = ca.MX.sym("x", nv * (1 + 2 * L))
     grid = np.linspace(0, 1 / cfg.f0, cfg.n_grid, endpoint=False)
-    Pg = linear_maps(grid)
-    P0 = linear_maps(np.zeros(1))
+    g, lbg, ubg = _limit_constraints(x, grid, wl, nv, L, (lo, hi, vmax, amax))
+    obj = _conditioning_objective(robot, x, cfg, wl, base, eps)
+    x0, start = _feasible_start(cfg, grid, wl, nv, (lo, hi, vmax, amax))
+
+    solver = ca.nlpsol("excitation", "ipopt", {"x": x, "f": obj, "g": g},
+                       {"ipopt.print_level": 5 if verbose else 0, "print_time": 0, "ipopt.sb": "yes",
+                        "ipopt.max_iter": cfg.max_iter, "ipopt.hessian_approximation": "limited-memory",
+                        "ipopt.tol": 1e-6})
+    sol = solver(x0=x0, lbg=lbg, ubg=ubg)
+    xs = np.asarray(sol["x"]).ravel()
+    traj = FourierTrajectory(xs[:nv], xs[nv: nv + nv * L].reshape(nv, L), xs[nv + nv * L:].reshape(nv, L), cfg.f0)
+    stats = solver.stats()
+    report = {"condition_start": regressor_condition(robot, start, base=base, eps=eps),
+              "condition": regressor_condition(robot, traj, base=base, eps=eps),
+              "ipopt_status": stats["return_status"], "iterations": stats["iter_count"]}
+    return traj, report
+
+
+def _basis(t, wl):
+    """The Fourier terms at times t (T,) that multiply a and b in q, qd and qdd, each (T, L)."""
+    t = np.asarray(t, float)[:, None]
+    s, c = np.sin(wl * t), np.cos(wl * t)
+    return s / wl, -c / wl, c, s, -s * wl, c * wl  # q: a, b; qd: a, b; qdd: a, b
+
+
+def _linear_maps(t, wl, nv: int, L: int) -> dict:
+    """Matrices P (T nv x n_x) with q = P_q x etc., rows time-major."""
+    qa, qb, va, vb, aa, ab = _basis(t, wl)
+    T = len(t)
+    n_x = nv * (1 + 2 * L)
+    P = {k: np.zeros((T * nv, n_x)) for k in ("q", "qd", "qdd")}
+    for j in range(nv):
+        rows = np.arange(T) * nv + j
+        sa = slice(nv + j * L, nv + (j + 1) * L)
+        sb = slice(nv + nv * L + j * L, nv + nv * L + (j + 1) * L)
+        P["q"][rows, j] = 1.0
+        for key, (ma, mb) in (("q", (qa, qb)), ("qd", (va, vb)), ("qdd", (aa, ab))):
+            P[key][rows, sa] = ma
+            P[key][rows, sb] = mb
+    return P
+
+
+def _limit_constraints(x, grid, wl, nv: int, L: int, limits):
+    """The NLP's linear constraints (g, lbg, ubg): the position, velocity and acceleration limits
+    (lo, hi, vmax, amax) at every grid point, and rest at t = 0 (qd = qdd = 0)."""
+    import casadi as ca
+
+    lo, hi, vmax, amax = limits
+    Pg = _linear_maps(grid, wl, nv, L)
+    P0 = _linear_maps(np.zeros(1), wl, nv, L)
     g = ca.vertcat(ca.mtimes(ca.DM(Pg["q"]), x), ca.mtimes(ca.DM(Pg["qd"]), x), ca.mtimes(ca.DM(Pg["qdd"]), x),
                    ca.mtimes(ca.DM(P0["qd"]), x), ca.mtimes(ca.DM(P0["qdd"]), x))
-    T = cfg.n_grid
+    T = len(grid)
     lbg = np.concatenate([np.tile(lo, T), np.tile(-vmax, T), np.tile(-amax, T), np.zeros(2 * nv)])
     ubg = np.concatenate([np.tile(hi, T), np.tile(vmax, T), np.tile(amax, T), np.zeros(2 * nv)])
+    return g, lbg, ubg
 
+
+def _conditioning_objective(robot: Robot, x, cfg: ExcitationConfig, wl, base: BaseParameters, eps: float):
+    """log tr(M) + log tr(M^-1), M = W_b^T W_b / K over the objective points (the module docstring)."""
+    import casadi as ca
+
+    from .symbolic import regressor_function
+
+    nv, L = robot.nv, cfg.harmonics
     # Regressor over the objective points: inertial (symbolic RNEA) + friction columns.
     t_obj = np.linspace(0, 1 / cfg.f0, cfg.n_objective, endpoint=False)
-    Po = linear_maps(t_obj)
+    Po = _linear_maps(t_obj, wl, nv, L)
     K = cfg.n_objective
     Q = ca.reshape(ca.mtimes(ca.DM(Po["q"]), x), nv, K)
     Qd = ca.reshape(ca.mtimes(ca.DM(Po["qd"]), x), nv, K)
@@ -161,9 +195,14 @@ def design_excitation(robot: Robot, config: ExcitationConfig = ExcitationConfig(
         blocks.append(ca.horzcat(Yk, Fk)[:, base.independent.tolist()])
     Wb = ca.vertcat(*blocks)
     M = ca.mtimes(Wb.T, Wb) / K
-    obj = ca.log(ca.trace(M)) + ca.log(ca.trace(ca.solve(M, ca.DM.eye(base.n_base))))
+    return ca.log(ca.trace(M)) + ca.log(ca.trace(ca.solve(M, ca.DM.eye(base.n_base))))
 
-    # Random feasible start: centred, small coefficients (decaying with the harmonic).
+
+def _feasible_start(cfg: ExcitationConfig, grid, wl, nv: int, limits) -> tuple[np.ndarray, FourierTrajectory]:
+    """The NLP's start x0 and its trajectory: centred, small random coefficients (decaying with the
+    harmonic), at rest at t = 0, scaled into the limits (lo, hi, vmax, amax) on the grid."""
+    lo, hi, vmax, amax = limits
+    L = cfg.harmonics
     rng = np.random.default_rng(cfg.seed)
     q0 = 0.5 * (lo + hi)
     a0 = rng.normal(size=(nv, L)) / np.arange(1, L + 1)
@@ -177,16 +216,4 @@ def design_excitation(robot: Robot, config: ExcitationConfig = ExcitationConfig(
     ratio = max(np.max(np.abs(qg - q0) / (0.5 * (hi - lo))), np.max(np.abs(vg) / vmax), np.max(np.abs(ag) / amax))
     x0[nv:] *= 0.8 / ratio
     start = FourierTrajectory(q0, x0[nv: nv + nv * L].reshape(nv, L), x0[nv + nv * L:].reshape(nv, L), cfg.f0)
-
-    solver = ca.nlpsol("excitation", "ipopt", {"x": x, "f": obj, "g": g},
-                       {"ipopt.print_level": 5 if verbose else 0, "print_time": 0, "ipopt.sb": "yes",
-                        "ipopt.max_iter": cfg.max_iter, "ipopt.hessian_approximation": "limited-memory",
-                        "ipopt.tol": 1e-6})
-    sol = solver(x0=x0, lbg=lbg, ubg=ubg)
-    xs = np.asarray(sol["x"]).ravel()
-    traj = FourierTrajectory(xs[:nv], xs[nv: nv + nv * L].reshape(nv, L), xs[nv + nv * L:].reshape(nv, L), cfg.f0)
-    stats = solver.stats()
-    report = {"condition_start": regressor_condition(robot, start, base=base, eps=eps),
-              "condition": regressor_condition(robot, traj, base=base, eps=eps),
-              "ipopt_status": stats["return_status"], "iterations": stats["iter_count"]}
-    return traj, report
+    return x0, start

@@ -1,7 +1,7 @@
 """Identification experiments: an excitation trajectory run on the simulated plant.
 
 The plant, controller and sensors are the dataset generator's
-(:func:`hybrid_dyn.sim.generator.simulate_reference`), so identification sees the
+(:func:`hybrid_dyn.sim.simulator.simulate_reference`), so identification sees the
 same kind of data as every other model: commanded motor torques, noisy q and qd,
 a causal qdd estimate. No external force acts during identification (an
 identification run is done free of contact); the config's pulses are ignored.
@@ -36,7 +36,7 @@ def record_excitation_dataset(path, config, traj: FourierTrajectory, n_instances
     """
     from tqdm import tqdm
 
-    from ..sim.generator import Simulator, simulate_reference
+    from ..sim.simulator import Simulator, simulate_reference
 
     config = dataclasses.replace(config, pulses=None)
     path = Path(path)

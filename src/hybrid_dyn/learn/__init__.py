@@ -7,7 +7,8 @@ Entry points: :func:`train_model`, :func:`load_model`, the preset registry
 from .gp import GPConfig, GPModel, load_gp, train_gp
 from .model import HybridModel, ModelError, TrainedModel, load_model
 from .presets import PRESETS, Preset, get_preset
-from .train import TrainConfig, train_model
+from .recipes import TrainConfig
+from .train import train_model
 
 __all__ = ["PRESETS", "GPConfig", "GPModel", "HybridModel", "ModelError", "Preset", "TrainConfig", "TrainedModel",
            "get_preset", "load_gp", "load_model", "train_gp", "train_model"]

@@ -75,7 +75,7 @@ def _train_options(p) -> None:
 
 
 def _config(args):
-    from .train import TrainConfig
+    from .recipes import TrainConfig
 
     given = {"max_epochs": args.max_epochs, "patience": args.patience, "batch_size": args.batch_size, "lr": args.lr,
              "lr_schedule": args.lr_schedule, "weight_decay": args.weight_decay, "budget_steps": args.budget_steps,

@@ -10,7 +10,7 @@ declaration holds, together:
   (``TrainConfig.grad_clip``; the recurrent nets, whose gradients can explode);
 - ``cost_rank``: its place in the bench's training queue (dearest per epoch first);
 - ``search``: its hyperparameter search space (``learn/tune.py``);
-- ``budget_steps``: the budgeted recipe's optimizer steps (``learn/train.py``);
+- ``budget_steps``: the budgeted recipe's optimizer steps (``learn/recipes.py``);
 - ``sequence`` and ``needs_front``: what a preset of it must give (a window longer
   than one sample; ``front_units``).
 
@@ -103,7 +103,7 @@ network_kind = NETWORK_KINDS.lookup  # a kind by name; an unknown one is refused
 
 
 class _BudgetSteps(Mapping):
-    """kind -> budgeted steps, read from the declarations (``train.BUDGET_STEPS``)."""
+    """kind -> budgeted steps, read from the declarations (``recipes.BUDGET_STEPS``)."""
 
     def __getitem__(self, kind):
         return NETWORK_KINDS[kind].budget_steps

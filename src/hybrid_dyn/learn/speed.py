@@ -14,7 +14,7 @@ import numpy as np
 import torch
 
 from ..timing import interleaved_rates  # noqa: F401  (re-exported: the timer of every training throughput)
-from .train import _batches
+from .training_data import _batches
 
 
 def bare_step(model, ws, batch: int, oracle: bool = False):

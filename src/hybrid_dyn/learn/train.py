@@ -1,35 +1,11 @@
 """Training: Adam on standardized MSE, a learning-rate schedule, early stopping; deterministic and resumable.
 
-Four recipes (:data:`RECIPES`, ``--recipe``):
+The loop, and its public entry :func:`train_model`. What a run is (:class:`TrainConfig`), the
+four named recipes and the budgeted schedule are in ``recipes.py``; the checkpoint files in
+``checkpoints.py``; what a model folder may hold in ``model_folder.py``; the dataset's checks and
+the batches in ``training_data.py``.
 
-- ``budget`` (the bench's): a fixed budget of optimizer steps per network kind
-  (:data:`BUDGET_STEPS`, from the budget study in ``docs/models.md``; ``hybrid-dyn
-  study budget`` reruns it), a linear warm-up over the first ``warmup_fraction`` of the
-  budget, then a cosine decay of the rate to zero at the last step (Li, Yumer &
-  Ramanan, "Budgeted Training", ICLR 2020), batch 1024 at lr 2e-3 (the rate scaled
-  as the square root of the batch from 1e-3 at 256, Malladi et al. 2022 for Adam).
-  Batches are drawn from the whole training pool, epoch after epoch, so more data
-  means more distinct trajectories seen at the same cost, not more time; the
-  validation loss is measured ``budget_evals`` times over the budget and the best
-  weights are kept. The cost of a run is known before it starts.
-
-- ``seed-study`` (the seed study's 3.2, exactly; ``seed`` until issue 30): Glorot-uniform initialization, Adam at lr 1e-3,
-  MSE loss on standardized targets, a constant learning rate, and training
-  until the validation loss has not improved for 5 consecutive epochs.
-- ``plateau`` (this toolkit's, ``TrainConfig()``'s; ``default`` until issue 30): the same, plus what an expert adds so that a
-  net is trained to convergence rather than to its first plateau: the
-  learning rate is cut by ``lr_factor`` after ``lr_patience`` epochs without
-  improvement (reduce-on-plateau) down to a floor ``min_lr``; early stopping
-  waits ``patience`` = 10 epochs, so a cut rate gets time to pay off; the
-  gradient norm of recurrent nets is clipped at ``grad_clip`` (LSTMs on
-  standardized inputs can take an exploding step early on). Batch size: see
-  ``docs/models.md`` (a measured sweep; ``hybrid-dyn study batch-size`` for the budget).
-- ``long``: ``plateau`` with the plateau's patience 10, early stopping's 20 and
-  decoupled weight decay 0.1 of the weight matrices (AdamW): it trains the nets that
-  ``plateau`` stops early, and regularizes the ones that overfit a small set, at 1.8-3.7x the
-  epochs on paper-noext's torque rows (``reports/studies/controls-default`` measures what it buys).
-
-All keep the weights of the best validation epoch (as Keras'
+All recipes keep the weights of the best validation epoch (as Keras'
 ``restore_best_weights``); the untrained model counts as epoch "-1", so a
 residual model that never beats its physics part on validation stays it.
 A run ends for one of four reasons, recorded as ``stopped_by`` in the model's
@@ -66,253 +42,32 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
-import json
-import math
-import numbers
-import os
-import re
 import time
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 import torch
-from safetensors import safe_open
-from safetensors.torch import save_file
 from tqdm.auto import tqdm
 
-from ..analytic.tare import TARE_SECONDS, tared_runs
+from ..analytic.tare import tared_runs
 from ..data import Dataset, load_dataset
 from ..data.splits import first_instances
-from ..data.windows import WindowedSplit, concat_fields
+from ..data.windows import WindowedSplit
 from ..errors import UsageError
-from ..outputs import json_marker, output_lock, refuse_foreign, refuse_foreign_files
-from .model import (MODEL_FORMAT, MODEL_FORMAT_VERSION, TIMING_FORMAT, HybridModel, ModelError, TrainedModel,
-                    canonical_json, check_instances, load_model, read_file_metadata, save_model)
-from .kinds import BUDGET_STEPS, clips_gradients  # per network kind, declared with the kind
+from ..outputs import output_lock
+from .checkpoints import _load_checkpoint, _restore_optimizer, _save_checkpoint
+from .model import (MODEL_FORMAT, MODEL_FORMAT_VERSION, HybridModel, ModelError, TrainedModel, canonical_json,
+                    check_instances, load_model, save_model)
+from .kinds import clips_gradients  # declared with the network kind
+from .model_folder import _refuse_foreign_files, _reuse
 from .presets import Preset, get_preset
 from .priors import AnalyticPrior
+from .recipes import TrainConfig, _option, budget_lr, improvement_needed
+from .recipes import BUDGET_STEPS, RECIPE_ALIASES, RECIPES  # noqa: F401  (re-exported: imported from here before recipes.py)
+from .training_data import _batches, _check_robot_and_widths, _stats, evaluate_split, field_widths
 
-STD_FLOOR = 1e-6  # a (nearly) constant column is scaled by 1, not blown up
-
-
-@dataclass
-class TrainConfig:
-    """How to train: the ``plateau`` recipe (see the module docstring; ``TrainConfig.recipe("seed-study")``
-    gives the seed study's).
-
-    seed: weights and shuffling. batch_size: samples per Adam step.
-    max_epochs: upper bound; early stopping usually ends sooner.
-    patience: epochs without validation improvement before stopping (seed: 5).
-    min_delta, min_rel_delta: an improvement must beat the best validation loss by
-    max(min_delta, min_rel_delta x best) (:func:`improvement_needed`; seed: 0, 0).
-    lr: Adam's initial learning rate. lr_schedule: "plateau" (cut the rate by
-    lr_factor after lr_patience epochs without improvement, never below min_lr)
-    or "none" (constant, the seed's).
-    grad_clip: largest gradient norm of a net with an LSTM (None: no clipping).
-    weight_decay: decoupled weight decay of the weight matrices, per step a
-    fraction lr x weight_decay of each weight (AdamW, Loshchilov & Hutter 2019;
-    0: plain Adam). The seed's nets carry an unspecified regularization term
-    (its 3.2).
-    max_batches_per_epoch: cap an epoch's batches (quick runs, tuning); None = all.
-    budget_steps: optimizer steps of a budgeted run (lr_schedule "cosine"); None: the
-    preset's network kind's budget, :data:`BUDGET_STEPS` (resolved by :meth:`for_preset`).
-    warmup_fraction: share of the budget over which the rate rises linearly to lr.
-    budget_evals: validation rounds over the budget (each keeps the weights if best).
-    train_instances: learn from the first N instances of the train split, and the first
-    round(N x n_val / n_train) (at least 1) of the val split, so that train and val shrink
-    together (the data-scaling study, ``bench/studies.py``); None: the whole splits.
-    analytic_params: parameter set of the residual models' analytic part
-    (None: the robot's nominal URDF; a set name or a JSON path, e.g. identified).
-    observer_gain: momentum-observer bandwidth K [1/s] for the momentum prior.
-    tare_seconds: base-wrench priors: each instance's contact-free start used to
-    tare the base sensor [s] (``analytic/tare.py``); 0 = no tare.
-    device: "auto" (CUDA when present, else CPU), "cpu" or "cuda".
-    num_threads: CPU threads for PyTorch during training (None: PyTorch's default).
-    Small batches on a shared machine often run faster on one thread.
-    """
-
-    seed: int = 0
-    batch_size: int = 256
-    max_epochs: int = 200
-    patience: int = 10
-    min_delta: float = 0.0
-    min_rel_delta: float = 1e-4
-    lr: float = 1e-3
-    lr_schedule: str = "plateau"
-    lr_factor: float = 0.3
-    lr_patience: int = 3
-    min_lr: float = 1e-5
-    grad_clip: float | None = 1.0
-    weight_decay: float = 0.0
-    max_batches_per_epoch: int | None = None
-    budget_steps: int | None = None
-    warmup_fraction: float = 0.05
-    budget_evals: int = 40
-    train_instances: int | None = None
-    analytic_params: str | None = None
-    observer_gain: float = 20.0
-    tare_seconds: float = TARE_SECONDS
-    device: str = "auto"
-    progress: bool = True
-    num_threads: int | None = None
-
-    def __post_init__(self):
-        self.validate()
-
-    @classmethod
-    def recipe(cls, name: str = "plateau", **overrides) -> "TrainConfig":
-        """The named recipe of :data:`RECIPES` (an old name of :data:`RECIPE_ALIASES` warns), with any field overridden."""
-        if name in RECIPE_ALIASES:
-            from ..deprecation import warn_renamed
-
-            warn_renamed("training recipe", name, RECIPE_ALIASES[name], stacklevel=2)
-            name = RECIPE_ALIASES[name]
-        if name not in RECIPES:
-            raise UsageError(f"unknown training recipe {name!r}; known: {', '.join(RECIPES)}")
-        return cls(**{**RECIPES[name], **overrides})
-
-    def validate(self) -> None:
-        """Refuse values out of range with a one-line UsageError naming the field and the CLI flag.
-
-        Checked before any work: an epoch count of 0 or a negative batch size would
-        otherwise save an untrained model, a bad device end in a traceback.
-        """
-        for name, least, optional in (("seed", 0, False), ("batch_size", 1, False), ("max_epochs", 1, False),
-                                      ("patience", 1, False), ("lr_patience", 1, False),
-                                      ("max_batches_per_epoch", 1, True), ("budget_steps", 1, True),
-                                      ("budget_evals", 1, True), ("train_instances", 1, True),
-                                      ("num_threads", 1, True)):
-            v = getattr(self, name)
-            if v is None and optional:
-                continue
-            if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < least:
-                raise UsageError(f"{_option(name)} must be an integer >= {least}{' or None' if optional else ''}, "
-                                 f"got {v!r}")
-            setattr(self, name, int(v))
-        for name, positive in (("lr", True), ("min_delta", False), ("min_rel_delta", False), ("observer_gain", True), ("tare_seconds", False),
-                               ("weight_decay", False)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v) or v < 0 \
-                    or (positive and v == 0):
-                raise UsageError(f"{_option(name)} must be a finite number {'> 0' if positive else '>= 0'}, got {v!r}")
-        if self.lr_schedule not in LR_SCHEDULES:
-            raise UsageError(f"{_option('lr_schedule')} must be one of {', '.join(LR_SCHEDULES)}, "
-                             f"got {self.lr_schedule!r}")
-        for name in ("lr_factor", "min_lr") + (("grad_clip",) if self.grad_clip is not None else ()):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v) or v <= 0:
-                raise UsageError(f"{_option(name)} must be a finite number > 0, got {v!r}")
-        if self.budgeted and self.max_batches_per_epoch is not None:  # it would be silently ignored
-            raise UsageError(f"{_option('max_batches_per_epoch')} applies to the epoch recipes; a budgeted run "
-                             f"(lr_schedule 'cosine') is sized by {_option('budget_steps')}")
-        if isinstance(self.warmup_fraction, bool) or not isinstance(self.warmup_fraction, numbers.Real) \
-                or not 0 <= self.warmup_fraction < 1:
-            raise UsageError(f"{_option('warmup_fraction')} must be a number in [0, 1), got {self.warmup_fraction!r}")
-        if not self.lr_factor < 1:
-            raise UsageError(f"{_option('lr_factor')} must be < 1 (it cuts the rate), got {self.lr_factor!r}")
-        if self.min_lr > self.lr:
-            raise UsageError(f"{_option('min_lr')} ({self.min_lr}) must not exceed {_option('lr')} ({self.lr})")
-        if not isinstance(self.device, str) or not re.fullmatch(r"auto|cpu|cuda(:\d+)?", self.device):
-            raise UsageError(f"{_option('device')} must be auto, cpu, cuda or cuda:N, got {self.device!r}")
-        if self.analytic_params is not None and not isinstance(self.analytic_params, (str, os.PathLike)):
-            raise UsageError(f"{_option('analytic_params')} must be a parameter-set name or a JSON path, "
-                             f"got {self.analytic_params!r}")
-
-    @property
-    def budgeted(self) -> bool:
-        """Whether training runs a fixed budget of steps (the cosine schedule) instead of epochs to patience."""
-        return self.lr_schedule == "cosine"
-
-    def for_preset(self, preset: Preset) -> "TrainConfig":
-        """This config with a budgeted run's step count resolved from the preset's network kind."""
-        if not self.budgeted or self.budget_steps is not None:
-            return self
-        return replace(self, budget_steps=budget_steps_of(preset))
-
-    def fingerprint_fields(self) -> dict:
-        d = asdict(self)
-        for k in ("device", "progress", "num_threads"):  # where and how loudly a run goes does not change its result
-            d.pop(k)
-        if not d["weight_decay"]:  # added later: a run without it keeps the fingerprint it always had
-            d.pop("weight_decay")
-        if self.train_instances is None:  # added later: a run on the whole splits keeps its fingerprint
-            d.pop("train_instances")
-        if not self.budgeted:  # added later, and meaningless without the budget: older runs keep their fingerprint
-            for k in ("budget_steps", "warmup_fraction", "budget_evals"):
-                d.pop(k)
-        return d
-
-
-LR_SCHEDULES = ("plateau", "none", "cosine")
 STOP_REASONS = ("patience", "lr-floor", "epoch-cap", "budget")
-
-# Optimizer steps of the budgeted recipe per network kind: declared with each kind (learn/kinds.py,
-# where the budget study's numbers are explained); BUDGET_STEPS reads them (kind -> steps).
-
-
-def budget_steps_of(preset: Preset) -> int:
-    """The budgeted recipe's step count for ``preset`` (:data:`BUDGET_STEPS` by its network kind)."""
-    if preset.kind not in BUDGET_STEPS:
-        raise UsageError(f"no step budget for network kind {preset.kind!r} (preset {preset.name!r}); "
-                         f"declare one in BUDGET_STEPS ({', '.join(BUDGET_STEPS)})")
-    return BUDGET_STEPS[preset.kind]
-
-
-def budget_lr(config: TrainConfig, step: int) -> float:
-    """The budgeted recipe's rate at optimizer step ``step`` (0-based) of ``config.budget_steps``.
-
-    Linear warm-up to ``lr`` over the first ``warmup_fraction`` of the steps (lr / w at step 0),
-    then lr x (1 + cos(pi x progress)) / 2, which reaches zero after the last step. A function of
-    the step alone: a resumed run needs no scheduler state.
-    """
-    total = config.budget_steps
-    warm = int(round(config.warmup_fraction * total))
-    if step < warm:
-        return config.lr * (step + 1) / warm
-    progress = (step - warm) / max(total - warm, 1)
-    return config.lr * 0.5 * (1.0 + math.cos(math.pi * progress))
-
-# Named training recipes (TrainConfig fields). "seed-study": the seed's 3.2 exactly (constant rate,
-# patience 5, no clipping); "plateau": the TrainConfig defaults; "long": module docstring.
-RECIPES = {
-    "plateau": {},
-    # Trains further where "plateau" stops early (docs/models.md, reports/studies/controls-default): the
-    # plateau waits 10 epochs, early stopping 20, weight matrices decay by 0.1. It cost 1.8-3.7x the
-    # epochs on paper-noext's torque rows, which the default bench cannot afford in 120 minutes on 2 cores.
-    "long": dict(patience=20, lr_patience=10, weight_decay=0.1),
-    "seed-study": dict(lr_schedule="none", patience=5, grad_clip=None, min_rel_delta=0.0, batch_size=256, max_epochs=200),
-    # A known cost per row (module docstring): steps by network kind, warm-up, cosine decay to zero.
-    "budget": dict(lr_schedule="cosine", batch_size=1024, lr=2e-3),
-}
-# The recipes' names until issue 30 ("default" was also a generator size and a bench profile, "seed"
-# also the random seed): still accepted, with a warning. A recipe's name is in no fingerprint.
-RECIPE_ALIASES = {"default": "plateau", "seed": "seed-study"}
-
-
-def improvement_needed(config: TrainConfig, best_val: float) -> float:
-    """How far below the best validation loss an epoch must land to count as an improvement.
-
-    The larger of the absolute ``min_delta`` and ``min_rel_delta`` x the best loss: without the
-    relative part a net that gains 1e-6 per epoch for ever (seen on seed-sim, residual-rnea-bw)
-    resets patience every epoch and runs to the epoch cap on gains nobody can measure. 1e-4 is
-    the threshold of PyTorch's ReduceLROnPlateau.
-    """
-    return max(config.min_delta, config.min_rel_delta * abs(best_val))
-
-
-def _option(field: str) -> str:
-    """A TrainConfig field as the user wrote it: the field and, where there is one, its CLI flag."""
-    flag = _CLI_FLAGS.get(field)
-    return f"TrainConfig.{field}" + (f" ({flag})" if flag else "")
-
-
-_CLI_FLAGS = {"seed": "--seed", "batch_size": "--batch-size", "max_epochs": "--max-epochs", "patience": "--patience",
-              "max_batches_per_epoch": "--max-batches-per-epoch", "num_threads": "--threads",
-              "device": "--device", "analytic_params": "--params", "lr": "--lr",
-              "lr_schedule": "--lr-schedule", "grad_clip": "--grad-clip", "min_lr": "--min-lr",
-              "weight_decay": "--weight-decay", "budget_steps": "--budget-steps",
-              "train_instances": "--train-instances"}
 
 
 def _device(name: str) -> torch.device:
@@ -341,73 +96,6 @@ def _deterministic(num_threads: int | None = None):
     finally:
         torch.use_deterministic_algorithms(before)
         torch.set_num_threads(threads)
-
-
-def field_widths(instance, names) -> dict:
-    return {n: int(np.asarray(instance[n]).reshape(len(instance), -1).shape[1]) for n in names}
-
-
-def _stats(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    a = a.astype(np.float64)
-    mean, std = a.mean(0), a.std(0)
-    return mean, np.where(std < STD_FLOOR, 1.0, std)
-
-
-# ------------------------------------------------------------- checkpoints
-def _optimizer_tensors(opt: torch.optim.Optimizer) -> tuple[dict, dict]:
-    sd = opt.state_dict()
-    tensors = {}
-    for pid, st in sd["state"].items():
-        for k, v in st.items():
-            tensors[f"opt.{pid}.{k}"] = torch.as_tensor(v).detach().cpu().contiguous()
-    return tensors, {"param_groups": sd["param_groups"]}
-
-
-def _restore_optimizer(opt: torch.optim.Optimizer, tensors: dict, meta: dict) -> None:
-    state: dict = {}
-    for key, v in tensors.items():
-        _, pid, k = key.split(".", 2)
-        state.setdefault(int(pid), {})[k] = v
-    opt.load_state_dict({"state": state, "param_groups": meta["param_groups"]})
-
-
-def _save_checkpoint(out_dir: Path, module, best_state, opt, info: dict) -> None:
-    tensors = {f"model.{k}": v.detach().cpu().contiguous() for k, v in module.state_dict().items()}
-    tensors.update({f"best.{k}": v.detach().cpu().contiguous() for k, v in best_state.items()})
-    opt_tensors, opt_meta = _optimizer_tensors(opt)
-    tensors.update(opt_tensors)
-    # Dropout draws its masks from torch's global generator: its state is part of
-    # where training stands, or a resumed run drops other units than a straight one.
-    tensors["rng.cpu"] = torch.get_rng_state()
-    device = next(module.buffers()).device
-    if device.type == "cuda":
-        tensors["rng.cuda"] = torch.cuda.get_rng_state(device).cpu()
-    info = dict(info, optimizer=opt_meta)
-    tmp = out_dir / "checkpoint.safetensors.partial"
-    save_file(tensors, str(tmp), metadata={"fingerprint": info["fingerprint"], "epoch": str(info["epoch"])})
-    jtmp = out_dir / "checkpoint.json.partial"
-    jtmp.write_text(json.dumps(info, indent=1))
-    os.replace(tmp, out_dir / "checkpoint.safetensors")
-    os.replace(jtmp, out_dir / "checkpoint.json")
-
-
-def _load_checkpoint(out_dir: Path, fingerprint: str):
-    jpath, tpath = out_dir / "checkpoint.json", out_dir / "checkpoint.safetensors"
-    if not jpath.is_file() or not tpath.is_file():
-        return None
-    try:
-        info = json.loads(jpath.read_text())
-        with safe_open(str(tpath), framework="pt") as f:
-            meta = f.metadata() or {}
-            tensors = {k: f.get_tensor(k) for k in f.keys()}
-    except Exception:  # a checkpoint torn by a kill is discarded: the run restarts cleanly
-        return None
-    if info.get("fingerprint") != fingerprint:
-        raise ModelError(f"{out_dir} holds a checkpoint of another run (other preset, config or data); "
-                         "choose another --out or delete it")
-    if meta.get("fingerprint") != fingerprint or meta.get("epoch") != str(info["epoch"]):
-        return None  # the two files are from different epochs (killed between the renames)
-    return info, tensors
 
 
 # ------------------------------------------------------------------ training
@@ -440,92 +128,6 @@ def train_model(dataset, preset, out_dir, config: TrainConfig | None = None, wai
         _refuse_foreign_files(out_dir)
         return _train_locked(ds, preset, out_dir, config, fingerprint, device)
 
-
-def _reuse(out_dir: Path, fingerprint: str) -> TrainedModel:
-    # A user's config.json (no toolkit format at all) is refused as theirs; another of our formats (a GP's)
-    # gets load_model's own message.
-    if json_marker(out_dir / "config.json", "format") is None:
-        refuse_foreign(out_dir, "model folder", f"its config.json lacks the format {MODEL_FORMAT!r}")
-    model = load_model(out_dir)
-    if model.config.get("fingerprint") != fingerprint:
-        raise ModelError(f"{out_dir} holds a finished model of another run (other preset, config or data); "
-                         "choose another --out or delete it")
-    return model
-
-
-# What training writes into its folder (and nothing else is replaced there).
-_OWN_TEMPORARY = re.compile(r"(model\.safetensors|config\.json|timing\.json|checkpoint\.safetensors|checkpoint\.json)"
-                            r"\.partial")
-_OWN_CACHE = re.compile(r"prior-[a-z-]+-[0-9a-f]+\.h5(\.partial)?")
-
-
-def _safetensors_metadata(path: Path) -> dict | None:
-    try:
-        with safe_open(str(path), framework="pt") as f:
-            return f.metadata() or {}
-    except Exception:  # safetensors raises its own error types: unreadable is simply not ours
-        return None
-
-
-def _json_doc(path: Path) -> dict | None:
-    try:
-        doc = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return None
-    return doc if isinstance(doc, dict) else None
-
-
-def _is_own(path: Path) -> bool:
-    """Whether ``path`` (in a model folder without config.json) is something training wrote.
-
-    Proof is in the content, not the name alone: our metadata or JSON keys. Temporaries
-    and prior caches are known by name (a temporary is partial by nature).
-    """
-    name = path.name
-    if path.is_dir():
-        return name == "analytic_cache" and all(p.is_file() and _OWN_CACHE.fullmatch(p.name) for p in path.iterdir())
-    if not path.is_file():
-        return False
-    if _OWN_TEMPORARY.fullmatch(name):
-        return True
-    if name == "model.safetensors":  # killed between writing the weights and the config
-        return read_file_metadata(_safetensors_metadata(path) or {}).get("format") == MODEL_FORMAT
-    if name == "checkpoint.safetensors":
-        return "fingerprint" in (_safetensors_metadata(path) or {})
-    if name == "checkpoint.json":
-        doc = _json_doc(path) or {}
-        return {"fingerprint", "epoch", "history"} <= set(doc)
-    if name == "timing.json":
-        return (_json_doc(path) or {}).get("format") == TIMING_FORMAT
-    return False
-
-
-def _refuse_foreign_files(out_dir: Path) -> None:
-    """An output folder must be missing, empty, or hold only what training writes."""
-    refuse_foreign_files(out_dir, "model folder", _is_own)
-
-
-# Fields with one column per joint; the others have fixed widths.
-JOINT_FIELDS = ("q", "qd", "qdd", "tau_m", "tau_J")
-FIXED_WIDTHS = {"base_wrench": 6, "tip_force": 3}
-
-
-def _check_robot_and_widths(ds: Dataset, widths: dict, robot) -> None:
-    """The dataset's field widths fit its robot (nv columns per joint field), before any training.
-
-    robot: the loaded Robot when the dataset's robot has a description, else None (a
-    data-only arm: the joint fields need only agree with each other).
-    """
-    joint = {f: w for f, w in widths.items() if f in JOINT_FIELDS}
-    nv = robot.nv if robot is not None else None
-    for f, w in sorted(widths.items()):
-        if f in FIXED_WIDTHS and w != FIXED_WIDTHS[f]:
-            raise ModelError(f"dataset {ds.path}: field {f} has {w} columns, expected {FIXED_WIDTHS[f]}")
-    if nv is not None and any(w != nv for w in joint.values()):
-        raise ModelError(f"dataset {ds.path} is labelled robot {ds.meta['robot']!r} ({nv} joints), but its joint "
-                         f"fields have {joint} columns: another robot's data, or the wrong robot name")
-    if len(set(joint.values())) > 1:
-        raise ModelError(f"dataset {ds.path}: joint fields disagree in width: {joint}")
 
 
 def _train_locked(ds: Dataset, preset: Preset, out_dir: Path, config: TrainConfig, fingerprint: str,
@@ -610,27 +212,6 @@ def _optimizer(module: torch.nn.Module, config: TrainConfig) -> torch.optim.Opti
     return torch.optim.AdamW([g for g in groups if g["params"]], lr=config.lr)
 
 
-def _batches(ws: WindowedSplit, idx: np.ndarray, device):
-    x, y = ws[idx]
-    p = ws.extra["prior"][idx] if "prior" in ws.extra else None
-    to = lambda a: torch.from_numpy(np.ascontiguousarray(a)).to(device)  # noqa: E731
-    return to(x), to(y), (None if p is None else to(p))
-
-
-def evaluate_split(module: HybridModel, ws: WindowedSplit, device, batch_size: int = 4096) -> float:
-    """Standardized MSE over a whole split (every sample weighs the same)."""
-    module.eval()
-    total, n = 0.0, 0
-    with torch.no_grad():
-        for s in range(0, len(ws), batch_size):
-            idx = np.arange(s, min(s + batch_size, len(ws)))
-            x, y, p = _batches(ws, idx, device)
-            total += float(module.standardized_loss(module(x, p), y)) * len(idx)
-            n += len(idx)
-    module.train()
-    return total / max(n, 1)
-
-
 def sensor_tare_seconds(preset: Preset, config: TrainConfig) -> float:
     """The contact-free start [s] on which the net's base-wrench input is tared (0: raw sensor)."""
     if "base_wrench" not in preset.inputs or preset.raw_sensor:
@@ -695,6 +276,44 @@ def _rounds(config: TrainConfig, n: int):
     return n_rounds, -(-total // n_rounds), budget_round
 
 
+
+
+def _state_copy(module) -> dict:
+    """A detached copy of the module's weights and buffers: a candidate for the best epoch's."""
+    return {k: v.detach().clone() for k, v in module.state_dict().items()}
+
+
+def _restore(module, opt, tensors: dict, info: dict, device) -> dict:
+    """Weights, optimizer and torch's generators as a checkpoint left them; returns the best weights."""
+    module.load_state_dict({k[6:]: v for k, v in tensors.items() if k.startswith("model.")})
+    best_state = {k[5:]: v.to(device) for k, v in tensors.items() if k.startswith("best.")}
+    _restore_optimizer(opt, {k: v for k, v in tensors.items() if k.startswith("opt.")}, info["optimizer"])
+    if "rng.cpu" in tensors:  # checkpoints written before the generator state was saved lack it
+        torch.set_rng_state(tensors["rng.cpu"])
+    if "rng.cuda" in tensors and device.type == "cuda":
+        torch.cuda.set_rng_state(tensors["rng.cuda"], device)
+    return best_state
+
+
+def _train_round(module, opt, ws_train, batches, clip, device, bar) -> list[float]:
+    """One round's optimizer steps (an epoch, or a share of the budget); returns each step's loss."""
+    losses = []
+    for idx, step_lr in batches:
+        if step_lr is not None:
+            for group in opt.param_groups:
+                group["lr"] = step_lr
+        x, y, p = _batches(ws_train, idx, device)
+        opt.zero_grad(set_to_none=True)
+        loss = module.standardized_loss(module(x, p), y)
+        loss.backward()
+        if clip is not None:
+            torch.nn.utils.clip_grad_norm_(module.parameters(), clip)
+        opt.step()
+        losses.append(float(loss.detach()))
+        bar.update(1)
+    return losses
+
+
 def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint, widths, prior, device, sensor_tare):
     n_rounds, steps_per_round, round_batches = _rounds(config, len(ws_train))
     history, bad_epochs, lr_bad_epochs, start_epoch, seconds = [], 0, 0, 0, 0.0
@@ -702,18 +321,12 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
     clip = config.grad_clip if _is_recurrent(preset) else None
     # The untrained model is the first candidate: a residual model starts as its physics
     # part (zero-initialized branch), and keeps it when training never beats it on validation.
-    best_state = {k: v.detach().clone() for k, v in module.state_dict().items()}
+    best_state = _state_copy(module)
     best_val = initial_val = evaluate_split(module, ws_val, device)
     resumed = _load_checkpoint(out_dir, fingerprint)
     if resumed is not None:
         info, tensors = resumed
-        module.load_state_dict({k[6:]: v for k, v in tensors.items() if k.startswith("model.")})
-        best_state = {k[5:]: v.to(device) for k, v in tensors.items() if k.startswith("best.")}
-        _restore_optimizer(opt, {k: v for k, v in tensors.items() if k.startswith("opt.")}, info["optimizer"])
-        if "rng.cpu" in tensors:  # checkpoints written before the generator state was saved lack it
-            torch.set_rng_state(tensors["rng.cpu"])
-        if "rng.cuda" in tensors and device.type == "cuda":
-            torch.cuda.set_rng_state(tensors["rng.cuda"], device)
+        best_state = _restore(module, opt, tensors, info, device)
         history, best_val, bad_epochs = info["history"], info["best_val"], info["bad_epochs"]
         start_epoch, seconds = info["epoch"] + 1, info["train_seconds"]
         lr_bad_epochs, best_epoch, stopped_by = info["lr_bad_epochs"], info["best_epoch"], info["stopped_by"]
@@ -726,27 +339,14 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
             if stopped:
                 break
             t0 = time.perf_counter()
-            losses = []
-            for idx, step_lr in round_batches(epoch):
-                if step_lr is not None:
-                    for group in opt.param_groups:
-                        group["lr"] = step_lr
-                x, y, p = _batches(ws_train, idx, device)
-                opt.zero_grad(set_to_none=True)
-                loss = module.standardized_loss(module(x, p), y)
-                loss.backward()
-                if clip is not None:
-                    torch.nn.utils.clip_grad_norm_(module.parameters(), clip)
-                opt.step()
-                losses.append(float(loss.detach()))
-                bar.update(1)
+            losses = _train_round(module, opt, ws_train, round_batches(epoch), clip, device, bar)
             val = evaluate_split(module, ws_val, device)
             seconds += time.perf_counter() - t0
             lr = opt.param_groups[0]["lr"]  # the rate the round's last step trained with
             history.append({"epoch": epoch, "train_loss": float(np.mean(losses)), "val_loss": val, "lr": lr})
             if val < best_val - improvement_needed(config, best_val):
                 best_val, bad_epochs, lr_bad_epochs, best_epoch = val, 0, 0, epoch
-                best_state = {k: v.detach().clone() for k, v in module.state_dict().items()}
+                best_state = _state_copy(module)
             else:
                 bad_epochs += 1
                 lr_bad_epochs += 1
@@ -767,7 +367,22 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
 
     module.load_state_dict(best_state)
     module.eval()
-    config_doc = {
+    outcome = {"history": history, "stopped_by": stopped_by, "best_epoch": best_epoch, "val_loss": best_val,
+               "initial_val_loss": initial_val, "train_samples": len(ws_train)}
+    config_doc = _model_config(module, preset, config, ds, widths, prior, sensor_tare, fingerprint, outcome)
+    module.cpu()
+    save_model(module, config_doc, out_dir, train_seconds=seconds)
+    for name in ("checkpoint.safetensors", "checkpoint.json"):
+        (out_dir / name).unlink(missing_ok=True)
+    return load_model(out_dir)
+
+
+def _model_config(module, preset, config, ds, widths, prior, sensor_tare, fingerprint, outcome: dict) -> dict:
+    """The trained model's config.json: what it reads and predicts, its normalization, its data and training
+    config, and how training went (``outcome``: history, stopped_by, best_epoch, val_loss, initial_val_loss,
+    train_samples)."""
+    history, stopped_by = outcome["history"], outcome["stopped_by"]
+    return {
         "format": MODEL_FORMAT, "format_version": MODEL_FORMAT_VERSION,
         "preset": preset.to_dict(), "inputs": list(preset.inputs), "targets": list(preset.targets),
         "window": preset.window, "widths": widths, "robot": ds.meta["robot"],
@@ -777,13 +392,9 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
         "normalization": {k: getattr(module, k).cpu().double().tolist() for k in ("x_mean", "x_std", "y_mean", "y_std")},
         "dataset": {"path": str(ds.path), "checksum": ds.checksum, "scenario": ds.meta.get("scenario")},
         "train_config": asdict(config), "fingerprint": fingerprint, "history": history,
-        "epochs": len(history), "stopped_by": stopped_by, "best_epoch": best_epoch,
-        "stopped_early": stopped_by in ("patience", "lr-floor"), "val_loss": best_val, "initial_val_loss": initial_val,
+        "epochs": len(history), "stopped_by": stopped_by, "best_epoch": outcome["best_epoch"],
+        "stopped_early": stopped_by in ("patience", "lr-floor"), "val_loss": outcome["val_loss"],
+        "initial_val_loss": outcome["initial_val_loss"],
         "n_params": sum(p.numel() for p in module.parameters()),
-        "train_samples": len(ws_train), "torch": torch.__version__,
+        "train_samples": outcome["train_samples"], "torch": torch.__version__,
     }  # no wall-clock figures: they would make two identical runs' files differ (timing.json has them)
-    module.cpu()
-    save_model(module, config_doc, out_dir, train_seconds=seconds)
-    for name in ("checkpoint.safetensors", "checkpoint.json"):
-        (out_dir / name).unlink(missing_ok=True)
-    return load_model(out_dir)

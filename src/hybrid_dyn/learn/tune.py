@@ -47,7 +47,8 @@ from ..errors import UsageError
 from .model import canonical_json
 from .kinds import SPACE, network_kind  # noqa: F401  (SPACE re-exported: the searched values)
 from .presets import Preset, get_preset
-from .train import TrainConfig, train_model
+from .recipes import TrainConfig
+from .train import train_model
 
 def suggest_preset(trial: optuna.Trial, base: Preset) -> Preset:
     """The base preset with the searched hyperparameters replaced by the trial's choice (the search

@@ -1,10 +1,12 @@
 """Simulation: the DART plant and the dataset generator."""
 from ..deprecation import module_aliases
-from .generator import SimulatedRun, Simulator, generate_dataset, simulate_instance, simulate_reference
+from .generator import generate_dataset
+from .instances import simulate_instance
 from .scenarios import (
     SCENARIO_REGISTRY, SCENARIOS, SIZES, ConfigError, GeneratorConfig, NoiseConfig, PulseConfig, Scenario,
     scenario_config,
 )
+from .simulator import SimulatedRun, Simulator, simulate_reference
 
 __all__ = [
     "SCENARIOS", "SCENARIO_REGISTRY", "SIZES", "ConfigError", "GeneratorConfig", "NoiseConfig", "PulseConfig",
