@@ -44,7 +44,7 @@ from ..data import Dataset, load_dataset
 from ..data.real import RealLogMissingError
 from ..data.splits import dataset_split_text
 from ..errors import UsageError
-from ..outputs import output_lock, refuse_foreign, unique_temp
+from ..outputs import output_lock, refuse_foreign
 from ..timing import time_calls
 from .catalog import ROWS, get_row  # noqa: F401  (ROWS: every declared row)
 from .integrity import DIGEST_KEY, read_run_json, recorded_profile, results_digest

@@ -22,7 +22,6 @@ import numpy as np
 
 from ..analytic.robot import Robot
 from .parameters import N_BODY_PARAMS, dynamic_to_log_cholesky, log_cholesky_to_pseudo, pseudo_to_dynamic
-from .regressor import BaseParameters
 
 # Typical sizes used to make parameter deviations comparable in the regularizer:
 # mass [kg], first moment [kg m], inertia [kg m^2].

@@ -17,7 +17,7 @@ length 10 for the torque sequence nets.
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, replace
 
 from ..analytic.estimators import estimator_name
 from ..errors import UsageError

@@ -96,9 +96,6 @@ def _checked_store(config: GeneratorConfig, out_dir) -> DatasetStore:
     return store
 
 
-# What the generator writes at a dataset's top level; a folder holding anything else
-# before generator.json exists is not one of its datasets.
-_OWN_ENTRIES = ("generator.json", "manifest.json", "instances")
 
 
 def _check_ours(store: DatasetStore, out_dir) -> None:
