@@ -96,8 +96,6 @@ def _checked_store(config: GeneratorConfig, out_dir) -> DatasetStore:
     return store
 
 
-
-
 def _check_ours(store: DatasetStore, out_dir) -> None:
     """Refuse a non-empty folder that the generator did not start (e.g. an imported dataset): its
     generator.json must carry the generator's marker (a config hash), not merely exist."""
