@@ -24,6 +24,14 @@ from scipy import signal
 from .robot import InputError, Robot
 
 DEFAULT_QDD_CUTOFF_HZ = 20.0  # the generator's acceleration filter [Hz] (GeneratorConfig.qdd_cutoff_hz)
+TOP_CUTOFF_FRACTION = 0.45  # the highest cutoff any filter here is designed at, as a fraction of the rate
+
+
+def default_qdd_cutoff(rate_hz: float) -> float:
+    """The acceleration filter's cutoff [Hz] before a method's bandwidth is chosen (the noise window):
+    DEFAULT_QDD_CUTOFF_HZ, or 0.45 x the rate where that is not below the Nyquist frequency (a 20 Hz
+    log, as the seed's, has no 20 Hz filter)."""
+    return min(DEFAULT_QDD_CUTOFF_HZ, TOP_CUTOFF_FRACTION * float(rate_hz))
 
 
 def butterworth(dt: float, cutoff_hz: float) -> tuple[np.ndarray, np.ndarray]:
@@ -174,7 +182,7 @@ def cutoff_grid(rate_hz: float) -> tuple[np.ndarray, np.ndarray, tuple, np.ndarr
     """The cutoffs auto_qdd_cutoff chooses from [Hz] (5 Hz to 0.45 x rate), their noise gains [1/s^2],
     their filter designs ((b, a) at dt = 1 / rate) and settling times [calls]: computed once per rate, when an
     estimator is built, never in a control call."""
-    grid = np.geomspace(5.0, 0.45 * rate_hz, 48)
+    grid = np.geomspace(5.0, TOP_CUTOFF_FRACTION * rate_hz, 48)
     gains = np.array([qdd_noise_gain(rate_hz, float(fc)) for fc in grid])
     designs = tuple(butterworth(1.0 / rate_hz, float(fc)) for fc in grid)
     settle = np.array([filter_settle_calls(rate_hz, float(fc)) for fc in grid])

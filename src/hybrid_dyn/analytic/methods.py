@@ -27,7 +27,7 @@ from typing import Callable
 
 import numpy as np
 
-from .acceleration import (DEFAULT_QDD_CUTOFF_HZ, causal_acceleration, cutoff_grid, cutoff_index, filter_settle_calls,
+from .acceleration import (causal_acceleration, cutoff_grid, cutoff_index, default_qdd_cutoff, filter_settle_calls,
                            qdd_noise_per_gain)
 from .bandwidth import WindowNoise, measure_window, observer_gain, observer_settle_calls
 from .base_momentum import BaseMomentumObserver
@@ -323,7 +323,7 @@ def run_batch(method: str | Method, robot: Robot, rate_hz: float, q, qd, base_wr
               tare_seconds: float = 0.5, value=None, stream: MethodStream | None = None):
     """What ``TipForceEstimator`` gives over one run (N, ...) with every sample present, as a batch:
     (forces (N, 3) [N], the bandwidth used). The first ``tare_seconds`` are the noise window (0 there);
-    on it the base sensor is tared (qdd: the 20 Hz filter that runs during the window), the noise is
+    on it the base sensor is tared (qdd: the filter that runs during the window, ``default_qdd_cutoff``), the noise is
     measured and the bandwidth chosen by the rule (``value``: fixed instead); then the method runs
     from the first sample after it (a qdd method on qdd filtered at its cutoff from the start, as the
     estimator replays the window through it)."""
@@ -336,13 +336,13 @@ def run_batch(method: str | Method, robot: Robot, rate_hz: float, q, qd, base_wr
     out = np.zeros((len(q), 3))
     if n >= len(q) or n < 8:
         raise ValueError(f"run_batch needs a noise window of 8 samples or more inside the run, got {n} of {len(q)}")
-    qdd20 = causal_acceleration(qd, dt, DEFAULT_QDD_CUTOFF_HZ)
+    qdd_window = causal_acceleration(qd, dt, default_qdd_cutoff(rate_hz))
     w_tared = w
     if m.tares and w is not None:
-        w_tared = w - base_sensor_offset(robot, q[:n], qd[:n], qdd20[:n], w[:n])
+        w_tared = w - base_sensor_offset(robot, q[:n], qd[:n], qdd_window[:n], w[:n])
     noise = measure_window(q[:n], qd[:n], None if w is None else w[:n], None if tau is None else tau[:n])
     win = lambda x: None if x is None else x[:n]  # noqa: E731
-    used = stream.fit_window(q[:n], qd[:n], qdd20[:n], win(w_tared), win(tau), noise, value)
+    used = stream.fit_window(q[:n], qd[:n], qdd_window[:n], win(w_tared), win(tau), noise, value)
     qdd = causal_acceleration(qd, dt, used)[n:] if m.needs_qdd else None
     after = lambda x: None if x is None else x[n:]  # noqa: E731
     out[n:] = stream.batch(q[n:], qd[n:], qdd, after(w_tared), after(tau))

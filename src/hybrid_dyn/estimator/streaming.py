@@ -86,7 +86,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analytic.acceleration import DEFAULT_QDD_CUTOFF_HZ, CausalAccelerationFilter, cutoff_grid
+from ..analytic.acceleration import CausalAccelerationFilter, cutoff_grid, default_qdd_cutoff
 from ..analytic.bandwidth import measure_window
 from ..analytic.estimators import ALIASES, estimator_name
 from ..analytic.kalman import MAX_BRIDGE_CALLS
@@ -134,7 +134,7 @@ class TipForceEstimator:
         value = "auto" if param is None else getattr(c, param, "auto")  # a method's own parameter: the rule
         self._fixed = None if value == "auto" else float(value)
         cutoff = c.qdd_cutoff_hz if c.qdd_cutoff_hz != "auto" else (
-            model.qdd_cutoff_hz if model is not None else DEFAULT_QDD_CUTOFF_HZ)
+            model.qdd_cutoff_hz if model is not None else default_qdd_cutoff(c.call_hz))
         self._qdd_cutoff_start = float(cutoff)
         self._qdd_filter = CausalAccelerationFilter(nv, c.call_hz, self._qdd_cutoff_start)
         if self._needs_qdd and self.spec is not None:
