@@ -138,3 +138,27 @@ def test_prior_file_changed_after_the_fit_is_refused(panda, prior, tmp_path):
     own.write_text(json.dumps(doc))
     with pytest.raises(ModelError, match="changed since the fit"):
         load_gp_residual(tmp_path / "m", robot=panda)
+
+
+def test_validation_choice_is_the_fitted_models_own_error_in_any_block_size(monkeypatch):
+    """The candidates' validation MSE is accumulated in blocks (a paper-size validation split would not fit
+    whole): the recorded MSE of the chosen candidate equals the saved model's own error on the validation
+    rows (gp.GPModel.predict_rows, another code path), and blocks of 7 rows choose what one block does."""
+    from hybrid_dyn.learn import gp_residual
+    from hybrid_dyn.learn.gp import GPHyperparameters, GPModel
+
+    rng = np.random.default_rng(0)
+    x, xv = rng.uniform(-1, 1, (400, 3)), rng.uniform(-1, 1, (150, 3))
+    f = lambda a: np.stack([np.sin(2 * a[:, 0]) + a[:, 1] ** 2, np.cos(a[:, 2])], axis=1)  # noqa: E731
+    r, rv = f(x) + 0.01 * rng.standard_normal((400, 2)), f(xv)
+    hyper = GPHyperparameters(np.ones(2), np.full((2, 3), 0.8), np.full(2, 1e-3), [])
+    config = GPResidualConfig(inducing=60, noise_factors=(1.0, 100.0), length_scale_factors=(0.5, 1.0))
+    tensors, choice = gp_residual.fit_sparse_residual(x, r, xv, rv, config, hyper=hyper)
+    own = np.mean((GPModel(tensors, {}).predict_rows(xv) - rv) ** 2, axis=0)
+    np.testing.assert_allclose([c["val_mse"] for c in choice], own, rtol=1e-9)
+    assert all(not c["kept_prior"] and c["val_mse"] < 0.05 * c["val_mse_prior"] for c in choice)
+    monkeypatch.setattr(gp_residual, "CHUNK", 7)
+    small, small_choice = gp_residual.fit_sparse_residual(x, r, xv, rv, config, hyper=hyper)
+    assert [(c["length_scale_factor"], c["noise_factor"]) for c in small_choice] == \
+        [(c["length_scale_factor"], c["noise_factor"]) for c in choice]
+    np.testing.assert_allclose(small["alpha"], tensors["alpha"], rtol=1e-9, atol=1e-12)
