@@ -1,4 +1,4 @@
-"""The project's acceptance floors, checked on a bench report (issues 5, 7, 8, 14, 15 and 16).
+"""The project's acceptance floors, checked on a bench report (issues 5, 7, 8, 14, 15, 16, 29 and 31).
 
 These floors are this project's own targets on its own scenarios (the simulated
 ``mismatch-ext`` and ``paper-ext``, the real logs): they mean nothing on a user's data,
@@ -21,6 +21,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from hybrid_dyn.bench.catalog import get_row
 from hybrid_dyn.bench.report import _ok, best_row
 from hybrid_dyn.bench.results import read_results
 from hybrid_dyn.bench.rows import PHYSICS_INFORMED
@@ -97,10 +98,27 @@ def floor_checks(rows) -> list[tuple[str, bool | None, str]]:
         if r:
             out.append((f"issue 14: {scenario}: {text}", float(r["rmse"]) <= floor,
                         f"{r['model']} {float(r['rmse']):.4f}"))
-    # Issue 15: the real Panda, identified from its own log, and the residuals on the identified model.
+    # Issue 31: seed-sim at the seed's size (its test split's samples; the wall time is in the report).
+    seed_rows = [r for r in _ok(rows) if r["scenario"] == "seed-sim" and r.get("n_test_samples")]
+    if seed_rows:
+        n = max(int(float(r["n_test_samples"])) for r in seed_rows)
+        out.append(("issue 31: seed-sim at the seed's size, >= 700,000 test samples", n >= 700_000, f"{n:,} samples"))
+    # Issue 29: the real Panda on its time-ordered split: the best hybrid, every hybrid against its own prior.
     p = "real-panda"
     ident = best_row(rows, "joint_torque", p, lambda r: r["model"] == "identified-consistent")
     rnea = best_row(rows, "joint_torque", p, lambda r: r["model"] == "rnea")
+    _ratio_check(out, "issue 29: real-panda: identified-consistent <= 0.65 x nominal bare-flange RNEA", 0.65,
+                 ident, rnea, unit=" Nm")
+    by_name = {r["model"]: r for r in _ok(rows) if r["scenario"] == p and r["task"] == "joint_torque"}
+    hybrids = {name: get_row(name).prior for name in by_name if get_row(name).prior in by_name}
+    if hybrids:
+        best = min(hybrids, key=lambda name: float(by_name[name]["rmse"]))
+        _ratio_check(out, "issue 29: real-panda: the best hybrid row <= 0.9 x identified-consistent", 0.9,
+                     by_name[best], ident, unit=" Nm")
+        worst = max(hybrids, key=lambda name: float(by_name[name]["rmse"]) / float(by_name[hybrids[name]]["rmse"]))
+        _ratio_check(out, "issue 29: real-panda: no hybrid row above 1.02 x its own physics prior (the worst)", 1.02,
+                     by_name[worst], by_name[hybrids[worst]], unit=" Nm")
+    # Issue 15: the real Panda, identified from its own log, and the residuals on the identified model.
     _ratio_check(out, "issue 15: real-panda: identified-consistent <= 0.4 x nominal RNEA (the bench's variant)", 0.4,
                  ident, rnea, unit=" Nm")
     res = best_row(rows, "joint_torque", p, lambda r: r["family"] == "identified" and r["model"].startswith("residual"))
