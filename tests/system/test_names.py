@@ -75,7 +75,7 @@ def test_generate_takes_size_and_its_old_flag_warns(capsys):
 def test_a_bench_profile_names_its_generator_size_and_run_json_keeps_the_key(no_deprecation):
     quick = PROFILES["quick"]
     assert quick.generator_size == "quick" and PROFILES["seed-sim"].generator_size == "paper"
-    d = quick.to_dict()  # what run.json records, and report.py quotes as "generator profile"
+    d = quick.to_dict()  # what run.json records, and report.py quotes as "generator size"
     assert d["generator_profile"] == "quick" and "generator_size" not in d
     assert list(d)[:3] == ["name", "scenarios", "generator_profile"]
 

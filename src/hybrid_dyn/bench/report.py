@@ -173,7 +173,7 @@ def _what_was_run(meta: dict, prof: dict) -> list[str]:
         "every row against the digest the bench recorded in run.json and the stored predictions). Seed (Kruzic et al. 2021) figures in the tables come "
         "from another simulator and are labelled as such.", "",
         "## What was run", "",
-        f"- scenarios: {', '.join(labels)}; generator profile `{prof.get('generator_profile')}`; "
+        f"- scenarios: {', '.join(labels)}; generator size `{prof.get('generator_profile')}`; "
         f"seed {prof.get('seed')}; training: "
         + (f"recipe `{prof['recipe']}`, {json.dumps(prof.get('train', {}))}" if prof.get("recipe")
            else "not recorded in run.json (an interrupted bench of an older version, which recorded it only at the end)"),
