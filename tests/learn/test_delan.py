@@ -12,7 +12,8 @@ from hybrid_dyn.learn.delan import DeepLagrangianNetwork, LearnedGazFriction
 from hybrid_dyn.learn.nets import build_net
 
 # torch's forward-mode AD (DeLaN's jvp) loads decompositions through the deprecated torch.jit.script.
-pytestmark = pytest.mark.filterwarnings("ignore:`torch.jit.script` is deprecated:DeprecationWarning")
+pytestmark = [pytest.mark.filterwarnings("ignore:`torch.jit.script` is deprecated:DeprecationWarning"),
+              pytest.mark.usefixtures("one_thread")]
 
 TWO_LINK_URDF = """<robot name="two_link">
  <link name="base"/>
@@ -53,15 +54,6 @@ class TwoLink:
 
 def T(a):
     return torch.as_tensor(np.asarray(a), dtype=torch.float32)
-
-
-@pytest.fixture(scope="module", autouse=True)
-def one_thread():
-    """Tiny batches: one thread is faster, and avoids spinning against other jobs on 2 cores."""
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
 
 
 @pytest.fixture(scope="module")

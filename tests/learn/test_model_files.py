@@ -21,15 +21,9 @@ from hybrid_dyn.learn import train as train_mod
 from hybrid_dyn.learn.model import config_digest
 from hybrid_dyn.outputs import output_lock
 
+pytestmark = pytest.mark.usefixtures("one_thread")
+
 QUICK = dict(batch_size=32, progress=False, num_threads=1)
-
-
-@pytest.fixture(scope="module", autouse=True)
-def one_thread():
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
 
 
 @pytest.fixture(scope="module")

@@ -20,17 +20,10 @@ from hybrid_dyn.learn import train as train_mod
 from hybrid_dyn.learn.priors import AnalyticPrior
 
 # torch's forward-mode AD (DeLaN's jvp) loads decompositions through the deprecated torch.jit.script.
-pytestmark = pytest.mark.filterwarnings("ignore:`torch.jit.script` is deprecated:DeprecationWarning")
+pytestmark = [pytest.mark.filterwarnings("ignore:`torch.jit.script` is deprecated:DeprecationWarning"),
+              pytest.mark.usefixtures("one_thread")]
 
 QUICK = dict(batch_size=64, progress=False, num_threads=1)
-
-
-@pytest.fixture(scope="module", autouse=True)
-def one_thread():
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)  # tiny batches; and 2 shared cores
-    yield
-    torch.set_num_threads(before)
 
 
 @pytest.fixture(scope="module")
