@@ -145,3 +145,35 @@ def test_a_rerun_keeps_its_profiles_wall_times_and_drops_another_profiles(tmp_pa
     assert len(first) == 2
     run_bench(other, tmp_path / "r", **roots)
     assert len(wall()) == 1 and wall()[0] not in first
+
+
+@pytest.mark.slow  # imports a log and runs the bench twice
+def test_an_interrupted_invocation_keeps_its_wall_time_and_the_report_adds_the_parts(tmp_path):
+    """A bench killed halfway (Ctrl-C, the OOM killer) leaves its time so far in run.json; the rerun that
+    finishes it keeps that part, and the README prints every part and their sum."""
+    from hybrid_dyn.bench.runner import run_bench
+
+    spec = write_log(tmp_path / "logs", n=200)
+    assert cli_main(["import", "--spec", str(spec), "--out", str(tmp_path / "log")]) == 0
+    profile = type(tiny_profile([tmp_path / "log"]))(**{**tiny_profile([tmp_path / "log"]).__dict__,
+                                                        "rows": ("rnea", "identified-ols")})
+    roots = dict(data_root=tmp_path / "data", work_root=tmp_path / "runs")
+
+    def killed_after_first_row(message):
+        if "rmse=" in message:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_bench(profile, tmp_path / "r", log=killed_after_first_row, **roots)
+    (part,) = json.loads((tmp_path / "r" / "run.json").read_text())["invocations"]
+    assert part["finished"] is None and part["rows"] == 1 and part["wall_seconds"] > 0
+    assert cli_main(["report", str(tmp_path / "r")]) == 0  # the interrupted bench's row stays checkable
+
+    run_bench(profile, tmp_path / "r", log=lambda m: None, **roots)
+    meta = json.loads((tmp_path / "r" / "run.json").read_text())
+    first, second = meta["invocations"]
+    assert first == part and second["finished"] is not None and second["rows"] == 2
+    readme = (tmp_path / "r" / "README.md").read_text()
+    total = (first["wall_seconds"] + second["wall_seconds"]) / 60
+    assert f"all invocations [min]: {first['wall_seconds'] / 60:.1f} (not finished), " in readme
+    assert f"in all {total:.1f} min" in readme

@@ -57,6 +57,16 @@ def recorded_profile(prof: dict) -> dict:
     return prof
 
 
+def same_profile(recorded: dict, profile) -> bool:
+    """Whether a run.json's ``profile`` is ``profile`` (a ``BenchProfile``): the same data, rows and
+    recipe. The method ``notes`` are left out: they describe the run and may be corrected (e.g. a
+    renamed recipe) without making a report another profile's."""
+    def identity(d):
+        return {k: v for k, v in d.items() if k != "notes"} if isinstance(d, dict) else d
+
+    return identity(recorded_profile(recorded)) == identity(profile.to_dict())
+
+
 def read_run_json(out_dir) -> dict | None:
     """The run.json of report folder ``out_dir``; None when there is none; refused (``OutputPathError``)
     when it is not the bench's (unreadable, or without the marker)."""

@@ -221,6 +221,15 @@ def profile_for_data(paths, robot: str | None = None, params: str | None = None,
     return BenchProfile(name=name, scenarios=paths, robot=robot, params=params, tool=tool, recipe=recipe, **fields)
 
 
+# The method note of every profile under the budgeted recipe (one text, so that it names the recipes
+# as learn/recipes.py does; run.json's identity leaves notes out, integrity.same_profile).
+BUDGET_RECIPE_NOTE = (
+    "Training: the budgeted recipe (learn/recipes.py, docs/models.md): a fixed number of Adam steps per network "
+    "kind, batch 1024, lr 2e-3 with a 5 % linear warm-up and a cosine decay to zero, the best of 40 validation "
+    "rounds kept; the cost of a row does not grow with the data. The epoch recipe with patience is "
+    "`--recipe plateau`, the seed's (constant rate, patience 5) `--recipe seed-study`.")
+
+
 PROFILES = {
     # make demo: one net of each architecture and family, trained long enough to learn (within
     # about 5 minutes on 2 cores), on a quick mismatch-ext of 30 instances of 5 trajectories. The
@@ -256,7 +265,7 @@ PROFILES = {
         # contact-steps (1 kHz) tests the physics estimators on steps; the nets' windows are
         # counted in samples and were sized for 100 Hz, so they are not trained on it.
         scenario_families={"contact-steps": ("analytic",), "contact-steps-quiet": ("analytic",)},
-        notes=("Training: the budgeted recipe (learn/train.py, docs/models.md): a fixed number of Adam steps per network kind, batch 1024, lr 2e-3 with a 5 % linear warm-up and a cosine decay to zero, the best of 40 validation rounds kept; the cost of a row does not grow with the data. The epoch recipe with patience is `--recipe default`, the seed's (constant rate, patience 5) `--recipe seed`.",
+        notes=(BUDGET_RECIPE_NOTE,
                "Data: paper-noext, paper-ext and mismatch-ext hold 120 instances of 5-10 trajectories each (split "
                "by instance 77/19/24), 3x the epoch-recipe bench's 40: under the budget a row's training cost does "
                "not grow with the data.",
@@ -314,7 +323,7 @@ PROFILES = {
                "q, qd, qdd exact from the simulator, no sensor noise and no bias, the same bell pulses and "
                "trajectory rules, 5-50 trajectories per instance, at the seed's size: 1000 instances split by "
                "instance 640 train, 160 validation, 200 test (the seed: 3,919,800 samples).",
-               "Training: the budgeted recipe (learn/train.py, docs/models.md): a fixed number of Adam steps per network kind, batch 1024, lr 2e-3 with a 5 % linear warm-up and a cosine decay to zero, the best of 40 validation rounds kept; the cost of a row does not grow with the data. The epoch recipe with patience is `--recipe default`, the seed's (constant rate, patience 5) `--recipe seed`.",
+               BUDGET_RECIPE_NOTE,
                "Sequence models are scored on every sample: the first L-1 windows of each instance are edge-padded "
                "with its first sample, as a streaming estimator starts up; all rows see the same test samples."),
     ),

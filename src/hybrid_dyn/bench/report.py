@@ -181,8 +181,7 @@ def _what_was_run(meta: dict, prof: dict) -> list[str]:
           if any(prof.get(k) for k in ("robot", "params", "tool")) else []),
         f"- wall time of this invocation: {_minutes(meta.get('wall_seconds'))} min (datasets and trained "
         "models found in the caches are reused; each row's `train_seconds` is its own training time)"
-        + ("; all invocations [min]: " + ", ".join(_minutes(i.get("wall_seconds"))
-                                                 for i in meta.get("invocations", [])) if len(meta.get("invocations", [])) > 1 else ""),
+        + _invocation_times(meta.get("invocations", [])),
         (f"- machine: {machine['machine']}, {machine['processor']}, Python {machine['python']}; packages: "
          + ", ".join(f"{k} {v}" for k, v in machine["packages"].items())) if machine else
         "- machine: not recorded in run.json (a report written before it was)",
@@ -196,6 +195,17 @@ def _what_was_run(meta: dict, prof: dict) -> list[str]:
                         if d.get("dataset_seconds") is not None else ""))
         lines += [f"  - **import warning**: {w}" for w in d.get("import_warnings") or []]
     return lines
+
+
+def _invocation_times(invocations: list) -> str:
+    """The parts of a bench that took several invocations (resumed from its caches), and their sum."""
+    if len(invocations) < 2:
+        return ""
+    parts = [_minutes(i.get("wall_seconds")) + (" (not finished)" if "finished" in i and i["finished"] is None else "")
+             for i in invocations]
+    known = [float(i["wall_seconds"]) for i in invocations if i.get("wall_seconds") is not None]
+    total = f"; in all {_minutes(sum(known))} min" if len(known) == len(invocations) else ""
+    return "; all invocations [min]: " + ", ".join(parts) + total
 
 
 def _left_out_lines(meta: dict, notes_out: list[str], failed: list[dict]) -> list[str]:

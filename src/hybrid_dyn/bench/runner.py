@@ -47,7 +47,7 @@ from ..errors import UsageError
 from ..outputs import output_lock, refuse_foreign
 from ..timing import time_calls
 from .catalog import ROWS, get_row  # noqa: F401  (ROWS: every declared row)
-from .integrity import DIGEST_KEY, read_run_json, recorded_profile, results_digest
+from .integrity import DIGEST_KEY, read_run_json, results_digest, same_profile
 from .learned_rows import PRESET_ROWS
 from .metrics import ErrorReport, base_force_noise_rms, standardized_mse
 from .predictions import PREDICTIONS_FILE, PredictionWriter
@@ -263,9 +263,11 @@ def _claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[d
     marker = out_dir / "run.json"
     old = read_run_json(out_dir)  # refuses a run.json the bench did not write
     if old is not None:
-        if recorded_profile(old["profile"]) != profile.to_dict():  # issue 30: an old recipe name is the same recipe
+        if not same_profile(old["profile"], profile):  # an old recipe name or corrected notes: the same profile
             log(f"[bench] {out_dir} held a report of another profile or size: it is replaced, and its "
                 "invocations' wall times are not kept")
+            # From now on run.json says which profile is being run, and vouches for no earlier row.
+            write_json(marker, {"bench_report": 1, "invocations": [], "profile": profile.to_dict()})
             return []
         if "invocations" in old:
             return list(old["invocations"])
@@ -289,11 +291,42 @@ def _import_warnings(ds) -> list[str]:
     return [str(w) for w in warnings] if isinstance(warnings, list) else []
 
 
-def _record_digest(out_dir: Path) -> None:
-    """run.json (the claim's, or an earlier invocation's) with the digest of results.csv as it is now."""
-    meta = read_run_json(out_dir)
-    meta[DIGEST_KEY] = results_digest(out_dir / "results.csv", meta)
-    write_json(out_dir / "run.json", meta)
+def _utc_now() -> str:
+    return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+
+
+@dataclasses.dataclass
+class InvocationClock:
+    """This invocation's entry in run.json's ``invocations``, kept current as the bench goes.
+
+    A bench that spans sittings is several invocations, and one of them may be killed (by the user,
+    or by the OOM killer): written as each dataset and row finishes, its wall time so far stays in
+    run.json for the next invocation to keep (``"finished": null`` says it did not finish), so that
+    the report can add the parts up. ``previous``: the earlier invocations, read when the folder
+    was claimed."""
+
+    previous: list
+    started: str = dataclasses.field(default_factory=_utc_now)
+    t0: float = dataclasses.field(default_factory=time.perf_counter)
+
+    def seconds(self) -> float:
+        return time.perf_counter() - self.t0
+
+    def invocations(self, rows: list, finished: bool) -> list:
+        return self.previous + [{"started": self.started, "finished": _utc_now() if finished else None,
+                                 "wall_seconds": self.seconds(), "rows": len(rows),
+                                 "rows_ok": sum(r.get("status") == "ok" for r in rows)}]
+
+    def record(self, out_dir: Path, rows: list) -> None:
+        """run.json (the claim's, or an earlier invocation's) with this invocation's time so far and the
+        digest of results.csv as it is now (an interrupted bench's rows stay checkable by ``hybrid-dyn report``)."""
+        meta = read_run_json(out_dir)
+        meta["invocations"] = self.invocations(rows, finished=False)
+        # Re-vouch only for rows this profile computed: this invocation's, or an earlier one's that
+        # run.json already vouched for (a report of another profile was unclaimed, its digest dropped).
+        if meta.pop(DIGEST_KEY, None) is not None or rows:
+            meta[DIGEST_KEY] = results_digest(out_dir / "results.csv", meta)
+        write_json(out_dir / "run.json", meta)
 
 
 def recorded_path(path) -> str:
@@ -354,7 +387,7 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider
     labels = {}
     dataset_seconds = {}
     predictions = PredictionWriter(out_dir / PREDICTIONS_FILE)
-    t_start = time.perf_counter()
+    clock = InvocationClock(previous)
     for entry, scenario, ds, ref in opened:
         log(f"[bench] scenario {scenario}: dataset")
         t_data = time.perf_counter()
@@ -369,6 +402,7 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider
         labels[scenario] = entry
         # Making (or finding) the dataset in this invocation: a generation that ran here is part of the wall time.
         dataset_seconds[scenario] = time.perf_counter() - t_data
+        clock.record(out_dir, rows)  # a generation that took an hour is on record before any training
         for warning in _import_warnings(ds):  # e.g. a time unit that does not fit: said here and in the README
             log(f"[bench] {scenario}: import warning: {warning}")
         # The analytic model: the profile's robot (or the dataset's), with its tool and nominal parameters.
@@ -378,9 +412,8 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider
         datasets[scenario] = ds
         ctx = BenchContext(profile, scenario, ds, robot, work_dir(profile, scenario, ds, work_root),
                            data_root, log=log, source=entry)
-        _bench_scenario(profile, out_dir, ctx, ref, predictions, rows, skipped, log, executor, device)
-    wall = time.perf_counter() - t_start
-    meta = _run_meta(profile, previous, wall, rows, labels, skipped, datasets, dataset_seconds)
+        _bench_scenario(profile, out_dir, ctx, ref, predictions, rows, skipped, log, clock, executor, device)
+    meta = _run_meta(profile, clock, rows, labels, skipped, datasets, dataset_seconds)
     write_results(out_dir / "results.csv", rows)  # also when no row applied: the report reads it
     meta[DIGEST_KEY] = results_digest(out_dir / "results.csv", meta)  # what ``hybrid-dyn report`` checks against
     write_json(out_dir / "run.json", meta)
@@ -390,7 +423,7 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider
 
 
 def _bench_scenario(profile, out_dir, ctx: BenchContext, ref, predictions, rows, skipped, log,
-                    executor=None, device=None) -> None:
+                    clock: InvocationClock, executor=None, device=None) -> None:
     """One scenario's rows: those that apply are trained (the learned ones, in parallel) and scored, each
     written to results.csv, predictions.h5 and curves.json as it finishes; ``rows`` and ``skipped`` grow."""
     scenario, ds = ctx.scenario, ctx.dataset
@@ -409,6 +442,7 @@ def _bench_scenario(profile, out_dir, ctx: BenchContext, ref, predictions, rows,
              profile.torch_threads) for s in specs if s.name in PRESET_ROWS]
     log(f"[bench] {scenario}: training {len(jobs)} learned models on {profile.workers} workers")
     pretrain(jobs, profile.workers, log=log, executor=executor)
+    clock.record(out_dir, rows)
     for spec in tqdm(specs, desc=f"bench {scenario}", unit="model"):
         t0 = time.perf_counter()
         try:
@@ -422,7 +456,7 @@ def _bench_scenario(profile, out_dir, ctx: BenchContext, ref, predictions, rows,
             predictions.row(scenario, spec.task, spec.name, [i.name for i in test],
                             ctx.cache.pop((spec.task, spec.name)))
         write_results(out_dir / "results.csv", rows)
-        _record_digest(out_dir)  # an interrupted bench's rows stay checkable by ``hybrid-dyn report``
+        clock.record(out_dir, rows)
         write_curves(out_dir / CURVES_FILE, rows)
         log(f"[bench] {scenario} {spec.task:12s} {spec.name:22s} rmse={row.get('rmse', float('nan')):.4g} "
             f"({time.perf_counter() - t0:.1f} s)" if row["status"] == "ok" else
@@ -442,15 +476,15 @@ def _applicable_rows(profile: BenchProfile, scenario: str, ds: Dataset, skipped:
     return specs
 
 
-def _run_meta(profile: BenchProfile, previous: list, wall: float, rows: list, labels: dict, skipped: list,
+def _run_meta(profile: BenchProfile, clock: InvocationClock, rows: list, labels: dict, skipped: list,
               datasets: dict, dataset_seconds: dict) -> dict:
     """run.json (before its digest): the profile, every invocation's wall time, the scenarios and rows not run,
     the machine and each dataset."""
-    # Keep every invocation (``previous``, read when the folder was claimed): a rerun
+    # Keep every invocation (``clock.previous``, read when the folder was claimed): a rerun
     # that reuses cached data and models is fast, and the first, full run's wall
     # time must not be overwritten by it.
-    invocations = previous + [{"finished": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "wall_seconds": wall,
-                               "rows": len(rows), "rows_ok": sum(r.get("status") == "ok" for r in rows)}]
+    invocations = clock.invocations(rows, finished=True)
+    wall = invocations[-1]["wall_seconds"]
     return {"bench_report": 1, "profile": profile.to_dict(), "wall_seconds": wall, "invocations": invocations,
             "scenarios": labels, "skipped": skipped, "machine": machine_info(),
             "datasets": {s: {"path": recorded_path(d.path), "checksum": d.checksum, "seed": d.meta.get("seed"),

@@ -28,7 +28,7 @@ from pathlib import Path
 
 from ..errors import UsageError
 from .catalog import get_row, select_rows
-from .integrity import read_run_json
+from .integrity import read_run_json, same_profile
 from .profiles import BenchProfile, get_profile
 from .results import read_results
 from .rows import is_physics_result
@@ -267,7 +267,7 @@ def read_full_report(study: Study, report: Path) -> list[dict]:
     if meta is None or not (report / "results.csv").is_file():
         raise UsageError(f"{report} holds no bench report; run `hybrid-dyn bench --profile {study.profile} "
                          f"--out {report}` first (the study's full-data point)")
-    if meta["profile"] != study.base_profile().to_dict():
+    if not same_profile(meta["profile"], study.base_profile()):
         raise UsageError(f"{report} is a report of another profile or size than {study.profile!r}: rerun the bench")
     return read_results(report / "results.csv")
 
