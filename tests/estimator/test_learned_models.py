@@ -118,3 +118,15 @@ def test_onnx_runtime_agrees_with_batch_to_float32(trained, preset):
     batch = estimate_tip_force(inst.q, inst.qd, qdd, base_wrench=inst.base_wrench, tau_J=inst.tau_J, model=dirs[preset])
     start = tare_samples(RATE, TARE_SECONDS) + est.model.window - 1  # see test_streaming_equals_batch
     np.testing.assert_allclose(stream[start:], batch[start:], atol=1e-4)
+
+
+def test_a_model_whose_training_filter_a_stream_cannot_reproduce_is_refused_naming_the_rate(tmp_path, panda):
+    """A 20 Hz log (seed-sim's rate) whose qdd went through a 20 Hz filter at the simulator's rate: a stream
+    at 20 Hz cannot run that filter (Nyquist 10 Hz). Refused naming both, unless the user picks a cutoff."""
+    ds = load_dataset(make_synthetic_dataset(tmp_path / "d", panda, n_instances=3, n_samples=60, record_hz=20.0,
+                                             noise=0.002, friction=panda.spec.friction(), seed=2))
+    train_model(ds, "seed-tip-11", tmp_path / "m", TrainConfig(max_epochs=1, max_batches_per_epoch=2, progress=False))
+    with pytest.raises(hd.errors.UsageError, match=r"20 Hz filter .* call_hz=20 Hz .* Nyquist frequency is 10 Hz"):
+        TipForceEstimator.load(tmp_path / "m", call_hz=20.0, runtime="numba")
+    est = TipForceEstimator.load(tmp_path / "m", call_hz=20.0, runtime="numba", qdd_cutoff_hz=9.0)
+    assert est.config.qdd_cutoff_hz == 9.0

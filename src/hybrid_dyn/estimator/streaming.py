@@ -93,6 +93,7 @@ from ..analytic.kalman import MAX_BRIDGE_CALLS
 from ..analytic.methods import REGISTRY, spec_noise
 from ..analytic.robot import Robot, load_robot
 from ..analytic.tare import StreamingTare, tare_samples
+from ..errors import UsageError
 from .config import EstimatorConfig, EstimatorStatus
 from .input import EstimatorInputError, InputGate, RateCheck
 
@@ -178,6 +179,12 @@ class TipForceEstimator:
 
         model = StreamingModel.load(Path(model_dir), robot=robot, runtime=runtime)
         if config.get("qdd_cutoff_hz", "auto") == "auto":  # the network saw qdd through its training filter
+            call_hz = config.get("call_hz", EstimatorConfig.call_hz)  # a bad one is refused by the config below
+            if isinstance(call_hz, (int, float)) and call_hz > 0 and not model.qdd_cutoff_hz < 0.5 * call_hz:
+                raise UsageError(f"model {model_dir} saw qdd through a {model.qdd_cutoff_hz:g} Hz filter in training, "
+                                 f"which a stream at call_hz={call_hz:g} Hz cannot reproduce (its Nyquist frequency is "
+                                 f"{0.5 * call_hz:g} Hz): call at a multiple of its training rate above {2 * model.qdd_cutoff_hz:g} "
+                                 "Hz, or pass qdd_cutoff_hz below call_hz / 2 to accept another filter than training's")
             config = {**config, "qdd_cutoff_hz": model.qdd_cutoff_hz}
         cfg = EstimatorConfig(**config)
         return cls(model.robot, "learned", cfg, model=model)
