@@ -33,6 +33,23 @@ def test_rows_are_chosen_on_validation_not_test():
     chosen = choose_rows(rows)
     assert chosen[("s", "joint_torque", "seed-net")]["model"] == "seed-tau-lstm"
     assert chosen[("s", "joint_torque", "physics")]["model"] == "identified-consistent"
+    assert len(chosen) == 2  # the best physics row reads what the net reads: no second comparator
+
+
+def test_a_learned_row_is_also_set_against_the_physics_row_on_its_own_inputs():
+    """seed-sim: the best torque physics row reads the base wrench, the seed's torque nets do not. Their fair
+    comparator is the best physics row on q, qd, qdd (chosen on validation too); a row that reads the base
+    wrench keeps the overall best."""
+    def row(model, family, val, n_params=""):
+        return dict(scenario="s", task="joint_torque", model=model, family=family, status="ok", val_loss=val,
+                    rmse="1.0", n_params=n_params)
+
+    chosen = choose_rows([row("seed-tau-mlp", "seed-net", "0.2", "100"), row("residual-rnea-bw", "residual", "0.1", "100"),
+                          row("identified-bw-tared", "identified", "0.01"), row("rnea", "analytic", "0.5"),
+                          row("identified-sigmoid-friction", "identified", "0.4")])
+    assert chosen[("s", "joint_torque", "physics")]["model"] == "identified-bw-tared"
+    assert chosen[("s", "joint_torque", "physics on q, qd, qdd")]["model"] == "identified-sigmoid-friction"
+    assert len(chosen) == 4  # residual-rnea-bw reads the base wrench: its comparator is the overall best
 
 
 @pytest.mark.slow
@@ -54,9 +71,11 @@ def test_data_scaling_study_on_a_tiny_bench(tmp_path, monkeypatch):
     assert summary["sizes"] == [1, 2, n_train] and n_train == 4  # 6 instances: 1 test, 1 val, 4 train
     panel = next(p for p in summary["panels"] if p["task"] == "joint_torque")
     lines = {line["family"]: line for line in panel["lines"]}
-    assert set(lines) == {"physics", "seed-net", "residual"}
-    physics = lines["physics"]["rmse"]
-    assert len(set(physics)) == 1  # trains on nothing
+    # the best physics row reads the base wrench (rnea-bw); the MLP's fair comparator reads what it reads
+    assert set(lines) == {"physics", "physics on q, qd, qdd", "seed-net", "residual"}
+    assert lines["physics on q, qd, qdd"]["model"] == "rnea" and lines["physics"]["model"] != "rnea"
+    for physics in ("physics", "physics on q, qd, qdd"):
+        assert len(set(lines[physics]["rmse"])) == 1  # learns nothing from the training instances
     full_rmse = {r["model"]: float(r["rmse"]) for r in full if r["task"] == "joint_torque"}
     for family in ("seed-net", "residual"):
         rmse = lines[family]["rmse"]

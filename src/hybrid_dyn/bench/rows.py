@@ -118,6 +118,12 @@ def is_physics_result(result: dict) -> bool:
         and row.reference is None and not float(result.get("n_params") or 0)
 
 
+def is_physics_family(family: str) -> bool:
+    """Whether a study's line label is a physics comparator ("physics", "physics on q, qd, qdd";
+    ``studies.choose_rows``) rather than a learned family."""
+    return family == "physics" or family.startswith("physics on ")
+
+
 def prior_kept_text(kept) -> str:
     """Per-output flags "validation kept the prior" in words: "all", "none" or "joints 2, 5" (1-based)."""
     kept = [bool(k) for k in kept]

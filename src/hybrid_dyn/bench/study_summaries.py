@@ -19,6 +19,8 @@ import math
 import sys
 from pathlib import Path
 
+from .rows import is_physics_family
+
 UNITS = {"tip_force": "N", "joint_torque": "Nm"}
 
 
@@ -34,6 +36,7 @@ def _write(out: Path, name: str, lines: list, summary: dict) -> None:
 
 # ---------------------------------------------------------------------------------------- data scaling
 def data_scaling(run, out: Path) -> dict:
+    """The ``data-scaling`` summary of ``run`` (a :class:`~.studies.StudyRun`), written to ``out``."""
     study = run.study
     n_train = run.train_instances()
     points = {n: run.points[f"train-{n}"] for n in study.train_instances}
@@ -43,19 +46,20 @@ def data_scaling(run, out: Path) -> dict:
 
 
 def summarise(study, chosen: dict, points: dict, n_train: int) -> dict:
-    """Per (scenario, task): the physics row and each family's learned row, test RMSE per training size."""
+    """Per (scenario, task): the physics rows and each family's learned row, test RMSE per training size."""
+
     out = {"study": study.name, "profile": study.profile, "full_train_instances": n_train,
            "sizes": [*study.train_instances, n_train], "command": _command(), "panels": []}
     by_key = {n: {(r["scenario"], r["task"], r["model"]): r for r in rows if r.get("status") == "ok"}
               for n, rows in points.items()}
     for scenario, task in sorted({(k[0], k[1]) for k in chosen}):
         panel = {"scenario": scenario, "task": task, "unit": UNITS[task], "lines": []}
-        for (s, t, family), r in sorted(chosen.items(), key=lambda kv: kv[0][2] != "physics"):
+        for (s, t, family), r in sorted(chosen.items(), key=lambda kv: not is_physics_family(kv[0][2])):
             if (s, t) != (scenario, task):
                 continue
             rmse = [float(by_key[n][(s, t, r["model"])]["rmse"]) if (s, t, r["model"]) in by_key[n] else None
                     for n in study.train_instances] + [float(r["rmse"])]
-            if family == "physics":
+            if is_physics_family(family):  # does not use the training instances
                 rmse = [float(r["rmse"])] * len(rmse)
             panel["lines"].append({"family": family, "model": r["model"], "rmse": rmse})
         out["panels"].append(panel)
@@ -75,7 +79,10 @@ def write_data_scaling(out: Path, summary: dict) -> None:
              f"Produced by `{summary['command']}`. Test RMSE on the profile's full test split; each learned row "
              "retrained at the same step budget on the first N training instances (val in proportion); the "
              f"last column is the profile's own report ({summary['full_train_instances']} instances). Rows were "
-             "chosen on the full report's validation loss. Physics rows train on nothing: flat.", ""]
+             "chosen on the full report's validation loss. Physics rows do not learn from the training instances "
+             "(the identified ones are fitted on the profile's own excitation experiment): flat. `physics` is "
+             "the best physics row on validation; `physics on ...` the best one reading no more than a learned "
+             "row reads, its fair comparator where the best reads a sensor that row does not.", ""]
     panels = summary["panels"]
     fig, axes = plt.subplots(1, max(1, len(panels)), figsize=(5.5 * max(1, len(panels)), 4.2), squeeze=False)
     for ax, panel in zip(axes[0], panels):
@@ -88,7 +95,8 @@ def write_data_scaling(out: Path, summary: dict) -> None:
             lines.append(f"| {line['family']} | `{line['model']}` | " + " | ".join(cells) + " |")
             xs = [n for n, v in zip(sizes, line["rmse"]) if v is not None and v > 0 and math.isfinite(v)]
             ys = [v for v in line["rmse"] if v is not None and v > 0 and math.isfinite(v)]
-            style = dict(ls="--", color="k") if line["family"] == "physics" else dict(marker="o")
+            style = (dict(ls="--" if line["family"] == "physics" else ":", color="k")
+                     if is_physics_family(line["family"]) else dict(marker="o"))
             ax.plot(xs, ys, label=f"{line['model']} ({line['family']})", **style)
         lines.append("")
         ax.set_xscale("log")
