@@ -80,3 +80,31 @@ def test_the_data_control_divides_each_learned_row_by_its_own_reports_physics(tm
     assert "small `rnea` 0.500 Nm, large `rnea` 0.250 Nm" in out  # the best analytic row of each report
     assert "| seed-tau-mlp | seed-net | 5.000 | 10.00 | 12 (-) | 1.000 | 4.00 | 12 (-) | 0.40x |" in out
     assert "10 x (5, 10)" in out and "40 x (5, 10)" in out
+
+
+def test_the_wall_time_floor_sums_recorded_invocations_and_never_certifies_an_unrecorded_one(tmp_path):
+    """Issue 31's wall time: the sum of the invocations run.json recorded as they ran; a run.json of before
+    that (a killed part left no time) is NOT verified, whatever its one number says."""
+    checks = load_script("acceptance")
+
+    def verdicts(invocations):
+        (tmp_path / "run.json").write_text(json.dumps({"bench_report": 1, "profile": {"name": "default"},
+                                                       "invocations": invocations}))
+        return {text: (met, nums) for text, met, nums in checks.report_checks(tmp_path)}
+
+    (wall,) = verdicts([{"started": "a", "finished": None, "wall_seconds": 3600},
+                        {"started": "b", "finished": "c", "wall_seconds": 3000}]).values()
+    assert wall == (True, "110.0 min over 2 invocation(s), as run.json recorded them while they ran")
+    (wall,) = verdicts([{"started": "a", "finished": None, "wall_seconds": 4000},
+                        {"started": "b", "finished": "c", "wall_seconds": 3300}]).values()
+    assert wall[0] is False  # 121.7 min > 120
+    (wall,) = verdicts([{"finished": "c", "wall_seconds": 60}]).values()  # 1 min, but not recorded as it ran
+    assert wall[0] == checks.UNVERIFIED
+    (tmp_path / "run.json").write_text(json.dumps({"bench_report": 1, "profile": {"name": "seed-sim"},
+                                                   "invocations": []}))
+    scaling = {t: met for t, met, _ in checks.report_checks(tmp_path) if "data-scaling" in t}
+    assert list(scaling.values()) == [False]
+    (tmp_path / "data-scaling").mkdir()
+    for f in ("README.md", "data_scaling.json", "data_scaling.png"):
+        (tmp_path / "data-scaling" / f).write_text("x")
+    assert [met for t, met, _ in checks.report_checks(tmp_path) if "data-scaling" in t] == [True]
