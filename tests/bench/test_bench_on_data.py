@@ -156,7 +156,7 @@ def test_an_interrupted_invocation_keeps_its_wall_time_and_the_report_adds_the_p
     spec = write_log(tmp_path / "logs", n=200)
     assert cli_main(["import", "--spec", str(spec), "--out", str(tmp_path / "log")]) == 0
     profile = type(tiny_profile([tmp_path / "log"]))(**{**tiny_profile([tmp_path / "log"]).__dict__,
-                                                        "rows": ("rnea", "identified-ols")})
+                                                        "rows": ("rnea", "seed-tau-mlp")})
     roots = dict(data_root=tmp_path / "data", work_root=tmp_path / "runs")
 
     def killed_after_first_row(message):
@@ -173,7 +173,63 @@ def test_an_interrupted_invocation_keeps_its_wall_time_and_the_report_adds_the_p
     meta = json.loads((tmp_path / "r" / "run.json").read_text())
     first, second = meta["invocations"]
     assert first == part and second["finished"] is not None and second["rows"] == 2
+    assert first["cold_start"] and not second["cold_start"]  # the second found the first's trained net
     readme = (tmp_path / "r" / "README.md").read_text()
     total = (first["wall_seconds"] + second["wall_seconds"]) / 60
     assert f"all invocations [min]: {first['wall_seconds'] / 60:.1f} (not finished), " in readme
     assert f"in all {total:.1f} min" in readme
+
+
+@pytest.mark.slow  # imports a log and runs the bench three times
+def test_a_resume_never_vouches_for_rows_it_did_not_compute_and_a_takeover_clears_the_other_profiles(tmp_path):
+    """A results.csv edited by hand stays refused by ``hybrid-dyn report`` after a resume is interrupted
+    before its first row; a folder taken over by another profile keeps none of that profile's rows, and an
+    interrupt while training keeps its time (the heartbeat's last record)."""
+    from hybrid_dyn.bench import runner
+    from hybrid_dyn.bench.results import read_results, write_results
+
+    spec = write_log(tmp_path / "logs", n=200)
+    assert cli_main(["import", "--spec", str(spec), "--out", str(tmp_path / "log")]) == 0
+    # rnea-bw does not apply (the log has no base wrench): its "skipping" line comes after the dataset is
+    # recorded and before predictions.h5 is touched, the moment the resume is interrupted below.
+    one = type(tiny_profile([tmp_path / "log"]))(**{**tiny_profile([tmp_path / "log"]).__dict__,
+                                                    "rows": ("rnea", "rnea-bw", "identified-ols")})
+    roots = dict(data_root=tmp_path / "data", work_root=tmp_path / "runs")
+    out = tmp_path / "r"
+    runner.run_bench(one, out, log=lambda m: None, **roots)
+    rows = read_results(out / "results.csv")
+    rows[1]["val_loss"] = "1e-09"  # a hand edit
+    write_results(out / "results.csv", rows)
+    assert cli_main(["report", str(out)]) == 2
+
+    def killed_at(words):
+        def log(message):
+            if words in message:
+                raise KeyboardInterrupt
+        return log
+
+    with pytest.raises(KeyboardInterrupt):  # after the dataset was found and recorded, before any row
+        runner.run_bench(one, out, log=killed_at("skipping rnea-bw"), **roots)
+    assert json.loads((out / "run.json").read_text())["invocations"][-1]["finished"] is None
+    assert cli_main(["report", str(out)]) == 2  # the edit is still caught
+
+    other = type(one)(**{**one.__dict__, "rows": ("rnea",), "seed": 7})
+    with pytest.raises(KeyboardInterrupt):
+        runner.run_bench(other, out, log=killed_at("training"), **roots)
+    assert read_results(out / "results.csv") == []  # the first profile's rows are gone, not relabelled
+
+
+def test_the_heartbeat_records_the_time_of_a_long_step_while_it_runs(tmp_path):
+    """Generation and training write nothing for hours: the clock records every ``period`` seconds, so a
+    bench killed by a signal no handler sees (the OOM killer) loses at most one period."""
+    import time
+
+    from hybrid_dyn.bench.runner import InvocationClock
+
+    (tmp_path / "run.json").write_text(json.dumps({"bench_report": 1, "invocations": [], "profile": {"name": "t"}}))
+    clock = InvocationClock([], period=0.05)
+    with clock.heartbeat(tmp_path, []):
+        time.sleep(0.5)
+        (during,) = json.loads((tmp_path / "run.json").read_text())["invocations"]
+    assert during["finished"] is None and 0.2 < during["wall_seconds"] <= clock.seconds()
+    assert "results_digest" not in json.loads((tmp_path / "run.json").read_text())  # vouches for nothing

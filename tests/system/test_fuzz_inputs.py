@@ -359,7 +359,7 @@ def test_fuzzed_run_json_ends_in_a_report_or_one_error(tmp_path, monkeypatch):
     import json
 
     from hybrid_dyn.bench import report as report_mod
-    from hybrid_dyn.bench.integrity import _run_digest, results_digest
+    from hybrid_dyn.bench.integrity import run_digest, results_digest
     from hybrid_dyn.bench.results import write_results
 
     monkeypatch.setattr(report_mod, "_figures", lambda *a, **k: [])
@@ -398,7 +398,7 @@ def test_fuzzed_run_json_ends_in_a_report_or_one_error(tmp_path, monkeypatch):
                 holder[key] = copy.deepcopy(ODD[rng.integers(len(ODD))])
                 did.append(f"{key} = {holder[key]!r}")
         if isinstance(meta.get("results_digest"), dict):  # re-digested, as a careful editor would: the point
-            meta["results_digest"]["run"] = _run_digest(meta)  # here is write_report's robustness to odd fields
+            meta["results_digest"]["run"] = run_digest(meta)  # here is write_report's robustness to odd fields
         (here / "run.json").write_text(json.dumps(meta, allow_nan=True))
         what = f"run.json case {case} ({'; '.join(did)})"
         status, _ = _check_outcome(lambda: report_mod.rebuild_report(here, log=lambda m: None), what)

@@ -93,10 +93,10 @@ def results_digest(path, meta: dict) -> dict:
     and of run.json's own other fields (``meta`` as written), so that neither is edited or swapped alone."""
     path = Path(path)
     return {"sha256": hashlib.sha256(path.read_bytes()).hexdigest(),
-            "rows": {row_key(r): _row_digest(r) for r in read_results(path)}, "run": _run_digest(meta)}
+            "rows": {row_key(r): _row_digest(r) for r in read_results(path)}, "run": run_digest(meta)}
 
 
-def _run_digest(meta: dict) -> str:
+def run_digest(meta: dict) -> str:
     """sha256 of run.json's fields but the digest, as JSON reads them back (tuples as lists, paths as text)."""
     doc = json.loads(json.dumps({k: v for k, v in meta.items() if k != DIGEST_KEY}, default=str))
     return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
@@ -169,7 +169,7 @@ def verify_results(rows: list[dict], meta: dict, preds, where) -> None:
     missing = sorted(set(recorded) - {row_key(r) for r in rows})
     if missing:
         raise ReportIntegrityError(f"{where}/results.csv lacks rows the bench recorded in run.json: {missing[:3]}")
-    if digest.get("run") != _run_digest(meta):  # the datasets, profile and times the README quotes
+    if digest.get("run") != run_digest(meta):  # the datasets, profile and times the README quotes
         raise ReportIntegrityError(f"{where}/run.json differs from what the bench wrote (an edited field, or "
                                    "parts of another report's run.json): its datasets and profile cannot be quoted")
     if preds is None:

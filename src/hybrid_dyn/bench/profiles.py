@@ -154,13 +154,17 @@ class BenchProfile:
         from ..sim.generator import generate_dataset
 
         cfg = self.scenario_config(scenario)
-        path = Path(data_root) / f"{scenario}-{self.generator_size}-{cfg.config_hash()}"
+        path = self.dataset_path(scenario, data_root)
         try:
             return load_dataset(path)
         except DatasetError:
             log(f"[bench] generating {scenario} ({self.generator_size}) into {path}")
             generate_dataset(cfg, path, workers=self.workers, executor=executor)
             return load_dataset(path)
+
+    def dataset_path(self, scenario: str, data_root: Path) -> Path:
+        """Where a simulated scenario's dataset is cached: one folder per generator size and config hash."""
+        return Path(data_root) / f"{scenario}-{self.generator_size}-{self.scenario_config(scenario).config_hash()}"
 
     def generator_config(self, scenario: str, ds):
         """The generator config that simulated ``ds``: a named scenario's (:meth:`scenario_config`), or for a

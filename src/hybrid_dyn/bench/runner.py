@@ -27,10 +27,12 @@ redraws it.
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import json
 import os
+import threading
 import time
 import traceback
 from pathlib import Path
@@ -47,7 +49,7 @@ from ..errors import UsageError
 from ..outputs import output_lock, refuse_foreign
 from ..timing import time_calls
 from .catalog import ROWS, get_row  # noqa: F401  (ROWS: every declared row)
-from .integrity import DIGEST_KEY, read_run_json, results_digest, same_profile
+from .integrity import DIGEST_KEY, read_run_json, results_digest, run_digest, same_profile
 from .learned_rows import PRESET_ROWS
 from .metrics import ErrorReport, base_force_noise_rms, standardized_mse
 from .predictions import PREDICTIONS_FILE, PredictionWriter
@@ -240,9 +242,10 @@ def run_bench(profile: BenchProfile, out_dir, data_root=None, work_root=None, da
     # A missing or corrupt dataset, an unknown robot: refused before the report folder is touched.
     opened = _open_datasets(profile, provider, log)
     with output_lock(out_dir, "report folder"):  # one bench per report folder at a time
+        cold = _caches_empty(profile, data_root, work_root)
         previous = _claim_report_dir(out_dir, profile, log)
-        return _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider, opened, log,
-                                 train_executor, device)
+        return _run_bench_locked(profile, out_dir, InvocationClock(previous, cold_start=cold), data_root,
+                                 work_root, provider, opened, log, train_executor, device)
 
 
 def _claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[dict]:
@@ -266,8 +269,11 @@ def _claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[d
         if not same_profile(old["profile"], profile):  # an old recipe name or corrected notes: the same profile
             log(f"[bench] {out_dir} held a report of another profile or size: it is replaced, and its "
                 "invocations' wall times are not kept")
-            # From now on run.json says which profile is being run, and vouches for no earlier row.
+            # From now on run.json says which profile is being run and vouches for no earlier row, and
+            # the other profile's rows leave results.csv and curves.json (nothing reads them under this name).
             write_json(marker, {"bench_report": 1, "invocations": [], "profile": profile.to_dict()})
+            write_results(out_dir / "results.csv", [])
+            write_curves(out_dir / CURVES_FILE, [])
             return []
         if "invocations" in old:
             return list(old["invocations"])
@@ -300,33 +306,74 @@ class InvocationClock:
     """This invocation's entry in run.json's ``invocations``, kept current as the bench goes.
 
     A bench that spans sittings is several invocations, and one of them may be killed (by the user,
-    or by the OOM killer): written as each dataset and row finishes, its wall time so far stays in
-    run.json for the next invocation to keep (``"finished": null`` says it did not finish), so that
-    the report can add the parts up. ``previous``: the earlier invocations, read when the folder
-    was claimed."""
+    or by the OOM killer, which no handler sees): run.json gets its wall time so far as each dataset
+    and row finishes and, while it generates or trains, every :attr:`period` seconds (a heartbeat),
+    so the next invocation keeps it (``"finished": null`` says it did not finish) and the report
+    adds the parts up. ``previous``: the earlier invocations, read when the folder was claimed.
+    ``cold_start``: whether this profile's datasets and trained models were absent when it began
+    (``_caches_empty``): a wall time "from empty caches" is one whose first invocation was cold."""
 
     previous: list
+    cold_start: bool = False
+    period: float = 60.0
     started: str = dataclasses.field(default_factory=_utc_now)
     t0: float = dataclasses.field(default_factory=time.perf_counter)
+    _lock: object = dataclasses.field(default_factory=threading.Lock, repr=False)
 
     def seconds(self) -> float:
         return time.perf_counter() - self.t0
 
     def invocations(self, rows: list, finished: bool) -> list:
         return self.previous + [{"started": self.started, "finished": _utc_now() if finished else None,
-                                 "wall_seconds": self.seconds(), "rows": len(rows),
-                                 "rows_ok": sum(r.get("status") == "ok" for r in rows)}]
+                                 "wall_seconds": self.seconds(), "cold_start": self.cold_start,
+                                 "rows": len(rows), "rows_ok": sum(r.get("status") == "ok" for r in rows)}]
 
-    def record(self, out_dir: Path, rows: list) -> None:
-        """run.json (the claim's, or an earlier invocation's) with this invocation's time so far and the
-        digest of results.csv as it is now (an interrupted bench's rows stay checkable by ``hybrid-dyn report``)."""
-        meta = read_run_json(out_dir)
-        meta["invocations"] = self.invocations(rows, finished=False)
-        # Re-vouch only for rows this profile computed: this invocation's, or an earlier one's that
-        # run.json already vouched for (a report of another profile was unclaimed, its digest dropped).
-        if meta.pop(DIGEST_KEY, None) is not None or rows:
-            meta[DIGEST_KEY] = results_digest(out_dir / "results.csv", meta)
-        write_json(out_dir / "run.json", meta)
+    def record(self, out_dir: Path, rows: list, rows_written: bool = True) -> None:
+        """run.json with this invocation's time so far. ``rows_written``: results.csv now holds ``rows``
+        (written by this invocation), so the digest vouches for it as it is; otherwise the digest keeps
+        what it vouched for (results.csv's sha256 and rows) and only its run.json part follows the new
+        time: rows this invocation has not computed are never vouched for anew (a hand edit stays caught)."""
+        with self._lock:
+            meta = read_run_json(out_dir)
+            meta["invocations"] = self.invocations(rows, finished=False)
+            old = meta.pop(DIGEST_KEY, None)
+            if rows and rows_written:
+                meta[DIGEST_KEY] = results_digest(out_dir / "results.csv", meta)
+            elif old is not None:
+                meta[DIGEST_KEY] = {**old, "run": run_digest(meta)}
+            write_json(out_dir / "run.json", meta)
+
+    @contextlib.contextmanager
+    def heartbeat(self, out_dir: Path, rows: list):
+        """Record every :attr:`period` seconds while the body runs (hours of generation or training
+        write nothing else), and once more if the body is interrupted (Ctrl-C: its time is kept)."""
+        stop = threading.Event()
+
+        def beat():
+            while not stop.wait(self.period):
+                self.record(out_dir, rows, rows_written=False)
+
+        thread = threading.Thread(target=beat, name="bench-heartbeat", daemon=True)
+        thread.start()
+        try:
+            yield
+        except BaseException:
+            stop.set()
+            thread.join()
+            self.record(out_dir, rows, rows_written=False)
+            raise
+        finally:
+            stop.set()
+            thread.join()
+
+
+def _caches_empty(profile: BenchProfile, data_root: Path, work_root: Path) -> bool:
+    """Whether none of the profile's simulated datasets and none of its trained models exist yet (the
+    real logs' imports are cheap and not counted; a dataset path given by the user is not the bench's)."""
+    if (Path(work_root) / profile.name).exists():
+        return False
+    return not any(profile.dataset_path(s, data_root).exists() for s in profile.scenarios
+                   if not is_dataset_path(s) and not s.startswith("real-"))
 
 
 def recorded_path(path) -> str:
@@ -379,7 +426,7 @@ def _open_datasets(profile, provider, log) -> list:
     return out
 
 
-def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider, opened, log,
+def _run_bench_locked(profile, out_dir, clock: InvocationClock, data_root, work_root, provider, opened, log,
                       executor=None, device=None) -> list[dict]:
     rows: list[dict] = []
     skipped: list[dict] = []
@@ -387,32 +434,32 @@ def _run_bench_locked(profile, out_dir, previous, data_root, work_root, provider
     labels = {}
     dataset_seconds = {}
     predictions = PredictionWriter(out_dir / PREDICTIONS_FILE)
-    clock = InvocationClock(previous)
-    for entry, scenario, ds, ref in opened:
-        log(f"[bench] scenario {scenario}: dataset")
-        t_data = time.perf_counter()
-        if ds is None:
-            try:
-                ds = provider(entry, profile)
-            except RealLogMissingError as err:  # a real set whose log is not here: skipped, saying where to get it
-                log(f"[bench] skipping scenario {scenario}: {err}")
-                skipped.append({"scenario": scenario, "task": "", "model": "", "reason": str(err)})
-                continue
-            ref = profile.robot_ref(ds)
-        labels[scenario] = entry
-        # Making (or finding) the dataset in this invocation: a generation that ran here is part of the wall time.
-        dataset_seconds[scenario] = time.perf_counter() - t_data
-        clock.record(out_dir, rows)  # a generation that took an hour is on record before any training
-        for warning in _import_warnings(ds):  # e.g. a time unit that does not fit: said here and in the README
-            log(f"[bench] {scenario}: import warning: {warning}")
-        # The analytic model: the profile's robot (or the dataset's), with its tool and nominal parameters.
-        # An arm known for data only has none (its URDF rows are skipped, saying so).
-        ds.meta["robot"] = ref.name
-        robot = load_robot(ref.name, params=profile.params) if ref.described else None
-        datasets[scenario] = ds
-        ctx = BenchContext(profile, scenario, ds, robot, work_dir(profile, scenario, ds, work_root),
-                           data_root, log=log, source=entry)
-        _bench_scenario(profile, out_dir, ctx, ref, predictions, rows, skipped, log, clock, executor, device)
+    with clock.heartbeat(out_dir, rows):  # hours of generation or training are on record as they pass
+        for entry, scenario, ds, ref in opened:
+            log(f"[bench] scenario {scenario}: dataset")
+            t_data = time.perf_counter()
+            if ds is None:
+                try:
+                    ds = provider(entry, profile)
+                except RealLogMissingError as err:  # a real set whose log is not here: skipped, saying where to get it
+                    log(f"[bench] skipping scenario {scenario}: {err}")
+                    skipped.append({"scenario": scenario, "task": "", "model": "", "reason": str(err)})
+                    continue
+                ref = profile.robot_ref(ds)
+            labels[scenario] = entry
+            # Making (or finding) the dataset in this invocation: a generation that ran here is part of the wall time.
+            dataset_seconds[scenario] = time.perf_counter() - t_data
+            clock.record(out_dir, rows)  # a generation that took an hour is on record before any training
+            for warning in _import_warnings(ds):  # e.g. a time unit that does not fit: said here and in the README
+                log(f"[bench] {scenario}: import warning: {warning}")
+            # The analytic model: the profile's robot (or the dataset's), with its tool and nominal parameters.
+            # An arm known for data only has none (its URDF rows are skipped, saying so).
+            ds.meta["robot"] = ref.name
+            robot = load_robot(ref.name, params=profile.params) if ref.described else None
+            datasets[scenario] = ds
+            ctx = BenchContext(profile, scenario, ds, robot, work_dir(profile, scenario, ds, work_root),
+                               data_root, log=log, source=entry)
+            _bench_scenario(profile, out_dir, ctx, ref, predictions, rows, skipped, log, clock, executor, device)
     meta = _run_meta(profile, clock, rows, labels, skipped, datasets, dataset_seconds)
     write_results(out_dir / "results.csv", rows)  # also when no row applied: the report reads it
     meta[DIGEST_KEY] = results_digest(out_dir / "results.csv", meta)  # what ``hybrid-dyn report`` checks against

@@ -28,7 +28,7 @@ from pathlib import Path
 
 from ..errors import UsageError
 from .catalog import get_row, select_rows
-from .integrity import read_run_json, same_profile
+from .integrity import read_run_json, same_profile, verify_results
 from .profiles import BenchProfile, get_profile
 from .results import read_results
 from .rows import TASK_TARGET, is_physics_family, is_physics_result
@@ -288,7 +288,9 @@ def read_full_report(study: Study, report: Path) -> list[dict]:
                          f"--out {report}` first (the study's full-data point)")
     if not same_profile(meta["profile"], study.base_profile()):
         raise UsageError(f"{report} is a report of another profile or size than {study.profile!r}: rerun the bench")
-    return read_results(report / "results.csv")
+    rows = read_results(report / "results.csv")
+    verify_results(rows, meta, None, report)  # rows the bench wrote for this profile, not edited since
+    return rows
 
 
 @dataclass
