@@ -120,12 +120,26 @@ def test_onnx_runtime_agrees_with_batch_to_float32(trained, preset):
     np.testing.assert_allclose(stream[start:], batch[start:], atol=1e-4)
 
 
-def test_a_model_whose_training_filter_a_stream_cannot_reproduce_is_refused_naming_the_rate(tmp_path, panda):
-    """A 20 Hz log (seed-sim's rate) whose qdd went through a 20 Hz filter at the simulator's rate: a stream
-    at 20 Hz cannot run that filter (Nyquist 10 Hz). Refused naming both, unless the user picks a cutoff."""
-    ds = load_dataset(make_synthetic_dataset(tmp_path / "d", panda, n_instances=3, n_samples=60, record_hz=20.0,
-                                             noise=0.002, friction=panda.spec.friction(), seed=2))
+@pytest.mark.slow  # simulates two tiny 20 Hz datasets with DART and trains a net on each
+@pytest.mark.parametrize("qdd_source", ["exact", "filter"])
+def test_a_stream_at_the_models_rate_runs_its_training_qdd_or_is_refused_naming_why(tmp_path, qdd_source):
+    """seed-sim records at 20 Hz. With the simulator's exact qdd (its own data), a 20 Hz stream has no
+    filter to match and uses its own causal estimate (0.45 x the rate). With qdd through the generator's
+    20 Hz filter at 1 kHz, a 20 Hz stream (Nyquist 10 Hz) cannot run that filter: refused, naming both,
+    unless the user picks a cutoff."""
+    from hybrid_dyn.analytic.acceleration import default_qdd_cutoff
+    from hybrid_dyn.sim.generator import generate_dataset
+    from hybrid_dyn.sim.scenarios import PulseConfig, scenario_config
+
+    cfg = scenario_config("seed-sim", "quick", n_instances=3, trajectories=(1, 1), standstill=0.3,
+                          speed_scale=(0.5, 0.6), seed=2, pulses=PulseConfig(gap=(0.5, 1.0), sigma=(0.2, 0.4)),
+                          qdd_source=qdd_source)
+    ds = load_dataset(generate_dataset(cfg, tmp_path / "d", workers=1, progress=False))
     train_model(ds, "seed-tip-11", tmp_path / "m", TrainConfig(max_epochs=1, max_batches_per_epoch=2, progress=False))
+    if qdd_source == "exact":
+        est = TipForceEstimator.load(tmp_path / "m", call_hz=20.0, runtime="numba")
+        assert est.config.qdd_cutoff_hz == default_qdd_cutoff(20.0) == 9.0
+        return
     with pytest.raises(hd.errors.UsageError, match=r"20 Hz filter .* call_hz=20 Hz .* Nyquist frequency is 10 Hz"):
         TipForceEstimator.load(tmp_path / "m", call_hz=20.0, runtime="numba")
     est = TipForceEstimator.load(tmp_path / "m", call_hz=20.0, runtime="numba", qdd_cutoff_hz=9.0)

@@ -97,7 +97,12 @@ class StreamingModel:
         self.widths = [model.config["widths"][f] for f in self.inputs]
         self.window = model.window
         self.record_hz = float(model.config.get("record_hz") or 100.0)
-        self.qdd_cutoff_hz = float(model.config.get("qdd_cutoff_hz") or 20.0)
+        # The filter training's qdd went through [Hz] (``train.qdd_provenance``): None for exact qdd, and for
+        # a log or an older model that does not say (the stream then uses its own default filter, which is
+        # the generator's 20 Hz at every rate above 44 Hz, as before the config recorded it).
+        qdd = model.config.get("qdd") or {}
+        self.qdd_cutoff_hz = None if qdd.get("cutoff_hz") is None else float(qdd["cutoff_hz"])
+        self.qdd_source = qdd.get("source", "unknown")
         m = model.module
         self._x_mean = m.x_mean.double().numpy()
         self._x_std = m.x_std.double().numpy()

@@ -377,6 +377,20 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
     return load_model(out_dir)
 
 
+def qdd_provenance(ds) -> dict | None:
+    """How the dataset's joint accelerations were made, for a stream that must make them alike:
+    {"source": "filter", "cutoff_hz": f} (the generator's causal filter at the simulation rate),
+    {"source": "exact", "cutoff_hz": None} (the simulator's own, or a synthetic set's analytic qdd),
+    or None where the dataset does not say (an imported log)."""
+    config = ds.meta.get("config") or {}
+    if "qdd_cutoff_hz" in config:  # a generated set (qdd_source is recorded only when it is not the filter)
+        source = config.get("qdd_source", "filter")
+        return {"source": source, "cutoff_hz": float(config["qdd_cutoff_hz"]) if source == "filter" else None}
+    if config.get("generator") == "synthetic":
+        return {"source": "exact", "cutoff_hz": None}
+    return None
+
+
 def _model_config(module, preset, config, ds, widths, prior, sensor_tare, fingerprint, outcome: dict) -> dict:
     """The trained model's config.json: what it reads and predicts, its normalization, its data and training
     config, and how training went (``outcome``: history, stopped_by, best_epoch, val_loss, initial_val_loss,
@@ -387,7 +401,8 @@ def _model_config(module, preset, config, ds, widths, prior, sensor_tare, finger
         "preset": preset.to_dict(), "inputs": list(preset.inputs), "targets": list(preset.targets),
         "window": preset.window, "widths": widths, "robot": ds.meta["robot"],
         "analytic_params": config.analytic_params, "observer_gain": config.observer_gain,
-        "record_hz": ds.meta.get("record_hz"), "prior": None if prior is None else prior.describe(),
+        "record_hz": ds.meta.get("record_hz"), "qdd": qdd_provenance(ds),
+        "prior": None if prior is None else prior.describe(),
         "sensor_tare_seconds": sensor_tare,
         "normalization": {k: getattr(module, k).cpu().double().tolist() for k in ("x_mean", "x_std", "y_mean", "y_std")},
         "dataset": {"path": str(ds.path), "checksum": ds.checksum, "scenario": ds.meta.get("scenario")},
