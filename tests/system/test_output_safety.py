@@ -294,8 +294,10 @@ def test_bench_claims_a_new_folder_and_reuses_its_own(tmp_path):
     for _ in range(2):  # new folder, then the folder it claimed (a killed run's)
         with pytest.raises(Sentinel):
             run_bench(get_profile("quick"), out, dataset_provider=_no_data, log=quiet)
-    assert json.loads((out / "run.json").read_text()) == {"bench_report": 1, "invocations": [],
-                                                           "profile": get_profile("quick").to_dict()}
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["profile"] == get_profile("quick").to_dict() and set(meta) == {"bench_report", "invocations", "profile"}
+    # the second run kept the first: both were interrupted (their time so far on record, none finished)
+    assert [i["finished"] for i in meta["invocations"]] == [None, None]
     (out / "run.json").write_text('{"something": "else"}')
     with pytest.raises(OutputPathError, match="it is not a run.json of hybrid-dyn bench"):
         run_bench(get_profile("quick"), out, dataset_provider=_no_data, log=quiet)

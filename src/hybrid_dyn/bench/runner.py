@@ -27,12 +27,10 @@ redraws it.
 """
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import hashlib
 import json
 import os
-import threading
 import time
 import traceback
 from pathlib import Path
@@ -46,10 +44,11 @@ from ..data import Dataset, load_dataset
 from ..data.real import RealLogMissingError
 from ..data.splits import dataset_split_text
 from ..errors import UsageError
-from ..outputs import output_lock, refuse_foreign
+from ..outputs import output_lock
 from ..timing import time_calls
 from .catalog import ROWS, get_row  # noqa: F401  (ROWS: every declared row)
-from .integrity import DIGEST_KEY, read_run_json, results_digest, run_digest, same_profile
+from .integrity import DIGEST_KEY, results_digest
+from .invocations import InvocationClock, caches_empty, claim_report_dir
 from .learned_rows import PRESET_ROWS
 from .metrics import ErrorReport, base_force_noise_rms, standardized_mse
 from .predictions import PREDICTIONS_FILE, PredictionWriter
@@ -242,51 +241,10 @@ def run_bench(profile: BenchProfile, out_dir, data_root=None, work_root=None, da
     # A missing or corrupt dataset, an unknown robot: refused before the report folder is touched.
     opened = _open_datasets(profile, provider, log)
     with output_lock(out_dir, "report folder"):  # one bench per report folder at a time
-        cold = _caches_empty(profile, data_root, work_root)
-        previous = _claim_report_dir(out_dir, profile, log)
+        cold = caches_empty(profile, data_root, work_root)
+        previous = claim_report_dir(out_dir, profile, log)
         return _run_bench_locked(profile, out_dir, InvocationClock(previous, cold_start=cold), data_root,
                                  work_root, provider, opened, log, train_executor, device)
-
-
-def _claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[dict]:
-    """Make ``out_dir`` a report folder of this toolkit, or refuse; returns its earlier invocations
-    of the same profile (a report of another profile or size is being replaced: its wall times are
-    of other work and are not kept).
-
-    A folder is the bench's when its ``run.json`` carries the marker the bench wrote
-    (``integrity.read_run_json``: ``"bench_report": 1`` and a recorded profile; a user's run.json
-    with a ``profile`` key is not one); an empty or new folder is claimed by writing that marker before
-    anything else, so a run killed halfway still leaves a folder a rerun may
-    use. Anything else (a user's README.md or results.csv) is refused, named.
-    """
-    from ..errors import OutputPathError
-
-    if out_dir.exists() and not out_dir.is_dir():
-        raise OutputPathError(f"report folder {out_dir} exists and is not a directory")
-    marker = out_dir / "run.json"
-    old = read_run_json(out_dir)  # refuses a run.json the bench did not write
-    if old is not None:
-        if not same_profile(old["profile"], profile):  # an old recipe name or corrected notes: the same profile
-            log(f"[bench] {out_dir} held a report of another profile or size: it is replaced, and its "
-                "invocations' wall times are not kept")
-            # From now on run.json says which profile is being run and vouches for no earlier row, and
-            # the other profile's rows leave results.csv and curves.json (nothing reads them under this name).
-            write_json(marker, {"bench_report": 1, "invocations": [], "profile": profile.to_dict()})
-            write_results(out_dir / "results.csv", [])
-            write_curves(out_dir / CURVES_FILE, [])
-            return []
-        if "invocations" in old:
-            return list(old["invocations"])
-        return [{"wall_seconds": old.get("wall_seconds")}]  # a report from before invocations were kept
-    present = sorted(p.name for p in out_dir.iterdir()) if out_dir.is_dir() else []
-    if present:
-        refuse_foreign(out_dir, "benchmark report",
-                       f"it holds {', '.join(present[:5])}{' ...' if len(present) > 5 else ''} but no run.json")
-    out_dir.mkdir(parents=True, exist_ok=True)
-    # The profile now, not only at the end: the report of an interrupted bench (``hybrid-dyn report``)
-    # still says what was run, and with which recipe.
-    write_json(marker, {"bench_report": 1, "invocations": [], "profile": profile.to_dict()})
-    return []
 
 
 def _import_warnings(ds) -> list[str]:
@@ -295,85 +253,6 @@ def _import_warnings(ds) -> list[str]:
     imp = ds.meta.get("import")
     warnings = imp.get("warnings") if isinstance(imp, dict) else None
     return [str(w) for w in warnings] if isinstance(warnings, list) else []
-
-
-def _utc_now() -> str:
-    return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
-
-
-@dataclasses.dataclass
-class InvocationClock:
-    """This invocation's entry in run.json's ``invocations``, kept current as the bench goes.
-
-    A bench that spans sittings is several invocations, and one of them may be killed (by the user,
-    or by the OOM killer, which no handler sees): run.json gets its wall time so far as each dataset
-    and row finishes and, while it generates or trains, every :attr:`period` seconds (a heartbeat),
-    so the next invocation keeps it (``"finished": null`` says it did not finish) and the report
-    adds the parts up. ``previous``: the earlier invocations, read when the folder was claimed.
-    ``cold_start``: whether this profile's datasets and trained models were absent when it began
-    (``_caches_empty``): a wall time "from empty caches" is one whose first invocation was cold."""
-
-    previous: list
-    cold_start: bool = False
-    period: float = 60.0
-    started: str = dataclasses.field(default_factory=_utc_now)
-    t0: float = dataclasses.field(default_factory=time.perf_counter)
-    _lock: object = dataclasses.field(default_factory=threading.Lock, repr=False)
-
-    def seconds(self) -> float:
-        return time.perf_counter() - self.t0
-
-    def invocations(self, rows: list, finished: bool) -> list:
-        return self.previous + [{"started": self.started, "finished": _utc_now() if finished else None,
-                                 "wall_seconds": self.seconds(), "cold_start": self.cold_start,
-                                 "rows": len(rows), "rows_ok": sum(r.get("status") == "ok" for r in rows)}]
-
-    def record(self, out_dir: Path, rows: list, rows_written: bool = True) -> None:
-        """run.json with this invocation's time so far. ``rows_written``: results.csv now holds ``rows``
-        (written by this invocation), so the digest vouches for it as it is; otherwise the digest keeps
-        what it vouched for (results.csv's sha256 and rows) and only its run.json part follows the new
-        time: rows this invocation has not computed are never vouched for anew (a hand edit stays caught)."""
-        with self._lock:
-            meta = read_run_json(out_dir)
-            meta["invocations"] = self.invocations(rows, finished=False)
-            old = meta.pop(DIGEST_KEY, None)
-            if rows and rows_written:
-                meta[DIGEST_KEY] = results_digest(out_dir / "results.csv", meta)
-            elif old is not None:
-                meta[DIGEST_KEY] = {**old, "run": run_digest(meta)}
-            write_json(out_dir / "run.json", meta)
-
-    @contextlib.contextmanager
-    def heartbeat(self, out_dir: Path, rows: list):
-        """Record every :attr:`period` seconds while the body runs (hours of generation or training
-        write nothing else), and once more if the body is interrupted (Ctrl-C: its time is kept)."""
-        stop = threading.Event()
-
-        def beat():
-            while not stop.wait(self.period):
-                self.record(out_dir, rows, rows_written=False)
-
-        thread = threading.Thread(target=beat, name="bench-heartbeat", daemon=True)
-        thread.start()
-        try:
-            yield
-        except BaseException:
-            stop.set()
-            thread.join()
-            self.record(out_dir, rows, rows_written=False)
-            raise
-        finally:
-            stop.set()
-            thread.join()
-
-
-def _caches_empty(profile: BenchProfile, data_root: Path, work_root: Path) -> bool:
-    """Whether none of the profile's simulated datasets and none of its trained models exist yet (the
-    real logs' imports are cheap and not counted; a dataset path given by the user is not the bench's)."""
-    if (Path(work_root) / profile.name).exists():
-        return False
-    return not any(profile.dataset_path(s, data_root).exists() for s in profile.scenarios
-                   if not is_dataset_path(s) and not s.startswith("real-"))
 
 
 def recorded_path(path) -> str:
