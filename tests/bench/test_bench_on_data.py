@@ -213,6 +213,12 @@ def test_a_resume_never_vouches_for_rows_it_did_not_compute_and_a_takeover_clear
     assert json.loads((out / "run.json").read_text())["invocations"][-1]["finished"] is None
     assert cli_main(["report", str(out)]) == 2  # the edit is still caught
 
+    runner.run_bench(one, out, log=lambda m: None, **roots)  # the way back from an edit: rerun the bench
+    assert cli_main(["report", str(out)]) == 0
+    with pytest.raises(KeyboardInterrupt):  # after predictions.h5 got this invocation's test data, before any row
+        runner.run_bench(one, out, log=killed_at("training"), **roots)
+    assert cli_main(["report", str(out)]) == 0  # the earlier rows keep their predictions beside results.csv
+
     other = type(one)(**{**one.__dict__, "rows": ("rnea",), "seed": 7})
     with pytest.raises(KeyboardInterrupt):
         runner.run_bench(other, out, log=killed_at("training"), **roots)

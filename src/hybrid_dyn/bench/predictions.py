@@ -46,12 +46,26 @@ def _ordered(group, name: str) -> None:
         group.attrs["order"] = json.dumps(order + [name])
 
 
-class PredictionWriter:
-    """Writes one bench run's predictions.h5; the first write of a run starts the file anew."""
+def _readable(path: Path) -> bool:
+    import h5py
 
-    def __init__(self, path):
+    try:
+        with h5py.File(path, "r"):
+            return True
+    except (OSError, ValueError):
+        return False
+
+
+class PredictionWriter:
+    """Writes one bench run's predictions.h5; the first write of a run starts the file anew, unless
+    ``resume``: then it adds to the file an earlier invocation of the same profile left (each row's
+    predictions are replaced as it is scored again), so that an invocation interrupted before its first
+    row leaves the earlier rows' predictions beside the results.csv that still lists them. An
+    unreadable file is started anew (its rows are then refused by ``hybrid-dyn report``, named)."""
+
+    def __init__(self, path, resume: bool = False):
         self.path = Path(path)
-        self.started = False
+        self.started = bool(resume) and _readable(self.path)
 
     def _update(self, fill) -> None:
         import h5py
@@ -75,6 +89,8 @@ class PredictionWriter:
             _ordered(f, scenario)
             grp = root.require_group(TEST_GROUP)
             for inst in instances:
+                if _key(inst.name, "instance") in grp:  # a resumed run's file: this run's test data replace it
+                    del grp[inst.name]
                 g = grp.require_group(_key(inst.name, "instance"))
                 _ordered(grp, inst.name)
                 g["t"] = np.asarray(inst.t, dtype=np.float64)

@@ -312,7 +312,7 @@ def _run_bench_locked(profile, out_dir, clock: InvocationClock, data_root, work_
     datasets = {}
     labels = {}
     dataset_seconds = {}
-    predictions = PredictionWriter(out_dir / PREDICTIONS_FILE)
+    predictions = PredictionWriter(out_dir / PREDICTIONS_FILE, resume=bool(clock.previous))
     with clock.heartbeat(out_dir, rows):  # hours of generation or training are on record as they pass
         for entry, scenario, ds, ref in opened:
             log(f"[bench] scenario {scenario}: dataset")
