@@ -93,7 +93,6 @@ from ..analytic.kalman import MAX_BRIDGE_CALLS
 from ..analytic.methods import REGISTRY, spec_noise
 from ..analytic.robot import Robot, load_robot
 from ..analytic.tare import StreamingTare, tare_samples
-from ..errors import UsageError
 from .config import EstimatorConfig, EstimatorStatus
 from .input import EstimatorInputError, InputGate, RateCheck
 
@@ -135,8 +134,7 @@ class TipForceEstimator:
         value = "auto" if param is None else getattr(c, param, "auto")  # a method's own parameter: the rule
         self._fixed = None if value == "auto" else float(value)
         cutoff = c.qdd_cutoff_hz if c.qdd_cutoff_hz != "auto" else (
-            model.qdd_cutoff_hz if model is not None and model.qdd_cutoff_hz is not None
-            else default_qdd_cutoff(c.call_hz))
+            model.stream_qdd_cutoff(c.call_hz) if model is not None else default_qdd_cutoff(c.call_hz))
         self._qdd_cutoff_start = float(cutoff)
         self._qdd_filter = CausalAccelerationFilter(nv, c.call_hz, self._qdd_cutoff_start)
         if self._needs_qdd and self.spec is not None:
@@ -181,15 +179,8 @@ class TipForceEstimator:
         model = StreamingModel.load(Path(model_dir), robot=robot, runtime=runtime)
         call_hz = config.get("call_hz", EstimatorConfig.call_hz)  # a bad one is refused by the config below
         if config.get("qdd_cutoff_hz", "auto") == "auto" and isinstance(call_hz, (int, float)) and call_hz > 0:
-            cutoff = model.qdd_cutoff_hz  # the network saw qdd through its training filter: the stream runs it too
-            if cutoff is None:  # exact (or unrecorded) qdd in training: the stream's own causal estimate is the closest
-                cutoff = default_qdd_cutoff(call_hz)
-            elif not cutoff < 0.5 * call_hz:
-                raise UsageError(f"model {model_dir} saw qdd through a {cutoff:g} Hz filter in training, which a "
-                                 f"stream at call_hz={call_hz:g} Hz cannot reproduce (its Nyquist frequency is "
-                                 f"{0.5 * call_hz:g} Hz): call at a multiple of its training rate above {2 * cutoff:g} "
-                                 "Hz, or pass qdd_cutoff_hz below call_hz / 2 to accept another filter than training's")
-            config = {**config, "qdd_cutoff_hz": cutoff}
+            # the network saw qdd through its training filter: the stream runs it too (config shows the number)
+            config = {**config, "qdd_cutoff_hz": model.stream_qdd_cutoff(call_hz)}
         cfg = EstimatorConfig(**config)
         return cls(model.robot, "learned", cfg, model=model)
 

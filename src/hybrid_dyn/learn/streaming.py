@@ -26,9 +26,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from ..analytic.acceleration import default_qdd_cutoff
 from ..analytic.methods import REGISTRY
 from ..analytic.tare import StreamingTare, tare_samples, tared_runs
 from ..data.windows import window_index
+from ..errors import UsageError
 from ..timing import median_call_us
 from .model import ModelError, TrainedModel, load_model
 from .priors import AnalyticPrior
@@ -102,7 +104,6 @@ class StreamingModel:
         # the generator's 20 Hz at every rate above 44 Hz, as before the config recorded it).
         qdd = model.config.get("qdd") or {}
         self.qdd_cutoff_hz = None if qdd.get("cutoff_hz") is None else float(qdd["cutoff_hz"])
-        self.qdd_source = qdd.get("source", "unknown")
         m = model.module
         self._x_mean = m.x_mean.double().numpy()
         self._x_std = m.x_std.double().numpy()
@@ -128,6 +129,20 @@ class StreamingModel:
         if m.delan is None:
             self._choose_runtime(runtime)
         self._warm_up()
+
+    def stream_qdd_cutoff(self, call_hz: float) -> float:
+        """The qdd filter [Hz] a stream at ``call_hz`` runs for this model: training's filter, or for exact or
+        unrecorded qdd the stream's own causal estimate (``default_qdd_cutoff``). A training filter at or
+        above the stream's Nyquist frequency cannot be run: refused, naming the filter and the rate."""
+        if self.qdd_cutoff_hz is None:
+            return default_qdd_cutoff(call_hz)
+        if not self.qdd_cutoff_hz < 0.5 * call_hz:
+            raise UsageError(f"model {self.model.path} saw qdd through a {self.qdd_cutoff_hz:g} Hz filter in training, "
+                             f"which a stream at call_hz={call_hz:g} Hz cannot reproduce (its Nyquist frequency is "
+                             f"{0.5 * call_hz:g} Hz): call at a multiple of its training rate above "
+                             f"{2 * self.qdd_cutoff_hz:g} Hz, or pass qdd_cutoff_hz below call_hz / 2 to accept "
+                             "another filter than training's")
+        return self.qdd_cutoff_hz
 
     @classmethod
     def load(cls, model_dir: Path, robot: str | None = None, call_hz: float | None = None,
