@@ -18,10 +18,12 @@ without results.csv.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
 from hybrid_dyn.bench.catalog import get_row
+from hybrid_dyn.bench.integrity import read_run_json
 from hybrid_dyn.bench.report import _ok, best_row
 from hybrid_dyn.bench.results import read_results
 from hybrid_dyn.bench.rows import PHYSICS_INFORMED
@@ -157,10 +159,8 @@ WALL_FLOORS_MIN = {"seed-sim": 150.0, "default": 120.0}
 def report_checks(report: Path) -> list[tuple[str, bool | str | None, str]]:
     """The floors on a report's folder rather than its rows: the wall time (issue 31), summed over the
     invocations run.json recorded, and the data-scaling study beside seed-sim's report."""
-    import json
-
     out = []
-    meta = json.loads((report / "run.json").read_text()) if (report / "run.json").is_file() else {}
+    meta = read_run_json(report) or {}
     name = (meta.get("profile") or {}).get("name")
     if name in WALL_FLOORS_MIN:
         floor = WALL_FLOORS_MIN[name]

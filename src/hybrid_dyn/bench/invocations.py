@@ -36,6 +36,7 @@ def claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[di
     if out_dir.exists() and not out_dir.is_dir():
         raise OutputPathError(f"report folder {out_dir} exists and is not a directory")
     marker = out_dir / "run.json"
+    claim = {"bench_report": 1, "invocations": [], "profile": profile.to_dict()}  # the marker, no invocation yet
     old = read_run_json(out_dir)  # refuses a run.json the bench did not write
     if old is not None:
         if not same_profile(old["profile"], profile):  # an old recipe name or corrected notes: the same profile
@@ -43,7 +44,7 @@ def claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[di
                 "invocations' wall times are not kept")
             # From now on run.json says which profile is being run and vouches for no earlier row, and
             # the other profile's rows leave results.csv and curves.json (nothing reads them under this name).
-            write_json(marker, {"bench_report": 1, "invocations": [], "profile": profile.to_dict()})
+            write_json(marker, claim)
             write_results(out_dir / "results.csv", [])
             write_curves(out_dir / CURVES_FILE, [])
             return []
@@ -57,7 +58,7 @@ def claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[di
     out_dir.mkdir(parents=True, exist_ok=True)
     # The profile now, not only at the end: the report of an interrupted bench (``hybrid-dyn report``)
     # still says what was run, and with which recipe.
-    write_json(marker, {"bench_report": 1, "invocations": [], "profile": profile.to_dict()})
+    write_json(marker, claim)
     return []
 
 
@@ -119,16 +120,15 @@ class InvocationClock:
 
         thread = threading.Thread(target=beat, name="bench-heartbeat", daemon=True)
         thread.start()
+        finished = False
         try:
             yield
-        except BaseException:
-            stop.set()
-            thread.join()
-            self.record(out_dir, rows, rows_written=False)
-            raise
+            finished = True
         finally:
             stop.set()
             thread.join()
+            if not finished:
+                self.record(out_dir, rows, rows_written=False)
 
 
 def caches_empty(profile: BenchProfile, data_root: Path, work_root: Path) -> bool:
