@@ -9,9 +9,10 @@ from hybrid_dyn.learn import train_model
 from hybrid_dyn.learn import train as train_mod
 
 
-def killed_then_resumed(monkeypatch, dataset, preset, out_dir, config, kill_after_epoch: int):
+def killed_then_resumed(monkeypatch, dataset, preset, out_dir, config, kill_after_epoch: int, between=None):
     """Train into ``out_dir``, interrupted right after epoch (or round) ``kill_after_epoch``'s checkpoint,
-    then train again with the same arguments: the resumed model."""
+    then train again with the same arguments: the resumed model. ``between()``, if given, runs after the
+    kill and before the resume (to look at what the kill left, or to disturb the process's state)."""
     real_save = train_mod._save_checkpoint
 
     def save_then_die(out, module, best, opt, info):
@@ -23,6 +24,8 @@ def killed_then_resumed(monkeypatch, dataset, preset, out_dir, config, kill_afte
     with pytest.raises(KeyboardInterrupt):
         train_model(dataset, preset, out_dir, config)
     monkeypatch.setattr(train_mod, "_save_checkpoint", real_save)
+    if between is not None:
+        between()
     return train_model(dataset, preset, out_dir, config)
 
 

@@ -87,23 +87,24 @@ def test_symbolic_regressor_matches_pinocchio(described_robot):
                                    atol=1e-10)
 
 
+def _assert_regressor_times_body_parameters_is_dart(robot) -> None:
+    """The robot's regressor times its model's body parameters is DART's inverse dynamics on that model."""
+    plant = DartPlant(robot)
+    pi = nominal_body_parameters(robot)
+    q, qd, qdd = random_states(robot, 5, seed=4)
+    for i in range(5):
+        assert np.abs(inertial_regressor(robot, q[i], qd[i], qdd[i]) @ pi
+                      - plant.inverse_dynamics(q[i], qd[i], qdd[i])).max() < 1e-9
+
+
 def test_regressor_times_nominal_parameters_is_dart_inverse_dynamics(described_robot):
     """Every declared robot: its regressor times its URDF's body parameters is DART's inverse dynamics."""
-    plant = DartPlant(described_robot)
-    pi = nominal_body_parameters(described_robot)
-    q, qd, qdd = random_states(described_robot, 5, seed=4)
-    for i in range(5):
-        assert np.abs(inertial_regressor(described_robot, q[i], qd[i], qdd[i]) @ pi
-                      - plant.inverse_dynamics(q[i], qd[i], qdd[i])).max() < 1e-9
+    _assert_regressor_times_body_parameters_is_dart(described_robot)
 
 
 def test_regressor_times_parameters_is_dart_inverse_dynamics(mismatch_plant):
-    plant = DartPlant(mismatch_plant)
-    pi = nominal_body_parameters(mismatch_plant)
-    q, qd, qdd = random_states(mismatch_plant, 5, seed=4)
-    for i in range(5):
-        assert np.abs(inertial_regressor(mismatch_plant, q[i], qd[i], qdd[i]) @ pi
-                      - plant.inverse_dynamics(q[i], qd[i], qdd[i])).max() < 1e-9
+    """The mismatched plant (other parameters than the URDF's): the same identity on its own parameters."""
+    _assert_regressor_times_body_parameters_is_dart(mismatch_plant)
 
 
 def test_base_parameters_reproduce_the_full_model(panda):

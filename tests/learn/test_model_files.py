@@ -21,6 +21,8 @@ from hybrid_dyn.learn import train as train_mod
 from hybrid_dyn.learn.model import config_digest
 from hybrid_dyn.outputs import output_lock
 
+from helpers.resume import killed_then_resumed
+
 pytestmark = pytest.mark.usefixtures("one_thread")
 
 QUICK = dict(batch_size=32, progress=False, num_threads=1)
@@ -88,20 +90,14 @@ def test_dropout_training_resumes_to_byte_identical_model(ds_path, tmp_path, mon
     ds = load_dataset(ds_path)
     cfg = TrainConfig(max_epochs=3, max_batches_per_epoch=3, patience=10, **QUICK)
     straight = train_model(ds, "tau-mlp-wide", tmp_path / "a", cfg)
-    real_save = train_mod._save_checkpoint
 
-    def save_then_die(out_dir, module, best, opt, info):
-        real_save(out_dir, module, best, opt, info)
-        if info["epoch"] == 0:
-            raise KeyboardInterrupt  # killed right after epoch 1's checkpoint
+    def disturb_the_global_generator():  # whatever the process did in between must not matter
+        torch.manual_seed(12345)
+        torch.rand(100)
 
-    monkeypatch.setattr(train_mod, "_save_checkpoint", save_then_die)
-    with pytest.raises(KeyboardInterrupt):
-        train_model(ds, "tau-mlp-wide", tmp_path / "b", cfg)
-    monkeypatch.setattr(train_mod, "_save_checkpoint", real_save)
-    torch.manual_seed(12345)  # whatever the process did in between must not matter
-    torch.rand(100)
-    resumed = train_model(ds, "tau-mlp-wide", tmp_path / "b", cfg)
+    # killed right after epoch 1's checkpoint
+    resumed = killed_then_resumed(monkeypatch, ds, "tau-mlp-wide", tmp_path / "b", cfg, kill_after_epoch=0,
+                                  between=disturb_the_global_generator)
     assert resumed.history == straight.history
     for name in ("model.safetensors", "config.json"):
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name

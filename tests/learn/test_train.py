@@ -19,6 +19,8 @@ from hybrid_dyn.learn import PRESETS, ModelError, TrainConfig, load_model, train
 from hybrid_dyn.learn import train as train_mod
 from hybrid_dyn.learn.priors import AnalyticPrior
 
+from helpers.resume import assert_same_weights, killed_then_resumed
+
 # torch's forward-mode AD (DeLaN's jvp) loads decompositions through the deprecated torch.jit.script.
 pytestmark = [pytest.mark.filterwarnings("ignore:`torch.jit.script` is deprecated:DeprecationWarning"),
               pytest.mark.usefixtures("one_thread")]
@@ -186,23 +188,13 @@ def test_training_is_deterministic_and_resumes_after_a_kill(friction_set, tmp_pa
     cfg = TrainConfig(max_epochs=3, max_batches_per_epoch=4, patience=10, **QUICK)
     straight = train_model(friction_set, "seed-tip-7", tmp_path / "a", cfg)
 
-    real_save = train_mod._save_checkpoint
+    def a_checkpoint_and_no_model():
+        assert (tmp_path / "b" / "checkpoint.safetensors").is_file() and not (tmp_path / "b" / "config.json").exists()
 
-    def save_then_die(out_dir, module, best, opt, info):
-        real_save(out_dir, module, best, opt, info)
-        if info["epoch"] == 1:
-            raise KeyboardInterrupt  # killed right after epoch 2's checkpoint
-
-    monkeypatch.setattr(train_mod, "_save_checkpoint", save_then_die)
-    with pytest.raises(KeyboardInterrupt):
-        train_model(friction_set, "seed-tip-7", tmp_path / "b", cfg)
-    assert (tmp_path / "b" / "checkpoint.safetensors").is_file() and not (tmp_path / "b" / "config.json").exists()
-    monkeypatch.setattr(train_mod, "_save_checkpoint", real_save)
-    resumed = train_model(friction_set, "seed-tip-7", tmp_path / "b", cfg)
-
-    a = load_file(str(tmp_path / "a" / "model.safetensors"))
-    b = load_file(str(tmp_path / "b" / "model.safetensors"))
-    assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+    # killed right after epoch 2's checkpoint
+    resumed = killed_then_resumed(monkeypatch, friction_set, "seed-tip-7", tmp_path / "b", cfg, kill_after_epoch=1,
+                                  between=a_checkpoint_and_no_model)
+    assert_same_weights(tmp_path / "a", tmp_path / "b")
     strip = lambda h: [{k: v for k, v in e.items()} for e in h]  # noqa: E731
     assert strip(resumed.history) == strip(straight.history)
     assert not (tmp_path / "b" / "checkpoint.json").exists()
