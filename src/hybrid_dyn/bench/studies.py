@@ -194,6 +194,10 @@ STUDIES = {s.name: s for s in (
     _study("convergence-default", "default", "the convergence check of the default profile's best learned rows "
            "(twice the step budget; converged when validation gains < 3 %)",
            variants={"budget-x2": Overrides(budget_factor=2)}, tolerance=CONVERGED),
+    _study("capacity-seed-sim", "seed-sim", "is it capacity? The two seed nets furthest from the seed's figures "
+           "(seed-tip-10 and seed-tau-lstm-opt, LSTM fronts 2 x 32) retrained with fronts of 2 x 64 (about 3.5x the "
+           "parameters) at the same step budget", rows=("seed-tip-10", "seed-tau-lstm-opt"),
+           variants={"front-2x64": Overrides(preset={"front_units": (64, 64)})}),
     _controls("controls-seed-sim", "seed-sim", ("seed-tip-10", "seed-tip-4", "seed-tau-mlp", "delan-friction"), 320,
               "what limits the learned rows on seed-sim: weight decay, capacity (FC 256), half the training "
               "instances, or the epoch recipe `long` instead of the budget"),
