@@ -61,6 +61,23 @@ def test_acceptance_floors_are_a_benchmark_of_their_own(tmp_path, capsys):
     assert "identified (identified-consistent) 1.200" in readme  # the findings stay
 
 
+def test_a_row_stopped_by_its_step_budget_is_never_counted_as_converged():
+    """Issue 14's floor (stopped by patience or lr-floor, not the epoch cap) says nothing of a budgeted
+    row, which stops at its budget whether or not it converged: such rows get no verdict."""
+    checks = load_script("acceptance")
+
+    def verdicts(*stops):
+        rows = [{"task": "joint_torque", "scenario": "s", "model": f"m{i}", "family": "seed-net", "status": "ok",
+                 "rmse": 1.0, "stopped_by": stop} for i, stop in enumerate(stops)]
+        return {text.split(" (")[0].split(",")[0]: met for text, met, _ in checks.floor_checks(rows)}
+
+    converged = "issue 14: every learned row stopped by patience or lr-floor"
+    budgeted = "(no floor) learned rows trained to their step budget"
+    assert verdicts("budget", "budget") == {budgeted: None}
+    assert verdicts("budget", "epoch-cap") == {converged: False, budgeted: None}
+    assert verdicts("patience", "lr-floor") == {converged: True}
+
+
 def test_the_data_control_divides_each_learned_row_by_its_own_reports_physics(tmp_path, capsys):
     """hybrid-dyn compare: two reports on different test instances compare through their analytic rows."""
     from hybrid_dyn.bench.results import write_results
