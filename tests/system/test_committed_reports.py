@@ -18,10 +18,10 @@ COMMAND = re.compile(r"`(hybrid-dyn (bench|study|report|compare)\b[^`]*|python (
 # Absolute paths of a machine's own folders (a user's example such as /path/arm.urdf is not one).
 MACHINE_PATH = re.compile(r"(?:^|(?<=[\s`'\"(\[=,:]))/(?:work|home|tmp|Users|root|mnt|scratch|private|var/folders)/")
 TEXT = (".md", ".json", ".csv", ".tex", ".txt", ".toml")
-# Bench files written before run.json recorded relative dataset paths, awaiting their regeneration (issue 30
-# regenerates reports/default and reports/real on another branch). The list only shrinks: a file here that
-# no longer holds a machine path fails the test until it is taken off.
-AWAITING_REGENERATION = {"reports/default/README.md", "reports/default/run.json"}
+# Bench files written before run.json recorded relative dataset paths, awaiting their regeneration (every
+# committed report has been regenerated since: issue 31). The list only shrinks: a file here that no longer
+# holds a machine path fails the test until it is taken off.
+AWAITING_REGENERATION = set()
 
 
 def _folders() -> set:
