@@ -82,6 +82,7 @@ batch form, ``estimator/batch.py``) is thread-safe: it keeps one robot model per
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -133,8 +134,11 @@ class TipForceEstimator:
         param = None if self.spec is None else self.spec.parameter
         value = "auto" if param is None else getattr(c, param, "auto")  # a method's own parameter: the rule
         self._fixed = None if value == "auto" else float(value)
-        cutoff = c.qdd_cutoff_hz if c.qdd_cutoff_hz != "auto" else (
-            model.stream_qdd_cutoff(c.call_hz) if model is not None else default_qdd_cutoff(c.call_hz))
+        if model is not None and c.qdd_cutoff_hz == "auto":
+            # The network saw qdd through its training filter: the stream runs it too, a fixed number the
+            # config then shows (no rule picks it later: a learned model has no noise window).
+            self.config = c = replace(c, qdd_cutoff_hz=model.stream_qdd_cutoff(c.call_hz))
+        cutoff = c.qdd_cutoff_hz if c.qdd_cutoff_hz != "auto" else default_qdd_cutoff(c.call_hz)
         self._qdd_cutoff_start = float(cutoff)
         self._qdd_filter = CausalAccelerationFilter(nv, c.call_hz, self._qdd_cutoff_start)
         if self._needs_qdd and self.spec is not None:
@@ -177,12 +181,7 @@ class TipForceEstimator:
         from ..learn.streaming import StreamingModel
 
         model = StreamingModel.load(Path(model_dir), robot=robot, runtime=runtime)
-        call_hz = config.get("call_hz", EstimatorConfig.call_hz)  # a bad one is refused by the config below
-        if config.get("qdd_cutoff_hz", "auto") == "auto" and isinstance(call_hz, (int, float)) and call_hz > 0:
-            # the network saw qdd through its training filter: the stream runs it too (config shows the number)
-            config = {**config, "qdd_cutoff_hz": model.stream_qdd_cutoff(call_hz)}
-        cfg = EstimatorConfig(**config)
-        return cls(model.robot, "learned", cfg, model=model)
+        return cls(model.robot, "learned", EstimatorConfig(**config), model=model)
 
     # --------------------------------------------------------------- state
     def reset(self) -> None:
