@@ -192,10 +192,13 @@ def report_checks(report: Path) -> list[tuple[str, bool | str | None, str]]:
         else:
             summary = json.loads((scaling / "data_scaling.json").read_text())
             n_report = _train_instances(report)
-            of_this = summary.get("profile") == name and n_report == summary.get("full_train_instances")
-            out.append((text, UNVERIFIED if n_report is None and summary.get("profile") == name else of_this, f"profile {summary.get('profile')!r}, sizes {summary.get('sizes')}; the "
-                                       + (f"report's models saw {n_report} training instances" if n_report is not None
-                                          else "report's dataset is not here, so its size is not compared")))
+            ours = summary.get("profile") == name
+            if n_report is None:  # without the dataset the study's size cannot be compared: never "met"
+                met, size = (UNVERIFIED if ours else False), "report's dataset is not here, so its size is not compared"
+            else:
+                met, size = ours and n_report == summary.get("full_train_instances"), \
+                    f"report's models saw {n_report} training instances"
+            out.append((text, met, f"profile {summary.get('profile')!r}, sizes {summary.get('sizes')}; the {size}"))
     return out
 
 
