@@ -35,6 +35,10 @@ class RobotSpec:
     max_velocity: tuple = ()
     max_acceleration: tuple = ()
     max_jerk: tuple = ()
+    # The joint encoders' resolution [rad per count], as the arm reports q (TOML ``encoder_resolution``);
+    # 0.0 where the description states none. The streaming estimator's joint-state filter and the
+    # simulator's hardware encoder read it (``sim/sensors.py``).
+    encoder_resolution: float = 0.0
     param_sets: dict = field(default_factory=dict)  # name -> JSON path
     default_params: str | None = None
     friction_files: dict = field(default_factory=dict)  # name -> JSON path
@@ -109,6 +113,7 @@ def load_spec(name_or_path: str | os.PathLike) -> RobotSpec:
         max_velocity=tuple(doc.get("max_velocity", ())),
         max_acceleration=tuple(doc.get("max_acceleration", ())),
         max_jerk=tuple(doc.get("max_jerk", ())),
+        encoder_resolution=float(doc.get("encoder_resolution", 0.0)),
         param_sets={k: here / v for k, v in params.items()},
         default_params=default_params,
         friction_files={k: here / v for k, v in doc.get("friction", {}).items()},

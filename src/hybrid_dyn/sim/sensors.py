@@ -1,19 +1,151 @@
-"""Sensor models: the causal acceleration estimate.
+"""Sensor models: what a robot's sensors make of the simulated truth.
 
-A real arm measures no joint acceleration; controllers differentiate the
-measured velocity and low-pass the result. We do the same at the control rate:
-a backward difference of the measured qd, then a 2nd-order Butterworth
-low-pass, both causal (each output uses only present and past samples), then
-the caller keeps every ``decimation``-th sample. Running the causal filter over
-a stored signal gives exactly what an online filter would have given: the
-generator and the streaming estimator run one kernel
-(``analytic/acceleration.py``, re-exported here).
+Two families live here, each defined once:
 
-The price is a delay (about 1/(2 pi f_c) * 1.4 s, ~11 ms at 20 Hz) and
-residual noise; both are part of what learned models must cope with.
+- **The causal acceleration estimate** (``causal_acceleration``): a real arm measures no joint
+  acceleration; controllers differentiate the measured velocity and low-pass the result (a backward
+  difference, then a 2nd-order Butterworth, both causal; ``analytic/acceleration.py``, re-exported).
+  The generator records qdd this way, and the streaming estimator runs the same kernel.
+- **Sensors as hardware has them** (:class:`HardwareSensors`): joint encoders that quantize q to a
+  resolution, a velocity as the drive reports it (the difference of the quantized q, or that
+  difference through a stated first-order filter), link-side joint torque sensors with white noise,
+  a 6-axis base F/T sensor with white noise, a per-stream bias, a linear bias drift and a delay, and
+  the timestamps a control PC puts on the samples (jitter). One closed-loop stream simulator
+  (``sim/stream.py``) reads a stream through them, for the generator's hardware scenario, the tests,
+  ``benchmarks/``, ``checks/`` and ``examples/``.
+
+The older :class:`~hybrid_dyn.sim.scenarios.NoiseConfig` (independent white noise on q and qd) stays
+the sensor model of the scenarios whose datasets are cached; a real qd is made from q, so new
+scenarios use :class:`HardwareSensors`.
 """
 from __future__ import annotations
 
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
 from ..analytic.acceleration import causal_acceleration
 
-__all__ = ["causal_acceleration"]
+
+@dataclass(frozen=True)
+class EncoderModel:
+    """Joint encoders. resolution [rad per count]: q is reported as round(q / resolution) * resolution;
+    None takes the robot description's ``encoder_resolution``; 0 reads q exactly.
+    velocity: how the drive makes qd: "difference" (the backward difference of the quantized q over the
+    nominal period, what libfranka's dq is), "filtered" (that difference through a first-order low-pass
+    at ``velocity_cutoff_hz`` [Hz]) or "exact" (the simulator's velocity, an ideal tachometer)."""
+
+    resolution: float | None = None
+    velocity: str = "difference"
+    velocity_cutoff_hz: float = 0.0
+
+    def __post_init__(self):
+        if self.velocity not in ("difference", "filtered", "exact"):
+            raise ValueError(f"EncoderModel.velocity must be 'difference', 'filtered' or 'exact', got {self.velocity!r}")
+        if self.velocity == "filtered" and not self.velocity_cutoff_hz > 0:
+            raise ValueError("EncoderModel.velocity='filtered' needs velocity_cutoff_hz > 0 [Hz]")
+        if self.resolution is not None and not self.resolution >= 0:
+            raise ValueError(f"EncoderModel.resolution must be >= 0 [rad], got {self.resolution!r}")
+
+
+@dataclass(frozen=True)
+class ForceTorqueModel:
+    """The base 6-axis F/T sensor. force_noise [N] / torque_noise [Nm]: white, per axis. force_bias [N] /
+    torque_bias [Nm]: a per-stream offset drawn uniformly in [-bias, bias] per axis. force_drift [N/s] /
+    torque_drift [Nm/s]: a linear bias drift at that rate along a random direction. delay [s]: the
+    sample reaches the controller this late (a whole number of periods)."""
+
+    force_noise: float = 0.2
+    torque_noise: float = 0.01
+    force_bias: float = 2.0
+    torque_bias: float = 0.1
+    force_drift: float = 0.0
+    torque_drift: float = 0.0
+    delay: float = 0.0
+
+
+@dataclass(frozen=True)
+class ClockModel:
+    """The control PC's timestamps. The robot samples at its own exact period; the stamp a sample gets
+    is off by Gaussian jitter of ``jitter`` [s] (sigma), clipped to ``max_jitter`` [s]."""
+
+    jitter: float = 0.0
+    max_jitter: float = 5e-4
+
+
+@dataclass(frozen=True)
+class HardwareSensors:
+    """Every sensor of a stream as hardware has it. tau_J_noise [Nm]: white noise of the link-side joint
+    torque sensors."""
+
+    encoder: EncoderModel = field(default_factory=EncoderModel)
+    base: ForceTorqueModel = field(default_factory=ForceTorqueModel)
+    clock: ClockModel = field(default_factory=ClockModel)
+    tau_J_noise: float = 0.05
+
+    @classmethod
+    def exact(cls) -> "HardwareSensors":
+        """Ideal sensors: exact q and qd, no noise, bias, drift, delay or jitter."""
+        return cls(EncoderModel(0.0, "exact"), ForceTorqueModel(0, 0, 0, 0, 0, 0, 0), ClockModel(0.0), 0.0)
+
+    def to_dict(self) -> dict:
+        return {"model": "hardware", **asdict(self)}
+
+
+@dataclass
+class SensorReadings:
+    """A stream as its sensors report it, (n, ...) each: stamps t [s], q [rad], qd [rad/s], tau_J [Nm],
+    base_wrench [N, Nm] in the sensor frame."""
+
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    tau_J: np.ndarray
+    base_wrench: np.ndarray
+
+
+def encoder_resolution(robot, encoder: EncoderModel) -> float:
+    """The resolution [rad] an encoder model uses on ``robot`` (its own, else the description's)."""
+    return float(robot.spec.encoder_resolution if encoder.resolution is None else encoder.resolution)
+
+
+def read_sensors(robot, sensors: HardwareSensors, dt: float, q, qd, tau_J, base_wrench,
+                 rng: np.random.Generator) -> SensorReadings:
+    """What ``sensors`` report of a true run sampled every ``dt`` [s]: q, qd (n, nv), link-side joint
+    torques tau_J (n, nv) and the base wrench (n, 6), all true. The draws come from ``rng`` in a fixed
+    order (bias, drift direction, F/T noise, torque noise, jitter), so a seed fixes the stream."""
+    q, qd = np.asarray(q, float), np.asarray(qd, float)
+    n = len(q)
+    res = encoder_resolution(robot, sensors.encoder)
+    q_read = np.round(q / res) * res if res > 0 else q.copy()
+    enc = sensors.encoder
+    if enc.velocity == "exact":
+        qd_read = qd.copy()
+    else:
+        qd_read = np.empty_like(q_read)
+        qd_read[0] = qd[0] if res == 0 else 0.0  # the drive's first difference has no predecessor
+        qd_read[1:] = np.diff(q_read, axis=0) / dt
+        if enc.velocity == "filtered":
+            a = np.exp(-2 * np.pi * enc.velocity_cutoff_hz * dt)  # first-order low-pass, zero-order hold
+            for k in range(1, n):
+                qd_read[k] = a * qd_read[k - 1] + (1 - a) * qd_read[k]
+    b = sensors.base
+    scale = np.r_[np.full(3, b.force_bias), np.full(3, b.torque_bias)]
+    bias = rng.uniform(-1, 1, 6) * scale
+    direction = rng.normal(size=(2, 3))
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    t_true = np.arange(n) * dt
+    drift = np.concatenate([b.force_drift * direction[0], b.torque_drift * direction[1]])
+    noise = rng.normal(size=(n, 6)) * np.r_[np.full(3, b.force_noise), np.full(3, b.torque_noise)]
+    w = np.asarray(base_wrench, float) + bias + t_true[:, None] * drift + noise
+    lag = int(round(b.delay / dt))
+    if lag:
+        w = np.concatenate([np.repeat(w[:1], lag, axis=0), w[:-lag]])
+    tau = np.asarray(tau_J, float) + rng.normal(size=(n, q.shape[1])) * sensors.tau_J_noise
+    c = sensors.clock
+    jitter = np.clip(rng.normal(size=n) * c.jitter, -c.max_jitter, c.max_jitter) if c.jitter > 0 else np.zeros(n)
+    return SensorReadings(t_true + jitter, q_read, qd_read, tau, w)
+
+
+__all__ = ["ClockModel", "EncoderModel", "ForceTorqueModel", "HardwareSensors", "SensorReadings",
+           "causal_acceleration", "encoder_resolution", "read_sensors"]
