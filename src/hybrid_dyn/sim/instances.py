@@ -15,7 +15,7 @@ import numpy as np
 
 from ..data.dataset import write_instance
 from ..data.store import DatasetStore
-from .pulses import BellPulses, sample_contact_steps, sample_pulses
+from .pulses import BellPulses, sample_contact_steps, sample_pulses, sample_start_touch
 from .scenarios import GeneratorConfig
 from .simulator import SimulatedRun, Simulator
 from .trajectories import random_reference
@@ -40,8 +40,10 @@ def simulate_instance(sim: Simulator, index: int) -> tuple[SimulatedRun, dict]:
     pulses: BellPulses | None = sample_pulses(rng_pulse, cfg.pulses) if cfg.pulses is not None else None
     # Contacts draw from the pulse stream after the bells (a config has one or the other in the scenarios).
     contacts = sample_contact_steps(rng_pulse, cfg.contact_steps, cfg.dt) if cfg.contact_steps is not None else None
+    # The start-up touch draws after both (the scenarios without one keep their draws).
+    touch = sample_start_touch(rng_pulse, cfg.start_touch) if cfg.start_touch is not None else None
     force = None
-    for source in (pulses, contacts):
+    for source in (pulses, contacts, touch):
         if source is not None:
             force = source.force(ref.t) if force is None else force + source.force(ref.t)
     run = sim.run(ref.q, ref.qd, ref.qdd, force, rng_noise)
@@ -54,6 +56,9 @@ def simulate_instance(sim: Simulator, index: int) -> tuple[SimulatedRun, dict]:
     if contacts is not None:
         info["contact_steps"] = contacts.to_dict()
         info["n_pulses_in_instance"] += int(np.sum(contacts.start < duration))
+    if touch is not None:
+        info["start_touch"] = touch.to_dict()
+        info["n_pulses_in_instance"] += len(touch)
     return run, info
 
 
@@ -78,8 +83,9 @@ def _instance_job(config_json: str, index: int, out_location: str) -> dict:
         "n_trajectories": info["n_trajectories"], "n_pulses_in_instance": info["n_pulses_in_instance"],
         "pulses": json.dumps(info["pulses"]), **run.attrs,
     }
-    if "contact_steps" in info:
-        attrs["contact_steps"] = json.dumps(info["contact_steps"])
+    for key in ("contact_steps", "start_touch"):
+        if key in info:
+            attrs[key] = json.dumps(info[key])
     store = DatasetStore(out_location)
     rel = f"instances/{name}.h5"
     if store.local is not None:

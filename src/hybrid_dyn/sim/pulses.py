@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scenarios import ContactStepConfig, PulseConfig
+from .scenarios import ContactStepConfig, PulseConfig, StartTouchConfig
 
 
 @dataclass(frozen=True)
@@ -113,3 +113,16 @@ def sample_contact_steps(rng: np.random.Generator, cfg: ContactStepConfig, dt: f
         start[i] = t + gaps[i]
         t = start[i] + 2 * rise[i] + plateau[i]
     return ContactSteps(start, rise, plateau, amplitude, direction)
+
+
+def sample_start_touch(rng: np.random.Generator, cfg: StartTouchConfig) -> ContactSteps:
+    """Whether an instance is touched during its start-up window (with probability ``cfg.share``) and how:
+    a :class:`ContactSteps` of one contact, or of none. The draws are made either way (a fixed count per
+    instance)."""
+    drawn = rng.random() < cfg.share
+    start, amplitude = rng.uniform(*cfg.start), rng.uniform(*cfg.amplitude)
+    plateau, rise = rng.uniform(*cfg.plateau), rng.uniform(*cfg.rise)
+    direction = rng.normal(size=3)  # isotropic Gaussian -> uniform on the sphere
+    n = int(drawn)
+    return ContactSteps(np.full(n, start), np.full(n, rise), np.full(n, plateau), np.full(n, amplitude),
+                        np.tile(direction / np.linalg.norm(direction), (n, 1)))

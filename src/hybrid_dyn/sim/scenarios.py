@@ -21,6 +21,9 @@ name            plant                                                    externa
                                                                          contacts
 ``contact-steps-quiet`` as contact-steps, base sensor noise 0.05 N      as contact-steps
                 (0.0025 Nm) instead of 0.2 N (0.01 Nm)
+``contact-steps-hardware`` as contact-steps, read by hardware sensors    as contact-steps,
+                (``sim/sensors.py``: quantized encoders, qd their        a touch in the
+                difference, F/T drift, stamp jitter)                      first 0.5 s in 1/3
 ``seed-sim``    as paper-ext, recorded as the seed's 3.1: every 50 ms,   bell pulses
                 exact simulator states (qdd too), no noise or bias
 =============== ======================================================== ==============
@@ -32,6 +35,12 @@ shorter than the other scenarios' (10x the samples per second).
 ``contact-steps-quiet`` is the same contacts under a quieter base sensor: the
 estimators' bandwidth is chosen from the measured noise (``analytic/bandwidth.py``),
 so this is where its answer must change (issue 27).
+
+``contact-steps-hardware`` (issue 38) reads the same kind of run as a real arm's sensors read it
+(``GeneratorConfig.sensors``, :data:`HARDWARE_SENSORS`): q quantized to the robot description's
+encoder resolution, qd the drive's difference of it, the base sensor with a bias drift, the recorded
+stamps ``t`` jittered; a third of its instances are touched inside the tare window. The other
+scenarios keep the legacy :class:`NoiseConfig` and so their hashes and cached datasets.
 
 ``seed-sim`` reproduces the seed's own data conditions (its section 3.1), so its
 Tables 2 and 3 can be met on like data: the plant, controller, pulses and
@@ -64,6 +73,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..analytic.robot import Robot, SensorMount, load_robot
+from .sensors import ClockModel, EncoderModel, ForceTorqueModel, HardwareSensors
 
 # Bump when the generator's algorithm changes what a config produces.
 GENERATOR_VERSION = 1
@@ -132,6 +142,19 @@ class ContactStepConfig:
     first_after: float = 1.0         # s, no contact before this (the tare window is the first 0.5 s)
 
 
+@dataclass(frozen=True)
+class StartTouchConfig:
+    """A touch inside the estimators' 0.5 s start-up (tare) window, in a share of the instances: the
+    force ramps up in ``rise``, holds ``plateau``, ramps down, in a uniformly random direction, all
+    before ``first_after`` of the contacts. Ranges of uniform draws; the defaults end by 0.49 s."""
+
+    share: float = 1.0 / 3.0          # of the instances that get one
+    start: tuple = (0.05, 0.25)       # s
+    amplitude: tuple = (3.0, 10.0)    # N
+    plateau: tuple = (0.05, 0.20)     # s
+    rise: tuple = (0.001, 0.020)      # s
+
+
 @renamed_field("profile", "size", why="a generator size, not a bench profile")
 @dataclass(frozen=True)
 class GeneratorConfig:
@@ -168,6 +191,11 @@ class GeneratorConfig:
     pulses: PulseConfig | None = field(default_factory=PulseConfig)  # None: no external force
     contact_steps: ContactStepConfig | None = None  # step/trapezoid contacts (contact-steps scenario)
     noise: NoiseConfig = field(default_factory=NoiseConfig)
+    # The sensor model that reads the run: None is the legacy ``noise`` (independent white noise on q and
+    # qd, the cached scenarios' model); HardwareSensors (sim/sensors.py) reads it as an arm's sensors do,
+    # and then ``noise`` must be off (one sensor model per dataset; the controller reads the true state).
+    sensors: HardwareSensors | None = None
+    start_touch: StartTouchConfig | None = None  # a touch in the tare window in some instances
     qdd_cutoff_hz: float = 20.0              # low-pass of the causal acceleration estimate
     # Recorded qdd: "filter" (causal estimate from the measured qd, as on a real arm) or
     # "exact" (DART's acceleration at the recorded step, as the seed's simulated data).
@@ -191,6 +219,9 @@ class GeneratorConfig:
             raise ConfigError("qdd_cutoff_hz must be below the Nyquist frequency of the simulation")
         if self.qdd_source not in QDD_SOURCES:
             raise ConfigError(f"qdd_source must be one of {', '.join(map(repr, QDD_SOURCES))}, got {self.qdd_source!r}")
+        if self.sensors is not None and self.noise != NoiseConfig.off():
+            raise ConfigError("sensors=HardwareSensors(...) reads the run; noise must then be NoiseConfig.off() "
+                              "(one sensor model per dataset)")
 
     @property
     def decimation(self) -> int:
@@ -216,7 +247,26 @@ class GeneratorConfig:
             del d["contact_steps"]  # configs without contacts keep the hashes they had before the field existed
         if d["qdd_source"] == "filter":
             del d["qdd_source"]  # likewise for the default acceleration source
+        # Likewise the legacy sensor model and no start-up touch (the cached scenarios' hashes stay).
+        for key in ("sensors", "start_touch"):
+            if d[key] is None:
+                del d[key]
+        if self.sensors is not None:
+            d["sensors"] = _jsonable(self.sensors.to_dict())  # names its model ("hardware")
         return d
+
+    @property
+    def encoder_resolution(self) -> float:
+        """The recorded q's resolution [rad]: 0 for the legacy sensor model (q with white noise, not
+        quantized), else the hardware encoder's (its own, or the robot description's)."""
+        if self.sensors is None:
+            return 0.0
+        res = self.sensors.encoder.resolution
+        if res is None:
+            from ..description import load_spec, parse_robot_name
+
+            res = load_spec(parse_robot_name(self.robot)[0]).encoder_resolution
+        return float(res)
 
     @property
     def has_external_force(self) -> bool:
@@ -235,6 +285,11 @@ class GeneratorConfig:
                                                       for k, v in d["contact_steps"].items()})
         if "noise" in d:
             d["noise"] = NoiseConfig(**d["noise"])
+        if d.get("sensors") is not None:
+            d["sensors"] = HardwareSensors.from_dict(d["sensors"])
+        if d.get("start_touch") is not None:
+            d["start_touch"] = StartTouchConfig(**{k: tuple(v) if isinstance(v, list) else v
+                                                   for k, v in d["start_touch"].items()})
         for k in ("trajectories", "speed_scale", "sensor_translation", "sensor_rotation", "dart_coulomb", "dart_viscous"):
             if d.get(k) is not None:
                 d[k] = tuple(d[k])
@@ -280,6 +335,17 @@ SEED_SIM_SIZES = {
     "default": dict(n_instances=40, trajectories=(5, 50)),
     "paper": dict(n_instances=1000, trajectories=(5, 50)),
 }
+
+# contact-steps-hardware's sensors (issue 38): the robot description's encoder resolution (the Panda:
+# 1e-5 rad), qd the drive's difference of it, link-side torques at 0.05 Nm, the base F/T sensor at
+# 0.2 N / 0.01 Nm white noise with a per-stream bias and a drift of 0.025 N/s (0.3 N over 12 s) and
+# 0.00125 Nm/s, stamps jittered by 0.2 ms (sigma, clipped at 0.5 ms).
+HARDWARE_SENSORS = HardwareSensors(
+    encoder=EncoderModel(resolution=None, velocity="difference"),
+    base=ForceTorqueModel(force_noise=0.2, torque_noise=0.01, force_bias=2.0, torque_bias=0.1,
+                          force_drift=0.025, torque_drift=0.00125),
+    clock=ClockModel(jitter=2e-4, max_jitter=5e-4),
+    tau_J_noise=0.05)
 
 # mismatch-ext: the unmodelled tool and the misaligned sensor.
 MISMATCH_PAYLOAD = (0.5, (0.01, 0.0, -0.04))  # kg; m from panda_hand_tcp, between the fingers and the flange
@@ -367,6 +433,12 @@ for _scenario in (
              "0.2 N (0.01 Nm)",
              overrides=dict(pulses=None, contact_steps=ContactStepConfig(), record_hz=1000.0,
                             noise=NoiseConfig(**QUIET_BASE_NOISE)),
+             sizes=CONTACT_STEPS_SIZES),
+    Scenario("contact-steps-hardware", "as contact-steps, read by hardware sensors: quantized encoders (the "
+             "robot's resolution) with qd their difference, F/T noise 0.2 N with a 0.025 N/s bias drift, 0.2 ms "
+             "stamp jitter, tau_J 0.05 Nm; a touch inside the first 0.5 s in a third of the instances",
+             overrides=dict(pulses=None, contact_steps=ContactStepConfig(), record_hz=1000.0,
+                            noise=NoiseConfig.off(), sensors=HARDWARE_SENSORS, start_touch=StartTouchConfig()),
              sizes=CONTACT_STEPS_SIZES),
     # The seed's 3.1: a 50 ms step, the simulator's exact states, noise-free sensors.
     Scenario("seed-sim", "as paper-ext, recorded as the seed's 3.1: every 50 ms, exact simulator states "

@@ -91,17 +91,29 @@ class HardwareSensors:
     def to_dict(self) -> dict:
         return {"model": "hardware", **asdict(self)}
 
+    @classmethod
+    def from_dict(cls, d: dict) -> "HardwareSensors":
+        """The sensors of :meth:`to_dict` (a dataset manifest's ``config.sensors``)."""
+        d = dict(d)
+        if d.pop("model", "hardware") != "hardware":
+            raise ValueError(f"not a hardware sensor model: {d!r}")
+        return cls(EncoderModel(**d["encoder"]), ForceTorqueModel(**d["base"]), ClockModel(**d["clock"]),
+                   float(d["tau_J_noise"]))
+
 
 @dataclass
 class SensorReadings:
     """A stream as its sensors report it, (n, ...) each: stamps t [s], q [rad], qd [rad/s], tau_J [Nm],
-    base_wrench [N, Nm] in the sensor frame."""
+    base_wrench [N, Nm] in the sensor frame; and the base sensor's drawn errors, (6,) each: bias [N, Nm]
+    (at t = 0) and drift [N/s, Nm/s] (the generator records them, tests fit against them)."""
 
     t: np.ndarray
     q: np.ndarray
     qd: np.ndarray
     tau_J: np.ndarray
     base_wrench: np.ndarray
+    bias: np.ndarray | None = None
+    drift: np.ndarray | None = None
 
 
 def encoder_resolution(robot, encoder: EncoderModel) -> float:
@@ -144,7 +156,7 @@ def read_sensors(robot, sensors: HardwareSensors, dt: float, q, qd, tau_J, base_
     tau = np.asarray(tau_J, float) + rng.normal(size=(n, q.shape[1])) * sensors.tau_J_noise
     c = sensors.clock
     jitter = np.clip(rng.normal(size=n) * c.jitter, -c.max_jitter, c.max_jitter) if c.jitter > 0 else np.zeros(n)
-    return SensorReadings(t_true + jitter, q_read, qd_read, tau, w)
+    return SensorReadings(t_true + jitter, q_read, qd_read, tau, w, bias, drift)
 
 
 __all__ = ["ClockModel", "EncoderModel", "ForceTorqueModel", "HardwareSensors", "SensorReadings",

@@ -31,7 +31,7 @@ from ..analytic.robot import InputError
 from .collision import collision_checker
 from .plant import DartPlant
 from .scenarios import GeneratorConfig
-from .sensors import causal_acceleration
+from .sensors import causal_acceleration, read_sensors
 
 FIELDS = ("t", "q", "qd", "qdd", "tau_m", "tau_J", "base_wrench", "tip_force")
 
@@ -176,6 +176,8 @@ class Simulator:
             "t": rec * cfg.dt, "q": Q[rec], "qd": QD[rec], "qdd": QDD_rec, "tau_m": TAU[rec],
             "tau_J": tau_J, "base_wrench": W_rec, "tip_force": f_tip,
         }
+        if cfg.sensors is not None:
+            return self._hardware_sensors(truth, q_ref, Q, rng)
         qd_meas_fast = QD + n_qd
         if cfg.qdd_source == "exact":
             qdd = QDD_rec  # the seed's simulated data: the simulator's acceleration at the recorded step
@@ -198,6 +200,29 @@ class Simulator:
             "tracking_rms": np.sqrt(np.mean(err**2, axis=0)),  # rad, per joint, at the control rate
             "tracking_max": np.max(np.abs(err), axis=0),      # rad
             "base_wrench_bias": bias,
+            "duration_s": float(len(Q) * cfg.dt),
+        }
+        return SimulatedRun(fields, truth, attrs)
+
+    def _hardware_sensors(self, truth, q_ref, Q, rng) -> SimulatedRun:
+        """The recorded truth read by ``config.sensors`` (``sim/sensors.read_sensors``, the one sensor model
+        of the stream simulator too) at the recording period: quantized q, the drive's qd, noisy tau_J, the
+        base sensor with bias, drift and delay, jittered stamps ``t``; qdd the causal estimate from that
+        qd (as on a real arm, or DART's with ``qdd_source="exact"``)."""
+        cfg = self.config
+        period = cfg.dt * cfg.decimation
+        r = read_sensors(self.nominal, cfg.sensors, period, truth["q"], truth["qd"], truth["tau_J"],
+                         truth["base_wrench"], rng)
+        qdd = truth["qdd"] if cfg.qdd_source == "exact" else causal_acceleration(r.qd, period, cfg.qdd_cutoff_hz)
+        fields = {"t": truth["t"] + (r.t - np.arange(len(r.t)) * period), "q": r.q, "qd": r.qd, "qdd": qdd,
+                  "tau_m": truth["tau_m"], "tau_J": r.tau_J, "base_wrench": r.base_wrench,
+                  "tip_force": truth["tip_force"]}
+        err = q_ref - Q
+        attrs = {
+            "tracking_rms": np.sqrt(np.mean(err**2, axis=0)),  # rad, per joint, at the control rate
+            "tracking_max": np.max(np.abs(err), axis=0),      # rad
+            "base_wrench_bias": r.bias,                       # N, Nm at t = 0
+            "base_wrench_drift": r.drift,                     # N/s, Nm/s
             "duration_s": float(len(Q) * cfg.dt),
         }
         return SimulatedRun(fields, truth, attrs)
