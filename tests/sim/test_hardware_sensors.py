@@ -1,0 +1,175 @@
+"""Issue 38: sensors as hardware has them (``sim/sensors.py``), the stream simulator on them
+(``sim/stream.py``) and the ``contact-steps-hardware`` scenario, each against a truth computed here."""
+import json
+
+import h5py
+import numpy as np
+import pinocchio as pin
+import pytest
+import scipy.stats
+
+from hybrid_dyn.data import load_dataset
+from hybrid_dyn.sim.executors import SerialExecutor
+from hybrid_dyn.sim.generator import generate_dataset
+from hybrid_dyn.sim.scenarios import (
+    SCENARIOS, SIZES, ConfigError, GeneratorConfig, NoiseConfig, StartTouchConfig, scenario_config)
+from hybrid_dyn.sim.sensors import (
+    ClockModel, EncoderModel, ForceTorqueModel, HardwareSensors, encoder_resolution, read_sensors)
+from hybrid_dyn.sim.stream import StreamConfig, Touch, simulate_stream
+
+DT = 1e-3
+QUIET = ForceTorqueModel(0.0, 0.0, 0.0, 0.0)  # a base sensor without errors, for the encoder tests
+
+
+def _read(panda, sensors, q, qd=None, seed=0):
+    n, nv = q.shape
+    return read_sensors(panda, sensors, DT, q, np.zeros((n, nv)) if qd is None else qd, np.zeros((n, nv)),
+                        np.zeros((n, 6)), np.random.default_rng(seed))
+
+
+def test_quantized_q_lies_on_the_grid_within_half_a_count(panda):
+    # The Panda's description states 1e-5 rad (a 19-20 bit absolute encoder): the default takes it.
+    assert encoder_resolution(panda, EncoderModel()) == 1e-5
+    rng = np.random.default_rng(1)
+    q = np.array(panda.spec.home) + rng.uniform(-1, 1, (5000, panda.nv))
+    for res in (None, 1e-4):
+        r = _read(panda, HardwareSensors(EncoderModel(res), QUIET, ClockModel(), 0.0), q)
+        step = 1e-5 if res is None else res
+        assert np.abs(r.q - q).max() <= step / 2 * (1 + 1e-9)
+        assert np.abs(r.q - q).max() > 0.45 * step  # it does quantize (uniform error over +-step/2)
+        counts = r.q / step
+        np.testing.assert_allclose(counts, np.round(counts), rtol=0, atol=1e-6)
+    exact = _read(panda, HardwareSensors.exact(), q)
+    np.testing.assert_array_equal(exact.q, q)
+
+
+def test_the_drives_velocity_is_the_difference_of_the_quantized_q(panda):
+    t = np.arange(3000) * DT
+    q = np.array(panda.spec.home) + 0.3 * np.sin(np.outer(t, np.linspace(0.5, 2.0, panda.nv)))
+    r = _read(panda, HardwareSensors(EncoderModel(), QUIET, ClockModel(), 0.0), q)
+    np.testing.assert_array_equal(r.qd[1:], np.diff(r.q, axis=0) / DT)
+    assert np.all(r.qd[0] == 0.0)  # the first difference has no predecessor
+    # Motion makes velocity noise of about a count per period (res / dt = 0.01 rad/s): not white noise
+    # measured at standstill.
+    qd_true = 0.3 * np.linspace(0.5, 2.0, panda.nv) * np.cos(np.outer(t, np.linspace(0.5, 2.0, panda.nv)))
+    err = (r.qd - qd_true)[10:]
+    assert 1e-3 < err.std() < 1e-5 / DT
+
+
+def test_a_drift_is_recovered_by_a_least_squares_fit(panda):
+    n = 12_000  # 12 s at 1 kHz: the issue's 0.3 N over 12 s
+    base = ForceTorqueModel(force_noise=0.2, torque_noise=0.01, force_bias=2.0, torque_bias=0.1,
+                            force_drift=0.025, torque_drift=0.00125)
+    r = _read(panda, HardwareSensors(EncoderModel(0.0, "exact"), base, ClockModel(), 0.0),
+              np.tile(panda.spec.home, (n, 1)), seed=4)
+    t = np.arange(n) * DT
+    A = np.stack([np.ones(n), t], axis=1)
+    (intercept, slope), *_ = np.linalg.lstsq(A, r.base_wrench, rcond=None)
+    # Slope error per axis: sigma / sqrt(n var(t)) = 0.2 N / 379 s = 5e-4 N/s (force), 2.6e-5 Nm/s (moment).
+    assert np.linalg.norm(slope[:3]) == pytest.approx(0.025, abs=2e-3)
+    assert np.linalg.norm(slope[3:]) == pytest.approx(0.00125, abs=1.2e-4)
+    assert np.all(np.abs(slope - r.drift) <= np.r_[np.full(3, 2e-3), np.full(3, 1.2e-4)])
+    assert np.all(np.abs(intercept - r.bias) <= np.r_[np.full(3, 0.02), np.full(3, 1e-3)])
+    assert np.all(np.abs(r.bias) <= np.r_[np.full(3, 2.0), np.full(3, 0.1)])
+    residual = r.base_wrench - A @ np.stack([intercept, slope])
+    np.testing.assert_allclose(residual.std(axis=0), np.r_[np.full(3, 0.2), np.full(3, 0.01)], rtol=0.05)
+
+
+def test_stamps_jitter_within_their_clip(panda):
+    n, sigma, clip = 100_000, 2e-4, 5e-4
+    r = _read(panda, HardwareSensors(EncoderModel(0.0, "exact"), QUIET, ClockModel(sigma, clip), 0.0),
+              np.tile(panda.spec.home, (n, 1)), seed=5)
+    dev = r.t - np.arange(n) * DT
+    assert np.abs(dev).max() <= clip + 1e-12 and np.isclose(np.abs(dev).max(), clip)  # some reach the clip
+    assert np.diff(r.t).min() >= DT - 2 * clip - 1e-12  # stamps never go back (the clip is half a period)
+    # A Gaussian clipped: inside, a truncated normal; outside (probability p), the clip itself.
+    a = clip / sigma
+    p = 2 * scipy.stats.norm.sf(a)
+    expected = np.sqrt((1 - p) * scipy.stats.truncnorm(-a, a, scale=sigma).var() + p * clip**2)
+    assert dev.std() == pytest.approx(expected, rel=0.01)
+    assert np.mean(np.isclose(np.abs(dev), clip)) == pytest.approx(p, rel=0.15)
+
+
+def test_the_dart_streams_base_wrench_at_rest_is_the_arms_weight(panda):
+    """At rest under gravity compensation the ground carries the arm's weight: (0, 0, m g) and the moment
+    c x m g about the base, summed here over Pinocchio's bodies (link 0 too), not by RNEA."""
+    cfg = StreamConfig(seconds=0.2, contacts=None, pose_spread=0.0, friction=None, sensors=HardwareSensors.exact())
+    s = simulate_stream(panda, cfg, seed=1)
+    assert np.abs(s.qd).max() < 1e-9
+    model, data = panda.model, panda.model.createData()
+    pin.forwardKinematics(model, data, s.q[0])
+    force, moment = np.zeros(3), np.zeros(3)
+    for i in range(model.njoints):
+        f = -model.inertias[i].mass * model.gravity.linear
+        force += f
+        moment += np.cross(data.oMi[i].act(model.inertias[i].lever), f)
+    assert force[2] == pytest.approx(9.81 * sum(model.inertias[i].mass for i in range(model.njoints)))
+    np.testing.assert_allclose(s.readings.base_wrench, np.tile(np.r_[force, moment], (len(s.t), 1)), atol=1e-9)
+
+
+def test_a_touch_during_start_up_is_in_the_streams_force(panda):
+    cfg = StreamConfig(seconds=0.6, contacts=None, touches=(Touch(0.1, 6.0, 0.2, rise=0.01),), friction=None)
+    s = simulate_stream(panda, cfg, seed=2)
+    f = s.tip_force[:, 2]
+    np.testing.assert_allclose(f[(s.t > 0.1105) & (s.t < 0.3095)], -6.0)  # pressing down, 6 N
+    assert np.all(f[s.t <= 0.1] == 0.0) and np.all(f[s.t >= 0.3205] == 0.0)
+    assert np.abs(s.tip_force[:, :2]).max() == 0.0
+
+
+# config_hash() of every scenario at every size at 9770868 (before the sensors field existed): the
+# committed reports' and every cached dataset's key. A new field must leave them as they are.
+PINNED_HASHES = {
+    "paper-noext": ("75dbbf68f46447e6", "88678398fd60a5a1", "97e1f9b2fcf9f554"),
+    "paper-ext": ("6ecc99774227f622", "c6b41661db23d34c", "fda7601b3c28435f"),
+    "mismatch-ext": ("32987a0e15391d1d", "59028684ff8f137c", "f007aa9f9d8a0142"),
+    "contact-steps": ("32e685f97c5f1394", "08b5ac5828d75541", "6bd82366d4ff6981"),
+    "contact-steps-quiet": ("cdfdf267ffabf6f4", "ad4bed041bb9fed8", "b6fe82bba89bca67"),
+    "seed-sim": ("9ffff7eaf7dc8e24", "810b0b412ca032f7", "dd419eedfcb86997"),
+}
+
+
+def test_the_existing_scenarios_keep_their_hashes_at_every_size():
+    assert set(PINNED_HASHES) | {"contact-steps-hardware"} == set(SCENARIOS)
+    for name, hashes in PINNED_HASHES.items():
+        assert tuple(scenario_config(name, size).config_hash() for size in SIZES) == hashes, name
+        assert "sensors" not in scenario_config(name).to_dict() and "start_touch" not in scenario_config(name).to_dict()
+
+
+def test_the_config_records_its_sensor_model():
+    cfg = scenario_config("contact-steps-hardware", "default")
+    d = cfg.to_dict()
+    assert d["sensors"]["model"] == "hardware" and d["sensors"]["clock"]["jitter"] == 2e-4
+    assert cfg.encoder_resolution == 1e-5 and scenario_config("contact-steps").encoder_resolution == 0.0
+    back = GeneratorConfig.from_dict(json.loads(json.dumps(d)))
+    assert back == cfg and back.config_hash() == cfg.config_hash()
+    assert len({scenario_config("contact-steps-hardware", s).config_hash() for s in SIZES}
+               | {h for hs in PINNED_HASHES.values() for h in hs}) == 21
+    with pytest.raises(ConfigError, match="noise must then be NoiseConfig.off"):
+        scenario_config("contact-steps-hardware", noise=NoiseConfig())
+
+
+def test_the_hardware_scenario_generates_a_dataset_its_sensors_read(tmp_path):
+    # Every instance touched at start-up (share 1), two short instances.
+    cfg = scenario_config("contact-steps-hardware", "quick", seed=3, n_instances=2, trajectories=(1, 1),
+                          standstill=0.6, start_touch=StartTouchConfig(share=1.0))
+    ds = load_dataset(generate_dataset(cfg, tmp_path / "hw", executor=SerialExecutor(), progress=False))
+    assert ds.meta["config"]["sensors"]["model"] == "hardware" and ds.meta["config_hash"] == cfg.config_hash()
+    for inst in ds.instances.values():
+        truth, period = inst.truth, 1e-3
+        assert np.abs(inst.q - truth["q"]).max() <= 0.5e-5 * (1 + 1e-9)
+        np.testing.assert_allclose(inst.q / 1e-5, np.round(inst.q / 1e-5), rtol=0, atol=1e-6)
+        np.testing.assert_array_equal(inst.qd[1:], np.diff(inst.q, axis=0) / period)
+        dev = inst.t - truth["t"]
+        assert np.abs(dev).max() <= 5e-4 + 1e-12 and dev.std() == pytest.approx(2e-4, rel=0.15)
+        with h5py.File(inst.path, "r") as f:
+            bias, drift = np.array(f.attrs["base_wrench_bias"]), np.array(f.attrs["base_wrench_drift"])
+            touch = json.loads(f.attrs["start_touch"])
+        assert np.linalg.norm(drift[:3]) == pytest.approx(0.025)
+        noise = inst.base_wrench - truth["base_wrench"] - bias - truth["t"][:, None] * drift
+        np.testing.assert_allclose(noise.std(axis=0), np.r_[np.full(3, 0.2), np.full(3, 0.01)], rtol=0.1)
+        assert (inst.tau_J - truth["tau_J"]).std() == pytest.approx(0.05, rel=0.1)
+        # The touch lies inside the 0.5 s window, the first contact after 1 s plus a gap.
+        assert len(touch["start"]) == 1 and touch["start"][0] + 2 * touch["rise"][0] + touch["plateau"][0] < 0.5
+        early = np.linalg.norm(inst.tip_force, axis=1)[truth["t"] < 0.5]
+        assert early.max() == pytest.approx(touch["amplitude"][0], rel=1e-9)
+        assert np.all(np.linalg.norm(inst.tip_force, axis=1)[(truth["t"] > 0.5) & (truth["t"] < 2.0)] == 0.0)
