@@ -8,9 +8,13 @@ call). Adding an analytic row is one ``_analytic(...)`` call in this file.
 The estimator methods of ``analytic/methods.py`` get their rows from the registry
 (:func:`declare_method_rows`): ``name``, the estimator with its defaults (the
 bandwidth by the rule), and ``name-val``, the bandwidth chosen on the validation
-split once per scenario (:func:`_chosen_on_val`), a labelled reference.
+split once per scenario (:func:`_chosen_on_val`), a labelled reference. Both run at the dataset's
+encoder resolution (:func:`_encoder_resolution`: 0 for the legacy sensor model) and report the share of
+test samples their error bar covers (``sigma_coverage``, :func:`_sigma_coverage`).
 """
 from __future__ import annotations
+
+import inspect
 
 import numpy as np
 
@@ -24,12 +28,13 @@ TARED = "(tared on the first 0.5 s)"  # how the inputs column says a row reads t
 
 
 def _analytic(name: str, task: str, needs: tuple, inputs, batch_fn, single_fn=None, reference=None,
-              warmup_calls=None) -> Row:
+              warmup_calls=None, sigma_coverage=None) -> Row:
     """Declare an analytic row: batch_fn(robot, instance, ctx) -> (T, C) and single_fn(robot, instance, k, ctx) -> (C,).
 
     needs: the dataset fields it reads, its target included; inputs: the results' inputs
     column, a string or ctx -> string (a value chosen on validation); reference: a reference
-    row's label; warmup_calls(ctx): untimed calls first (a stream's noise window)."""
+    row's label; warmup_calls(ctx): untimed calls first (a stream's noise window); sigma_coverage(ctx) ->
+    a callable of the error bar's coverage (registry methods)."""
     def build(ds, ctx):
         robot = ctx.robot
         return Predictor(
@@ -37,6 +42,7 @@ def _analytic(name: str, task: str, needs: tuple, inputs, batch_fn, single_fn=No
             single_call=(lambda inst, k: single_fn(robot, inst, k, ctx)) if single_fn else None,
             inputs=inputs(ctx) if callable(inputs) else inputs,
             warmup_calls=1 if warmup_calls is None else warmup_calls(ctx),
+            sigma_coverage=None if sigma_coverage is None else sigma_coverage(ctx),
         )
 
     return declare(Row(name, task, "analytic", needs=needs, needs_urdf=True, build=build, reference=reference))
@@ -68,14 +74,59 @@ def _chosen_on_val(ctx, name: str, grid, estimate) -> float:
     return ctx.cache[key]
 
 
+def _batch_accepts() -> set:
+    """The keywords of issue 38 that ``run_batch`` takes (``encoder_resolution``, ``with_sigma``): until the
+    estimator has them, rows run as before (exact encoders) and the coverage column stays empty."""
+    return {"encoder_resolution", "with_sigma"} & set(inspect.signature(run_batch).parameters)
+
+
+def _encoder_resolution(ctx) -> float:
+    """The dataset's encoder resolution [rad]: its hardware sensors' (``sim/sensors.py``; the robot
+    description's when they state none); 0 for the legacy sensor model and for data without a generator
+    config (q as recorded, not quantized by the simulator: the estimator reads it as exact, as before)."""
+    from ..sim.sensors import HardwareSensors, encoder_resolution
+
+    sensors = (ctx.dataset.meta.get("config") or {}).get("sensors")
+    return 0.0 if sensors is None else encoder_resolution(ctx.robot, HardwareSensors.from_dict(sensors).encoder)
+
+
 def _method_run(method, robot, inst, ctx, value=None):
-    """(forces (T, 3), bandwidth) of the method over one run as the estimator runs it (cached per value)."""
+    """(forces (T, 3), bandwidth, sigma (T, 3) [N] or None) of the method over one run as the estimator runs
+    it, at the dataset's encoder resolution (cached per value)."""
     key = ("method-run", method.name, inst.name, value)
     if key not in ctx.cache:
-        ctx.cache[key] = run_batch(method, robot, ctx.dataset.meta["record_hz"], inst.q, inst.qd,
-                                   inst.base_wrench if "base_wrench" in method.reads else None,
-                                   inst.tau_J if "tau_J" in method.reads else None, TARE_SECONDS, value)
+        accepts = _batch_accepts()
+        kw = {"encoder_resolution": _encoder_resolution(ctx)} if "encoder_resolution" in accepts else {}
+        if "with_sigma" in accepts:
+            kw["with_sigma"] = True
+        out = run_batch(method, robot, ctx.dataset.meta["record_hz"], inst.q, inst.qd,
+                        inst.base_wrench if "base_wrench" in method.reads else None,
+                        inst.tau_J if "tau_J" in method.reads else None, TARE_SECONDS, value, **kw)
+        ctx.cache[key] = tuple(out) if "with_sigma" in kw else (*out, None)
     return ctx.cache[key]
+
+
+def _sigma_coverage(method, ctx, value=None):
+    """A callable for the row's ``sigma_coverage``: the share of the test samples after each run's window
+    whose error lies within 2 sigma on every axis; None (an empty cell) while run_batch gives no sigma."""
+    def coverage():
+        if "with_sigma" not in _batch_accepts():
+            if not ctx.cache.get("no-sigma-logged"):
+                ctx.cache["no-sigma-logged"] = True
+                ctx.log(f"[bench] {ctx.scenario}: sigma_coverage left empty: this run_batch gives no error bar "
+                        "(with_sigma, issue 38)")
+            return None
+        n = tare_samples(ctx.dataset.meta["record_hz"], TARE_SECONDS)
+        covered = []
+        for inst in ctx.dataset.split("test"):
+            forces, _, sigma = _method_run(method, ctx.robot, inst, ctx, value() if callable(value) else value)
+            if sigma is None:
+                return None
+            err = np.abs(forces - inst.truth.get("tip_force", inst["tip_force"]))[n:]
+            covered.append(np.all(err <= 2.0 * np.asarray(sigma)[n:], axis=1))
+        return float(np.mean(np.concatenate(covered)))
+
+    return coverage
 
 
 def _user_call(method):
@@ -105,7 +156,8 @@ def declare_method_rows(method) -> None:
 
     _analytic(method.name, "tip_force", needs, rule_inputs,
               lambda r, i, ctx: _method_run(method, r, i, ctx)[0], _user_call(method),
-              warmup_calls=lambda ctx: tare_samples(ctx.dataset.meta["record_hz"], TARE_SECONDS) + 1)
+              warmup_calls=lambda ctx: tare_samples(ctx.dataset.meta["record_hz"], TARE_SECONDS) + 1,
+              sigma_coverage=lambda ctx: _sigma_coverage(method, ctx))
 
     def at(robot, inst, ctx, value):
         return _method_run(method, robot, inst, ctx, value)[0]
@@ -124,7 +176,8 @@ def declare_method_rows(method) -> None:
     _analytic(f"{method.name}-val", "tip_force", needs,
               lambda ctx: f"{reads}; {method.parameter} {chosen(ctx):g} {method.unit} (chosen on val)",
               lambda r, i, ctx: at(r, i, ctx, chosen(ctx)), val_single, reference=VAL_LABEL,
-              warmup_calls=lambda ctx: tare_samples(ctx.dataset.meta["record_hz"], TARE_SECONDS) + 1)
+              warmup_calls=lambda ctx: tare_samples(ctx.dataset.meta["record_hz"], TARE_SECONDS) + 1,
+              sigma_coverage=lambda ctx: _sigma_coverage(method, ctx, lambda: chosen(ctx)))
 
 
 def forget_method_rows(method) -> None:

@@ -1,8 +1,8 @@
 """Benchmark profiles: which scenarios, which rows, how long to train.
 
 quick    every family on one small scenario (``make demo``), minutes on 2 cores
-default  every row on paper-noext, paper-ext and mismatch-ext; the analytic rows on contact-steps (1 kHz)
-         and contact-steps-quiet (its base sensor at 0.05 N)
+default  every row on paper-noext, paper-ext and mismatch-ext; the analytic rows on contact-steps (1 kHz),
+         contact-steps-quiet (its base sensor at 0.05 N) and contact-steps-hardware (hardware sensors)
 paper    the study's scale (1000 instances per scenario)
 real     the joint-torque models that need no URDF on the three real-robot logs
          (KUKA and Baxter split by trajectory; SARCOS, one test file of 4,449
@@ -260,7 +260,8 @@ PROFILES = {
     # instances of 5-10 trajectories (74.2 min from empty caches), whose learned rows were
     # data-limited (reports/studies/data-control: their RMSE ratios fell with every instance added).
     "default": BenchProfile(
-        name="default", scenarios=("paper-noext", "paper-ext", "mismatch-ext", "contact-steps", "contact-steps-quiet"),
+        name="default", scenarios=("paper-noext", "paper-ext", "mismatch-ext", "contact-steps", "contact-steps-quiet",
+                                   "contact-steps-hardware"),
         generator_size="default",
         # tau-mlp-wide (2 x 128, dropout 0.2): the larger-capacity control of the seed torque nets.
         rows=("tau-mlp-wide",),
@@ -268,7 +269,8 @@ PROFILES = {
                             for s in ("paper-noext", "paper-ext", "mismatch-ext")},
         # contact-steps (1 kHz) tests the physics estimators on steps; the nets' windows are
         # counted in samples and were sized for 100 Hz, so they are not trained on it.
-        scenario_families={"contact-steps": ("analytic",), "contact-steps-quiet": ("analytic",)},
+        scenario_families={"contact-steps": ("analytic",), "contact-steps-quiet": ("analytic",),
+                           "contact-steps-hardware": ("analytic",)},
         notes=(BUDGET_RECIPE_NOTE,
                "Data: paper-noext, paper-ext and mismatch-ext hold 120 instances of 5-10 trajectories each (split "
                "by instance 77/19/24), 3x the epoch-recipe bench's 40: under the budget a row's training cost does "
@@ -279,7 +281,10 @@ PROFILES = {
                "contact-steps: step and trapezoid contacts (rise 1-20 ms, plateaus 0.3-1.5 s, 3-25 N) recorded at "
                "1 kHz, the rate of a control loop; only the analytic rows run on it (the nets' windows are counted "
                "in samples and sized for 100 Hz). contact-steps-quiet: the same with the base sensor at 0.05 N "
-               "(0.0025 Nm) noise, where the estimators' automatic bandwidth must change."),
+               "(0.0025 Nm) noise, where the estimators' automatic bandwidth must change. contact-steps-hardware: the "
+               "same contacts read by hardware sensors (q quantized to 1e-5 rad, qd its difference, 0.2 ms stamp "
+               "jitter, a 0.025 N/s base-sensor drift, a touch inside the first 0.5 s in a third of the instances; "
+               "issue 38), analytic rows only, with the error bar's coverage (sigma_coverage)."),
     ),
     # Real logs carry no base wrench or tip force and no URDF ships for these arms:
     # only the joint-torque models that need neither (PROTOCOL 2, issue 8).

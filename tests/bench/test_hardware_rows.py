@@ -1,0 +1,118 @@
+"""Issue 38 on the bench: the analytic rows on contact-steps-hardware run at the dataset's encoder
+resolution (0 for the legacy sensor model, so today's rows are unchanged) and report their error
+bar's coverage (``sigma_coverage`` in results.csv)."""
+import inspect
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from hybrid_dyn.analytic.methods import run_batch
+from hybrid_dyn.analytic.tare import TARE_SECONDS, tare_samples
+from hybrid_dyn.bench import analytic_rows
+from hybrid_dyn.bench.catalog import ROWS
+from hybrid_dyn.bench.profiles import BenchProfile, get_profile
+from hybrid_dyn.bench.results import read_results, results_columns, write_results
+from hybrid_dyn.bench.runner import BenchContext, score_row, train_split_stats
+from hybrid_dyn.data import load_dataset
+from hybrid_dyn.sim.executors import SerialExecutor
+from hybrid_dyn.sim.generator import generate_dataset
+from hybrid_dyn.sim.scenarios import scenario_config
+
+SIGMA = 0.5  # N per axis, the fake error bar
+
+
+@pytest.fixture(scope="module")
+def hardware_ds(tmp_path_factory):
+    """Three short instances of contact-steps-hardware (one per split)."""
+    cfg = scenario_config("contact-steps-hardware", "quick", seed=1, n_instances=3, trajectories=(1, 1),
+                          standstill=0.6)
+    return load_dataset(generate_dataset(cfg, tmp_path_factory.mktemp("hw") / "ds", executor=SerialExecutor(),
+                                         progress=False))
+
+
+def _ctx(ds, panda, tmp_path, logs):
+    return BenchContext(BenchProfile(name="t", scenarios=("contact-steps-hardware",)), "contact-steps-hardware", ds,
+                        panda, tmp_path / "work", tmp_path / "data", log=logs.append)
+
+
+def test_the_default_profile_runs_the_analytic_rows_on_the_hardware_scenario(hardware_ds):
+    prof = get_profile("default")
+    assert "contact-steps-hardware" in prof.scenarios
+    ds = SimpleNamespace(fields=list(hardware_ds.fields), meta=hardware_ds.meta)
+    applied = {s.family for s in prof.selected_rows() if prof.applies(s, ds)}
+    assert applied == {"analytic"}
+    assert {"base-wrench", "base-momentum", "kalman-fusion"} <= {s.name for s in prof.selected_rows()
+                                                                 if prof.applies(s, ds)}
+
+
+def test_the_rows_read_the_datasets_encoder_resolution(hardware_ds, panda):
+    ctx = lambda meta: SimpleNamespace(dataset=SimpleNamespace(meta=meta), robot=panda)  # noqa: E731
+    assert analytic_rows._encoder_resolution(ctx(hardware_ds.meta)) == 1e-5  # the Panda's description
+    legacy = scenario_config("contact-steps", "default").to_dict()
+    assert analytic_rows._encoder_resolution(ctx({"config": legacy})) == 0.0  # today's rows unchanged
+    assert analytic_rows._encoder_resolution(ctx({})) == 0.0  # an imported log: q as recorded
+
+
+def test_the_coverage_column_is_the_share_within_two_sigma(hardware_ds, panda, tmp_path, monkeypatch):
+    """Through a run_batch with issue 38's keywords (the real one's forces, a fixed 0.5 N error bar): the
+    column is the share of test samples after the window whose error is within 1 N on all three axes,
+    counted here; it reaches results.csv through write_results."""
+    seen = []
+
+    def with_sigma(method, robot, rate_hz, q, qd, base_wrench=None, tau_J=None, tare_seconds=0.5, value=None,
+                   stream=None, encoder_resolution=None, with_sigma=False):
+        seen.append((encoder_resolution, with_sigma))
+        forces, used = run_batch(method, robot, rate_hz, q, qd, base_wrench, tau_J, tare_seconds, value, stream)
+        return (forces, used, np.full(forces.shape, SIGMA)) if with_sigma else (forces, used)
+
+    monkeypatch.setattr(analytic_rows, "run_batch", with_sigma)
+    logs = []
+    ctx = _ctx(hardware_ds, panda, tmp_path, logs)
+    row = score_row(ROWS["base-momentum"], ctx, train_split_stats(hardware_ds))
+    assert seen and set(seen) == {(1e-5, True)}
+    n = tare_samples(1000.0, TARE_SECONDS)
+    inside = []
+    for inst in hardware_ds.split("test"):
+        forces, _ = run_batch("base-momentum", panda, 1000.0, inst.q, inst.qd, inst.base_wrench)
+        inside.append(np.all(np.abs(forces - inst.truth["tip_force"])[n:] <= 2 * SIGMA, axis=1))
+    expected = float(np.mean(np.concatenate(inside)))
+    assert 0.0 < expected < 1.0  # a share the rows could get wrong either way
+    assert row["sigma_coverage"] == pytest.approx(expected, abs=1e-12)
+    write_results(tmp_path / "results.csv", [row])
+    assert "sigma_coverage" in results_columns(tmp_path / "results.csv")
+    assert float(read_results(tmp_path / "results.csv")[0]["sigma_coverage"]) == pytest.approx(expected, rel=1e-5)
+
+
+def test_without_an_error_bar_the_cell_stays_empty_and_the_log_says_why(hardware_ds, panda, tmp_path, monkeypatch):
+    """A run_batch without issue 38's keywords (the estimator before them): the rows run as before and the
+    coverage cell is empty, never a made-up figure."""
+    def before(method, robot, rate_hz, q, qd, base_wrench=None, tau_J=None, tare_seconds=0.5, value=None,
+               stream=None):
+        return run_batch(method, robot, rate_hz, q, qd, base_wrench, tau_J, tare_seconds, value, stream)
+
+    monkeypatch.setattr(analytic_rows, "run_batch", before)
+    logs = []
+    row = score_row(ROWS["base-momentum"], _ctx(hardware_ds, panda, tmp_path, logs), train_split_stats(hardware_ds))
+    assert row["status"] == "ok" and "sigma_coverage" not in row
+    assert any("sigma_coverage left empty" in m for m in logs)
+    write_results(tmp_path / "results.csv", [row])
+    assert read_results(tmp_path / "results.csv")[0]["sigma_coverage"] == ""
+
+
+# A tripwire, not a skip: it fails (XPASS, strict) as soon as main's estimator gives run_batch its
+# issue-38 keywords, so the merge that brings them must take this mark off.
+@pytest.mark.xfail(strict=True, raises=AssertionError,
+                   reason="run_batch gains encoder_resolution and with_sigma with the lead's estimator (issue 38)")
+def test_the_estimators_error_bar_reaches_the_column(hardware_ds, panda, tmp_path):
+    """The real run_batch's sigma: the column equals the share counted here from run_batch's own output."""
+    assert {"encoder_resolution", "with_sigma"} <= set(inspect.signature(run_batch).parameters)
+    row = score_row(ROWS["base-momentum"], _ctx(hardware_ds, panda, tmp_path, []), train_split_stats(hardware_ds))
+    n = tare_samples(1000.0, TARE_SECONDS)
+    inside = []
+    for inst in hardware_ds.split("test"):
+        forces, _, sigma = run_batch("base-momentum", panda, 1000.0, inst.q, inst.qd, inst.base_wrench,
+                                     encoder_resolution=1e-5, with_sigma=True)
+        assert sigma.shape == forces.shape and np.all(sigma[n:] > 0)
+        inside.append(np.all(np.abs(forces - inst.truth["tip_force"])[n:] <= 2 * sigma[n:], axis=1))
+    assert row["sigma_coverage"] == pytest.approx(float(np.mean(np.concatenate(inside))), abs=1e-12)
