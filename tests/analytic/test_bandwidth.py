@@ -100,7 +100,7 @@ def test_contact_free_estimate_noise_is_what_the_rule_predicts(method, levels, p
     """The estimator with its defaults on a contact-free stream (the arm at rest): the estimate's noise per
     axis after the window and the settling is the rule's predicted noise for the band it chose."""
     t, q, qd, w, tau = quiet_stream(panda, 6000, *levels, seed=2, moving=False)
-    est = TipForceEstimator.analytic(panda, method, call_hz=HZ)
+    est = TipForceEstimator.analytic(panda, method, call_hz=HZ, encoder_resolution=0.0)
     out = np.stack([est.estimate_tip_force(q[k], qd[k], base_wrench=w[k], tau_J=tau[k], t=t[k]) for k in range(len(t))])
     measured = float(np.sqrt(np.mean(out[1000:] ** 2)))  # RMS over axes; the true force is 0
     predicted = est._stream.predicted_noise

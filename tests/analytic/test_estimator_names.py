@@ -21,7 +21,7 @@ def test_the_names_are_the_bench_rows_names():
         assert ROWS[name].family == "analytic" and ROWS[name].task == task, name
     assert all(c in ESTIMATORS for c in ALIASES.values())
     with pytest.raises(ValueError, match="unknown estimator method 'kalman'") as err:
-        TipForceEstimator.analytic("panda", "kalman")
+        TipForceEstimator.analytic("panda", "kalman", encoder_resolution=0.0)
     assert all(name in str(err.value) for name in METHODS)  # and it lists the methods there are
 
 
@@ -30,10 +30,10 @@ def test_the_names_are_the_bench_rows_names():
                                       ("kalman_fusion", "kalman-fusion")])
 def test_an_old_method_spelling_is_the_same_estimator(old, new, panda):
     with pytest.warns(DeprecatedNameWarning, match=f"estimator method spelling '{old}' is deprecated: use '{new}'"):
-        a = TipForceEstimator.analytic(panda, old, call_hz=100.0, tare_seconds=0.0)
+        a = TipForceEstimator.analytic(panda, old, call_hz=100.0, tare_seconds=0.0, encoder_resolution=0.0)
     with warnings.catch_warnings():
         warnings.simplefilter("error", DeprecatedNameWarning)  # the canonical name is silent
-        b = TipForceEstimator.analytic(panda, new, call_hz=100.0, tare_seconds=0.0)
+        b = TipForceEstimator.analytic(panda, new, call_hz=100.0, tare_seconds=0.0, encoder_resolution=0.0)
     assert a.method == b.method == new
     rng = np.random.default_rng(0)
     q0 = np.array(panda.spec.home)

@@ -67,13 +67,13 @@ def test_a_toy_method_registered_once_is_found_everywhere(toy, panda):
     from hybrid_dyn.learn.priors import AnalyticPrior
 
     t, q, qd, w, tau, f = noisy_stream(panda, 1500)
-    est = TipForceEstimator.analytic(panda, "static-base", call_hz=HZ)
+    est = TipForceEstimator.analytic(panda, "static-base", call_hz=HZ, encoder_resolution=0.0)
     out = np.stack([est.estimate_tip_force(q[k], qd[k], base_wrench=w[k], t=t[k]) for k in range(len(t))])
     assert est.bandwidth == 0.5 * HZ and est.last_status is EstimatorStatus.OK
     # Physics: the arm moves slowly, so the quasi-static force is near the true one (the inertial part
     # is m J_com qdd: a few tenths of a newton here), far from the 15 N it is not.
     assert np.sqrt(np.mean(np.sum((out[1000:] - f[1000:]) ** 2, axis=1))) < 1.0
-    batch, used = run_batch("static-base", panda, HZ, q, qd, w, None)
+    batch, used = run_batch("static-base", panda, HZ, q, qd, w, None, encoder_resolution=0.0)
     np.testing.assert_allclose(out[501:], batch[501:], atol=1e-9)  # the stream starts after its window
     assert ROWS["static-base"].family == "analytic" and ROWS["static-base-val"].reference
     assert "static-base" in prior_kinds()
@@ -97,10 +97,10 @@ def test_streaming_step_equals_the_batch_run(method, hz, n, settled, panda):
     t, q, qd, w, tau, f = noisy_stream(panda, n, seed=3, hz=hz)
     spec = REGISTRY[method]
     kw = lambda k: {name: x[k] for name, x in (("base_wrench", w), ("tau_J", tau)) if name in spec.reads}  # noqa: E731
-    est = TipForceEstimator.analytic(panda, method, call_hz=hz)
+    est = TipForceEstimator.analytic(panda, method, call_hz=hz, encoder_resolution=0.0)
     out = np.stack([est.estimate_tip_force(q[k], qd[k], t=t[k], **kw(k)) for k in range(len(t))])
     batch, used = run_batch(method, panda, hz, q, qd, w if "base_wrench" in spec.reads else None,
-                            tau if "tau_J" in spec.reads else None)
+                            tau if "tau_J" in spec.reads else None, encoder_resolution=0.0)
     assert used == pytest.approx(est.bandwidth, rel=1e-9) and est.last_status is EstimatorStatus.OK
     window = int(0.5 * hz)  # the noise window: the stream starts after it
     np.testing.assert_allclose(out[window:], batch[window:], atol=1e-7)
@@ -112,7 +112,7 @@ def test_no_design_or_riccati_solve_runs_in_a_call(monkeypatch, panda):
     """Counted: scipy's Butterworth design and discrete Riccati solver, from construction on. None may
     run in any call, the window-closing one included (the rule picks among designs made at construction)."""
     t, q, qd, w, tau, f = noisy_stream(panda, 700)
-    estimators = {m: TipForceEstimator.analytic(panda, m, call_hz=HZ) for m in REGISTRY}
+    estimators = {m: TipForceEstimator.analytic(panda, m, call_hz=HZ, encoder_resolution=0.0) for m in REGISTRY}
     calls = {"butter": 0, "dare": 0}
 
     def counting(name, fn):

@@ -32,6 +32,7 @@ from .acceleration import (causal_acceleration, cutoff_grid, cutoff_index, defau
 from .bandwidth import WindowNoise, measure_window, observer_gain, observer_settle_calls
 from .base_momentum import BaseMomentumObserver
 from .estimators import ESTIMATORS
+from .joint_state import joint_filter_for, with_joint_state_noise
 from .kalman import (SENSORS, KalmanTipForce, channel_factors, increment_stats, window_fusion_noise)
 from .momentum_observer import MomentumObserver
 from .robot import Robot
@@ -320,16 +321,23 @@ register(Method("kalman-fusion", "both sensors fused by a Kalman filter (a call 
 
 
 def run_batch(method: str | Method, robot: Robot, rate_hz: float, q, qd, base_wrench=None, tau_J=None,
-              tare_seconds: float = 0.5, value=None, stream: MethodStream | None = None):
+              tare_seconds: float = 0.5, value=None, stream: MethodStream | None = None,
+              encoder_resolution="auto", joint_filter_bandwidth="auto"):
     """What ``TipForceEstimator`` gives over one run (N, ...) with every sample present, as a batch:
     (forces (N, 3) [N], the bandwidth used). The first ``tare_seconds`` are the noise window (0 there);
     on it the base sensor is tared (qdd: the filter that runs during the window, ``default_qdd_cutoff``), the noise is
     measured and the bandwidth chosen by the rule (``value``: fixed instead); then the method runs
     from the first sample after it (a qdd method on qdd filtered at its cutoff from the start, as the
-    estimator replays the window through it)."""
+    estimator replays the window through it). encoder_resolution [rad] ("auto": the robot description's):
+    above 0, q and qd are the joint-state filter's estimates from q (``joint_state.py``), as in the
+    estimator; 0 reads q and qd as given (exact encoders, or a dataset's white-noise sensor model)."""
     m = REGISTRY[method] if isinstance(method, str) else method
     stream = stream or m.make(robot, rate_hz)
     q, qd = np.asarray(q, float), np.asarray(qd, float)
+    res = robot.spec.encoder_resolution if encoder_resolution == "auto" else float(encoder_resolution)
+    joint = joint_filter_for(robot, rate_hz, res, joint_filter_bandwidth)
+    if joint is not None:
+        q, qd, _ = joint.run(q)
     w = None if base_wrench is None else np.asarray(base_wrench, float)
     tau = None if tau_J is None else np.asarray(tau_J, float)
     n, dt = tare_samples(rate_hz, tare_seconds), 1.0 / rate_hz
@@ -340,7 +348,8 @@ def run_batch(method: str | Method, robot: Robot, rate_hz: float, q, qd, base_wr
     w_tared = w
     if m.tares and w is not None:
         w_tared = w - base_sensor_offset(robot, q[:n], qd[:n], qdd_window[:n], w[:n])
-    noise = measure_window(q[:n], qd[:n], None if w is None else w[:n], None if tau is None else tau[:n])
+    noise = with_joint_state_noise(measure_window(q[:n], qd[:n], None if w is None else w[:n],
+                                                  None if tau is None else tau[:n]), joint)
     win = lambda x: None if x is None else x[:n]  # noqa: E731
     used = stream.fit_window(q[:n], qd[:n], qdd_window[:n], win(w_tared), win(tau), noise, value)
     qdd = causal_acceleration(qd, dt, used)[n:] if m.needs_qdd else None

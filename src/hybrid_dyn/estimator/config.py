@@ -45,6 +45,16 @@ class EstimatorConfig:
     sensor [s]; 0 = no window: trust the sensor's zero, the rule on the specifications.
     tare_contact_force: a kalman-fusion tare after the window (a base sensor that joins
     late) starts over while the joint torques see a force above this [N].
+    encoder_resolution: the joint encoders' resolution [rad per count]; "auto" takes the robot
+    description's (1e-5 rad on the Panda). Above 0, q (quantized) becomes q, qd and qdd through the
+    joint-state Kalman filter (``analytic/joint_state.py``) that every method reads; the reported qd is
+    not used (a drive's qd is the difference of the same quantized q). 0: exact encoders, q and qd used
+    as given (a simulation's, or a dataset whose sensor model says so).
+    joint_filter_bandwidth: that filter's bandwidth [rad/s] ("auto": ``joint_state.DEFAULT_OMEGA``).
+    stamp_jitter: how far a timed stream's stamps may stray from the nominal grid [s]; a step between
+    stamps is accepted within max(rate_tolerance, 2 stamp_jitter call_hz) periods of 1 / call_hz, and
+    never at two periods or more (a lost tick, or a stream at half the rate). The filters
+    run on the nominal period (the robot samples on its own clock; the stamps carry the PC's jitter).
 
     Plausibility bounds (see the module docstring):
     q_margin: how far q may lie outside the URDF position limits [rad]; encoders
@@ -72,6 +82,9 @@ class EstimatorConfig:
     rate_tolerance: float = 0.25
     fusion_force_rate: float | str = "auto"
     tare_contact_force: float = 1.0
+    encoder_resolution: float | str = "auto"
+    joint_filter_bandwidth: float | str = "auto"
+    stamp_jitter: float = 5e-4
 
     def __post_init__(self):
         if self.on_bad_input not in ("raise", "hold"):
@@ -90,5 +103,11 @@ class EstimatorConfig:
             raise UsageError(f"max_tip_force must be > 0 [N], got {self.max_tip_force!r}")
         if not self.tare_contact_force > 0:
             raise UsageError(f"tare_contact_force must be > 0 [N], got {self.tare_contact_force!r}")
+        if self.encoder_resolution != "auto" and not (isinstance(self.encoder_resolution, (int, float))
+                                                      and 0 <= self.encoder_resolution < 0.01):
+            raise UsageError(f"encoder_resolution must be 'auto' or lie in [0, 0.01) [rad], got {self.encoder_resolution!r}")
+        _auto_or_positive("joint_filter_bandwidth", self.joint_filter_bandwidth, "rad/s")
+        if not (isinstance(self.stamp_jitter, (int, float)) and 0 <= self.stamp_jitter < 1.0):
+            raise UsageError(f"stamp_jitter must lie in [0, 1) [s], got {self.stamp_jitter!r}")
         if not 0 < self.rate_tolerance < 1:
             raise UsageError(f"rate_tolerance must lie in (0, 1), got {self.rate_tolerance!r}")

@@ -121,7 +121,9 @@ class InputGate:
         self._views = tuple(views)
         self._unused = np.zeros(0)  # the gate's argument for an input this estimator does not read
         self._period = 1.0 / c.call_hz
-        self._period_tol = c.rate_tolerance * self._period
+        # Stamps jitter (the PC's clock); two periods or more is a lost tick or another rate, never jitter.
+        self._period_tol = min(max(c.rate_tolerance, 2.0 * c.stamp_jitter * c.call_hz), 1.0 - 1e-9) * self._period
+        self._resume_tol = c.rate_tolerance * self._period  # a resumption is judged on the tight tolerance
         self._max_force_sq = c.max_tip_force ** 2
 
     def accept(self, q, qd, base_wrench, tau_J, t):
@@ -170,14 +172,14 @@ class InputGate:
                 if abs(dt - self._period) > self._period_tol:
                     # One period after a sample refused for its step, the stream has resumed on
                     # rate after a gap: accept it and warm up anew. A wrong rate never gets here.
-                    if self._gap_t is not None and abs(t - self._gap_t - self._period) <= self._period_tol:
+                    if self._gap_t is not None and abs(t - self._gap_t - self._period) <= self._resume_tol:
                         resumed = True
                     else:
                         self._gap_t = t
                         raise EstimatorInputError(
                             f"t={t} s steps {dt:.6g} s from the last accepted sample, but call_hz="
                             f"{self.config.call_hz:g} expects {self._period:.6g} s +- "
-                            f"{100 * self.config.rate_tolerance:g} %: a wrong call_hz, or a gap in the stream "
+                            f"{self._period_tol:.3g} s: a wrong call_hz, or a gap in the stream "
                             "(it resumes one period after this sample)")
         self._gap_t = None
         q, qd, views_w, views_tau = self._views

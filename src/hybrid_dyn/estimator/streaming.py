@@ -90,6 +90,7 @@ import numpy as np
 from ..analytic.acceleration import CausalAccelerationFilter, cutoff_grid, default_qdd_cutoff
 from ..analytic.bandwidth import measure_window
 from ..analytic.estimators import ALIASES, estimator_name
+from ..analytic.joint_state import joint_filter_for, with_joint_state_noise
 from ..analytic.kalman import MAX_BRIDGE_CALLS
 from ..analytic.methods import REGISTRY, spec_noise
 from ..analytic.robot import Robot, load_robot
@@ -130,6 +131,12 @@ class TipForceEstimator:
         self.method = method
         self._gate = InputGate(robot, c, "base_wrench" in sensors, "tau_J" in sensors, self._optional)
         self._rate = RateCheck(nv, float(c.call_hz), c.rate_tolerance)
+        # Quantized encoders: q becomes q, qd (and qdd) through one Kalman filter every method reads
+        # (analytic methods only: a learned model reads what its training data recorded).
+        self.encoder_resolution = (robot.spec.encoder_resolution if c.encoder_resolution == "auto"
+                                   else float(c.encoder_resolution))
+        self._joint = None if model is not None else joint_filter_for(
+            robot, c.call_hz, self.encoder_resolution, c.joint_filter_bandwidth)
         # The bandwidth: a number in the config, or None for the rule at the window's end.
         param = None if self.spec is None else self.spec.parameter
         value = "auto" if param is None else getattr(c, param, "auto")  # a method's own parameter: the rule
@@ -190,6 +197,9 @@ class TipForceEstimator:
         self.qdd_cutoff_hz = self._qdd_cutoff_start if (self._needs_qdd and self._window_calls == 0) else None
         self._gate.reset()
         self._rate.reset()
+        if self._joint is not None:
+            self._joint.reset()
+        self._step_mean, self._steps = 1.0 / self.config.call_hz, 0  # a timed stream's mean step [s]
         if self._tare is not None:
             self._tare.reset()
         if self.model is not None:
@@ -205,7 +215,8 @@ class TipForceEstimator:
         if self.spec is None:
             self._warmup_calls = self.model.warmup_calls(self.config.call_hz)
         elif self._window_calls == 0:  # no window: the configured value, or the rule on the specifications
-            self.bandwidth = self._stream.close_window(spec_noise(self.robot), None, self._fixed)
+            self.bandwidth = self._stream.close_window(with_joint_state_noise(spec_noise(self.robot), self._joint),
+                                                       None, self._fixed)
             self._use_bandwidth()
             self._warmup_calls = 1 + self._stream.settle_calls(self.spec.reads)  # the first call starts it
         else:
@@ -249,9 +260,17 @@ class TipForceEstimator:
             self._restart_dynamics()
         wrong_rate = False
         if t is not None:
+            if self._gate.last_t is not None and not resumed:
+                # Single steps may jitter; their mean over ~100 calls must sit at 1 / call_hz.
+                self._step_mean += 0.01 * ((t - self._gate.last_t) - self._step_mean)
+                self._steps += 1
+                wrong_rate = self._steps >= 100 and abs(self._step_mean * self.config.call_hz - 1.0) > \
+                    self.config.rate_tolerance
             self._gate.last_t = t
         else:
             wrong_rate = self._rate.update(q, qd)
+        if self._joint is not None:
+            q, qd, _ = self._joint.step(q)
         k = self._calls
         in_window = k < self._window_calls
         tare = self._tare
@@ -333,7 +352,8 @@ class TipForceEstimator:
         """The window's white noise (``bandwidth.measure_window``) on the samples each sensor came with."""
         has = self._win_has
         rows = lambda x, i: x[has[:, i]] if has[:, i].sum() >= 8 else None  # noqa: E731
-        return measure_window(self._win_q, self._win_qd, rows(self._win_w, 0), rows(self._win_tau, 1))
+        noise = measure_window(self._win_q, self._win_qd, rows(self._win_w, 0), rows(self._win_tau, 1))
+        return with_joint_state_noise(noise, self._joint)  # a still window shows no encoder noise: predict it
 
     def _close_window(self, noise) -> None:
         """The first call after the noise window: set the bandwidth by the rule (or the config's) from the
@@ -378,6 +398,8 @@ class TipForceEstimator:
         bandwidth are kept), and it warms up for the method's settling time."""
         self._qdd_filter.reset()
         self._rate.reset()
+        if self._joint is not None:
+            self._joint.reset()
         if self.model is not None:
             self.model.reset()
             self._warmup_calls = max(self._warmup_calls, self._calls + self.model.warmup_calls(self.config.call_hz))
