@@ -1,7 +1,8 @@
 """Per-call latency of TipForceEstimator.estimate_tip_force (issues 6 and 27).
 
 20,000 single calls on one core (the process is pinned to CPU 0 and torch to
-one thread), fed a recorded-like stream at 1 kHz (smooth motion, sensor noise);
+one thread), fed the one stream simulator's 1 kHz stream read through hardware sensors
+(``sim.stream``: quantized encoders, the drive's qd, F/T and joint-torque noise);
 prints median, p99 and max microseconds for every analytic method of the registry
 (``analytic/methods.py``: the estimators' one names, the bench's rows), with its defaults (the bandwidth by the rule
 at the end of the 0.5 s window), plus kalman-fusion with a base sensor that joins
@@ -31,6 +32,7 @@ import hybrid_dyn as hd
 from hybrid_dyn.analytic.methods import REGISTRY
 from hybrid_dyn.analytic.tare import tare_samples
 from hybrid_dyn.estimator import TipForceEstimator
+from hybrid_dyn.sim.stream import StreamConfig, simulate_stream
 from hybrid_dyn.timing import time_calls
 
 N_CALLS = 20_000
@@ -42,19 +44,12 @@ assert set(P99_FLOOR_US) | {LATE_JOIN} <= set(REGISTRY), "a floor names a method
 
 
 def stream(robot, n, seed=0):
-    """A smooth joint trajectory with consistent wrench and torques (rigid-body physics, 1 kHz) and the
-    sensors' noise (base 0.2 N / 0.01 Nm, tau_J 0.05 Nm, qd 5e-4 rad/s): the noise window measures it."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(n) * 1e-3
-    centre = np.array(robot.spec.home)
-    amp, w = rng.uniform(0.1, 0.3, 7), rng.uniform(0.5, 2.0, 7)
-    q = centre + amp * np.sin(w * t[:, None])
-    qd = amp * w * np.cos(w * t[:, None])
-    qdd = -amp * w**2 * np.sin(w * t[:, None])
-    f = np.zeros((n, 3))
-    wrench = robot.base_wrench(q, qd, qdd, f) + rng.normal(0, 1, (n, 6)) * np.r_[np.full(3, 0.2), np.full(3, 0.01)]
-    tau = robot.inverse_dynamics(q, qd, qdd) + rng.normal(0, 0.05, (n, 7))
-    return t, q, qd + rng.normal(0, 5e-4, qd.shape), wrench, tau
+    """n samples of the one stream simulator's 1 kHz stream (``sim.stream.simulate_stream``: the DART Panda
+    under PD control between two poses, step and trapezoid contacts) read through the hardware sensors'
+    defaults (q quantized to the description's 1e-5 rad, qd its difference, base 0.2 N / 0.01 Nm, tau_J
+    0.05 Nm), which the estimators' defaults expect: (t, q, qd, base wrench, tau_J)."""
+    r = simulate_stream(robot, StreamConfig(seconds=n * 1e-3, dt=1e-3), seed=seed).readings
+    return r.t, r.q, r.qd, r.base_wrench, r.tau_J
 
 
 BLOCK = 1000  # calls per turn

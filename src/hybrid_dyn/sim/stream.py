@@ -21,7 +21,7 @@ from ..analytic.robot import Robot, load_robot
 from .plant import DartPlant
 from .pulses import ContactSteps, sample_contact_steps
 from .scenarios import ContactStepConfig
-from .sensors import HardwareSensors, SensorReadings, read_sensors
+from .sensors import HardwareSensors, SensorReadings, encoder_resolution, read_sensors
 
 # Joint PD gains of the stream's controller [Nm/rad, Nm s/rad] for a 7-joint arm (the Panda's
 # impedance-controller scale); other arms take the first nv.
@@ -63,13 +63,15 @@ class StreamConfig:
 @dataclass
 class ControlStream:
     """A simulated stream: ``readings`` as the sensors report them, and the truth: t [s] at the robot's
-    exact period, q [rad], qd [rad/s], tip force [N] (n, 3) in base axes."""
+    exact period, q [rad], qd [rad/s], tip force [N] (n, 3) in base axes. encoder_resolution [rad]: what
+    the encoders quantized q to (0: exact), the value to give the estimator (``EstimatorConfig``)."""
 
     readings: SensorReadings
     t: np.ndarray
     q: np.ndarray
     qd: np.ndarray
     tip_force: np.ndarray
+    encoder_resolution: float = 0.0
 
 
 def contact_force(cfg: StreamConfig, contacts: ContactSteps | None, t: np.ndarray) -> np.ndarray:
@@ -116,7 +118,7 @@ def simulate_stream(robot: Robot | str = "panda", cfg: StreamConfig = StreamConf
         out_q[k], out_qd[k], out_tau[k], out_w[k] = q, qd, tau_link, plant.base_wrench()
         q, qd = plant.q, plant.qd
     readings = read_sensors(robot, cfg.sensors, cfg.dt, out_q, out_qd, out_tau, out_w, rng)
-    return ControlStream(readings, t, out_q, out_qd, force)
+    return ControlStream(readings, t, out_q, out_qd, force, encoder_resolution(robot, cfg.sensors.encoder))
 
 
 __all__ = ["ControlStream", "StreamConfig", "Touch", "contact_force", "simulate_stream"]
