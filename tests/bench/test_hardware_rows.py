@@ -54,8 +54,23 @@ def test_the_rows_read_the_datasets_encoder_resolution(hardware_ds, panda):
     assert analytic_rows._encoder_resolution(ctx({})) == 0.0  # an imported log: q as recorded
 
 
+def test_a_legacy_datasets_rows_read_q_and_qd_as_recorded(panda, tmp_path):
+    """contact-steps (the legacy white-noise sensors): the row's RMSE is run_batch's with exact encoders
+    (encoder_resolution=0, today's rows), not the joint-state filter's the estimator defaults to."""
+    cfg = scenario_config("contact-steps", "quick", seed=2, n_instances=3, trajectories=(1, 1), standstill=0.6)
+    ds = load_dataset(generate_dataset(cfg, tmp_path / "cs", executor=SerialExecutor(), progress=False))
+    row = score_row(ROWS["base-momentum"], _ctx(ds, panda, tmp_path, []), train_split_stats(ds))
+    rmse = {}
+    for res in (0.0, "auto"):
+        err = np.concatenate([run_batch("base-momentum", panda, 1000.0, i.q, i.qd, i.base_wrench,
+                                        encoder_resolution=res)[0] - i.truth["tip_force"] for i in ds.split("test")])
+        rmse[res] = float(np.sqrt(np.mean(err ** 2)))
+    assert abs(rmse[0.0] - rmse["auto"]) > 1e-3  # the two readings differ: the test can tell them apart
+    assert row["rmse"] == pytest.approx(rmse[0.0], rel=1e-9)
+
+
 def test_the_coverage_column_is_the_share_within_two_sigma(hardware_ds, panda, tmp_path, monkeypatch):
-    """Through a run_batch with issue 38's keywords (the real one's forces, a fixed 0.5 N error bar): the
+    """Through a run_batch with the error bar (the real one's forces, a fixed 0.5 N sigma): the
     column is the share of test samples after the window whose error is within 1 N on all three axes,
     counted here; it reaches results.csv through write_results."""
     seen = []
@@ -63,7 +78,8 @@ def test_the_coverage_column_is_the_share_within_two_sigma(hardware_ds, panda, t
     def with_sigma(method, robot, rate_hz, q, qd, base_wrench=None, tau_J=None, tare_seconds=0.5, value=None,
                    stream=None, encoder_resolution=None, with_sigma=False):
         seen.append((encoder_resolution, with_sigma))
-        forces, used = run_batch(method, robot, rate_hz, q, qd, base_wrench, tau_J, tare_seconds, value, stream)
+        forces, used = run_batch(method, robot, rate_hz, q, qd, base_wrench, tau_J, tare_seconds, value, stream,
+                                 encoder_resolution=encoder_resolution)
         return (forces, used, np.full(forces.shape, SIGMA)) if with_sigma else (forces, used)
 
     monkeypatch.setattr(analytic_rows, "run_batch", with_sigma)
@@ -74,7 +90,7 @@ def test_the_coverage_column_is_the_share_within_two_sigma(hardware_ds, panda, t
     n = tare_samples(1000.0, TARE_SECONDS)
     inside = []
     for inst in hardware_ds.split("test"):
-        forces, _ = run_batch("base-momentum", panda, 1000.0, inst.q, inst.qd, inst.base_wrench)
+        forces, _ = run_batch("base-momentum", panda, 1000.0, inst.q, inst.qd, inst.base_wrench, encoder_resolution=1e-5)
         inside.append(np.all(np.abs(forces - inst.truth["tip_force"])[n:] <= 2 * SIGMA, axis=1))
     expected = float(np.mean(np.concatenate(inside)))
     assert 0.0 < expected < 1.0  # a share the rows could get wrong either way
@@ -85,16 +101,20 @@ def test_the_coverage_column_is_the_share_within_two_sigma(hardware_ds, panda, t
 
 
 def test_without_an_error_bar_the_cell_stays_empty_and_the_log_says_why(hardware_ds, panda, tmp_path, monkeypatch):
-    """A run_batch without issue 38's keywords (the estimator before them): the rows run as before and the
-    coverage cell is empty, never a made-up figure."""
+    """A run_batch without the error bar (the estimator before with_sigma): the rows run at the dataset's
+    encoder resolution and the coverage cell is empty, never a made-up figure."""
+    seen = []
+
     def before(method, robot, rate_hz, q, qd, base_wrench=None, tau_J=None, tare_seconds=0.5, value=None,
-               stream=None):
-        return run_batch(method, robot, rate_hz, q, qd, base_wrench, tau_J, tare_seconds, value, stream)
+               stream=None, encoder_resolution="auto"):
+        seen.append(encoder_resolution)
+        return run_batch(method, robot, rate_hz, q, qd, base_wrench, tau_J, tare_seconds, value, stream,
+                         encoder_resolution=encoder_resolution)
 
     monkeypatch.setattr(analytic_rows, "run_batch", before)
     logs = []
     row = score_row(ROWS["base-momentum"], _ctx(hardware_ds, panda, tmp_path, logs), train_split_stats(hardware_ds))
-    assert row["status"] == "ok" and "sigma_coverage" not in row
+    assert row["status"] == "ok" and "sigma_coverage" not in row and set(seen) == {1e-5}
     assert any("sigma_coverage left empty" in m for m in logs)
     write_results(tmp_path / "results.csv", [row])
     assert read_results(tmp_path / "results.csv")[0]["sigma_coverage"] == ""

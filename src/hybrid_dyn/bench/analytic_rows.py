@@ -74,10 +74,10 @@ def _chosen_on_val(ctx, name: str, grid, estimate) -> float:
     return ctx.cache[key]
 
 
-def _batch_accepts() -> set:
-    """The keywords of issue 38 that ``run_batch`` takes (``encoder_resolution``, ``with_sigma``): until the
-    estimator has them, rows run as before (exact encoders) and the coverage column stays empty."""
-    return {"encoder_resolution", "with_sigma"} & set(inspect.signature(run_batch).parameters)
+def _gives_sigma() -> bool:
+    """Whether ``run_batch`` gives the error bar (``with_sigma``, issue 38): until the estimator has it,
+    the coverage column stays empty."""
+    return "with_sigma" in inspect.signature(run_batch).parameters
 
 
 def _encoder_resolution(ctx) -> float:
@@ -95,9 +95,8 @@ def _method_run(method, robot, inst, ctx, value=None):
     it, at the dataset's encoder resolution (cached per value)."""
     key = ("method-run", method.name, inst.name, value)
     if key not in ctx.cache:
-        accepts = _batch_accepts()
-        kw = {"encoder_resolution": _encoder_resolution(ctx)} if "encoder_resolution" in accepts else {}
-        if "with_sigma" in accepts:
+        kw = {"encoder_resolution": _encoder_resolution(ctx)}
+        if _gives_sigma():
             kw["with_sigma"] = True
         out = run_batch(method, robot, ctx.dataset.meta["record_hz"], inst.q, inst.qd,
                         inst.base_wrench if "base_wrench" in method.reads else None,
@@ -110,7 +109,7 @@ def _sigma_coverage(method, ctx, value=None):
     """A callable for the row's ``sigma_coverage``: the share of the test samples after each run's window
     whose error lies within 2 sigma on every axis; None (an empty cell) while run_batch gives no sigma."""
     def coverage():
-        if "with_sigma" not in _batch_accepts():
+        if not _gives_sigma():
             if not ctx.cache.get("no-sigma-logged"):
                 ctx.cache["no-sigma-logged"] = True
                 ctx.log(f"[bench] {ctx.scenario}: sigma_coverage left empty: this run_batch gives no error bar "
@@ -130,11 +129,13 @@ def _sigma_coverage(method, ctx, value=None):
 
 
 def _user_call(method):
-    """The user's call, per sample: a TipForceEstimator with its defaults at the data's rate, fresh per run."""
+    """The user's call, per sample: a TipForceEstimator with its defaults at the data's rate and encoder
+    resolution, fresh per run."""
     def call(robot, inst, k, ctx):
         if k == 0:
             ctx.cache[("estimator", method.name)] = TipForceEstimator(
-                robot, method.name, EstimatorConfig(call_hz=ctx.dataset.meta["record_hz"]))
+                robot, method.name, EstimatorConfig(call_hz=ctx.dataset.meta["record_hz"],
+                                                    encoder_resolution=_encoder_resolution(ctx)))
         kw = {name: inst[name][k] for name in method.reads}
         return ctx.cache[("estimator", method.name)].estimate_tip_force(inst.q[k], inst.qd[k], **kw)
 
@@ -169,6 +170,7 @@ def declare_method_rows(method) -> None:
         if k == 0:
             ctx.cache[("estimator-val", method.name)] = TipForceEstimator(
                 robot, method.name, EstimatorConfig(call_hz=ctx.dataset.meta["record_hz"],
+                                                    encoder_resolution=_encoder_resolution(ctx),
                                                     **{method.parameter: chosen(ctx)}))
         kw = {name: inst[name][k] for name in method.reads}
         return ctx.cache[("estimator-val", method.name)].estimate_tip_force(inst.q[k], inst.qd[k], **kw)
