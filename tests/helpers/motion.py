@@ -2,12 +2,15 @@
 
 - ``simulate_with_tip_force``: M qdd + h = tau + J_v^T F with a constant F, integrated by scipy's
   RK45 on Pinocchio's ABA (the momentum observers' reference);
-- ``sine_motion`` and ``contact_stream``: exact rigid-body samples of per-joint sines, with sensor
-  noise and a constant contact (the streaming estimator's and the methods' streams).
+- ``sine_motion`` and ``contact_stream``: exact rigid-body samples of per-joint sines and a constant
+  contact, read through the project's one sensor model (``sim.sensors.read_sensors``: the streaming
+  estimator's and the methods' streams).
 """
 import numpy as np
 import pinocchio as pin
 from scipy.integrate import solve_ivp
+
+from hybrid_dyn.sim.sensors import ClockModel, EncoderModel, ForceTorqueModel, HardwareSensors, read_sensors
 
 HZ = 1000.0  # the streams' rate [Hz]
 
@@ -50,16 +53,20 @@ CONTACT = np.array([0.5, -0.6, -0.8]) / np.linalg.norm([0.5, -0.6, -0.8]) * 15.0
 CONTACT_AT = 1.0  # s
 
 
+# contact_stream's sensors: exact encoders (its streams declare encoder_resolution=0 to the estimator), a
+# base sensor with 0.05 N (0.0025 Nm) noise and up to 2 N (0.1 Nm) of offset, joint torques at 0.02 Nm.
+CONTACT_SENSORS = HardwareSensors(EncoderModel(0.0, "exact"), ForceTorqueModel(0.05, 0.0025, 2.0, 0.1), ClockModel(0.0),
+                                  tau_J_noise=0.02)
+
+
 def contact_stream(robot, n, hz=HZ, seed=0, contact_at=CONTACT_AT):
-    """Rigid-body samples of a smooth motion with sensor noise (base 0.05 N, tau_J 0.02 Nm, qd 2e-4 rad/s),
-    a base-sensor offset, and a constant 15 N contact from CONTACT_AT: (samples with true t, true forces)."""
+    """Rigid-body samples of a smooth motion and a constant 15 N contact from ``contact_at`` [s], read through
+    CONTACT_SENSORS: (samples with the sensors' t, true forces)."""
     rng = np.random.default_rng(seed)
     t = np.arange(n) / hz
     q, qd, qdd = sine_motion(robot, t, rng, (0.05, 0.25))
     f = np.where(t[:, None] >= contact_at, CONTACT, 0.0)
     jv = robot.tip_jacobian(q)[:, :3]
-    tau = robot.inverse_dynamics(q, qd, qdd) - np.einsum("nij,ni->nj", jv, f) + rng.normal(0, 0.02, q.shape)
-    wrench = robot.base_wrench(q, qd, qdd, tip_force=f) + rng.uniform(-1, 1, 6) * np.r_[np.full(3, 2.0), np.full(3, 0.1)]
-    wrench += rng.normal(0, 0.05, wrench.shape) * np.r_[np.ones(3), np.full(3, 0.05)]
-    q_m, qd_m = q + rng.normal(0, 1e-5, q.shape), qd + rng.normal(0, 2e-4, qd.shape)
-    return [dict(q=q_m[k], qd=qd_m[k], base_wrench=wrench[k], tau_J=tau[k], t=t[k]) for k in range(n)], f
+    tau = robot.inverse_dynamics(q, qd, qdd) - np.einsum("nij,ni->nj", jv, f)
+    r = read_sensors(robot, CONTACT_SENSORS, 1.0 / hz, q, qd, tau, robot.base_wrench(q, qd, qdd, tip_force=f), rng)
+    return [dict(q=r.q[k], qd=r.qd[k], base_wrench=r.base_wrench[k], tau_J=r.tau_J[k], t=r.t[k]) for k in range(n)], f
