@@ -11,7 +11,8 @@ Two families live here, each defined once:
   difference through a stated first-order filter), link-side joint torque sensors with white noise,
   a 6-axis base F/T sensor with white noise, a per-stream bias, a linear bias drift and a delay, and
   the timestamps a control PC puts on the samples (jitter). One closed-loop stream simulator
-  (``sim/stream.py``) reads a stream through them, for the generator's hardware scenario, the tests,
+  (``sim/stream.py``) reads a stream through them (``read_sensors``), as does the generator for its
+  ``contact-steps-hardware`` scenario (``GeneratorConfig.sensors``); the stream serves the tests,
   ``benchmarks/``, ``checks/`` and ``examples/``.
 
 The older :class:`~hybrid_dyn.sim.scenarios.NoiseConfig` (independent white noise on q and qd) stays

@@ -9,7 +9,9 @@ touch during start-up for instance). The true run is then read through :class:`H
 base F/T sensor with noise, bias, drift and delay, and jittered stamps.
 
 This is the one stream the tests, ``checks/``, ``benchmarks/`` and ``examples/`` run the estimator on
-(:func:`simulate_stream`), and it makes the instances of the ``contact-steps-hardware`` scenario.
+(:func:`simulate_stream`). The generator's ``contact-steps-hardware`` scenario reads its runs (the
+generator's own simulator, ``simulator.py``: random trajectories under computed torque) through the
+same sensor model, ``read_sensors``.
 """
 from __future__ import annotations
 
