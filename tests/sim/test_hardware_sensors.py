@@ -12,7 +12,7 @@ from hybrid_dyn.data import load_dataset
 from hybrid_dyn.sim.executors import SerialExecutor
 from hybrid_dyn.sim.generator import generate_dataset
 from hybrid_dyn.sim.scenarios import (
-    SCENARIOS, SIZES, ConfigError, GeneratorConfig, NoiseConfig, StartTouchConfig, scenario_config)
+    SCENARIOS, SIZES, ConfigError, GeneratorConfig, NoiseConfig, StartTouchConfig, noise_free, scenario_config)
 from hybrid_dyn.sim.sensors import (
     ClockModel, EncoderModel, ForceTorqueModel, HardwareSensors, encoder_resolution, read_sensors)
 from hybrid_dyn.sim.stream import StreamConfig, Touch, simulate_stream
@@ -146,6 +146,10 @@ def test_the_config_records_its_sensor_model():
                | {h for hs in PINNED_HASHES.values() for h in hs}) == 21
     with pytest.raises(ConfigError, match="noise must then be NoiseConfig.off"):
         scenario_config("contact-steps-hardware", noise=NoiseConfig())
+    # --no-noise: the hardware model made exact (not dropped: the dataset still says which model read it).
+    ideal = scenario_config("contact-steps-hardware", **noise_free("contact-steps-hardware"))
+    assert ideal.sensors == HardwareSensors.exact() and ideal.to_dict()["sensors"]["model"] == "hardware"
+    assert noise_free("contact-steps") == {"noise": NoiseConfig.off()}
 
 
 def test_the_hardware_scenario_generates_a_dataset_its_sensors_read(tmp_path):

@@ -58,10 +58,10 @@ def cmd_generate(args) -> int:
     from ..data.store import DatasetStore
     from .executors import make_executor
     from .generator import generate_dataset
-    from .scenarios import NoiseConfig, scenario_config
+    from .scenarios import noise_free, scenario_config
 
     _check_args(args)
-    overrides = {"noise": NoiseConfig.off()} if args.no_noise else {}
+    overrides = noise_free(args.scenario) if args.no_noise else {}
     cfg = scenario_config(args.scenario, args.size, seed=args.seed, **overrides)
     executor = make_executor(args.workers, args.executor, args.ray_address)
     out = generate_dataset(cfg, args.out, executor=executor, progress=not args.quiet)

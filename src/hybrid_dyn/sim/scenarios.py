@@ -449,6 +449,13 @@ for _scenario in (
     register(_scenario)
 
 
+def noise_free(name: str) -> dict:
+    """The overrides that make scenario ``name``'s sensors ideal (measured fields equal the truth; qdd stays
+    an estimate): the legacy noise off, and a hardware sensor model, if it has one, exact."""
+    has_hardware = get_scenario(name).overrides.get("sensors") is not None
+    return {"noise": NoiseConfig.off(), **({"sensors": HardwareSensors.exact()} if has_hardware else {})}
+
+
 @renamed_keyword("profile", "size", why="a generator size, not a bench profile")
 def scenario_config(name: str, size: str = "quick", seed: int = 0, **overrides) -> GeneratorConfig:
     """The configuration of a named scenario (PROTOCOL 2) at a size (:data:`SIZES`).
