@@ -195,13 +195,7 @@ class Simulator:
             "base_wrench": W_rec + bias + w_std * rng.standard_normal((R, 6)),
             "tip_force": f_tip,
         }
-        err = q_ref - Q
-        attrs = {
-            "tracking_rms": np.sqrt(np.mean(err**2, axis=0)),  # rad, per joint, at the control rate
-            "tracking_max": np.max(np.abs(err), axis=0),      # rad
-            "base_wrench_bias": bias,
-            "duration_s": float(len(Q) * cfg.dt),
-        }
+        attrs = {**_tracking(q_ref, Q), "base_wrench_bias": bias, "duration_s": float(len(Q) * cfg.dt)}
         return SimulatedRun(fields, truth, attrs)
 
     def _hardware_sensors(self, truth, q_ref, Q, rng) -> SimulatedRun:
@@ -217,15 +211,16 @@ class Simulator:
         fields = {"t": truth["t"] + (r.t - np.arange(len(r.t)) * period), "q": r.q, "qd": r.qd, "qdd": qdd,
                   "tau_m": truth["tau_m"], "tau_J": r.tau_J, "base_wrench": r.base_wrench,
                   "tip_force": truth["tip_force"]}
-        err = q_ref - Q
-        attrs = {
-            "tracking_rms": np.sqrt(np.mean(err**2, axis=0)),  # rad, per joint, at the control rate
-            "tracking_max": np.max(np.abs(err), axis=0),      # rad
-            "base_wrench_bias": r.bias,                       # N, Nm at t = 0
-            "base_wrench_drift": r.drift,                     # N/s, Nm/s
-            "duration_s": float(len(Q) * cfg.dt),
-        }
+        # The base sensor's drawn bias [N, Nm] at t = 0 and drift [N/s, Nm/s].
+        attrs = {**_tracking(q_ref, Q), "base_wrench_bias": r.bias, "base_wrench_drift": r.drift,
+                 "duration_s": float(len(Q) * cfg.dt)}
         return SimulatedRun(fields, truth, attrs)
+
+
+def _tracking(q_ref, Q) -> dict:
+    """The run's tracking errors [rad] per joint at the control rate: RMS and largest, reference minus true."""
+    err = q_ref - Q
+    return {"tracking_rms": np.sqrt(np.mean(err**2, axis=0)), "tracking_max": np.max(np.abs(err), axis=0)}
 
 
 def _check(x, name, width):
