@@ -121,6 +121,15 @@ class JointStateFilter:
             x += self._K * (q - x[0])
         return x[0], x[1], x[2]
 
+    def coast(self, steps: int, max_steps: int = 50) -> None:
+        """``steps`` samples lost: predict across them, or start over when more than ``max_steps`` were
+        (beyond ~50 ms a constant acceleration is no prediction of an arm's motion)."""
+        if steps > max_steps or not self._started:
+            self.reset()
+            return
+        for _ in range(max(steps, 0)):
+            self.x[:] = self._A @ self.x
+
     def run(self, q: np.ndarray) -> np.ndarray:
         """``step`` over (n, nv) from a start: (3, n, nv) = q, qd, qdd estimates."""
         self.reset()

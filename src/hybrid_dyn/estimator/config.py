@@ -26,6 +26,7 @@ class EstimatorStatus(str, Enum):
     OUT_OF_RANGE = "input out of training range"  # learned model: input outside its training distribution
     WRONG_RATE = "wrong rate"            # an untimed stream spaced unlike 1 / call_hz (RateCheck)
     NO_SENSOR = "no usable sensor"       # this call brings nothing the method can estimate from
+    UNCERTAIN = "uncertain"              # the predicted error (last_sigma) exceeds EstimatorConfig.max_sigma
 
 
 def _auto_or_positive(name: str, value, unit: str) -> None:
@@ -51,10 +52,15 @@ class EstimatorConfig:
     not used (a drive's qd is the difference of the same quantized q). 0: exact encoders, q and qd used
     as given (a simulation's, or a dataset whose sensor model says so).
     joint_filter_bandwidth: that filter's bandwidth [rad/s] ("auto": ``joint_state.DEFAULT_OMEGA``).
-    stamp_jitter: how far a timed stream's stamps may stray from the nominal grid [s]; a step between
-    stamps is accepted within max(rate_tolerance, 2 stamp_jitter call_hz) periods of 1 / call_hz, and
-    never at two periods or more (a lost tick, or a stream at half the rate). The filters
+    stamp_jitter: how far a timed stream's stamps may stray from the robot's sample clock [s]: a stamp
+    is accepted within max(rate_tolerance / call_hz, 1.5 stamp_jitter) of the clock (the stamps' own
+    grid, followed slowly), never 0.9 periods or more off it (a lost tick, or another rate). The filters
     run on the nominal period (the robot samples on its own clock; the stamps carry the PC's jitter).
+
+    max_sigma: a call is ``ok`` only while its predicted 1-sigma error (``last_sigma``) is below this on
+    every axis [N]; above it the status is "uncertain". motion_sigma_gain [N per rad/s^2] and
+    base_drift_rate [N/s, the base sensor's bias drift after its tare]: the error model's motion and
+    drift terms (``estimator/error_bar.py``).
 
     Plausibility bounds (see the module docstring):
     q_margin: how far q may lie outside the URDF position limits [rad]; encoders
@@ -85,6 +91,9 @@ class EstimatorConfig:
     encoder_resolution: float | str = "auto"
     joint_filter_bandwidth: float | str = "auto"
     stamp_jitter: float = 5e-4
+    max_sigma: float = 0.8
+    motion_sigma_gain: float = 0.1
+    base_drift_rate: float = 0.005
 
     def __post_init__(self):
         if self.on_bad_input not in ("raise", "hold"):
@@ -101,6 +110,12 @@ class EstimatorConfig:
                 raise UsageError(f"{name} must be >= 0, got {getattr(self, name)!r}")
         if not self.max_tip_force > 0:
             raise UsageError(f"max_tip_force must be > 0 [N], got {self.max_tip_force!r}")
+        for name in ("max_sigma",):
+            if not (isinstance(getattr(self, name), (int, float)) and getattr(self, name) > 0):
+                raise UsageError(f"{name} must be > 0 [N], got {getattr(self, name)!r}")
+        for name in ("motion_sigma_gain", "base_drift_rate"):
+            if not (isinstance(getattr(self, name), (int, float)) and getattr(self, name) >= 0):
+                raise UsageError(f"{name} must be >= 0, got {getattr(self, name)!r}")
         if not self.tare_contact_force > 0:
             raise UsageError(f"tare_contact_force must be > 0 [N], got {self.tare_contact_force!r}")
         if self.encoder_resolution != "auto" and not (isinstance(self.encoder_resolution, (int, float))

@@ -96,6 +96,7 @@ from ..analytic.methods import REGISTRY, spec_noise
 from ..analytic.robot import Robot, load_robot
 from ..analytic.tare import StreamingTare, tare_samples
 from .config import EstimatorConfig, EstimatorStatus
+from .error_bar import ErrorBar, qdd_norm
 from .input import EstimatorInputError, InputGate, RateCheck
 
 # The analytic methods, by the estimators' one name (analytic/methods.py registers them; the older
@@ -105,9 +106,10 @@ METHOD_ALIASES = {a: c for a, c in ALIASES.items() if c in METHODS}
 
 
 # The statuses as plain names for the per-call path: an Enum member looked up on its class costs ~0.3 us.
-_OK, _WARMING_UP, _OUT_OF_RANGE, _FORCE_OUT_OF_RANGE, _WRONG_RATE, _NO_SENSOR = (
+_OK, _WARMING_UP, _OUT_OF_RANGE, _FORCE_OUT_OF_RANGE, _WRONG_RATE, _NO_SENSOR, _UNCERTAIN = (
     EstimatorStatus.OK, EstimatorStatus.WARMING_UP, EstimatorStatus.OUT_OF_RANGE, EstimatorStatus.FORCE_OUT_OF_RANGE,
-    EstimatorStatus.WRONG_RATE, EstimatorStatus.NO_SENSOR)
+    EstimatorStatus.WRONG_RATE, EstimatorStatus.NO_SENSOR, EstimatorStatus.UNCERTAIN)
+_NO_SIGMA = np.full(3, np.inf)  # no estimate yet (the noise window): an unbounded error bar
 
 
 class TipForceEstimator:
@@ -137,6 +139,7 @@ class TipForceEstimator:
                                    else float(c.encoder_resolution))
         self._joint = None if model is not None else joint_filter_for(
             robot, c.call_hz, self.encoder_resolution, c.joint_filter_bandwidth)
+        self._error_bar = ErrorBar(c.call_hz, c.motion_sigma_gain, c.base_drift_rate)
         # The bandwidth: a number in the config, or None for the rule at the window's end.
         param = None if self.spec is None else self.spec.parameter
         value = "auto" if param is None else getattr(c, param, "auto")  # a method's own parameter: the rule
@@ -199,7 +202,10 @@ class TipForceEstimator:
         self._rate.reset()
         if self._joint is not None:
             self._joint.reset()
-        self._step_mean, self._steps = 1.0 / self.config.call_hz, 0  # a timed stream's mean step [s]
+        self._error_bar.reset()
+        self.last_sigma = _NO_SIGMA.copy()
+        self._motion = 0.0  # this call's joint-acceleration norm [rad/s^2], for the error bar
+        self._tared_at = None  # the call at which the base sensor's offset was last set
         if self._tare is not None:
             self._tare.reset()
         if self.model is not None:
@@ -244,6 +250,7 @@ class TipForceEstimator:
         if tare is None:
             raise ValueError("this estimator does not use the base sensor's tare")
         tare.set_offset(offset)
+        self._tared_at = self._calls
 
     # ---------------------------------------------------------------- call
     def estimate_tip_force(self, q, qd, base_wrench=None, tau_J=None, t=None) -> np.ndarray:
@@ -257,20 +264,15 @@ class TipForceEstimator:
             self.last_rejection = str(err)
             return self._last_good.copy()
         if resumed:
-            self._restart_dynamics()
+            self._restart_dynamics(t - self._gate.last_t)
         wrong_rate = False
         if t is not None:
-            if self._gate.last_t is not None and not resumed:
-                # Single steps may jitter; their mean over ~100 calls must sit at 1 / call_hz.
-                self._step_mean += 0.01 * ((t - self._gate.last_t) - self._step_mean)
-                self._steps += 1
-                wrong_rate = self._steps >= 100 and abs(self._step_mean * self.config.call_hz - 1.0) > \
-                    self.config.rate_tolerance
             self._gate.last_t = t
         else:
             wrong_rate = self._rate.update(q, qd)
         if self._joint is not None:
-            q, qd, _ = self._joint.step(q)
+            q, qd, qdd_joint = self._joint.step(q)
+            self._motion = qdd_norm(qdd_joint)
         k = self._calls
         in_window = k < self._window_calls
         tare = self._tare
@@ -288,7 +290,7 @@ class TipForceEstimator:
             self._stream.window_step(q, qd, qdd, base_wrench, tau_J)
             if self._calls == self._window_calls:  # the window's last call measures its noise...
                 self._window_noise = self._measure_window()
-            return self._finish(self._last_good, True, wrong_rate, True)
+            return self._finish(self._last_good, True, wrong_rate, True, estimated=False)
         if self._window_noise is not None:  # ...and the next one applies the rule: no call does both
             self._close_window(self._window_noise)
             if self.spec.needs_qdd:
@@ -297,6 +299,7 @@ class TipForceEstimator:
             tare.reset()  # a late tare must not average over a contact the torques see: start over
         if not self._base_tared and tare.done:
             self._base_tared = True
+            self._tared_at = self._calls
         w_in = tared if self._base_tared else None
         usable = True
         if self._optional:
@@ -304,9 +307,22 @@ class TipForceEstimator:
         f = self._stream.step(q, qd, qdd, w_in, tau_J)
         return self._finish(f, True, wrong_rate, usable)
 
-    def _finish(self, f, in_range, wrong_rate, usable) -> np.ndarray:
-        """The status of this call's estimate f, and f (a copy); a force within the bound is kept."""
+    def _finish(self, f, in_range, wrong_rate, usable, estimated=True) -> np.ndarray:
+        """The status of this call's estimate f, and f (a copy); a force within the bound is kept.
+        estimated: f is the method's estimate of this call (not the held one of the noise window)."""
+        if self._calls < self._warmup_calls:  # the method's own transient: no error model of it
+            estimated = False
+            self._error_bar.reset()
+        if estimated:
+            since = None
+            if self._tared_at is not None:
+                since = (self._calls - self._tared_at) / self.config.call_hz
+            self.last_sigma = self._error_bar.update(f, self._motion, since)
+        else:
+            self.last_sigma = _NO_SIGMA.copy()
         status = _OK if in_range else _OUT_OF_RANGE
+        if status is _OK and not self.last_sigma.max() <= self.config.max_sigma:
+            status = _UNCERTAIN
         if self._calls < self._warmup_calls:
             status = _WARMING_UP
         if not usable:
@@ -367,6 +383,8 @@ class TipForceEstimator:
         self.bandwidth = self._stream.close_window(noise, offset, self._fixed)
         self._use_bandwidth(replay=self._win_qd)
         self._base_tared = tare is None or tare.done
+        if tare is not None and tare.done:
+            self._tared_at = self._calls
         self._absent, self._active = [-1, -1], ()
         # A qdd method has no transient (its filter was replayed); an observer settles; kalman-fusion settles
         # for the sensors it gets (``_track_sensors``).
@@ -393,13 +411,15 @@ class TipForceEstimator:
         self.qdd_cutoff_hz = self.bandwidth
         return None if replay is None else self._qdd_filter.replay(replay)
 
-    def _restart_dynamics(self) -> None:
-        """After a gap in a timed stream: the filter and the method restart (a finished tare and the
-        bandwidth are kept), and it warms up for the method's settling time."""
+    def _restart_dynamics(self, gap_seconds: float) -> None:
+        """After a gap of ``gap_seconds`` in a timed stream: the filter and the method restart (a finished
+        tare and the bandwidth are kept), and it warms up for the method's settling time. The joint-state
+        filter predicts across a short gap (its state stays the arm's) and starts over after a long one."""
         self._qdd_filter.reset()
         self._rate.reset()
         if self._joint is not None:
-            self._joint.reset()
+            self._joint.coast(int(round(gap_seconds * self.config.call_hz)) - 1)
+        self._error_bar.reset()
         if self.model is not None:
             self.model.reset()
             self._warmup_calls = max(self._warmup_calls, self._calls + self.model.warmup_calls(self.config.call_hz))
