@@ -56,7 +56,7 @@ def write_bag(path, sig, kind="mcap", joint_order=None, extra_joints=(), js_stam
     ``joint_order(k)``: the joint order of message k (a permutation of 0..6; default the robot's);
     ``extra_joints``: names of another arm's joints in the same messages (values 9.9: never the robot's);
     ``js_stamps`` / ``wrench_stamps``: header stamps [ns] (default ``sig["stamps"]``; 0 = unset);
-    ``receive_ns``: the bag's receive times [ns] (default the stamps, or T0_NS + k ms where a stamp is 0).
+    ``receive_ns``: the bag's receive times [ns] (default ``sig["stamps"]``: the recorder's clock).
     Returns the path a spec names: the folder, the ``.mcap`` file in it, or the ``.bag``."""
     from rosbags.rosbag1 import Writer as Writer1
     from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
@@ -66,8 +66,8 @@ def write_bag(path, sig, kind="mcap", joint_order=None, extra_joints=(), js_stam
     n = len(sig["t"])
     js_stamps = sig["stamps"] if js_stamps is None else np.asarray(js_stamps)
     wrench_stamps = sig["stamps"] if wrench_stamps is None else np.asarray(wrench_stamps)
-    if receive_ns is None:
-        receive_ns = np.where(js_stamps > 0, js_stamps, T0_NS + np.arange(n) * 1_000_000)
+    if receive_ns is None:  # the recorder's clock: the true times, whatever the headers say
+        receive_ns = sig["stamps"]
     JointState, WrenchStamped = store.types["sensor_msgs/msg/JointState"], store.types["geometry_msgs/msg/WrenchStamped"]
     Wrench, Vector3 = store.types["geometry_msgs/msg/Wrench"], store.types["geometry_msgs/msg/Vector3"]
     writer = Writer1(path) if kind == "ros1" else Writer2(
