@@ -94,15 +94,16 @@ def write_bag(path, sig, kind="mcap", joint_order=None, extra_joints=(), js_stam
     return path / f"{path.name}.mcap" if kind == "mcap" else path
 
 
-def ros_spec(folder, bag, name="my-bag", tip=True, base=True, extra="", blocks=False):
+def ros_spec(folder, bag, name="my-bag", tip=True, base=True, extra="", blocks=0):
     """The import spec of a bag written by ``write_bag``, in ``folder/spec.toml``."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     text = (f'name = "{name}"\nrobot = "panda"\n[source]\nfiles = ["{Path(bag).resolve().as_posix()}"]\n'
             '[ros]\njoint_states = "/joint_states"\n' + ('base_wrench = "/ft_base"\n' if base else "")
             + ('tip_wrench = "/ft_tool"\n' if tip else "") + extra)
-    if blocks:  # one recording, cut in time blocks for a time-ordered split (a bench needs a test split)
-        text += '[trajectories]\nfrom = "blocks"\nn_blocks = 10\n[split]\nby = "time"\ntest_frac = 0.2\nval_frac = 0.25\n'
+    if blocks:  # one recording cut in this many time blocks, split in time order (a bench needs a test split)
+        text += (f'[trajectories]\nfrom = "blocks"\nn_blocks = {blocks}\n[split]\nby = "time"\ntest_frac = 0.2\n'
+                 'val_frac = 0.25\n')
     spec = folder / "spec.toml"
     spec.write_text(text)
     return spec

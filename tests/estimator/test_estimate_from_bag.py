@@ -1,0 +1,112 @@
+"""``hybrid-dyn estimate`` (issue 41): a recorded ROS 2 bag replayed through the streaming estimator, the
+tip force written to an MCAP bag (or a CSV) at the input's stamps.
+
+The reference: the tip force the bag was built with (``helpers/ros_bags.py``: the base wrench is the
+rigid-body reaction of a Panda motion with that force, plus 0.1 N of sensor noise), read back from the
+output with ``rosbags``, not with the code under test.
+"""
+import csv
+
+import numpy as np
+import pytest
+
+from hybrid_dyn.cli import main as cli_main
+from hybrid_dyn.estimator.replay import Replay, write_estimate
+
+from helpers.messages import says
+from helpers.ros_bags import panda_signals, ros_spec, write_bag
+
+N, HZ = 3000, 1000.0
+DIRECTION = np.array([0.3, -0.5, -0.8]) / np.linalg.norm([0.3, -0.5, -0.8])
+
+
+def known_force(n=N, hz=HZ):
+    """No contact in the first second (the estimator's noise window needs none), then a 0.2 s ramp to a
+    force of 4-8 N (6 + 2 sin) along a fixed direction [N]."""
+    t = np.arange(n) / hz
+    ramp = 0.5 - 0.5 * np.cos(np.pi * np.clip((t - 1.0) / 0.2, 0, 1))
+    return (ramp * (6.0 + 2.0 * np.sin(2 * np.pi * 0.4 * (t - 1.0))))[:, None] * DIRECTION
+
+
+@pytest.fixture(scope="module")
+def recording(panda, tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("estimate")
+    sig = panda_signals(panda, n=N, hz=HZ, force=known_force(), base_noise=0.1, seed=3)
+    bag = write_bag(tmp / "run", sig, kind="mcap")
+    return tmp, sig, ros_spec(tmp / "spec", bag)
+
+
+def read_topics(path):
+    from rosbags.highlevel import AnyReader
+
+    out = {}
+    with AnyReader([path]) as reader:
+        for conn, logged, raw in reader.messages():
+            out.setdefault(conn.topic, []).append((logged, reader.deserialize(raw, conn.msgtype)))
+    return out
+
+
+@pytest.mark.slow  # 3000 estimator calls and an MCAP bag: ~10 s on a busy core
+def test_the_tip_force_topic_is_within_half_a_newton_of_the_truth_at_the_inputs_stamps(recording, capsys):
+    tmp, sig, spec = recording
+    out = tmp / "tip.mcap"
+    assert cli_main(["estimate", str(spec), "--method", "base-momentum", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    topics = read_topics(out)
+    force, status = topics["/tip_force"], topics["/tip_force/status"]
+    stamps = np.array([m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for _, m in force])
+    np.testing.assert_array_equal(stamps, sig["stamps"])  # every input sample, at its own stamp
+    np.testing.assert_array_equal([logged for logged, _ in force], sig["stamps"])
+    np.testing.assert_array_equal([logged for logged, _ in status], sig["stamps"])
+    assert {m.header.frame_id for _, m in force} == {"panda_link0"}  # the base frame
+    f = np.array([[m.wrench.force.x, m.wrench.force.y, m.wrench.force.z] for _, m in force])
+    states = [m.data for _, m in status]
+    ok = np.array([s == "ok" for s in states])
+    # The start-up window (0.5 s of noise window, then the observer's settling) is all it leaves out.
+    assert not ok[:500].any() and ok[700:].all(), sorted(set(states))
+    truth = sig["tip_force"]
+    assert np.linalg.norm(truth[ok], axis=1).min() == 0 and np.linalg.norm(truth[1200:], axis=1).min() > 3.9
+    rms = np.sqrt(np.mean(np.sum((f[ok] - truth[ok]) ** 2, axis=1)))
+    assert rms < 0.5, rms
+    assert np.sqrt(np.mean(np.sum(truth[ok] ** 2, axis=1))) > 10 * rms  # a zero estimate would fail by far
+    assert f"{rms:.4f} N RMS" in printed  # the command prints the same figure
+    png = out.with_suffix(".png")
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.slow  # 3000 estimator calls
+def test_a_csv_out_holds_the_same_estimate_and_nothing_existing_is_overwritten(recording, capsys):
+    tmp, sig, spec = recording
+    out = tmp / "tip-csv.csv"  # its own stem: tip.png is the MCAP test's figure
+    assert cli_main(["estimate", str(spec), "--out", str(out)]) == 0
+    rows = list(csv.DictReader(out.open()))
+    assert [int(r["stamp_ns"]) for r in rows] == sig["stamps"].tolist()
+    f = np.array([[float(r[k]) for k in ("fx", "fy", "fz")] for r in rows])
+    ok = np.array([r["status"] == "ok" for r in rows])
+    assert ok.sum() > 0.75 * N
+    assert np.sqrt(np.mean(np.sum((f[ok] - sig["tip_force"][ok]) ** 2, axis=1))) < 0.5
+    figure = tmp / "mine.png"  # a user's figure where the estimate would put its own
+    figure.write_bytes(b"not ours")
+    before = out.read_bytes()
+    capsys.readouterr()
+    for taken, out_arg in ((out, out), (figure, figure.with_suffix(".csv"))):
+        assert cli_main(["estimate", str(spec), "--out", str(out_arg)]) == 2
+        err = capsys.readouterr().err
+        assert says(err, str(taken), "already exists"), err
+    assert out.read_bytes() == before and figure.read_bytes() == b"not ours"
+    assert not figure.with_suffix(".csv").exists()
+
+
+def test_a_bad_out_suffix_is_refused_before_the_log_is_read(tmp_path, capsys):
+    assert cli_main(["estimate", str(tmp_path / "missing.toml"), "--out", str(tmp_path / "x.bag")]) == 2
+    assert says(capsys.readouterr().err, "x.bag", ".mcap or .csv")
+
+
+def test_an_error_bar_the_estimator_reports_becomes_csv_columns(tmp_path):
+    n = 4
+    replay = Replay(np.arange(n, dtype=np.int64) * 10**6, np.arange(n) * 1e-3, np.ones((n, 3)), ["ok"] * n,
+                    np.full((n, 3), 0.25), None, "panda_link0", "kalman-fusion", 1000.0)
+    (path,) = write_estimate(replay, tmp_path / "e.csv")  # no tip sensor: no figure
+    rows = list(csv.DictReader(path.open()))
+    assert list(rows[0]) == ["stamp_ns", "t", "fx", "fy", "fz", "status", "sigma1", "sigma2", "sigma3"]
+    assert [float(r["sigma2"]) for r in rows] == [0.25] * n
