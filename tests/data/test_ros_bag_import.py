@@ -197,3 +197,31 @@ def test_a_bad_ros_table_is_a_one_line_spec_error(extra, says_what, tmp_path):
     with pytest.raises(LogSpecError) as err:
         read_spec(spec)
     assert says(err.value, says_what), str(err.value)
+
+
+ODD = [None, True, 0, 1.5, float("nan"), "", "abc", "/ft_base", [], ["panda_joint1"], {}, {"a": 1}]
+
+
+def test_any_value_in_any_ros_key_ends_in_a_dataset_or_one_error(sig, tmp_path):
+    """A small fuzz of the [ros] table (as issue 28's of the spec): never a traceback, never a partial output."""
+    import tomllib
+
+    from hybrid_dyn.data.importer import spec_from_dict
+    from hybrid_dyn.errors import HybridDynError
+
+    bag = write_bag(tmp_path / "run", sig)
+    base = tomllib.loads(ros_spec(tmp_path / "spec", bag).read_text())
+    outcomes = {}
+    for key in ("joint_states", "base_wrench", "tip_wrench", "frame", "resample", "joints"):
+        for k, value in enumerate(ODD):
+            doc = {**base, "ros": {**base["ros"], key: value}}
+            out = tmp_path / f"ds-{key}-{k}"
+            try:
+                import_log(spec_from_dict(doc, base_dir=tmp_path), out)
+                outcomes["dataset"] = outcomes.get("dataset", 0) + 1
+                load_dataset(out)
+            except HybridDynError as err:
+                assert "\n" not in str(err).split("\nimport ")[0], (key, value, str(err))
+                assert not out.exists(), (key, value)
+                outcomes[type(err).__name__] = outcomes.get(type(err).__name__, 0) + 1
+    assert outcomes.get("dataset", 0) >= 1 and outcomes.get("LogSpecError", 0) >= 10, outcomes

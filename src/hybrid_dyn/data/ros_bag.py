@@ -69,12 +69,12 @@ class RosTopics:
 
     def problems(self) -> list[str]:
         out = []
-        for key in ("joint_states", "base_wrench", "tip_wrench", "frame"):
+        for key in ("base_wrench", "tip_wrench", "frame"):
             value = getattr(self, key)
             if value is not None and not isinstance(value, str):
                 out.append(f"[ros] {key} must be text, got {value!r}")
-        if isinstance(self.joint_states, str) and not self.joint_states:
-            out.append("[ros] joint_states must name a topic")
+        if not (isinstance(self.joint_states, str) and self.joint_states):
+            out.append(f"[ros] joint_states must name a topic, got {self.joint_states!r}")
         if self.resample not in RESAMPLE_RULES:
             out.append(f"[ros] resample must be one of {RESAMPLE_RULES}, got {self.resample!r}")
         if self.joints is not None and not (isinstance(self.joints, list) and self.joints
