@@ -25,7 +25,8 @@ def test_a_ros_bag_imports_and_benches_like_any_log(kind, panda, tmp_path, capsy
     force = (3.0 + 2.0 * np.sin(2 * np.pi * 0.3 * t))[:, None] * np.array([0.6, 0.0, -0.8])  # N, 1-5 N
     sig = panda_signals(panda, n=len(t), hz=1000.0, force=force, base_noise=0.1, seed=5)
     bag = write_bag(tmp_path / ("run.bag" if kind == "ros1" else "run"), sig, kind=kind)
-    spec = ros_spec(tmp_path / "spec", bag, name=f"bag-{kind}", blocks=5)  # the noise window fits a block
+    # The effort as both torques: the joint-torque rows' target and the torque sensors the observers read.
+    spec = ros_spec(tmp_path / "spec", bag, name=f"bag-{kind}", blocks=5, extra='effort = ["tau_m", "tau_J"]\n')
     assert cli_main(["import", "--spec", str(spec), "--out", str(tmp_path / "ds")]) == 0
     out = tmp_path / "report"
     assert cli_main(["bench", "--data", str(tmp_path / "ds"), "--out", str(out), "--families", "analytic",
@@ -33,8 +34,9 @@ def test_a_ros_bag_imports_and_benches_like_any_log(kind, panda, tmp_path, capsy
     rows = {(r["task"], r["model"]): r for r in csv.DictReader((out / "results.csv").open())}
     assert all(r["status"] == "ok" for r in rows.values()), {k: r["error"] for k, r in rows.items() if r["error"]}
     assert {r["scenario"] for r in rows.values()} == {f"bag-{kind}"}
-    # Both tasks ran: the bag gave joint torques, a base wrench and a tip force.
-    assert {("joint_torque", "rnea"), ("tip_force", "base-wrench"), ("tip_force", "base-momentum")} <= set(rows)
+    # Both tasks ran: the bag gave joint torques (as tau_m and tau_J), a base wrench and a tip force.
+    assert {("joint_torque", "rnea"), ("tip_force", "base-wrench"), ("tip_force", "base-momentum"),
+            ("tip_force", "momentum-observer"), ("tip_force", "kalman-fusion")} <= set(rows)
     # The URDF's rows against the bag's own physics: torques with the contact's J^T F in them, which RNEA
     # (no force) misses by about J^T F; the base-wrench method recovers the force to the sensor noise.
     assert float(rows["tip_force", "base-wrench"]["rmse"]) < 0.2  # N: 0.1 N of base noise, 1-5 N of force

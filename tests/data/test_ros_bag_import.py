@@ -57,6 +57,15 @@ def test_joints_are_matched_by_name_whatever_the_order_and_a_second_robots_joint
     assert not np.any(inst.q == 9.9)  # the second arm's value never lands in the robot's columns
 
 
+@pytest.mark.parametrize("effort, fields", [('"tau_J"', ["tau_J"]), ('["tau_m", "tau_J"]', ["tau_J", "tau_m"])])
+def test_the_effort_fills_the_torque_fields_the_spec_names(effort, fields, sig, tmp_path):
+    bag = write_bag(tmp_path / "run", sig, tip=False, base=False)
+    _, inst = imported(tmp_path, bag, tip=False, base=False, extra=f"effort = {effort}\n")
+    assert sorted(f for f in ("tau_m", "tau_J") if f in inst.fields) == fields
+    for f in fields:
+        np.testing.assert_array_equal(inst[f], sig["tau"])
+
+
 def test_a_robot_joint_missing_from_the_messages_is_refused_by_name(sig, tmp_path, capsys):
     joints = [j if j != "panda_joint4" else "arm_joint4" for j in PANDA_JOINTS]
     bag = write_bag(tmp_path / "run", sig, joints=joints)

@@ -206,7 +206,7 @@ _SPEC_LAYOUT = {
     "trajectories": {"from", "n_blocks", "column"},
     "units": {"angle"},
     "split": {"seed", "test_frac", "val_frac", "by", *SPLIT_NAMES},
-    "ros": {"joint_states", "base_wrench", "tip_wrench", "frame", "resample", "joints"},
+    "ros": {"joint_states", "base_wrench", "tip_wrench", "frame", "resample", "joints", "effort"},
 }
 
 

@@ -1,8 +1,8 @@
 """ROS 1 and ROS 2 bags as one more log reader (``docs/from_a_ros_bag.md``).
 
 A spec's ``[ros]`` table (:class:`RosTopics`) names the topics; :func:`read_bags` turns each bag into
-one :class:`RosTable` with the columns the spec maps (``t``, ``q[1..n]``, ``qd``, ``tau_m``,
-``base_wrench[1..6]``, ``tip_force[1..3]``), and the importer's own checks (``import_checks.py``) run
+one :class:`RosTable` with the columns the spec maps (``t``, ``q[1..n]``, ``qd``, ``tau_m`` and/or
+``tau_J`` (``effort``), ``base_wrench[1..6]``, ``tip_force[1..3]``), and the importer's own checks (``import_checks.py``) run
 on it exactly as on a CSV file: a row is one ``/joint_states`` message (row 1 = the first).
 
 The time base (stated in the import report):
@@ -50,7 +50,10 @@ class RosTopics:
     """A spec's ``[ros]`` table: which topics hold what.
 
     ``joint_states``: a ``sensor_msgs/JointState`` topic: q [rad] from position, qd [rad/s] from
-    velocity, tau_m [Nm] from effort, matched by joint name. ``base_wrench``: a
+    velocity, the joint torque [Nm] from effort, matched by joint name. ``effort``: which field the effort
+    fills: "tau_m" (the logged joint torque: what the joint-torque rows predict; the default), "tau_J" (the
+    link-side torque sensors, which the momentum observer and kalman-fusion read: franka_ros publishes
+    the Panda's measured tau_J as effort) or both, ["tau_m", "tau_J"]. ``base_wrench``: a
     ``geometry_msgs/WrenchStamped`` topic of the base force/torque sensor [N, Nm] (the ground's wrench
     on the robot, in the base-sensor frame); optional. ``tip_wrench``: the same for a tip force sensor
     (ground truth: the force on the robot at the tool point, in the base-sensor frame [N]; its moment is
@@ -66,6 +69,7 @@ class RosTopics:
     frame: str | None = None
     resample: str = "linear"
     joints: list | None = None
+    effort: object = "tau_m"
 
     def problems(self) -> list[str]:
         out = []
@@ -75,6 +79,8 @@ class RosTopics:
                 out.append(f"[ros] {key} must be text, got {value!r}")
         if not (isinstance(self.joint_states, str) and self.joint_states):
             out.append(f"[ros] joint_states must name a topic, got {self.joint_states!r}")
+        if self.torque_fields() is None:
+            out.append(f"[ros] effort must be \"tau_m\", \"tau_J\" or [\"tau_m\", \"tau_J\"], got {self.effort!r}")
         if self.resample not in RESAMPLE_RULES:
             out.append(f"[ros] resample must be one of {RESAMPLE_RULES}, got {self.resample!r}")
         if self.joints is not None and not (isinstance(self.joints, list) and self.joints
@@ -82,9 +88,15 @@ class RosTopics:
             out.append(f"[ros] joints must be a list of joint names, got {self.joints!r}")
         return out
 
+    def torque_fields(self) -> list | None:
+        """The fields the effort fills, or None if ``effort`` names something else."""
+        fields = [self.effort] if isinstance(self.effort, str) else self.effort
+        ok = isinstance(fields, list) and fields and all(f in ("tau_m", "tau_J") for f in fields)
+        return sorted(set(fields)) if ok else None
+
     def columns(self) -> dict:
         """The signal -> column map of the tables :func:`read_bags` makes."""
-        cols = {"q": "q", "qd": "qd", "tau_m": "tau_m"}
+        cols = {"q": "q", "qd": "qd", **{k: k for k in self.torque_fields()}}
         cols.update({WRENCH_TOPICS[k]: WRENCH_TOPICS[k] for k in WRENCH_TOPICS if getattr(self, k)})
         return cols
 
@@ -161,8 +173,8 @@ def _read_bag(path: Path, ros: RosTopics, joints: list, frames: set, jump_factor
     t0 = int(stamps[0])
     t = (stamps - t0) * 1e-9
     data, names = [t[:, None]], ["t"]
-    for key in ("q", "qd", "tau_m"):
-        data.append(cols[key])
+    for key, src in [("q", "q"), ("qd", "qd")] + [(f, "effort") for f in ros.torque_fields()]:
+        data.append(cols[src])
         names += [f"{key}[{j + 1}]" for j in range(len(joints))]
     for key, fld in WRENCH_TOPICS.items():
         if key not in msgs:
@@ -202,11 +214,11 @@ def _stamps(path: Path, topic: str, msgs: list, notes: list) -> np.ndarray:
 
 
 def _joint_states(path: Path, topic: str, msgs: list, joints: list, notes: list):
-    """Stamps [ns] and the q, qd, tau_m matrices (n messages x n joints), by joint name."""
+    """Stamps [ns] and the q, qd, effort matrices (n messages x n joints), by joint name."""
     if not msgs:
         raise RosBagError(f"{path.name}: topic {topic} has no messages")
     n, nv = len(msgs), len(joints)
-    out = {k: np.full((n, nv), np.nan) for k in ("q", "qd", "tau_m")}
+    out = {k: np.full((n, nv), np.nan) for k in ("q", "qd", "effort")}
     problems, order_of = [], {}
     seen = {"velocity": False, "effort": False}
     for r, (_, m) in enumerate(msgs):
@@ -219,15 +231,16 @@ def _joint_states(path: Path, topic: str, msgs: list, joints: list, notes: list)
                                   f"it names {list(names)}")
             order_of[names] = np.array([index[j] for j in joints])
         idx = order_of[names]
-        for key, arr in (("q", m.position), ("qd", m.velocity), ("tau_m", m.effort)):
+        for key, arr in (("q", m.position), ("qd", m.velocity), ("effort", m.effort)):
             arr = np.asarray(arr, dtype=np.float64)
             if key != "q" and len(arr):
                 seen["velocity" if key == "qd" else "effort"] = True
             if len(arr) == len(names):
                 out[key][r] = arr[idx]
-            elif len(arr):  # a malformed message: NaN cells, the row is dropped and named
-                problems.append((r, f"{topic}: {key} has {len(arr)} values for {len(names)} joint names"))
-    for what, key in (("velocity", "qd"), ("effort", "tau_m")):
+            elif len(arr) or key == "q":  # a malformed message: NaN cells, the row is dropped and named
+                problems.append((r, f"{topic}: {'position' if key == 'q' else 'velocity' if key == 'qd' else key} has "
+                                    f"{len(arr)} values for {len(names)} joint names"))
+    for what, key in (("velocity", "qd"), ("effort", "the joint torque")):
         if not seen[what]:
             raise RosBagError(f"{path.name}: no {topic} message carries a {what} ({key}); the import needs it")
     return _stamps(path, topic, msgs, notes), {**out, "problems": problems}

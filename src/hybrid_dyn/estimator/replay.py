@@ -85,7 +85,7 @@ def replay_log(spec, method: str = "base-momentum", model=None) -> tuple[Replay,
         rows["stamps"].append(stamps[seg.rows] if stamps is not None else np.round(f["t"] * 1e9).astype(np.int64))
         for k in range(len(f["t"])):
             force = est.estimate_tip_force(f["q"][k], f["qd"][k], base_wrench=_row(f, "base_wrench", k),
-                                           tau_J=_row(f, "tau_m", k), t=f["t"][k])
+                                           tau_J=_row(f, "tau_J" if "tau_J" in f else "tau_m", k), t=f["t"][k])
             status = est.last_status.value
             if est.last_rejection and status == "input rejected":
                 status += f": {est.last_rejection}"
@@ -106,8 +106,8 @@ def replay_log(spec, method: str = "base-momentum", model=None) -> tuple[Replay,
 
 
 def _row(fields: dict, key: str, k: int):
-    # The effort of a JointState is the joint torque the arm measures (franka_ros publishes tau_J there):
-    # it is the estimator's tau_J. A method reads only what it needs; the rest is never looked at.
+    # The log's tau_J, else its logged joint torque tau_m (a JointState's effort: franka_ros publishes the
+    # Panda's measured tau_J there). A method reads only what it needs; the rest is never looked at.
     return fields[key][k] if key in fields else None
 
 
