@@ -16,12 +16,12 @@ T0_NS = 1_764_000_000_000_000_000  # an epoch stamp [ns]: 2025-11-24, as a real 
 PANDA_JOINTS = [f"panda_joint{j}" for j in range(1, 8)]
 
 
-def panda_signals(robot, n=3000, hz=1000.0, seed=0, force=None, base_noise=0.1):
+def panda_signals(robot, n=3000, hz=1000.0, seed=0, force=None, base_noise=0.1, tau_noise=0.0):
     """A slow motion about home (exact q, qd, qdd from per-joint sines) and what the sensors read.
 
     ``force``: (n, 3) tip force [N] on the robot at the tool point, base frame (default none). The base
     wrench is the rigid-body reaction with that force plus white noise (``base_noise`` N on forces, a
-    tenth of it in Nm on moments). Returns a dict of arrays and ``stamps`` [ns] at ``hz``."""
+    tenth of it in Nm on moments); the joint torques with ``tau_noise`` Nm of it. Returns a dict of arrays and ``stamps`` [ns] at ``hz``."""
     rng = np.random.default_rng(seed)
     t = np.arange(n) / hz
     amp, w = rng.uniform(0.05, 0.15, robot.nv), rng.uniform(0.5, 1.5, robot.nv)
@@ -31,6 +31,7 @@ def panda_signals(robot, n=3000, hz=1000.0, seed=0, force=None, base_noise=0.1):
     jv = robot.tip_jacobian(q)[:, :3]
     tau = robot.inverse_dynamics(q, qd, qdd) - np.einsum("nij,ni->nj", jv, f)
     wrench = robot.base_wrench(q, qd, qdd, tip_force=f)
+    tau = tau + rng.normal(0, 1, tau.shape) * tau_noise if tau_noise else tau  # the default draws nothing: seeds hold
     wrench = wrench + rng.normal(0, base_noise, wrench.shape) * np.r_[np.ones(3), np.full(3, 0.1)]
     stamps = T0_NS + np.round(t * 1e9).astype(np.int64)
     return {"t": t, "q": q, "qd": qd, "qdd": qdd, "tau": tau, "base_wrench": wrench, "tip_force": f,
