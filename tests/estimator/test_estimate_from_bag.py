@@ -97,6 +97,15 @@ def test_a_csv_out_holds_the_same_estimate_and_nothing_existing_is_overwritten(r
     assert not figure.with_suffix(".csv").exists()
 
 
+def test_a_method_whose_sensor_the_log_lacks_is_refused_before_the_replay(panda, tmp_path, capsys):
+    sig = panda_signals(panda, n=300, hz=HZ)
+    bag = write_bag(tmp_path / "run", sig, base=False, tip=False)
+    spec = ros_spec(tmp_path / "spec", bag, base=False, tip=False)
+    assert cli_main(["estimate", str(spec), "--method", "base-momentum", "--out", str(tmp_path / "f.csv")]) == 2
+    assert says(capsys.readouterr().err, "base-momentum reads base_wrench", "no base_wrench")
+    assert not (tmp_path / "f.csv").exists()
+
+
 def test_a_bad_out_suffix_is_refused_before_the_log_is_read(tmp_path, capsys):
     assert cli_main(["estimate", str(tmp_path / "missing.toml"), "--out", str(tmp_path / "x.bag")]) == 2
     assert says(capsys.readouterr().err, "x.bag", ".mcap or .csv")

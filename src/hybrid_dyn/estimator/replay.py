@@ -75,6 +75,7 @@ def replay_log(spec, method: str = "base-momentum", model=None) -> tuple[Replay,
     opts = dict(call_hz=hz, on_bad_input="hold")  # a bad sample is named in its status, never a stop
     est = (TipForceEstimator.load(model, robot=spec.robot, **opts) if model is not None
            else TipForceEstimator.analytic(robot, method, **opts))
+    _check_sensors(est, segments[0].fields, spec.name)
     rows, table = {k: [] for k in ("stamps", "t", "force", "status", "sigma", "truth")}, None
     for seg in sorted(segments, key=lambda s: (str(s.table.source), s.table.name, s.rows[0])):
         if seg.table is not table:  # another recording: another stream
@@ -103,6 +104,19 @@ def replay_log(spec, method: str = "base-momentum", model=None) -> tuple[Replay,
     name = est.method if model is None else f"learned model {Path(model).name}"
     return Replay(np.concatenate(rows["stamps"]), np.concatenate(rows["t"]), np.array(rows["force"]), rows["status"],
                   sigma, truth, frame, name, hz), report
+
+
+def _check_sensors(est, fields: dict, name: str) -> None:
+    """An analytic method whose sensors the log lacks is refused before the replay (it would reject every
+    sample); a learned model's inputs are checked by the model itself."""
+    method = est.spec
+    if method is None:
+        return
+    have = {"base_wrench": "base_wrench" in fields, "tau_J": "tau_J" in fields or "tau_m" in fields}
+    missing = [r for r in method.reads if not have[r]]
+    if missing and (not method.any_of or len(missing) == len(method.reads)):
+        raise UsageError(f"{name}: method {est.method} reads {' and '.join(method.reads)}; the log has no "
+                         f"{' or '.join(missing)} (a ROS spec: [ros] base_wrench, or the effort)")
 
 
 def _row(fields: dict, key: str, k: int):
