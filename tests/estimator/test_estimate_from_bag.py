@@ -119,3 +119,29 @@ def test_an_error_bar_the_estimator_reports_becomes_csv_columns(tmp_path):
     rows = list(csv.DictReader(path.open()))
     assert list(rows[0]) == ["stamp_ns", "t", "fx", "fy", "fz", "status", "sigma1", "sigma2", "sigma3"]
     assert [float(r["sigma2"]) for r in rows] == [0.25] * n
+
+
+@pytest.mark.slow  # trains a tiny net (1 epoch of 3 batches) and replays 600 samples through it
+def test_a_trained_model_replays_the_bag_as_the_streaming_api_would(panda, tmp_path, capsys):
+    from hybrid_dyn.data import load_dataset
+    from hybrid_dyn.data.synthetic import make_synthetic_dataset
+    from hybrid_dyn.estimator import TipForceEstimator
+    from hybrid_dyn.learn import TrainConfig, train_model
+
+    ds = load_dataset(make_synthetic_dataset(tmp_path / "d", panda, n_instances=4, n_samples=120, record_hz=100.0,
+                                             noise=0.002, seed=2))
+    train_model(ds, "seed-tip-11", tmp_path / "model", TrainConfig(max_epochs=1, max_batches_per_epoch=3,
+                                                                   progress=False))
+    sig = panda_signals(panda, n=600, hz=HZ, seed=4)
+    spec = ros_spec(tmp_path / "spec", write_bag(tmp_path / "run", sig), extra='effort = "tau_J"\n')
+    out = tmp_path / "tip.csv"
+    assert cli_main(["estimate", str(spec), "--model", str(tmp_path / "model"), "--out", str(out)]) == 0
+    rows = list(csv.DictReader(out.open()))
+    assert [int(r["stamp_ns"]) for r in rows] == sig["stamps"].tolist()
+    # The reference: the streaming API called here on the signals the bag was written from.
+    est = TipForceEstimator.load(tmp_path / "model", robot="panda", call_hz=HZ, runtime="numba")
+    ref = np.array([est.estimate_tip_force(sig["q"][k], sig["qd"][k], base_wrench=sig["base_wrench"][k],
+                                           tau_J=sig["tau"][k], t=sig["t"][k]) for k in range(600)])
+    got = np.array([[float(r[k]) for k in ("fx", "fy", "fz")] for r in rows])
+    np.testing.assert_allclose(got, ref, atol=1e-3)  # the CLI's runtime may be onnxruntime: float32
+    assert {r["status"] for r in rows} <= {"warming up", "ok", "input out of training range"}
