@@ -79,6 +79,17 @@ def test_a_robot_joint_missing_from_the_messages_is_refused_by_name(sig, tmp_pat
     assert not (tmp_path / "ds").exists()
 
 
+@pytest.mark.parametrize("kind", ["mcap", "ros1"])
+def test_a_truncated_bag_is_one_line_naming_it(kind, sig, tmp_path, capsys):
+    bag = write_bag(tmp_path / ("run.bag" if kind == "ros1" else "run"), sig, kind=kind)
+    cut = tmp_path / f"cut{bag.suffix}"
+    cut.write_bytes(bag.read_bytes()[: len(bag.read_bytes()) * 9 // 10])  # a recorder killed before the end
+    assert cli_main(["import", "--spec", str(ros_spec(tmp_path / "spec", cut)), "--out", str(tmp_path / "ds")]) == 2
+    out = capsys.readouterr().err
+    assert says(out, str(cut), "not a readable ROS bag"), out
+    assert not (tmp_path / "ds").exists()
+
+
 def test_a_missing_topic_is_refused_naming_it_and_the_topics_there(sig, tmp_path, capsys):
     bag = write_bag(tmp_path / "run", sig, tip=False)
     spec = ros_spec(tmp_path / "spec", bag)  # names /ft_tool, which the bag lacks

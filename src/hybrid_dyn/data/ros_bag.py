@@ -113,6 +113,9 @@ def read_bags(spec, report) -> list[RosTable]:
     """One table per bag of ``spec.files``; the time-base notes go to ``report.warnings``."""
     joints, base_frame = _robot_names(spec)
     frames = {spec.ros.frame} if spec.ros.frame is not None else {base_frame}
+    if frames == {None} and (spec.ros.base_wrench or spec.ros.tip_wrench):
+        raise RosBagError(f"robot {spec.robot!r} has no description naming its base-sensor frame: give the "
+                          "wrench topics' frame_id as [ros] frame = \"...\"")
     return [_read_bag(Path(f), spec.ros, joints, frames, spec.checks.jump_factor, report.warnings)
             for f in spec.files]
 
@@ -143,6 +146,8 @@ def _open(path: Path):
         raise LogReadError(f"bag {path} does not exist")
     if path.is_file() and path.suffix not in (".bag", ".mcap", ".db3"):
         raise LogReadError(f"{path}: not a ROS bag (a ROS 1 .bag, a ROS 2 .mcap or .db3 file, or a ROS 2 bag folder)")
+    if path.is_dir() and not (path / "metadata.yaml").is_file():
+        raise LogReadError(f"{path}: a folder without metadata.yaml is no ROS 2 bag; name its .mcap or .db3 file")
     # Bags that embed no message definitions (old ROS 2 sqlite3 bags) are read with the distribution's types.
     store = get_typestore(Stores.ROS1_NOETIC if path.suffix == ".bag" else Stores.ROS2_HUMBLE)
     try:
@@ -154,74 +159,82 @@ def _open(path: Path):
 
 
 def _read_bag(path: Path, ros: RosTopics, joints: list, frames: set, jump_factor: float, notes: list) -> RosTable:
+    from rosbags.highlevel import AnyReaderError
+    from rosbags.rosbag1 import ReaderError as Reader1Error
+    from rosbags.rosbag2 import ReaderError as Reader2Error
+
     reader = _open(path)
+    wanted = {"joint_states": (ros.joint_states, JOINT_STATE)}
+    wanted.update({k: (getattr(ros, k), WRENCH) for k in WRENCH_TOPICS if getattr(ros, k)})
     try:
         topics = {t: info.msgtype for t, info in reader.topics.items()}
-        wanted = {"joint_states": (ros.joint_states, JOINT_STATE)}
-        wanted.update({k: (getattr(ros, k), WRENCH) for k in WRENCH_TOPICS if getattr(ros, k)})
         for key, (topic, msgtype) in wanted.items():
             if topic not in topics:
                 raise RosBagError(f"{path.name}: no topic {topic} ([ros] {key}); the bag has {sorted(topics)}")
             if topics[topic] != msgtype:
                 raise RosBagError(f"{path.name}: topic {topic} ([ros] {key}) is {topics[topic]}, not {msgtype}")
-        msgs = {key: _messages(reader, topic) for key, (topic, _) in wanted.items()}
+        # Each topic is reduced to numbers as it is read: an hour at 1 kHz never sits in memory as messages.
+        stamps, cols = _joint_states(path, ros.joint_states, _messages(reader, ros.joint_states), joints, notes)
+        wrenches = {k: _wrenches(path, getattr(ros, k), _messages(reader, getattr(ros, k)), frames, notes)
+                    for k in WRENCH_TOPICS if k in wanted}
+    except (AnyReaderError, Reader1Error, Reader2Error) as err:  # a truncated or corrupt bag
+        raise LogReadError(f"{path}: a message could not be read: {err}") from None
     finally:
         reader.close()
-    js_topic = ros.joint_states
-    stamps, cols = _joint_states(path, js_topic, msgs["joint_states"], joints, notes)
     problems = cols.pop("problems")
     t0 = int(stamps[0])
-    t = (stamps - t0) * 1e-9
-    data, names = [t[:, None]], ["t"]
+    data, names = [((stamps - t0) * 1e-9)[:, None]], ["t"]  # seconds from the first stamp
     for key, src in [("q", "q"), ("qd", "qd")] + [(f, "effort") for f in ros.torque_fields()]:
         data.append(cols[src])
         names += [f"{key}[{j + 1}]" for j in range(len(joints))]
-    for key, fld in WRENCH_TOPICS.items():
-        if key not in msgs:
-            continue
-        topic = getattr(ros, key)
-        w_t, w_x = _wrenches(path, topic, msgs[key], frames, notes)
+    for key, (w_t, w_x) in wrenches.items():
+        topic, fld = getattr(ros, key), WRENCH_TOPICS[key]
         values, bad = resample(w_t, w_x, stamps, ros.resample, jump_factor)
         width = 6 if fld == "base_wrench" else 3
         data.append(values[:, :width])
         names += [f"{fld}[{j + 1}]" for j in range(width)]
         problems += [(int(r), f"{topic}: {why}") for r, why in bad]
-    wrenches = [getattr(ros, k) for k in WRENCH_TOPICS if k in msgs]
     if wrenches:  # the rule, stated once per bag
-        notes.append(f"time base: {path.name}: the header stamps of {js_topic}; {' and '.join(wrenches)} at them by "
+        topics = " and ".join(getattr(ros, k) for k in wrenches)
+        notes.append(f"time base: {path.name}: the header stamps of {ros.joint_states}; {topics} at them by "
                      f"{'linear interpolation' if ros.resample == 'linear' else 'the nearest sample'} "
                      "(never extrapolated)")
-    table = RosTable(path.stem if path.is_file() else path.name, path, np.concatenate(data, axis=1), names,
-                     sorted(problems), None, stamps_ns=stamps, t0_ns=t0)
-    return table
+    return RosTable(path.stem if path.is_file() else path.name, path, np.concatenate(data, axis=1), names,
+                    sorted(problems), None, stamps_ns=stamps, t0_ns=t0)
 
 
-def _messages(reader, topic: str) -> list:
+def _messages(reader, topic: str):
     """(receive time [ns], message) of one topic, in the bag's order."""
     conns = [c for c in reader.connections if c.topic == topic]
-    return [(ts, reader.deserialize(raw, c.msgtype)) for c, ts, raw in reader.messages(connections=conns)]
+    for c, ts, raw in reader.messages(connections=conns):
+        yield ts, reader.deserialize(raw, c.msgtype)
 
 
-def _stamps(path: Path, topic: str, msgs: list, notes: list) -> np.ndarray:
+def _stamp(msg) -> int:
+    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+
+def _stamps(path: Path, topic: str, header_ns: list, receive_ns: list, notes: list) -> np.ndarray:
     """Header stamps [ns]; a zero stamp is replaced by the receive time, and the report says so."""
-    stamps = np.array([m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec for _, m in msgs], np.int64)
+    stamps = np.array(header_ns, np.int64)
     zero = stamps == 0
     if zero.any():
-        stamps[zero] = np.array([ts for (ts, _), z in zip(msgs, zero) if z], np.int64)
-        notes.append(f"time base: {path.name} {topic}: {int(zero.sum())} of {len(msgs)} messages have a zero header "
+        stamps[zero] = np.array(receive_ns, np.int64)[zero]
+        notes.append(f"time base: {path.name} {topic}: {int(zero.sum())} of {len(stamps)} messages have a zero header "
                      f"stamp (the first is message {int(np.flatnonzero(zero)[0]) + 1}); their receive time is used")
     return stamps
 
 
-def _joint_states(path: Path, topic: str, msgs: list, joints: list, notes: list):
+def _joint_states(path: Path, topic: str, msgs, joints: list, notes: list):
     """Stamps [ns] and the q, qd, effort matrices (n messages x n joints), by joint name."""
-    if not msgs:
-        raise RosBagError(f"{path.name}: topic {topic} has no messages")
-    n, nv = len(msgs), len(joints)
-    out = {k: np.full((n, nv), np.nan) for k in ("q", "qd", "effort")}
-    problems, order_of = [], {}
-    seen = {"velocity": False, "effort": False}
-    for r, (_, m) in enumerate(msgs):
+    nv = len(joints)
+    missing_row = np.full(nv, np.nan)
+    out = {k: [] for k in ("q", "qd", "effort")}
+    header, receive, problems, order_of = [], [], [], {}
+    seen = {"qd": False, "effort": False}
+    for r, (ts, m) in enumerate(msgs):
+        header.append(_stamp(m))
+        receive.append(ts)
         names = tuple(m.name)
         if names not in order_of:  # the order may change per message: one look-up per distinct order
             index = {name: i for i, name in enumerate(names)}
@@ -231,38 +244,47 @@ def _joint_states(path: Path, topic: str, msgs: list, joints: list, notes: list)
                                   f"it names {list(names)}")
             order_of[names] = np.array([index[j] for j in joints])
         idx = order_of[names]
-        for key, arr in (("q", m.position), ("qd", m.velocity), ("effort", m.effort)):
+        for key, field_name, arr in (("q", "position", m.position), ("qd", "velocity", m.velocity),
+                                     ("effort", "effort", m.effort)):
             arr = np.asarray(arr, dtype=np.float64)
-            if key != "q" and len(arr):
-                seen["velocity" if key == "qd" else "effort"] = True
+            seen[key] = seen.get(key) or len(arr) > 0
             if len(arr) == len(names):
-                out[key][r] = arr[idx]
-            elif len(arr) or key == "q":  # a malformed message: NaN cells, the row is dropped and named
-                problems.append((r, f"{topic}: {'position' if key == 'q' else 'velocity' if key == 'qd' else key} has "
-                                    f"{len(arr)} values for {len(names)} joint names"))
-    for what, key in (("velocity", "qd"), ("effort", "the joint torque")):
-        if not seen[what]:
-            raise RosBagError(f"{path.name}: no {topic} message carries a {what} ({key}); the import needs it")
-    return _stamps(path, topic, msgs, notes), {**out, "problems": problems}
-
-
-def _wrenches(path: Path, topic: str, msgs: list, frames: set, notes: list):
-    """Advancing stamps [ns] and (n, 6) wrenches [N, Nm] of one topic, its frame checked."""
-    if not msgs:
+                out[key].append(arr[idx])
+                continue
+            out[key].append(missing_row)  # NaN cells: the row is dropped and named
+            if len(arr) or key == "q":
+                problems.append((r, f"{topic}: {field_name} has {len(arr)} values for {len(names)} joint names"))
+    if not header:
         raise RosBagError(f"{path.name}: topic {topic} has no messages")
-    bad_frames = sorted({m.header.frame_id for _, m in msgs} - frames)
+    for what, key in (("velocity", "qd"), ("effort", "effort")):
+        if not seen[key]:
+            raise RosBagError(f"{path.name}: no {topic} message carries a {what}; the import needs it")
+    cols = {k: np.array(v) for k, v in out.items()}
+    return _stamps(path, topic, header, receive, notes), {**cols, "problems": problems}
+
+
+def _wrenches(path: Path, topic: str, msgs, frames: set, notes: list):
+    """Advancing stamps [ns] and (n, 6) wrenches [N, Nm] of one topic, its frame checked."""
+    header, receive, x, seen_frames = [], [], [], set()
+    for ts, m in msgs:
+        header.append(_stamp(m))
+        receive.append(ts)
+        seen_frames.add(m.header.frame_id)
+        f, tq = m.wrench.force, m.wrench.torque
+        x.append((f.x, f.y, f.z, tq.x, tq.y, tq.z))
+    if not header:
+        raise RosBagError(f"{path.name}: topic {topic} has no messages")
+    bad_frames = sorted(seen_frames - frames)
     if bad_frames:
         raise RosBagError(f"{path.name}: {topic} is in frame {bad_frames[0]!r}, not the robot's base-sensor frame "
                           f"{sorted(frames)[0]!r}; if that frame is the base sensor's, say so with [ros] frame = "
                           f"{bad_frames[0]!r}")
-    stamps = _stamps(path, topic, msgs, notes)
-    x = np.array([[m.wrench.force.x, m.wrench.force.y, m.wrench.force.z,
-                   m.wrench.torque.x, m.wrench.torque.y, m.wrench.torque.z] for _, m in msgs])
+    stamps, x = _stamps(path, topic, header, receive, notes), np.array(x, dtype=np.float64)
     # Stamps that do not advance cannot be interpolated between: left out, counted.
     keep = stamps > np.maximum.accumulate(np.r_[np.iinfo(np.int64).min, stamps[:-1]])
     if not keep.all():
         first = int(np.flatnonzero(~keep)[0])
-        notes.append(f"time base: {path.name} {topic}: {int((~keep).sum())} of {len(msgs)} messages have a stamp "
+        notes.append(f"time base: {path.name} {topic}: {int((~keep).sum())} of {len(stamps)} messages have a stamp "
                      f"that does not advance (the first is message {first + 1}); they are left out")
     return stamps[keep], x[keep]
 
