@@ -145,3 +145,19 @@ def test_a_trained_model_replays_the_bag_as_the_streaming_api_would(panda, tmp_p
     got = np.array([[float(r[k]) for k in ("fx", "fy", "fz")] for r in rows])
     np.testing.assert_allclose(got, ref, atol=1e-3)  # the CLI's runtime may be onnxruntime: float32
     assert {r["status"] for r in rows} <= {"warming up", "ok", "input out of training range"}
+
+
+def test_a_bag_with_a_stamp_going_backwards_and_its_own_frame_name_replays_what_an_import_keeps(panda, tmp_path):
+    sig = panda_signals(panda, n=800, hz=HZ, seed=6)
+    stamps = sig["stamps"].copy()
+    stamps[600] = stamps[598]  # message 601 goes back in time: the import's rule drops its row
+    bag = write_bag(tmp_path / "run", sig, js_stamps=stamps, base_frame="ft_sensor_link")
+    spec = ros_spec(tmp_path / "spec", bag, extra='frame = "ft_sensor_link"\n')
+    assert cli_main(["estimate", str(spec), "--out", str(tmp_path / "tip.mcap")]) == 0
+    topics = read_topics(tmp_path / "tip.mcap")
+    got = [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for _, m in topics["/tip_force"]]
+    assert got == np.delete(sig["stamps"], 600).tolist()  # every kept sample at its own stamp
+    assert {m.header.frame_id for _, m in topics["/tip_force"]} == {"ft_sensor_link"}  # the bag's name for it
+    states = [m.data for _, m in topics["/tip_force/status"]]
+    # The hole the dropped row leaves is a gap in the stream: the sample after it is refused, named.
+    assert states[600].startswith("input rejected: ") and states[599] == "ok" and "ok" in states[601:]

@@ -99,8 +99,8 @@ def replay_log(spec, method: str = "base-momentum", model=None) -> tuple[Replay,
     sig = rows["sigma"]
     sigma = np.array(sig) if sig and all(s is not None and len(s) == len(sig[0]) for s in sig) else None
     truth = np.concatenate(rows["truth"]) if all(x is not None for x in rows["truth"]) else None
-    frame = spec.ros.frame if getattr(spec, "ros", None) is not None and spec.ros.frame else \
-        robot.spec.base_sensor_frame
+    ros = getattr(spec, "ros", None)
+    frame = ros.frame if ros is not None and ros.frame else robot.spec.base_sensor_frame  # the bag's name for it
     name = est.method if model is None else f"learned model {Path(model).name}"
     return Replay(np.concatenate(rows["stamps"]), np.concatenate(rows["t"]), np.array(rows["force"]), rows["status"],
                   sigma, truth, frame, name, hz), report
