@@ -108,9 +108,12 @@ def _robot_limits(spec: LogSpec, nv: int):
 
 def validate_log(spec: LogSpec, report: ImportReport) -> tuple[list, list]:
     """Read, check and cut the log into segments; every problem goes to ``report``."""
-    tables = []
-    for f in spec.files:
-        tables += read_log(f, spec.format, spec.variables, spec.delimiter)
+    if spec.ros is not None:  # a ROS bag: its topics on one time base, one table per bag (ros_bag.py)
+        from .ros_bag import read_bags
+
+        tables = read_bags(spec, report)
+    else:
+        tables = [t for f in spec.files for t in read_log(f, spec.format, spec.variables, spec.delimiter)]
     segments, limits, q_peak = [], None, 0.0
     for traj, table, rows in _trajectories(spec, tables):
         data, t = _extract(spec, table, rows)

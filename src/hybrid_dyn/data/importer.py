@@ -84,6 +84,15 @@ def import_log(source, out, *, overwrite: bool = False, strict: bool = False, **
 
 def _import_locked(spec: "LogSpec", out: Path, overwrite: bool, strict: bool) -> "ImportReport":
     check_replaceable(out, overwrite)
+    segments, report = checked_segments(spec, strict)
+    write_dataset(spec, segments, report, out, overwrite)
+    return report
+
+
+def checked_segments(spec: "LogSpec", strict: bool = False) -> tuple[list, "ImportReport"]:
+    """The log read and checked (``import_checks.validate_log``) and refused as an import refuses it (strict,
+    too many rows dropped, nothing left): its kept segments and the report. ``hybrid-dyn estimate`` replays
+    these, so that it reads exactly what an import of the same spec would write."""
     report = ImportReport(spec.name)
     segments, warnings = validate_log(spec, report)
     report.warnings += warnings
@@ -99,8 +108,7 @@ def _import_locked(spec: "LogSpec", out: Path, overwrite: bool, strict: bool) ->
             f"more than max_drop_fraction = {spec.checks.max_drop_fraction}.{hint}\n{report.text(5)}")
     if not segments:
         raise LogImportError(f"{spec.name}: no usable rows\n{report.text(5)}")
-    write_dataset(spec, segments, report, out, overwrite)
-    return report
+    return segments, report
 
 
 def spec_checksum(spec: LogSpec) -> str:
