@@ -226,7 +226,8 @@ def standstill_problems(qd, qdd, what: str = "the test split",
     slow, still = v < thresholds.standstill_qd_rms, a < thresholds.standstill_qdd_rms
     if not (slow or still):
         return []
-    untested = " and ".join(t for t, b in (("friction and velocity terms", slow), ("inertia terms", still)) if b)
+    terms = (["friction", "velocity"] if slow else []) + (["inertia"] if still else [])
+    untested = (", ".join(terms[:-1]) + " and " if len(terms) > 1 else "") + terms[-1] + " terms"
     head = "is at a standstill" if slow and still else "barely moves"
     return [f"{what} {head} (RMS qd {v:.3g} rad/s, threshold {thresholds.standstill_qd_rms:g}; RMS qdd {a:.3g} "
             f"rad/s^2, threshold {thresholds.standstill_qdd_rms:g}): its {untested} are not tested"]
