@@ -291,14 +291,16 @@ _torque_row("identified-consistent", "consistent")
 _torque_row("identified-sigmoid-friction", "sigmoid-friction")
 # The friction of sigmoid-friction was fitted jointly with its inertials: absurd bodies, suspect friction.
 _row("joint_torque", "rnea+identified-friction", TORQUE_NEEDS, lambda m, c, i: _friction_only(m, c, i.q, i.qd, i.qdd),
-     "q, qd, qdd", single=lambda m, c, i, k: _friction_only(m, c, i.q[k], i.qd[k], i.qdd[k]), methods=("sigmoid-friction",))
+     "q, qd, qdd", single=lambda m, c, i, k: _friction_only(m, c, i.q[k], i.qd[k], i.qdd[k]),
+     methods=("sigmoid-friction",))
 _row("tip_force", "base-wrench-identified", TIP_NEEDS, _base_wrench_identified, "q, qd, qdd, base_wrench",
      single=lambda m, c, i, k: tip_force_from_base_wrench(_identified_robot(m, c), i.q[k], i.qd[k], i.qdd[k],
                                                           i.base_wrench[k]))
 _row("tip_force", "base-wrench-identified-tared", TIP_NEEDS, _tared_force_identified, TARED_INPUTS,
      single=lambda m, c, i, k: _tared_force_identified(m, c, i, k))
 _row("joint_torque", "identified-bw-tared", ("q", "qd", "qdd", "base_wrench", "tau_m"), _identified_bw_torque,
-     TARED_INPUTS, single=lambda m, c, i, k: _identified_bw_torque(m, c, i, k), methods=("sigmoid-friction", "consistent"))
+     TARED_INPUTS, single=lambda m, c, i, k: _identified_bw_torque(m, c, i, k),
+     methods=("sigmoid-friction", "consistent"))
 for _name, _preset in RESIDUAL_ROWS.items():
     _residual_row(_name, _preset)
 _gp_residual_row("gp-residual-identified")

@@ -70,8 +70,10 @@ def findings(rows) -> list[str]:
 def _headline_notes(rows, ranked, scenario, task) -> list[str]:
     """Under a headline: the notes of its rows (what their numbers cannot show) and the rows left out of it
     because their identified parameters are implausible (issue 39: both headlined in silence before)."""
-    lines = [f"  - note: {n} — " + ", ".join(f"`{r['model']}`" for r in rs) for n, rs in notes_by_text(ranked).items()]
-    out = [r["model"] for r in rows if r["scenario"] == scenario and r["task"] == task and r.get("status") == IMPLAUSIBLE]
+    lines = [f"  - note: {n} — " + ", ".join(f"`{r['model']}`" for r in rs)
+             for n, rs in notes_by_text(ranked).items()]
+    out = [r["model"] for r in rows
+           if r["scenario"] == scenario and r["task"] == task and r.get("status") == IMPLAUSIBLE]
     if out:
         lines.append(f"  - not a family's best: {', '.join(f'`{m}` {IMPLAUSIBLE_MARK}' for m in out)}, identified "
                      f"parameters outside the robot's bounds (the bodies are named under `{task}.md`)")

@@ -47,7 +47,7 @@ def scenario_motion(ctx) -> dict:
         ds = ctx.dataset
         names = getattr(ctx.robot, "joint_names", None)
         train, test = ds.split("train"), ds.split("test")
-        cat = lambda insts, k: np.concatenate([np.asarray(i[k]) for i in insts]) if insts else np.zeros((0, 0))  # noqa: E731
+        cat = lambda insts, k: np.concatenate([np.asarray(i[k]) for i in insts])  # noqa: E731
         checks = {"train": [], "test": []}
         if "q" in ds.fields and train:
             checks["train"] = range_of_motion_problems(cat(train, "q"), names, "the train split", MOTION_THRESHOLDS)

@@ -383,7 +383,8 @@ def _bench_scenario(profile, out_dir, ctx: BenchContext, ref, predictions, rows,
                    "status": "failed", "error": f"{type(err).__name__}: {err}"}
             log(f"[bench] {spec.name} FAILED: {err}\n{traceback.format_exc(limit=3)}")
         rows.append(row)
-        if row["status"] in SCORED_STATUSES:  # first: a row in results.csv always has its predictions (report checks them)
+        # First: a row in results.csv always has its predictions (report checks them), implausible ones too.
+        if row["status"] in SCORED_STATUSES:
             predictions.row(scenario, spec.task, spec.name, [i.name for i in test],
                             ctx.cache.pop((spec.task, spec.name)))
         write_results(out_dir / "results.csv", rows)

@@ -89,7 +89,8 @@ def _import_locked(spec: "LogSpec", out: Path, overwrite: bool, strict: bool) ->
     segments, warnings = validate_log(spec, report)
     report.warnings += warnings
     if strict and (report.issues or report.channel_warnings):
-        what = " and ".join(w for w, b in (("row problems", report.issues), ("dead channels", report.channel_warnings)) if b)
+        found = (("row problems", report.issues), ("dead channels", report.channel_warnings))
+        what = " and ".join(w for w, b in found if b)
         raise StrictImportError(f"strict import of {spec.name} found {what}:\n{report.text()}")
     frac = report.rows_dropped / max(report.rows_read, 1)
     if frac > spec.checks.max_drop_fraction:
