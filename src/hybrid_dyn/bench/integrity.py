@@ -27,7 +27,7 @@ import numpy as np
 from ..errors import HybridDynError
 from ..outputs import json_marker, refuse_foreign
 from .metrics import ErrorReport
-from .results import read_results
+from .results import SCORED_STATUSES, read_results
 
 RUN_FILE = "run.json"
 DIGEST_KEY = "results_digest"
@@ -175,7 +175,7 @@ def verify_results(rows: list[dict], meta: dict, preds, where) -> None:
     if preds is None:
         return
     for r in rows:
-        if r.get("status") == "ok":
+        if r.get("status") in SCORED_STATUSES:
             recomputed = _recompute(r, preds)
             if recomputed is None:
                 raise ReportIntegrityError(f"{where}/predictions.h5 holds no predictions of row {row_key(r)} "
@@ -188,7 +188,7 @@ def verify_results(rows: list[dict], meta: dict, preds, where) -> None:
 
 def _first_difference(row: dict, preds) -> str:
     """A hint for the error: the first figure that predictions.h5 gives otherwise, if any."""
-    if preds is None or row.get("status") != "ok":
+    if preds is None or row.get("status") not in SCORED_STATUSES:
         return ""
     recomputed = _recompute(row, preds) or {}
     for col, value in recomputed.items():

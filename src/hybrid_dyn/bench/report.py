@@ -22,7 +22,10 @@ from .catalog import reference_label
 from .predictions import PREDICTIONS_FILE, Predictions, PredictionsError
 from .hybrids import hybrid_lines
 from .report_figures import _figures, _remove_stale_figures, learning_curve_figures
-from .report_tables import CAP_MARK, _cap_mark, _contenders, _is_capped, _ok, task_tables
+from .report_tables import (CAP_MARK, IMPLAUSIBLE_MARK, _cap_mark, _contenders, _is_capped, _ok, notes_by_text,
+                            task_tables)
+from .results import SCORED_STATUSES
+from .row_checks import IMPLAUSIBLE
 from .report_tables import best_row  # noqa: F401  (re-exported: imported from here, e.g. checks/acceptance.py)
 from .results import CURVES_FILE, read_curves
 from .seed_comparison import SEED_COMPARISON_FILE, seed_comparison_text
@@ -54,12 +57,26 @@ def findings(rows) -> list[str]:
                              for r in ranked)
             lines.append(f"- **{scenario}, {task.replace('_', ' ')}** — best per family, RMSE [{unit}] "
                          f"(nMSE): {desc}.")
+            lines += _headline_notes(rows, ranked, scenario, task)
     if lines:
         # Beside physics a net's RMSE can read as "learning is broken"; the nMSE says how much it learned.
         lines.append("- nMSE: the test MSE over the test target's variance, per axis or joint, then averaged: "
                      "1 is what predicting the mean gives, 0 is exact. Every joint weighs the same, so a wrist joint "
                      "with little torque variance counts as much as the shoulder, and nMSE can rank rows "
                      "differently from RMSE.")
+    return lines
+
+
+def _headline_notes(rows, ranked, scenario, task) -> list[str]:
+    """Under a headline: the notes of its rows (what their numbers cannot show) and the rows left out of it
+    because their identified parameters are implausible (issue 39: both headlined in silence before)."""
+    lines = [f"  - note: {n} — " + ", ".join(f"`{r['model']}`" for r in rs)
+             for n, rs in notes_by_text(ranked).items()]
+    out = [r["model"] for r in rows
+           if r["scenario"] == scenario and r["task"] == task and r.get("status") == IMPLAUSIBLE]
+    if out:
+        lines.append(f"  - not a family's best: {', '.join(f'`{m}` {IMPLAUSIBLE_MARK}' for m in out)}, identified "
+                     f"parameters outside the robot's bounds (the bodies are named under `{task}.md`)")
     return lines
 
 
@@ -136,7 +153,7 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
     curve_figures = learning_curve_figures(out_dir, read_curves(out_dir / CURVES_FILE))
     figures += curve_figures
     _remove_stale_figures(out_dir, figures)
-    failed = [r for r in rows if r.get("status") != "ok"]
+    failed = [r for r in rows if r.get("status") not in SCORED_STATUSES]
     lines = _what_was_run(meta, prof)
     notes = prof.get("notes") or []
     if notes:

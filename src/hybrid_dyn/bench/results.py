@@ -20,7 +20,11 @@ COLUMNS = [
     "epochs", "stopped_by", "best_epoch",  # learned rows only (``training_summary``); empty for analytic rows
     "prior_kept",  # hybrid rows only: where validation kept the physics prior ("all", "none", "joints 2, 5")
     "error",
+    "notes",  # what the row's numbers cannot show, " | "-separated (row_checks.py): undefined nMSE, untested motion
 ]
+# The statuses of a scored row (numbers, stored predictions): "implausible" is an identified row whose parameters
+# are outside the robot's bounds (row_checks.py): in the tables with its note, never a family's best.
+SCORED_STATUSES = ("ok", "implausible")
 
 
 def write_results(path: Path, rows: list[dict], columns: list | None = None) -> None:

@@ -54,8 +54,9 @@ from .metrics import ErrorReport, base_force_noise_rms, standardized_mse
 from .predictions import PREDICTIONS_FILE, PredictionWriter
 from .profiles import BenchProfile, is_dataset_path, scenario_label
 from .report import machine_info, write_report
-from .results import (COLUMNS, CURVES_FILE, read_curves, write_json, read_results,  # noqa: F401  (re-exported)
-                      write_curves, write_results)
+from .results import (COLUMNS, CURVES_FILE, SCORED_STATUSES, read_curves, write_json,  # noqa: F401  (re-exported)
+                      read_results, write_curves, write_results)
+from .row_checks import NOTE_SEPARATOR, review_row
 from .rows import TASK_TARGET, BenchContext, Predictor, Row  # noqa: F401  (re-exported for callers)
 
 # ---------------------------------------------------------------------- scoring
@@ -105,6 +106,7 @@ def score_row(spec: Row, ctx: BenchContext, norm: dict) -> dict:
                 row["noise_rms"] = ctx.cache["base-force-noise"]
             row["infer_us_per_sample"] = elapsed / len(pred) * 1e6
             ctx.cache[(spec.task, spec.name)] = preds
+            test_target = tgt
     row.update(val_loss=losses["val"], test_loss=losses["test"], rmse=report.rmse, nmse=report.nmse,
                rmse_contact=report.rmse_contact, rmse_free=report.rmse_free, max_error=report.max_error,
                n_test_samples=report.n_samples)
@@ -112,17 +114,20 @@ def score_row(spec: Row, ctx: BenchContext, norm: dict) -> dict:
         row[f"rmse_{j + 1}"] = float(v)
     if pred_obj.single_call is not None:
         row["infer_us_per_call"] = _median_call_us(pred_obj.single_call, ds.split("test")[0], pred_obj.warmup_calls)
-    row["status"] = "ok"
+    # ok or implausible (identified parameters outside the robot's bounds), and what the numbers cannot show.
+    row["status"], notes = review_row(spec, ctx, pred_obj, target, std, test_target)
+    row["notes"] = NOTE_SEPARATOR.join(notes)
     return row
 
 
 def train_split_stats(ds: Dataset) -> dict:
-    """Per-component mean and std of each target over the train split (std floored)."""
+    """Per-component mean and std of each target over the train split (a std of 0, a constant training target,
+    is kept: the losses standardised by it are undefined, ``metrics.standardized_mse``)."""
     out = {}
     for target in TASK_TARGET.values():
         if target in ds.fields:
             y = np.concatenate([i[target] for i in ds.split("train")])
-            out[target] = (y.mean(0), np.maximum(y.std(0), 1e-6))
+            out[target] = (y.mean(0), y.std(0))
     return out
 
 
@@ -378,14 +383,16 @@ def _bench_scenario(profile, out_dir, ctx: BenchContext, ref, predictions, rows,
                    "status": "failed", "error": f"{type(err).__name__}: {err}"}
             log(f"[bench] {spec.name} FAILED: {err}\n{traceback.format_exc(limit=3)}")
         rows.append(row)
-        if row["status"] == "ok":  # first: a row in results.csv always has its predictions (report checks them)
+        # First: a row in results.csv always has its predictions (report checks them), implausible ones too.
+        if row["status"] in SCORED_STATUSES:
             predictions.row(scenario, spec.task, spec.name, [i.name for i in test],
                             ctx.cache.pop((spec.task, spec.name)))
         write_results(out_dir / "results.csv", rows)
         clock.record(out_dir, rows)
         write_curves(out_dir / CURVES_FILE, rows)
         log(f"[bench] {scenario} {spec.task:12s} {spec.name:22s} rmse={row.get('rmse', float('nan')):.4g} "
-            f"({time.perf_counter() - t0:.1f} s)" if row["status"] == "ok" else
+            f"({time.perf_counter() - t0:.1f} s){'' if row['status'] == 'ok' else ' ' + row['status']}"
+            if row["status"] in SCORED_STATUSES else
             f"[bench] {scenario} {spec.name} failed")
 
 

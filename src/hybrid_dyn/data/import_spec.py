@@ -59,7 +59,9 @@ class ValidationChecks:
     far the logged next sample may be from the next row. ``max_drop_fraction``:
     above this fraction of dropped rows the import fails, since the log (or the
     spec) is systematically wrong. ``timebase_tol``: relative disagreement
-    between d(q)/dt and the logged qd that raises a warning.
+    between d(q)/dt and the logged qd that raises a warning. ``channel_scale_factor``: a joint's torque
+    channel whose spread, relative to its joint's effort limit, is below this fraction of the joints'
+    median is warned of as dead (``input_checks.channel_problems``; a constant channel always is).
     """
 
     q_abs_max: float = 2 * np.pi
@@ -69,6 +71,7 @@ class ValidationChecks:
     next_tol: float = 1e-6
     max_drop_fraction: float = 0.05
     timebase_tol: float = 0.05
+    channel_scale_factor: float = 1e-3
 
 
 @dataclass

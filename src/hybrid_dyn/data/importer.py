@@ -64,7 +64,8 @@ def import_log(source, out, *, overwrite: bool = False, strict: bool = False, **
     dataset at ``out`` intact. An existing ``out`` is replaced only with
     ``overwrite``, and only when it is a hybrid-dyn dataset holding nothing but its
     own files (anything else is refused, named). One import per ``out`` at a time
-    (``outputs.output_lock``). ``strict``: fail on any row issue.
+    (``outputs.output_lock``). ``strict``: fail on any row issue and on any channel that carries nothing
+    (``import_checks.channel_warnings``: a joint's torque 0 throughout).
     """
     is_spec = isinstance(source, LogSpec) or (isinstance(source, (str, Path)) and Path(source).suffix == ".toml")
     if is_spec and spec_args:
@@ -96,8 +97,10 @@ def checked_segments(spec: "LogSpec", strict: bool = False) -> tuple[list, "Impo
     report = ImportReport(spec.name)
     segments, warnings = validate_log(spec, report)
     report.warnings += warnings
-    if strict and report.issues:
-        raise StrictImportError(f"strict import of {spec.name} found row problems:\n{report.text()}")
+    if strict and (report.issues or report.channel_warnings):
+        found = (("row problems", report.issues), ("dead channels", report.channel_warnings))
+        what = " and ".join(w for w, b in found if b)
+        raise StrictImportError(f"strict import of {spec.name} found {what}:\n{report.text()}")
     frac = report.rows_dropped / max(report.rows_read, 1)
     if frac > spec.checks.max_drop_fraction:
         by_kind = report.dropped_by_kind()
