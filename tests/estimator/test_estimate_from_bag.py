@@ -50,7 +50,9 @@ def read_topics(path):
 def test_the_tip_force_topic_is_within_half_a_newton_of_the_truth_at_the_inputs_stamps(recording, capsys):
     tmp, sig, spec = recording
     out = tmp / "tip.mcap"
-    assert cli_main(["estimate", str(spec), "--method", "base-momentum", "--out", str(out)]) == 0
+    # The bag's q and qd are exact (a simulation's): said so, as the encoders' resolution.
+    assert cli_main(["estimate", str(spec), "--method", "base-momentum", "--encoder-resolution", "0",
+                     "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     topics = read_topics(out)
     force, status = topics["/tip_force"], topics["/tip_force/status"]
@@ -63,7 +65,10 @@ def test_the_tip_force_topic_is_within_half_a_newton_of_the_truth_at_the_inputs_
     states = [m.data for _, m in status]
     ok = np.array([s == "ok" for s in states])
     # The start-up window (0.5 s of noise window, then the observer's settling) is all it leaves out.
-    assert not ok[:500].any() and ok[700:].all(), sorted(set(states))
+    # The start-up window (0.5 s of noise window, then the observer's settling) is all it leaves out, but for
+    # calls of the contact's 0.2 s onset ramp (from 1.0 s) whose error bar (the lag) says "uncertain".
+    assert not ok[:500].any() and ok[700:1000].all() and ok[1200:].all(), sorted(set(states))
+    assert set(states[1000:1200]) <= {"ok", "uncertain"}
     truth = sig["tip_force"]
     assert np.linalg.norm(truth[ok], axis=1).min() == 0 and np.linalg.norm(truth[1200:], axis=1).min() > 3.9
     rms = np.sqrt(np.mean(np.sum((f[ok] - truth[ok]) ** 2, axis=1)))
@@ -78,7 +83,7 @@ def test_the_tip_force_topic_is_within_half_a_newton_of_the_truth_at_the_inputs_
 def test_a_csv_out_holds_the_same_estimate_and_nothing_existing_is_overwritten(recording, capsys):
     tmp, sig, spec = recording
     out = tmp / "tip-csv.csv"  # its own stem: tip.png is the MCAP test's figure
-    assert cli_main(["estimate", str(spec), "--out", str(out)]) == 0
+    assert cli_main(["estimate", str(spec), "--encoder-resolution", "0", "--out", str(out)]) == 0
     rows = list(csv.DictReader(out.open()))
     assert [int(r["stamp_ns"]) for r in rows] == sig["stamps"].tolist()
     f = np.array([[float(r[k]) for k in ("fx", "fy", "fz")] for r in rows])

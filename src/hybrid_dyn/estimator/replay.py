@@ -58,9 +58,10 @@ class Replay:
         return float(np.sqrt(np.mean(np.sum(err**2, axis=1)))), int(ok.sum())
 
 
-def replay_log(spec, method: str = "base-momentum", model=None) -> tuple[Replay, object]:
+def replay_log(spec, method: str = "base-momentum", model=None, encoder_resolution="auto") -> tuple[Replay, object]:
     """Replay the log of ``spec`` (a ``LogSpec``) through a ``TipForceEstimator`` (the analytic ``method``,
-    or the trained model in folder ``model``); returns the :class:`Replay` and the import report."""
+    or the trained model in folder ``model``); returns the :class:`Replay` and the import report.
+    encoder_resolution [rad]: the log's encoders ("auto": the robot description's; 0: exact q and qd)."""
     from ..analytic.robot import load_robot
     from ..data.importer import checked_segments
     from .streaming import TipForceEstimator
@@ -72,7 +73,8 @@ def replay_log(spec, method: str = "base-momentum", model=None) -> tuple[Replay,
     steps = np.concatenate([np.diff(s.fields["t"]) for s in segments])
     hz = 1.0 / float(np.median(steps))  # the estimator runs at the log's own rate
     robot = load_robot(spec.robot)
-    opts = dict(call_hz=hz, on_bad_input="hold")  # a bad sample is named in its status, never a stop
+    # A bad sample is named in its status, never a stop.
+    opts = dict(call_hz=hz, on_bad_input="hold", encoder_resolution=encoder_resolution)
     est = (TipForceEstimator.load(model, robot=spec.robot, **opts) if model is not None
            else TipForceEstimator.analytic(robot, method, **opts))
     _check_sensors(est, segments[0].fields, spec.name)

@@ -11,6 +11,9 @@ def register(sub) -> None:
                    help="the analytic estimator (base-momentum, kalman-fusion, momentum-observer, base-wrench, "
                         "torques-pinv); default base-momentum")
     p.add_argument("--model", default=None, help="a trained tip-force model folder instead of --method")
+    p.add_argument("--encoder-resolution", type=float, default=None,
+                   help="the log's joint-encoder resolution [rad]; default the robot description's (1e-5 on the "
+                        "Panda); 0 for exact q and qd (a simulation's)")
     p.add_argument("--out", required=True, help="OUT.mcap (a ROS 2 bag: /tip_force, /tip_force/status) or OUT.csv; "
                                                 "never overwritten; OUT.png beside it where the log has a tip sensor")
     p.set_defaults(func=cmd_estimate)
@@ -21,7 +24,9 @@ def cmd_estimate(args) -> int:
     from .replay import check_outputs, replay_log, write_estimate
 
     check_outputs(args.out)  # before the log is read: a taken name costs nothing
-    replay, report = replay_log(read_spec(args.spec), method=args.method, model=args.model)
+    resolution = "auto" if args.encoder_resolution is None else args.encoder_resolution
+    replay, report = replay_log(read_spec(args.spec), method=args.method, model=args.model,
+                                encoder_resolution=resolution)
     print(report.text(max_per_kind=5))
     statuses = {}
     for s in replay.status:

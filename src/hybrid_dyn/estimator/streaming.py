@@ -95,6 +95,7 @@ from ..analytic.kalman import MAX_BRIDGE_CALLS
 from ..analytic.methods import REGISTRY, spec_noise
 from ..analytic.robot import Robot, load_robot
 from ..analytic.tare import StreamingTare, tare_samples
+from ..analytic.tip_force import tip_force_from_torques
 from .config import EstimatorConfig, EstimatorStatus
 from .error_bar import ErrorBar, qdd_norm
 from .input import EstimatorInputError, InputGate, RateCheck
@@ -106,9 +107,9 @@ METHOD_ALIASES = {a: c for a, c in ALIASES.items() if c in METHODS}
 
 
 # The statuses as plain names for the per-call path: an Enum member looked up on its class costs ~0.3 us.
-_OK, _WARMING_UP, _OUT_OF_RANGE, _FORCE_OUT_OF_RANGE, _WRONG_RATE, _NO_SENSOR, _UNCERTAIN = (
+_OK, _WARMING_UP, _OUT_OF_RANGE, _FORCE_OUT_OF_RANGE, _WRONG_RATE, _NO_SENSOR, _UNCERTAIN, _CONTACT_AT_START = (
     EstimatorStatus.OK, EstimatorStatus.WARMING_UP, EstimatorStatus.OUT_OF_RANGE, EstimatorStatus.FORCE_OUT_OF_RANGE,
-    EstimatorStatus.WRONG_RATE, EstimatorStatus.NO_SENSOR, EstimatorStatus.UNCERTAIN)
+    EstimatorStatus.WRONG_RATE, EstimatorStatus.NO_SENSOR, EstimatorStatus.UNCERTAIN, EstimatorStatus.CONTACT_AT_START)
 _NO_SIGMA = np.full(3, np.inf)  # no estimate yet (the noise window): an unbounded error bar
 
 
@@ -164,6 +165,9 @@ class TipForceEstimator:
         self._win_q, self._win_qd = np.zeros((n_window, nv)), np.zeros((n_window, nv))
         self._win_w, self._win_tau = np.zeros((n_window, 6)), np.zeros((n_window, nv))
         self._win_has = np.zeros((n_window, 2), dtype=bool)
+        # The window's force as the joint torques see it (a tared method that reads them: kalman-fusion).
+        self._check_torques = self.spec is not None and self.spec.tares and "tau_J" in self.spec.reads
+        self._win_force = np.zeros((n_window, 3))
         self.reset()
 
     # ------------------------------------------------------------ factories
@@ -206,6 +210,8 @@ class TipForceEstimator:
         self.last_sigma = _NO_SIGMA.copy()
         self._motion = 0.0  # this call's joint-acceleration norm [rad/s^2], for the error bar
         self._tared_at = None  # the call at which the base sensor's offset was last set
+        self.window_problem = None  # why the last noise window was not trusted (a contact), until one is
+        self._still_calls = 0  # consecutive calls at a standstill (the drift-following tare)
         if self._tare is not None:
             self._tare.reset()
         if self.model is not None:
@@ -287,9 +293,16 @@ class TipForceEstimator:
             tared = tare.update(q, qd, qdd, base_wrench)
         if in_window:
             self._record(k, q, qd, base_wrench, tau_J)
+            if self._check_torques and tau_J is not None:
+                self._win_force[k] = tip_force_from_torques(self.robot, q, qd, qdd, tau_J)
             self._stream.window_step(q, qd, qdd, base_wrench, tau_J)
-            if self._calls == self._window_calls:  # the window's last call measures its noise...
-                self._window_noise = self._measure_window()
+            if self._calls == self._window_calls:  # the window's last call checks it and measures its noise...
+                problem = self._window_contact()
+                if problem is not None:
+                    self._restart_window(problem)
+                else:
+                    self.window_problem = None
+                    self._window_noise = self._measure_window()
             return self._finish(self._last_good, True, wrong_rate, True, estimated=False)
         if self._window_noise is not None:  # ...and the next one applies the rule: no call does both
             self._close_window(self._window_noise)
@@ -305,7 +318,23 @@ class TipForceEstimator:
         if self._optional:
             usable = self._track_sensors(w_in is not None, tau_J is not None)
         f = self._stream.step(q, qd, qdd, w_in, tau_J)
+        if w_in is not None:
+            self._follow_drift(q, qd, base_wrench, f)
         return self._finish(f, True, wrong_rate, usable)
+
+    def _follow_drift(self, q, qd, base_wrench, f) -> None:
+        """A base sensor's bias drifts after its tare. While the arm stands still (every joint slower than
+        ``standstill_speed`` for ``standstill_seconds``) and the estimate shows no contact (below
+        ``tare_contact_force``), the tare follows the sensor with time constant ``retare_seconds``: a
+        contact held that still and that small is what it may absorb."""
+        c = self.config
+        if np.abs(qd).max() < c.standstill_speed:
+            self._still_calls += 1
+        else:
+            self._still_calls = 0
+        if self._still_calls >= c.standstill_seconds * c.call_hz and f.dot(f) < c.tare_contact_force ** 2:
+            self._tare.follow(q, base_wrench, 1.0 / (c.retare_seconds * c.call_hz))
+            self._tared_at = self._calls
 
     def _finish(self, f, in_range, wrong_rate, usable, estimated=True) -> np.ndarray:
         """The status of this call's estimate f, and f (a copy); a force within the bound is kept.
@@ -324,7 +353,7 @@ class TipForceEstimator:
         if status is _OK and not self.last_sigma.max() <= self.config.max_sigma:
             status = _UNCERTAIN
         if self._calls < self._warmup_calls:
-            status = _WARMING_UP
+            status = _WARMING_UP if self.window_problem is None else _CONTACT_AT_START
         if not usable:
             status = _NO_SENSOR
         if wrong_rate:
@@ -363,6 +392,35 @@ class TipForceEstimator:
         if tau is not None:
             self._win_tau[k] = tau
             self._win_has[k, 1] = True
+
+    def _window_contact(self) -> str | None:
+        """Why the window just ended must not be trusted (a contact in it), or None. The base sensor's
+        residual must not change between the window's parts (a contact that began or ended in it, a
+        trend); the joint torques, where the method reads them, must see no force (a contact held
+        through the whole window, which the base sensor alone cannot tell from its offset)."""
+        limit = self.config.tare_contact_force
+        tare = self._tare
+        if tare is not None and tare.done:
+            step = tare.window_step(limit)
+            if step is not None:
+                return f"the base sensor's residual changed by {step:.2f} N inside the noise window (limit {limit:g} N)"
+        has = self._win_has[:, 1]
+        if self._check_torques and has.sum() >= 8:
+            f = np.median(self._win_force[has], axis=0)
+            if f.dot(f) > limit * limit:
+                return (f"the joint torques saw {np.linalg.norm(f):.2f} N at the tool during the noise window "
+                        f"(limit {limit:g} N)")
+        return None
+
+    def _restart_window(self, problem: str) -> None:
+        """The window saw a contact: forget it (its tare and noise) and start a new one now."""
+        self.window_problem = problem
+        if self._tare is not None:
+            self._tare.reset()
+        self._stream.reset()
+        self._win_has[:] = False
+        self._calls = 0
+        self._warmup_calls = self._window_calls + 1
 
     def _measure_window(self):
         """The window's white noise (``bandwidth.measure_window``) on the samples each sensor came with."""
