@@ -31,6 +31,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 FAST_SECONDS = 0.02  # the running mean the lag and noise terms are taken against [s]
 SLOW_SECONDS = 1.0   # the noise term's averaging time [s]
@@ -48,6 +49,7 @@ class ErrorBar:
         self.dt, self.motion_gain, self.drift_rate = dt, float(motion_gain), float(drift_rate)
         self.mean, self.var = np.zeros(3), np.zeros(3)
         self.reset()
+        _update(np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), 0.5, 0.5, True, 0.0)  # compile now
 
     def reset(self) -> None:
         """A start (or a gap): the running means begin again at the next estimate."""
@@ -61,18 +63,27 @@ class ErrorBar:
             self.var[:] = 0.0
             self._n = 0
             self._started = True
-        dev = f - self.mean  # against the mean before this sample: white noise shows at least its variance
-        self.mean += self.a_fast * dev
         self._n += 1
-        d2 = dev * dev
-        if self._n > 20:  # noise only: a deviation beyond 3 sigma is a transient (the lag term's)
-            d2 = np.minimum(d2, 9.0 * self.var + NOISE_FLOOR ** 2)
-        self.var += max(self.a_slow, 1.0 / self._n) * (d2 - self.var)  # a plain mean until 1 / n < a_slow
-        lag = np.maximum(np.abs(dev) - LAG_NOISE_SIGMAS * np.sqrt(self.var), 0.0)  # what noise does not explain
         extra = (self.motion_gain * qdd_norm) ** 2
         if seconds_since_tare is not None:
             extra += (self.drift_rate * seconds_since_tare) ** 2
-        return np.sqrt(NOISE_GAIN ** 2 * self.var + lag * lag + extra)
+        out = np.empty(3)
+        _update(self.mean, self.var, out, f, self.a_fast, max(self.a_slow, 1.0 / self._n), self._n > 20, extra)
+        return out
+
+
+@njit(cache=True)
+def _update(mean, var, out, f, a_fast, a_slow, clip, extra):  # pragma: no cover (compiled)
+    """One sample of the running mean and noise variance per axis, and the sigma (module docstring)."""
+    for i in range(3):
+        dev = f[i] - mean[i]  # against the mean before this sample: white noise shows at least its variance
+        mean[i] += a_fast * dev
+        d2 = dev * dev
+        if clip:  # noise only: a deviation beyond 3 sigma is a transient (the lag term's)
+            d2 = min(d2, 9.0 * var[i] + NOISE_FLOOR * NOISE_FLOOR)
+        var[i] += a_slow * (d2 - var[i])  # a plain mean until 1 / n < a_slow
+        lag = max(abs(dev) - LAG_NOISE_SIGMAS * math.sqrt(var[i]), 0.0)  # what noise does not explain
+        out[i] = math.sqrt(NOISE_GAIN * NOISE_GAIN * var[i] + lag * lag + extra)
 
 
 def qdd_norm(qdd) -> float:

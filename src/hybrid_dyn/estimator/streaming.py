@@ -93,9 +93,10 @@ from ..analytic.estimators import ALIASES, estimator_name
 from ..analytic.joint_state import joint_filter_for, with_joint_state_noise
 from ..analytic.kalman import MAX_BRIDGE_CALLS
 from ..analytic.methods import REGISTRY, spec_noise
-from ..analytic.robot import Robot, load_robot
+from ..analytic.robot import Robot, load_robot, with_payload
 from ..analytic.tare import StreamingTare, tare_samples
 from ..analytic.tip_force import tip_force_from_torques
+from ..errors import UsageError
 from .config import EstimatorConfig, EstimatorStatus
 from .error_bar import ErrorBar, qdd_norm
 from .input import EstimatorInputError, InputGate, RateCheck
@@ -111,6 +112,23 @@ _OK, _WARMING_UP, _OUT_OF_RANGE, _FORCE_OUT_OF_RANGE, _WRONG_RATE, _NO_SENSOR, _
     EstimatorStatus.OK, EstimatorStatus.WARMING_UP, EstimatorStatus.OUT_OF_RANGE, EstimatorStatus.FORCE_OUT_OF_RANGE,
     EstimatorStatus.WRONG_RATE, EstimatorStatus.NO_SENSOR, EstimatorStatus.UNCERTAIN, EstimatorStatus.CONTACT_AT_START)
 _NO_SIGMA = np.full(3, np.inf)  # no estimate yet (the noise window): an unbounded error bar
+
+
+MAX_PAYLOAD_KG = 50.0  # no arm this toolkit models lifts more; a larger figure is a unit slip (g for kg)
+
+
+def checked_payload(payload) -> tuple:
+    """``(mass_kg, (x, y, z))`` as floats, or UsageError naming what is wrong with it."""
+    try:
+        mass, com = payload
+        mass, com = float(mass), tuple(float(x) for x in com)
+    except (TypeError, ValueError):
+        raise UsageError(f"payload must be (mass_kg, (x, y, z) m in the tool frame), got {payload!r}") from None
+    if len(com) != 3 or not all(np.isfinite(com)) or max(abs(x) for x in com) > 1.0:
+        raise UsageError(f"payload centre of mass must be 3 finite numbers within 1 m of the tool frame [m], got {com!r}")
+    if not 0.0 <= mass <= MAX_PAYLOAD_KG:
+        raise UsageError(f"payload mass must lie in [0, {MAX_PAYLOAD_KG:g}] kg, got {mass!r}")
+    return mass, com
 
 
 class TipForceEstimator:
@@ -168,23 +186,30 @@ class TipForceEstimator:
         # The window's force as the joint torques see it (a tared method that reads them: kalman-fusion).
         self._check_torques = self.spec is not None and self.spec.tares and "tau_J" in self.spec.reads
         self._win_force = np.zeros((n_window, 3))
+        if self._check_torques and n_window:  # its first call loads compiled code: now, not in a control cycle
+            tip_force_from_torques(robot, np.array(robot.spec.home, float), np.zeros(nv), np.zeros(nv), np.zeros(nv))
         self.reset()
 
     # ------------------------------------------------------------ factories
     @classmethod
-    def analytic(cls, robot: str | Robot = "panda", method: str = "base-wrench", params=None,
+    def analytic(cls, robot: str | Robot = "panda", method: str = "base-wrench", params=None, payload=None,
                  **config) -> "TipForceEstimator":
         """A model-free estimator, by the estimators' one name (``analytic/methods.py``): "base-wrench",
         "torques-pinv" (needs tau_J), "momentum-observer" (needs tau_J), "base-momentum" (needs
         base_wrench) or "kalman-fusion" (base_wrench, tau_J or both per call); the older spellings
-        (``METHOD_ALIASES``: "base_wrench", "torques", "momentum", "base_momentum", "kalman_fusion") mean the same."""
+        (``METHOD_ALIASES``: "base_wrench", "torques", "momentum", "base_momentum", "kalman_fusion") mean the same.
+        payload: the tool's load, ``(mass_kg, (x, y, z))`` with its centre of mass [m] in the tool frame (as
+        libfranka's ``setLoad``): part of the model every method subtracts (``set_payload`` changes it)."""
         method = estimator_name(method, REGISTRY, "estimator method")
         if not isinstance(robot, Robot):
             robot = load_robot(robot, params=params, num_threads=1)
+        if payload is not None:
+            robot = with_payload(robot, checked_payload(payload))
         return cls(robot, method, EstimatorConfig(**config))
 
     @classmethod
-    def load(cls, model_dir, robot: str | None = None, runtime: str = "auto", **config) -> "TipForceEstimator":
+    def load(cls, model_dir, robot: str | None = None, runtime: str = "auto", payload=None,
+             **config) -> "TipForceEstimator":
         """An estimator around a trained tip-force model (seed net, residual net, ...).
 
         The model's analytic part (if any) comes with it. ``robot``: when given,
@@ -194,8 +219,22 @@ class TipForceEstimator:
         """
         from ..learn.streaming import StreamingModel
 
+        if payload is not None:
+            # A learned model's network learnt the arm it was trained on: a load it never saw is no input it
+            # can remove. Refused rather than ignored.
+            raise UsageError("payload= is not supported for a learned model yet: train it on data with the tool, "
+                             "or use TipForceEstimator.analytic(..., payload=...)")
         model = StreamingModel.load(Path(model_dir), robot=robot, runtime=runtime)
         return cls(model.robot, "learned", EstimatorConfig(**config), model=model)
+
+    def set_payload(self, mass_kg: float, com_xyz=(0.0, 0.0, 0.0)) -> None:
+        """The tool now carries ``mass_kg`` [kg] with its centre of mass at ``com_xyz`` [m] in the tool frame
+        (0 kg: none). Between calls: the model changes, so the estimator starts over (a new noise window
+        re-tares the base sensor with the new model; nothing may touch the arm for its 0.5 s)."""
+        if self.model is not None:
+            raise UsageError("set_payload is not supported for a learned model yet")
+        payload = checked_payload((mass_kg, com_xyz))
+        self.__init__(with_payload(self.robot, payload if payload[0] > 0 else None), self.method, self.config)
 
     # --------------------------------------------------------------- state
     def reset(self) -> None:
@@ -328,7 +367,7 @@ class TipForceEstimator:
         ``tare_contact_force``), the tare follows the sensor with time constant ``retare_seconds``: a
         contact held that still and that small is what it may absorb."""
         c = self.config
-        if np.abs(qd).max() < c.standstill_speed:
+        if -c.standstill_speed < qd.min() and qd.max() < c.standstill_speed:
             self._still_calls += 1
         else:
             self._still_calls = 0
@@ -409,7 +448,7 @@ class TipForceEstimator:
             f = np.median(self._win_force[has], axis=0)
             if f.dot(f) > limit * limit:
                 return (f"the joint torques saw {np.linalg.norm(f):.2f} N at the tool during the noise window "
-                        f"(limit {limit:g} N)")
+                        f"(limit {limit:g} N): a contact, or a load the model lacks (payload=)")
         return None
 
     def _restart_window(self, problem: str) -> None:
