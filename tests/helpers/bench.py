@@ -54,8 +54,9 @@ def killed_bench(data, out, rows, kill_at: str, data_root, work_root) -> int:
                           timeout=300).returncode
 
 
-def edit_results(folder, model, **cells):
-    """Edit by hand the cells of ``model``'s rows in ``folder``/results.csv (as a user with a text editor)."""
+def edit_results(folder, model, /, **cells):
+    """Edit by hand the cells of ``model``'s rows in ``folder``/results.csv (as a user with a text editor);
+    positional-only, so that ``cells`` may hold any column, ``model`` too."""
     import csv
     from pathlib import Path
 
