@@ -47,7 +47,7 @@ from ..errors import UsageError
 from ..outputs import output_lock
 from ..timing import time_calls
 from .catalog import ROWS, get_row  # noqa: F401  (ROWS: every declared row)
-from .integrity import DIGEST_KEY, results_digest
+from .integrity import DIGEST_KEY, REPORT_FILES, read_run_json, results_digest, row_key
 from .invocations import InvocationClock, caches_empty, claim_report_dir
 from .learned_rows import PRESET_ROWS
 from .metrics import ErrorReport, base_force_noise_rms, standardized_mse
@@ -248,8 +248,12 @@ def run_bench(profile: BenchProfile, out_dir, data_root=None, work_root=None, da
     with output_lock(out_dir, "report folder"):  # one bench per report folder at a time
         cold = caches_empty(profile, data_root, work_root)
         previous = claim_report_dir(out_dir, profile, log)
-        return _run_bench_locked(profile, out_dir, InvocationClock(previous, cold_start=cold), data_root,
-                                 work_root, provider, opened, log, train_executor, device)
+        requested = [row_key({"scenario": label, "task": r.task, "model": r.name})
+                     for _, label, _, _ in opened for r in profile.selected_rows()]
+        clock = InvocationClock(previous, cold_start=cold, requested=requested)
+        clock.record(out_dir, [], rows_written=False)  # on record before any work: a kill -9 leaves it unfinished
+        return _run_bench_locked(profile, out_dir, clock, data_root, work_root, provider, opened, log,
+                                 train_executor, device)
 
 
 def _import_warnings(ds) -> list[str]:
@@ -313,7 +317,7 @@ def _open_datasets(profile, provider, log) -> list:
 def _run_bench_locked(profile, out_dir, clock: InvocationClock, data_root, work_root, provider, opened, log,
                       executor=None, device=None) -> list[dict]:
     rows: list[dict] = []
-    skipped: list[dict] = []
+    skipped = clock.skipped  # on record in run.json as it grows
     datasets = {}
     labels = {}
     dataset_seconds = {}
@@ -345,6 +349,8 @@ def _run_bench_locked(profile, out_dir, clock: InvocationClock, data_root, work_
                                data_root, log=log, source=entry)
             _bench_scenario(profile, out_dir, ctx, ref, predictions, rows, skipped, log, clock, executor, device)
     meta = _run_meta(profile, clock, rows, labels, skipped, datasets, dataset_seconds)
+    # The files an earlier report drew here stay on record: this one removes those it no longer draws.
+    meta[REPORT_FILES] = read_run_json(out_dir).get(REPORT_FILES) or []
     write_results(out_dir / "results.csv", rows)  # also when no row applied: the report reads it
     meta[DIGEST_KEY] = results_digest(out_dir / "results.csv", meta)  # what ``hybrid-dyn report`` checks against
     write_json(out_dir / "run.json", meta)
@@ -419,7 +425,7 @@ def _run_meta(profile: BenchProfile, clock: InvocationClock, rows: list, labels:
     invocations = clock.invocations(rows, finished=True)
     wall = invocations[-1]["wall_seconds"]
     return {"bench_report": 1, "profile": profile.to_dict(), "wall_seconds": wall, "invocations": invocations,
-            "scenarios": labels, "skipped": skipped, "machine": machine_info(),
+            "scenarios": labels, "requested": clock.requested, "skipped": skipped, "machine": machine_info(),
             "datasets": {s: {"path": recorded_path(d.path), "checksum": d.checksum, "seed": d.meta.get("seed"),
                              "config_hash": d.meta.get("config_hash"), "robot": d.meta.get("robot"),
                              "split": dataset_split_text(d), "dataset_seconds": dataset_seconds.get(s),
