@@ -13,13 +13,16 @@ Two tools every command that writes a folder or file uses:
 What counts as "written by the toolkit" is decided by each writer from its own manifest or
 marker, read the same way by every command (``json_marker``): a dataset's manifest.json
 (``format``), a generated dataset's generator.json (``config_hash``), a model's config.json and
-timing.json (``format``), a report's run.json (``bench_report``). A file of that name without
-the marker is a user's: ``refuse_foreign`` is the common refusal.
+timing.json (``format``), a report's run.json (``bench_report``), a study summary's JSON (``study``).
+A file of that name without the marker is a user's: ``refuse_foreign`` is the common refusal. A
+markdown file a command writes on its own (``compare --out``) carries its marker in its first line, an
+HTML comment with the sha256 of the rest (``write_own_text``): a file edited since is the user's.
 """
 from __future__ import annotations
 
 import contextlib
 import fcntl
+import hashlib
 import json
 import os
 import uuid
@@ -81,9 +84,9 @@ def refuse_foreign(path, what: str, why: str) -> None:
                           f"Move it away or choose another output path")
 
 
-def refuse_foreign_files(out_dir, what: str, is_own) -> None:
+def refuse_foreign_files(out_dir, what: str, is_own, marker: str = "config.json") -> None:
     """An output folder must be missing, empty, or hold only what ``is_own(path)`` proves a run of
-    ours wrote (a finished folder has its config.json, so it never reaches here)."""
+    ours wrote (a finished folder has its ``marker`` file, config.json for a model, so it never reaches here)."""
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         refuse_foreign(out_dir, what, "it is a file, not a folder")
@@ -92,4 +95,43 @@ def refuse_foreign_files(out_dir, what: str, is_own) -> None:
     foreign = sorted(p.name for p in out_dir.iterdir() if not is_own(p))
     if foreign:
         refuse_foreign(out_dir, what, f"it holds {', '.join(foreign[:5])}{' ...' if len(foreign) > 5 else ''} "
-                                      "but no config.json")
+                                      f"but no {marker}")
+
+
+def _text_marker(what: str, body: str) -> str:
+    digest = hashlib.sha256(body.encode()).hexdigest()
+    return f"<!-- written by hybrid-dyn {what}; sha256 of the lines below: {digest} -->\n"
+
+
+def owns_text(path, what: str) -> bool:
+    """Whether text file ``path`` is one ``write_own_text(path, ..., what)`` wrote, unchanged since: its first
+    line is the marker, which carries the sha256 of the rest (a file edited by hand is the user's now)."""
+    try:
+        head, sep, body = Path(path).read_text().partition("\n")
+    except (OSError, ValueError):
+        return False
+    return bool(sep) and head + "\n" == _text_marker(what, body)
+
+
+def check_own_text(path, what: str) -> None:
+    """Refuse ``path`` as an output of ``what`` unless it is new (in a folder that exists) or a file
+    :func:`owns_text` proves ours."""
+    path = Path(path)
+    if not path.parent.is_dir():
+        raise OutputPathError(f"{path}: its folder {path.parent} does not exist")
+    if path.is_dir():
+        refuse_foreign(path, f"{what} output", "it is a folder")
+    if (path.exists() or path.is_symlink()) and (path.is_symlink() or not owns_text(path, what)):
+        refuse_foreign(path, f"{what} output", "it does not begin with the marker hybrid-dyn writes (or was "
+                                               "edited since)")
+
+
+def write_own_text(path, text: str, what: str) -> None:
+    """Write ``text`` to ``path`` (a markdown file: the marker is an HTML comment, not shown) under its lock
+    and atomically, after :func:`check_own_text` (under the lock)."""
+    path = Path(path)
+    with output_lock(path, f"{what} output"):
+        check_own_text(path, what)
+        tmp = unique_temp(path)
+        tmp.write_text(_text_marker(what, text) + text)
+        os.replace(tmp, path)

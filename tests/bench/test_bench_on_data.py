@@ -30,7 +30,11 @@ def test_bench_on_an_imported_log_runs_what_applies_and_says_why_the_rest_does_n
     tmp, rows, messages = bench
     ran = {r["model"]: r for r in rows}
     assert set(ran) == {"rnea", "seed-tau-mlp", "identified-ols"}
-    assert all(r["status"] == "ok" for r in rows), [(r["model"], r.get("error")) for r in rows]
+    # The log's torques are white noise (helpers.logs.write_log): no Panda's bodies fit them, and the identified
+    # row says so (issue 39: implausible, scored and named, never headlined); the others are ok.
+    assert {r["model"]: r["status"] for r in rows} == {"rnea": "ok", "seed-tau-mlp": "ok",
+                                                       "identified-ols": "implausible"}, \
+        [(r["model"], r.get("error")) for r in rows]
     assert {r["scenario"] for r in rows} == {"my-panda"}  # the manifest's scenario labels the tables
     meta = json.loads((tmp / "report" / "run.json").read_text())
     skipped = {k["model"]: k["reason"] for k in meta["skipped"]}

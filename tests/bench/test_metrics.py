@@ -71,3 +71,20 @@ def test_base_force_noise_rms_recovers_a_known_white_noise_under_a_bias():
     no_truth = _FakeInstance(np.zeros((5, 6)), None)
     no_truth.truth = {}
     assert np.isnan(base_force_noise_rms([no_truth]))
+
+
+def test_nmse_and_loss_over_a_zero_variance_component_are_undefined_not_dropped():
+    """Issue 39, finding 7: a joint whose torque is 0 throughout was dropped from the nMSE in silence (the row
+    was headlined at nMSE 0.015) and its losses, standardised by a floored std, read 4.9e13. Both are undefined
+    (NaN) now, and the component is named; with the component live the same errors give the hand-computed
+    values."""
+    target = np.array([[0.0, 0.0], [2.0, 0.0], [4.0, 0.0]])  # component 1: variance 8/3; component 2: dead
+    pred = target + np.array([[1.0, 3.0], [-1.0, 3.0], [1.0, 3.0]])
+    assert np.isnan(nmse(pred, target))  # not 3/8, the live component's alone
+    assert nmse(pred[:, :1], target[:, :1]) == pytest.approx(3 / 8)
+    assert np.isnan(standardized_mse(pred, target, np.zeros(2), np.array([1.0, 0.0])))
+    assert standardized_mse(pred, target, np.zeros(2), np.array([1.0, 3.0])) == pytest.approx((1 + 1) / 2)
+    assert np.isnan(ErrorReport.compute(pred, target).nmse)
+    from hybrid_dyn.bench.metrics import zero_variance_components
+
+    assert zero_variance_components(target) == [1]  # the bench names it beside the row

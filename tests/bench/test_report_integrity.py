@@ -13,7 +13,7 @@ import pytest
 
 from hybrid_dyn.cli import main as cli_main
 
-from helpers.bench import tiny_profile
+from helpers.bench import edit_results, killed_bench, tiny_profile
 from helpers.messages import says
 
 
@@ -66,17 +66,6 @@ def _copy_report(tmp, name):
     return report
 
 
-def _edit_row(report, which, **cells):
-    rows = list(csv.DictReader((report / "results.csv").open()))
-    for r in rows:
-        if r["model"] == which:
-            r.update(cells)
-    with open(report / "results.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
-
-
 @pytest.mark.slow  # the shared fixture: a tiny bench, ~25 s on 2 busy cores
 @pytest.mark.parametrize("cells, column", [
     ({"rmse": "9.99"}, "rmse = '9.99', its stored predictions give"),  # finding 3: printed as 9.9900
@@ -89,7 +78,7 @@ def test_report_refuses_a_results_row_that_is_not_what_the_bench_computed(bench,
     tmp, _, _ = bench
     report = _copy_report(tmp, f"edited-{'-'.join(cells)}-{len(cells[next(iter(cells))])}")
     before = {p.name: p.read_bytes() for p in report.iterdir() if p.is_file()}
-    _edit_row(report, "identified-ols", **cells)
+    edit_results(report, "identified-ols", **cells)
     edited = (report / "results.csv").read_bytes()
     capsys.readouterr()
     assert cli_main(["report", str(report)]) == 2
@@ -121,7 +110,7 @@ def test_report_refuses_another_reports_run_json_and_a_run_json_without_digest(b
     err = capsys.readouterr().err
     # The first row already differs (its timings are the other run's); a row the other run lacks is named too.
     assert says(err, "results.csv", "my-panda / joint_torque / rnea", "differs"), err
-    _edit_row(report, "rnea", **next(r for r in csv.DictReader((tmp / "other-report" / "results.csv").open())))
+    edit_results(report, "rnea", **next(r for r in csv.DictReader((tmp / "other-report" / "results.csv").open())))
     assert cli_main(["report", str(report)]) == 2
     err = capsys.readouterr().err
     assert says(err, "my-panda / joint_torque / seed-tau-mlp", "run.json"), err
@@ -154,10 +143,9 @@ def test_report_refuses_a_hand_edited_run_json_in_one_line(bench, capsys, edit, 
 
 
 @pytest.mark.slow  # the shared fixture: a tiny bench, ~25 s on 2 busy cores
-def test_report_refuses_an_edited_run_json_field_and_drops_stale_figures(bench, capsys):
+def test_report_refuses_an_edited_run_json_field(bench, capsys):
     """Finding 6: wall_seconds null was a traceback; now any edit of a run.json field the README quotes
-    (its digest is recorded beside results.csv's) is one error, and nothing is redrawn. Finding 7: a
-    report folder reused for another dataset kept the old traces_*.png (a user's own png is left alone)."""
+    (its digest is recorded beside results.csv's) is one error, and nothing is redrawn."""
     tmp, _, _ = bench
     report = _copy_report(tmp, "null-wall")
     meta = json.loads((report / "run.json").read_text())
@@ -168,13 +156,37 @@ def test_report_refuses_an_edited_run_json_field_and_drops_stale_figures(bench, 
         assert cli_main(["report", str(report)]) == 2
         assert "run.json differs from what the bench wrote" in capsys.readouterr().err
         assert (report / "README.md").read_bytes() == readme
-    (report / "run.json").write_text(json.dumps(meta))
-    (report / "traces_joint_torque_old-log.png").write_bytes(b"\x89PNG old")
-    (report / "my-plot.png").write_bytes(b"mine")
+    for key in ("report_files", "requested"):  # the records report deletes and reports by: digested too
+        (report / "run.json").write_text(json.dumps({**meta, key: [*meta[key], "README.md"]}))
+        assert cli_main(["report", str(report)]) == 2
+        assert "run.json differs from what the bench wrote" in capsys.readouterr().err
+
+
+@pytest.mark.slow  # the shared fixture: a tiny bench, ~25 s on 2 busy cores
+def test_report_removes_only_the_figures_it_recorded(bench, capsys):
+    """Issue 39, finding 5: stale figures were removed by file-name prefix, and with them a user's
+    traces_my_experiment.png and rmse_by_family_mine_v2.png. The bench records in run.json the files the
+    report wrote; a figure recorded and no longer drawn (issue 28's stale traces of another dataset; here:
+    its predictions are gone) is removed, and nothing else."""
+    tmp, _, _ = bench
+    report = _copy_report(tmp, "stale-figures")
+    users = {"traces_my_experiment.png": b"mine", "rmse_by_family_mine_v2.png": b"mine too",
+             "learning_curves_old.png": b"mine", "my-plot.png": b"mine"}
+    for name, data in users.items():
+        (report / name).write_bytes(data)
     assert cli_main(["report", str(report)]) == 0
-    assert not (report / "traces_joint_torque_old-log.png").exists()
-    assert (report / "traces_joint_torque_my-panda.png").is_file()
-    assert (report / "my-plot.png").read_bytes() == b"mine"
+    assert sorted(n for n in users if not (report / n).is_file()) == []
+    assert all((report / name).read_bytes() == data for name, data in users.items())
+    recorded = json.loads((report / "run.json").read_text())["report_files"]
+    assert {"README.md", "joint_torque.md", "traces_joint_torque_my-panda.png"} <= set(recorded), recorded
+    (report / "predictions.h5").unlink()  # the traces are no longer drawn: the recorded one is stale
+    assert cli_main(["report", str(report)]) == 0
+    assert not (report / "traces_joint_torque_my-panda.png").exists()
+    assert (report / "rmse_by_family_joint_torque.png").is_file()
+    assert all((report / name).read_bytes() == data for name, data in users.items())
+    now = json.loads((report / "run.json").read_text())["report_files"]
+    assert set(recorded) - set(now) == {"traces_joint_torque_my-panda.png"} and not set(users) & set(now)
+    assert cli_main(["report", str(report)]) == 0  # run.json, re-recorded, still checks
 
 
 @pytest.mark.slow  # needs the fixture's imported log
@@ -216,7 +228,69 @@ def test_an_interrupted_benchs_rows_stay_checkable_by_report(bench, capsys):
     assert [r["model"] for r in csv.DictReader((tmp / "stopped" / "results.csv").open())] == ["rnea"]
     assert cli_main(["report", str(tmp / "stopped")]) == 0
     assert "| rnea |" in (tmp / "stopped" / "joint_torque.md").read_text()
-    _edit_row(tmp / "stopped", "rnea", rmse="1.0")
+    edit_results(tmp / "stopped", "rnea", rmse="1.0")
     capsys.readouterr()
     assert cli_main(["report", str(tmp / "stopped")]) == 2
     assert "row my-panda / joint_torque / rnea" in capsys.readouterr().err
+
+
+@pytest.mark.slow  # a bench in a child process, killed after its first row: ~20 s on 2 busy cores
+def test_the_report_of_a_bench_killed_with_kill_9_says_so_at_the_top(bench, capsys):
+    """Issue 39, finding 6: after kill -9 the README headlined the rows that ran with no word that the run
+    was interrupted or which rows never ran, and said the machine was "not recorded in run.json (a report
+    written before it was)", which was not why."""
+    tmp, _, _ = bench
+    out = tmp / "killed"
+    rows = ("rnea", "torques-pinv", "identified-ols", "seed-tau-mlp")
+    assert killed_bench(tmp / "my-log", out, rows, "joint_torque rnea ", tmp / "data", tmp / "runs") == -9
+    assert [r["model"] for r in csv.DictReader((out / "results.csv").open())] == ["rnea"]
+    capsys.readouterr()
+    assert cli_main(["report", str(out)]) == 0
+    readme = (out / "README.md").read_text()
+    top = readme.split("## What was run")[0]
+    notice = next((line for line in top.splitlines() if "did not finish" in line), None)
+    assert notice is not None, top
+    assert says(notice, "2 of the 4 rows requested never ran", "`my-panda / joint_torque / identified-ols`",
+                "`my-panda / joint_torque / seed-tau-mlp`"), top
+    # rnea ran; torques-pinv does not apply to the log (needs what it lacks): listed with its reason instead
+    assert "joint_torque / rnea`" not in notice and "torques-pinv" not in notice
+    assert "- my-panda: `torques-pinv` (tip force): needs" in readme
+    assert "machine: not recorded in run.json (the bench records it when an invocation finishes, and this one " \
+           "did not)" in readme and "a report written before it was" not in readme
+    # Finished by a rerun: the notice goes, the machine is recorded.
+    from hybrid_dyn.bench.runner import run_bench
+
+    one = tiny_profile([tmp / "my-log"])
+    run_bench(type(one)(**{**one.__dict__, "rows": rows}), out, data_root=tmp / "data", work_root=tmp / "runs",
+              log=lambda m: None)
+    readme = (out / "README.md").read_text()
+    assert "did not finish" not in readme and "- machine: not recorded" not in readme
+
+
+@pytest.mark.slow  # a bench in a child process, killed once it has claimed the folder: ~15 s
+def test_a_bench_taking_over_another_profiles_folder_clears_its_outputs_first(bench, capsys):
+    """Issue 39, finding 6: a killed bench that was taking over another profile's folder left that profile's
+    README and tables beside its own run.json. Now its outputs go in the step that writes the new run.json;
+    what the old report did not record (a user's file) stays."""
+    tmp, _, _ = bench
+    out = _copy_report(tmp, "taken-over")
+    old = json.loads((out / "run.json").read_text())
+    users = {"traces_my_experiment.png": b"mine", "notes.txt": b"mine too"}
+    for name, data in users.items():
+        (out / name).write_bytes(data)
+    # Another profile (one row), killed as soon as it starts on its scenario: after it claimed the folder.
+    assert killed_bench(tmp / "my-log", out, ("rnea",), "[bench] scenario", tmp / "data", tmp / "runs") == -9
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["profile"]["rows"] == ["rnea"]
+    left = [n for n in ["README.md", "joint_torque.md", "joint_torque.tex", "traces_joint_torque_my-panda.png",
+                        "predictions.h5", *old.get("report_files", [])] if (out / n).exists()]
+    assert not left, left
+    assert meta["invocations"][-1]["finished"] is None
+    assert list(csv.DictReader((out / "results.csv").open())) == []
+    assert all((out / name).read_bytes() == data for name, data in users.items())
+    capsys.readouterr()
+    assert cli_main(["report", str(out)]) == 0  # a report of no row yet, saying what never ran
+    top = (out / "README.md").read_text().split("## What was run")[0]
+    assert any(says(line, "did not finish", "1 of the 1 rows requested never ran", "`my-panda / joint_torque / rnea`")
+               for line in top.splitlines()), top
+    assert all((out / name).read_bytes() == data for name, data in users.items())

@@ -80,18 +80,17 @@ def test_a_row_stopped_by_its_step_budget_is_never_counted_as_converged():
 
 def test_the_data_control_divides_each_learned_row_by_its_own_reports_physics(tmp_path, capsys):
     """hybrid-dyn compare: two reports on different test instances compare through their analytic rows."""
-    from hybrid_dyn.bench.results import write_results
+    from helpers.bench import written_report
 
     def row(model, family, rmse, epochs=""):
         return {"task": "joint_torque", "scenario": "paper-noext", "model": model, "family": family, "status": "ok",
                 "rmse": rmse, "val_loss": 0.1, "test_loss": 0.1, "nmse": 0.1, "epochs": epochs, "best_epoch": ""}
 
     for name, rnea, mlp in (("small", 0.5, 5.0), ("large", 0.25, 1.0)):
-        (tmp_path / name).mkdir()
-        (tmp_path / name / "run.json").write_text(json.dumps({"profile": {"scenario_overrides": {
-            "paper-noext": {"n_instances": 10 if name == "small" else 40, "trajectories": [5, 10]}}}}))
-        write_results(tmp_path / name / "results.csv", [row("rnea", "analytic", rnea), row("rnea-bw", "analytic", 9.0),
-                                                         row("seed-tau-mlp", "seed-net", mlp, 12)])
+        written_report(tmp_path / name, [row("rnea", "analytic", rnea), row("rnea-bw", "analytic", 9.0),
+                                         row("seed-tau-mlp", "seed-net", mlp, 12)],
+                       profile={"scenario_overrides": {"paper-noext": {"n_instances": 10 if name == "small" else 40,
+                                                                       "trajectories": [5, 10]}}})
     assert cli_main(["compare", str(tmp_path / "small"), str(tmp_path / "large")]) == 0
     out = capsys.readouterr().out
     assert "small `rnea` 0.500 Nm, large `rnea` 0.250 Nm" in out  # the best analytic row of each report

@@ -129,13 +129,12 @@ def test_a_study_changes_presets_and_budgets_through_the_harness(tmp_path, monke
 
 
 def test_the_compare_summary_sets_each_variant_report_against_the_reference(tmp_path):
-    from hybrid_dyn.bench.results import write_results
     from hybrid_dyn.bench.study_summaries import compare
 
+    from helpers.bench import written_report
+
     def report(folder, rnea, mlp):
-        folder.mkdir(parents=True)
-        (folder / "run.json").write_text(json.dumps({"profile": {"scenario_overrides": {}}}))
-        write_results(folder / "results.csv", [
+        written_report(folder, [
             {"task": "joint_torque", "scenario": "paper-noext", "model": m, "family": f, "status": "ok", "rmse": r,
              "val_loss": 0.1, "test_loss": 0.1, "nmse": 0.1, "epochs": "", "best_epoch": ""}
             for m, f, r in (("rnea", "analytic", rnea), ("seed-tau-mlp", "seed-net", mlp))])
@@ -180,3 +179,60 @@ def test_a_budget_is_scaled_from_the_preset_a_row_trains():
     assert _preset(profile, "seed-tau-mlp").kind == "mlp"
     with pytest.raises(UsageError, match="no step budget"):
         _preset(profile, "gp")
+
+
+class _Started(Exception):
+    """Raised in place of a study's first piece of work: the study got past its output checks."""
+
+
+def test_study_out_refuses_a_users_folder_before_any_work(tmp_path, monkeypatch, capsys):
+    """Issue 39, finding 4: `study --out DIR` on a folder holding the user's README.md started generating."""
+    from hybrid_dyn.bench import studies as studies_mod
+    from hybrid_dyn.cli import main as cli_main
+
+    def started(*args, **kwargs):
+        raise _Started()
+
+    monkeypatch.setattr(studies_mod, "_run_variant", started)  # "budget" runs its base variant first
+    monkeypatch.setattr(studies_mod, "read_full_report", started)
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "README.md").write_text("# my notes\n")
+    capsys.readouterr()
+    assert cli_main(["study", "budget", "--out", str(out), "--work-root", str(tmp_path / "runs"),
+                     "--data-root", str(tmp_path / "data")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: refusing to replace") and len(err.splitlines()) == 1, err
+    assert str(out) in err and "README.md" in err and "budget.json" in err, err
+    assert [p.name for p in out.iterdir()] == ["README.md"] and (out / "README.md").read_text() == "# my notes\n"
+    assert sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith(".")) == ["mine"]  # no work began
+
+
+def test_a_study_writes_its_summary_only_where_it_is_still_its_own(tmp_path, monkeypatch):
+    """Issue 39, finding 4: the summary was written with no ownership check. A folder the study wrote (its
+    summary JSON names it) is its own on a rerun; a user's file that appears in a new folder while the
+    variants run makes the summary a refusal, and the file stays."""
+    from hybrid_dyn.bench import studies as studies_mod
+    from hybrid_dyn.errors import OutputPathError
+
+    study, out, late = STUDIES["budget"], tmp_path / "out", tmp_path / "late"
+
+    def variant(study, name, rows, where, reference_report=None, **run_args):
+        return [], [where]
+
+    monkeypatch.setattr(studies_mod, "_run_variant", variant)
+    args = dict(work_root=tmp_path / "runs", log=lambda m: None)
+    for _ in range(2):  # a new folder, then its own
+        run_study(study, tmp_path / "report", out, **args)
+        assert json.loads((out / "budget.json").read_text())["study"] == "budget" and (out / "README.md").is_file()
+
+    def variant_while_the_user_writes(study, name, rows, where, reference_report=None, **run_args):
+        late.mkdir(exist_ok=True)
+        (late / "README.md").write_text("# mine, written while the study ran\n")
+        return [], [where]
+
+    monkeypatch.setattr(studies_mod, "_run_variant", variant_while_the_user_writes)
+    with pytest.raises(OutputPathError, match="refusing to replace .*late: it holds README.md but no budget.json"):
+        run_study(study, tmp_path / "report", late, **args)
+    assert [p.name for p in late.iterdir()] == ["README.md"]
+    assert (late / "README.md").read_text() == "# mine, written while the study ran\n"

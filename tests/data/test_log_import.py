@@ -260,6 +260,50 @@ def test_strict_mode_and_existing_output_are_safe(tmp_path, clean):
     load_dataset(clean_path)
 
 
+def test_a_dead_torque_channel_is_a_warning_naming_the_joint_and_strict_refuses_it(tmp_path):
+    """Issue 39, finding 7: joint 4's torque 0 throughout imported without a word. Now each channel that carries
+    nothing is a warning naming its joint: constant (0 Nm), or far below its joint's scale (only ADC noise,
+    1e-5 Nm against the other joints' 5 Nm sines: five decades, past the 1e-3 threshold); the warning reaches the
+    manifest (where the bench reads it); ``strict`` refuses the log. The clean log gives none."""
+    log = sine_log(n=300)
+    write_csv(tmp_path / "clean.csv", log)
+    clean = import_log(tmp_path / "clean.csv", tmp_path / "clean", columns=CSV_COLUMNS, time="t")
+    assert not any("channel" in w for w in clean.warnings), clean.warnings
+    dead = {k: v.copy() for k, v in log.items()}
+    dead["tau"][:, 3] = 0.0
+    dead["tau"][:, 5] = np.random.default_rng(1).normal(0, 1e-5, len(dead["t"]))
+    write_csv(tmp_path / "dead.csv", dead)
+    report = import_log(tmp_path / "dead.csv", tmp_path / "dead", columns=CSV_COLUMNS, time="t")
+    assert report.warnings[0] == "tau_m of joint 4 is constant (0 Nm) in all 300 rows: a dead channel?"
+    assert report.warnings[1].startswith("tau_m of joint 6 varies by ") and "threshold 0.001" in report.warnings[1]
+    assert report.channel_warnings == report.warnings[:2]  # the two a strict import refuses
+    assert load_dataset(tmp_path / "dead").meta["import"]["warnings"][:2] == report.channel_warnings
+    with pytest.raises(StrictImportError, match=r"dead channels:(.|\n)*tau_m of joint 4 is constant"):
+        import_log(tmp_path / "dead.csv", tmp_path / "strict", columns=CSV_COLUMNS, time="t", strict=True)
+    assert not (tmp_path / "strict").exists()
+
+
+def test_a_dead_channel_names_the_robots_joint_and_is_scaled_by_its_effort_limit(tmp_path):
+    """With a described robot (the Panda) the warning names the joint as the URDF does, and a wrist torque
+    channel (effort limit 12 Nm) moving 0.05 Nm is live: its scale is its own joint's, not the shoulder's."""
+    from helpers.logs import write_log
+
+    spec = write_log(tmp_path / "logs")
+    import csv as _csv
+    rows = list(_csv.reader(open(tmp_path / "logs" / "log.csv")))
+    header, body = rows[0], np.array(rows[1:], float)
+    rng = np.random.default_rng(2)
+    body[:, header.index("tau7")] = rng.normal(0, 0.05, len(body))  # a live wrist torque
+    body[:, header.index("q4")] = body[0, header.index("q4")]  # joint 4 never moves ...
+    body[:, header.index("qd4")] = 0.0  # ... and says so
+    np.savetxt(tmp_path / "logs" / "log.csv", body, delimiter=",", header=",".join(header), comments="", fmt="%.17g")
+    report = import_log(spec, tmp_path / "ds")
+    assert report.warnings == [
+        f"q of joint 4 (panda_joint4) is constant ({body[0, header.index('q4')]:.6g} rad) in all 400 rows: a dead "
+        "channel or a joint that never moves?",
+        "qd of joint 4 (panda_joint4) is constant (0 rad/s) in all 400 rows: a dead channel?"], report.warnings
+
+
 def test_wrong_sample_rate_warns(tmp_path):
     log = sine_log(n=300)
     m = np.concatenate([log["q"], log["qd"], log["tau"]], axis=1)

@@ -191,6 +191,69 @@ def test_consistent_is_physically_valid_where_ols_may_not_be(panda, noisy_mismat
         hd.load_robot("panda").model_ff.inertias[1].mass + sum(p[0] for p in cons.body_params), abs=1e-9)
 
 
+def test_a_dead_torque_channel_gives_bodies_outside_the_robots_bounds_and_identify_names_them(
+        panda, mismatch_plant, noisy_mismatch_data):
+    """Issue 39, finding 7: with joint 4's torque 0 throughout, OLS returned bodies of negative mass with a centre
+    of mass metres away and nothing said so. The bounds (``plausibility.PlausibilityBounds``) hold the truth: the
+    simulated plant's own bodies (Franka's official inertials + a 0.5 kg tool, a set the nominal URDF differs
+    from by 4x on link 2) are within them, and so are the fits of its clean data; the fits of the dead channel
+    are not, body by body, in the fit record and on the command line."""
+    from hybrid_dyn.identify.plausibility import implausible_bodies
+
+    truth = nominal_body_parameters(mismatch_plant).reshape(panda.nv, -1)
+    assert implausible_bodies(panda, truth) == []
+    for method in ("ols", "consistent"):
+        assert identify(noisy_mismatch_data, method, panda).fit["implausible"] == [], method
+    q, qd, qdd, tau = (np.array(x) for x in noisy_mismatch_data)
+    tau[:, 3] = 0.0
+    ols = identify((q, qd, qdd, tau), "ols", panda)
+    bad = ols.fit["implausible"]
+    masses = [to_urdf_form(p)[0] for p in ols.body_params]
+    assert min(masses) < 0  # the absurd fit the issue found, reproduced ...
+    # ... and every body of negative mass is named, with its mass
+    for j in np.flatnonzero(np.array(masses) < 0):
+        assert any(b.startswith(f"body of panda_joint{j + 1}: mass {masses[j]:.3g} kg outside [0, ") for b in bad), bad
+    assert ols.implausible_bodies() == bad  # recomputed from the parameters (a file read back is checked too)
+
+
+def test_a_joint_that_never_moves_is_a_warning_with_its_range_and_the_condition_number(panda, tmp_path, capsys):
+    """Issue 39, finding 8: ``identify`` printed a condition number of 3e19 and no warning. Now a joint whose
+    range of motion is under 5 degrees, and a condition number above 1e8, are warnings naming the joint; the
+    same motion with every joint moving gives none."""
+    from hybrid_dyn.cli import main
+
+    q, qd, qdd = smooth_motion(panda, 600, seed=3)
+    tau = panda.inverse_dynamics(q, qd, qdd)
+    model = identify((q, qd, qdd, tau), "ols", panda)
+    assert model.fit["warnings"] == [] and model.fit["condition_number"] < 1e8
+    q[:, 3], qd[:, 3], qdd[:, 3] = q[0, 3], 0.0, 0.0
+    still = identify((q, qd, qdd, panda.inverse_dynamics(q, qd, qdd)), "ols", panda)
+    assert still.fit["range_of_motion_deg"][3] == 0.0
+    assert still.fit["warnings"][0] == ("joint 4 (panda_joint4) moves 0 deg in the identification data, under the "
+                                        "5 deg needed to identify it: its parameters are not determined by the data")
+    assert still.fit["condition_number"] > 1e8 and "above 1e+08" in still.fit["warnings"][1]
+    # On the command line, from a dataset of the still motion (the train split is what identify fits on).
+    ds = _dataset(tmp_path / "ds", panda, q, qd, qdd, panda.inverse_dynamics(q, qd, qdd))
+    assert main(["identify", "--data", str(ds), "--method", "ols", "--splits", "train",
+                 "--out", str(tmp_path / "p.json")]) == 0
+    out = capsys.readouterr().out
+    assert "warning: joint 4 (panda_joint4) moves 0 deg in the identification data, under the 5 deg" in out, out
+    assert "warning: the base regressor of the identification data has condition number" in out
+
+
+def _dataset(path, robot, q, qd, qdd, tau, hz=100.0):
+    """A one-instance dataset (train split) of given samples, in the toolkit's format."""
+    from hybrid_dyn.data.dataset import FIELD_UNITS, package_versions, write_instance, write_manifest
+
+    fields = {"t": np.arange(len(q)) / hz, "q": q, "qd": qd, "qdd": qdd, "tau_m": tau}
+    sha = write_instance(path / "instances" / "run.h5", fields)
+    write_manifest(path, {"robot": robot.name, "scenario": "still", "seed": 0, "record_hz": hz, "config": {},
+                          "fields": {k: FIELD_UNITS[k] for k in fields}, "packages": package_versions(),
+                          "instances": [{"name": "run", "file": "instances/run.h5", "sha256": sha, "n_samples": len(q)}],
+                          "splits": {"train": ["run"], "val": [], "test": []}})
+    return path
+
+
 @pytest.mark.slow
 def test_sigmoid_friction_recovers_the_plants_gaz_law(panda, noisy_mismatch_data):
     gaz = panda.spec.friction("gaz2019")

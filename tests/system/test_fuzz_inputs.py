@@ -3,6 +3,11 @@ valid spec (and of its log file) and of a valid URDF. Every case must end, withi
 HybridDynError that names the problem, or in a dataset that loads (a robot that computes); never in
 another exception (a traceback) or a hang, and a refused import leaves no output behind.
 
+Issue 39 adds the bench's folders: ``report`` and ``compare`` (with ``--out``) on report folders changed at
+random, and ``study --out`` on folders holding a mix of the study's files and a user's. They must end in
+a report, comparison or summary showing only what the bench wrote, or in one error; and no file of the
+user's, in the folder or at ``--out``, is ever written over or deleted.
+
 The seeds are fixed: a failure here is reproducible by its case number, printed in the assertion.
 """
 from __future__ import annotations
@@ -406,3 +411,259 @@ def test_fuzzed_run_json_ends_in_a_report_or_one_error(tmp_path, monkeypatch):
         shutil.rmtree(here)
     assert counts["ok"] >= 20 and counts["refused"] >= 20, counts
     print(f"run.json fuzz: {counts}")
+
+
+# ------------------------------------------------------------------ report folders (issue 39)
+# A user's files in and beside the report folders: whatever a command does, they stay as they are.
+USER_FILES = {"notes.txt": b"my notes", "traces_my_experiment.png": b"\x89PNG mine", "rmse_by_family_mine_v2.png": b"mine"}
+MLP_RMSE = "1.568"  # seed-tau-mlp's RMSE as the bench wrote it: the only figure compare may print for it
+REPORT_ROWS = [{"task": "joint_torque", "scenario": "s", "model": m, "family": f, "inputs": "q, qd, qdd", "status": "ok",
+                "val_loss": "0.1", "test_loss": "0.1", "rmse": r, "nmse": "0.1"}
+               for m, f, r in (("rnea", "analytic", "0.25"), ("seed-tau-mlp", "seed-net", MLP_RMSE))]
+REPORT_META = {"bench_report": 1, "wall_seconds": 60.0, "scenarios": {"s": "data/s"}, "skipped": [],
+               "requested": ["s / joint_torque / rnea", "s / joint_torque / seed-tau-mlp"],
+               "invocations": [{"started": "2026-12-04T10:00:00Z", "finished": "2026-12-04T10:01:00Z",
+                                "wall_seconds": 60.0, "rows": 2}],
+               "profile": {"name": "data", "scenarios": ["data/s"], "generator_profile": "quick", "seed": 0,
+                           "recipe": "budget", "train": {}, "notes": [], "scenario_overrides": {}},
+               "report_files": ["README.md", "joint_torque.md", "rmse_by_family_joint_torque.png"]}
+
+
+def _report_folder(here: Path) -> Path:
+    """A report folder as the bench leaves it (no predictions.h5: the digest vouches for the rows), its own
+    README, a table and a recorded figure, and the user's files beside them."""
+    import json
+
+    from hybrid_dyn.bench.integrity import results_digest
+    from hybrid_dyn.bench.results import write_results
+
+    here.mkdir(parents=True)
+    write_results(here / "results.csv", REPORT_ROWS)
+    meta = copy.deepcopy(REPORT_META)
+    meta["results_digest"] = results_digest(here / "results.csv", meta)
+    (here / "run.json").write_text(json.dumps(meta))
+    for name in meta["report_files"]:
+        (here / name).write_bytes(b"the report's")
+    for name, data in USER_FILES.items():
+        (here / name).write_bytes(data)
+    return here
+
+
+def _mutate_report(here: Path, rng) -> str:
+    """One random change of a report folder, as a user's hand or a broken copy makes it (none where an
+    earlier change left nothing to change: a file deleted, a folder, a JSON list)."""
+    try:
+        return _change_report(here, rng)
+    except (OSError, ValueError, KeyError, TypeError, AttributeError, IndexError):
+        return "none"
+
+
+def _change_report(here: Path, rng) -> str:
+    import json
+
+    from hybrid_dyn.bench.integrity import run_digest
+
+    kind = int(rng.integers(9))
+    target = here / str(rng.choice(["run.json", "results.csv"]))
+    if kind == 0:
+        name = str(rng.choice(["run.json", "results.csv", "README.md", "joint_torque.md"]))
+        (here / name).unlink()
+        return f"deleted {name}"
+    if kind == 1:
+        target.write_bytes(bytes(rng.integers(0, 256, 200, dtype=np.uint8)))
+        return f"random bytes in {target.name}"
+    if kind == 2:
+        text = target.read_bytes()
+        target.write_bytes(text[: int(rng.integers(len(text)))])
+        return f"truncated {target.name}"
+    if kind in (3, 4):  # results.csv edited: a cell, or the table's shape
+        lines = (here / "results.csv").read_text().splitlines()
+        i = int(rng.integers(1, len(lines)))
+        if kind == 3:
+            cells = lines[i].split(",")
+            j = int(rng.integers(len(cells)))
+            cells[j] = str(rng.choice(["0.0123", "", "abc", "nan", "-1", "ok", "failed", "s", "rnea", "1e400"]))
+            lines[i] = ",".join(cells)
+            did = f"results.csv line {i + 1} cell {j} = {cells[j]!r}"
+        else:
+            change = int(rng.integers(4))
+            if change == 0:
+                lines[i] += ",extra"
+            elif change == 1:
+                lines.pop(i)
+            elif change == 2:
+                lines.insert(i, lines[i])
+            else:
+                lines[0] = lines[0].replace("rmse", "RMSE", 1)
+            did = f"results.csv shape change {change} at line {i + 1}"
+        (here / "results.csv").write_text("\n".join(lines) + "\n")
+        return did
+    if kind == 5:
+        doc = [{"profile": "mine"}, {"profile": "mine", "lr": 0.01}, {"bench_report": 1}, [], "x"][int(rng.integers(5))]
+        (here / "run.json").write_text(json.dumps(doc))
+        return f"a user's run.json: {doc!r}"
+    if kind == 6:
+        name = str(rng.choice(["run.json", "results.csv"]))
+        (here / name).unlink()
+        (here / name).mkdir()
+        return f"{name} is a folder"
+    meta = json.loads((here / "run.json").read_text())
+    if kind == 7:  # a user's files put on the record by hand (run.json not re-digested: refused)
+        meta["report_files"] = [*meta["report_files"], *USER_FILES, "../notes.txt", "run.json"][: int(rng.integers(4, 9))]
+        (here / "run.json").write_text(json.dumps(meta))
+        return f"report_files = {meta['report_files']}"
+    key = str(rng.choice(sorted(k for k in meta if k not in ("results_digest", "report_files"))))
+    meta[key] = copy.deepcopy(ODD[rng.integers(len(ODD))])
+    if rng.random() < 0.5:  # re-digested, as a careful editor would: the reader must still not crash
+        meta["results_digest"]["run"] = run_digest(meta)
+    (here / "run.json").write_text(json.dumps(meta, allow_nan=True))
+    return f"run.json {key} = {meta[key]!r}"
+
+
+def _user_files_kept(here: Path, what: str) -> None:
+    kept = {n: (here / n).read_bytes() for n in USER_FILES if (here / n).is_file()}
+    assert kept == USER_FILES, f"{what}: the user's files in {here.name} changed: {sorted(set(USER_FILES) - set(kept))}"
+
+
+@pytest.mark.slow  # 150 cases of compare and report on mutated folders, figures stubbed: ~10 s
+def test_fuzzed_report_folders_end_in_a_report_or_one_error(tmp_path, monkeypatch, capsys):
+    """``hybrid-dyn report`` and ``compare`` (with ``--out``) on report folders changed at random: a README or
+    a comparison showing only what the bench wrote, or one HybridDynError; never a traceback, and the user's
+    files in the folder and at ``--out`` are never written over or deleted (issue 39)."""
+    from hybrid_dyn.bench import report as report_mod
+    from hybrid_dyn.cli import main as cli_main
+    from hybrid_dyn.outputs import write_own_text
+
+    def figures(out_dir, rows, preds, seed=0):  # the bars' file, drawn in milliseconds
+        (Path(out_dir) / "rmse_by_family_joint_torque.png").write_bytes(b"\x89PNG")
+        return ["rmse_by_family_joint_torque.png"]
+
+    monkeypatch.setattr(report_mod, "_figures", figures)
+    monkeypatch.setattr(report_mod, "learning_curve_figures", lambda *a, **k: [])
+    good = _report_folder(tmp_path / "good")
+    rng = np.random.default_rng(SPEC_SEED + 3)
+    counts = {"report ok": 0, "report refused": 0, "compare ok": 0, "compare refused": 0}
+    for case in range(150):
+        here = _report_folder(tmp_path / f"f{case:03d}")
+        # one case in six unchanged (what must pass), the others changed once or twice
+        did = [_mutate_report(here, rng) for _ in range(int(rng.choice([0, 1, 1, 1, 1, 2])))]
+        what = f"report folder case {case} ({'; '.join(did) or 'unchanged'})"
+        # --out: new, the user's file, a file of compare's own, one edited since, or a folder
+        out, state = tmp_path / f"notes{case:03d}.md", int(rng.choice(5, p=[0.4, 0.15, 0.25, 0.1, 0.1]))
+        if state == 1:
+            out.write_text("# my notes\n")
+        elif state in (2, 3):
+            write_own_text(out, "an earlier comparison\n", "compare")
+            if state == 3:
+                out.write_text(out.read_text() + "my conclusion\n")
+        elif state == 4:
+            out.mkdir()
+        before_out = out.read_bytes() if out.is_file() else None
+
+        def compare():
+            capsys.readouterr()
+            rc = cli_main(["compare", str(here), str(good), "--out", str(out)])
+            shown, err = capsys.readouterr()
+            assert rc in (0, 2), f"{what}: compare exit status {rc}"
+            if rc == 2:
+                assert err.startswith("error: ") and len(err.strip().splitlines()) == 1, f"{what}: {err}"
+                return "refused"
+            for text in (shown, out.read_text()):  # what it shows is what the bench wrote, in both reports
+                assert f"| seed-tau-mlp | seed-net | {float(MLP_RMSE):.3f} |" in text, f"{what}: {text}"
+            return "ok"
+
+        status, result = _check_outcome(compare, what + f", --out state {state}")
+        outcome = result if status == "ok" else "refused"
+        counts[f"compare {outcome}"] += 1
+        if state in (1, 3):  # the user's: never replaced
+            assert out.read_bytes() == before_out, f"{what}: --out state {state} was written over"
+            assert outcome == "refused", f"{what}: --out state {state} accepted"
+        _user_files_kept(here, what)
+        status, _ = _check_outcome(lambda: report_mod.rebuild_report(here, log=lambda m: None), what)
+        counts[f"report {status}"] += 1
+        if status == "ok":
+            assert (here / "README.md").read_text().startswith("# Benchmark report"), what
+        _user_files_kept(here, what)
+    _user_files_kept(good, "the unchanged report")
+    assert all(v >= 5 for v in counts.values()), counts
+    print(f"report folder fuzz: {counts}")
+
+
+def _snapshot(root: Path) -> dict:
+    """Every file under ``root`` (or ``root`` itself, a file) and its bytes; folders by name."""
+    if root.is_file():
+        return {".": root.read_bytes()}
+    return {str(p.relative_to(root)): (p.read_bytes() if p.is_file() else "folder") for p in root.rglob("*")} \
+        if root.is_dir() else {}
+
+
+@pytest.mark.slow  # 150 studies with their benches stubbed: a few seconds
+def test_fuzzed_study_folders_end_in_a_summary_or_one_error(tmp_path, monkeypatch):
+    """``study --out`` on folders holding a random mix of the study's own files and a user's: a summary where
+    the folder is the study's (its summary JSON names it, or it holds only the variants' bench reports),
+    else one OutputPathError before any work; the user's files are never written over or deleted (issue 39)."""
+    import json
+
+    from hybrid_dyn.bench import studies as studies_mod
+    from hybrid_dyn.bench.studies import Overrides, Study, run_study
+    from hybrid_dyn.errors import OutputPathError
+
+    study = Study("fuzz-study", "seed-sim", "a fuzz", rows=("rnea",), base=Overrides(data={"n_instances": 8}),
+                  variants={"v": Overrides(train={"lr": 1e-3})}, keep_variant_reports=True)
+    ran = []
+
+    def variant(study, name, rows, where, reference_report=None, **run_args):
+        ran.append(name)
+        return [], [where]
+
+    monkeypatch.setattr(studies_mod, "_run_variant", variant)
+    bench_meta = json.dumps({"bench_report": 1, "profile": {"name": "x"}})
+    entries = {  # name -> (how to make it, whether it proves nothing of the user's: the study's own)
+        "README.md": (lambda p: p.write_text("# my notes\n"), False),
+        "notes.txt": (lambda p: p.write_text("mine"), False),
+        "fuzz-study.json": (lambda p: p.write_text('{"study": "fuzz-study", "panels": []}'), True),
+        "fuzz-study.json ": (lambda p: p.write_text('{"study": "other"}'), False),  # another study's mark
+        "fuzz-study.json  ": (lambda p: p.write_text('{"study": '), False),  # truncated
+        "fuzz-study.json   ": (lambda p: p.mkdir(), False),  # a folder of that name
+        "data_scaling.json": (lambda p: p.write_text('{"study": "fuzz-study"}'), False),  # not this kind's file
+        "v": (lambda p: (p.mkdir(), (p / "run.json").write_text(bench_meta)), True),  # a variant's bench report
+        "base ": (lambda p: (p.mkdir(), (p / "run.json").write_text('{"profile": "mine"}')), False),
+        "v ": (lambda p: p.mkdir(), False),  # a variant's name, no report in it
+        ".v.lock": (lambda p: p.write_text(""), True),
+    }
+    rng = np.random.default_rng(SPEC_SEED + 4)
+    counts = {"ok": 0, "refused": 0}
+    for case in range(150):
+        out = tmp_path / f"s{case:03d}" / "out"
+        out.parent.mkdir()
+        picked = {str(n).strip(): str(n) for n in rng.choice(sorted(entries), int(rng.integers(0, 4)))}
+        names = sorted(picked.values())  # one entry per file name
+        if rng.random() < 0.9:
+            out.mkdir()
+            for name in names:
+                entries[name][0](out / name.strip())  # trailing blanks: the variants of one name
+        elif rng.random() < 0.5:
+            out.write_text("a user's file where the folder goes")
+            names = ["(a file)"]
+        else:
+            names = []
+        what = f"study folder case {case} ({', '.join(names) or 'new' if out.exists() else 'absent'})"
+        before = _snapshot(out)
+        marked = "fuzz-study.json" in names
+        own = not out.exists() or (out.is_dir() and (marked or all(entries[n][1] for n in names)))
+        ran.clear()
+        status, result = _check_outcome(lambda: run_study(study, tmp_path / "report", out,
+                                                          work_root=tmp_path / "runs", log=lambda m: None), what)
+        counts[status] += 1
+        after = _snapshot(out)
+        if own:
+            assert status == "ok", f"{what}: its own folder refused: {result}"
+            assert json.loads((out / "fuzz-study.json").read_text())["study"] == "fuzz-study", what
+            changed = {k for k in before if after.get(k) != before[k]}
+            assert changed <= {"README.md", "fuzz-study.json"} and (marked or "README.md" not in before), \
+                f"{what}: changed {changed}"
+        else:
+            assert status == "refused" and isinstance(result, OutputPathError), f"{what}: {status} {result}"
+            assert after == before and ran == [], f"{what}: refused, but work began or files changed"
+    assert counts["ok"] >= 20 and counts["refused"] >= 20, counts
+    print(f"study folder fuzz: {counts}")

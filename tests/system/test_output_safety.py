@@ -295,7 +295,10 @@ def test_bench_claims_a_new_folder_and_reuses_its_own(tmp_path):
         with pytest.raises(Sentinel):
             run_bench(get_profile("quick"), out, dataset_provider=_no_data, log=quiet)
     meta = json.loads((out / "run.json").read_text())
-    assert meta["profile"] == get_profile("quick").to_dict() and set(meta) == {"bench_report", "invocations", "profile"}
+    assert meta["profile"] == get_profile("quick").to_dict()
+    # the marker, and what a killed run's report needs: the rows requested and those found not to apply
+    assert set(meta) == {"bench_report", "invocations", "profile", "requested", "skipped"}
+    assert "mismatch-ext / joint_torque / rnea" in meta["requested"] and meta["skipped"] == []
     # the second run kept the first: both were interrupted (their time so far on record, none finished)
     assert [i["finished"] for i in meta["invocations"]] == [None, None]
     (out / "run.json").write_text('{"something": "else"}')

@@ -25,6 +25,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from scipy.linalg import solve_discrete_are
 
 # The filter's default bandwidth [rad/s]: 1/omega (~3 ms) is its lag; on the hardware stream of
@@ -106,20 +107,25 @@ class JointStateFilter:
         self.qd_noise, self.qdd_noise = joint_state_noise(design)  # [rad/s], [rad/s^2] in motion
         self.x = np.zeros((3, nv))
         self.reset()
+        _step(self._A, design.gain, np.zeros((3, nv)), np.zeros(nv), True)  # compile now, not in a control cycle
 
     def reset(self) -> None:
         self._started = False
 
     def step(self, q: np.ndarray):
-        x = self.x
-        if not self._started:
-            x[:] = 0.0
-            x[0] = q
-            self._started = True
-        else:
-            x[:] = self._A @ x
-            x += self._K * (q - x[0])
-        return x[0], x[1], x[2]
+        """One sample q (nv,) [rad] -> views of the estimates (q, qd, qdd), valid until the next call."""
+        _step(self._A, self.design.gain, self.x, q, self._started)
+        self._started = True
+        return self.x[0], self.x[1], self.x[2]
+
+    def coast(self, steps: int, max_steps: int = 50) -> None:
+        """``steps`` samples lost: predict across them, or start over when more than ``max_steps`` were
+        (beyond ~50 ms a constant acceleration is no prediction of an arm's motion)."""
+        if steps > max_steps or not self._started:
+            self.reset()
+            return
+        for _ in range(max(steps, 0)):
+            self.x[:] = self._A @ self.x
 
     def run(self, q: np.ndarray) -> np.ndarray:
         """``step`` over (n, nv) from a start: (3, n, nv) = q, qd, qdd estimates."""
@@ -128,6 +134,20 @@ class JointStateFilter:
         for k, row in enumerate(np.asarray(q, float)):
             out[:, k] = np.stack(self.step(row))
         return out
+
+
+@njit(cache=True)
+def _step(A, K, x, q, started):  # pragma: no cover (compiled)
+    """x = A x, then x += K (q - x[0]), per joint; a start takes q with zero velocity and acceleration."""
+    for j in range(q.shape[0]):
+        if not started:
+            x[0, j], x[1, j], x[2, j] = q[j], 0.0, 0.0
+            continue
+        p0 = A[0, 0] * x[0, j] + A[0, 1] * x[1, j] + A[0, 2] * x[2, j]
+        p1 = A[1, 1] * x[1, j] + A[1, 2] * x[2, j]
+        p2 = A[2, 2] * x[2, j]
+        e = q[j] - p0
+        x[0, j], x[1, j], x[2, j] = p0 + K[0] * e, p1 + K[1] * e, p2 + K[2] * e
 
 
 def joint_filter_for(robot, rate_hz: float, resolution: float, bandwidth="auto") -> JointStateFilter | None:

@@ -360,3 +360,14 @@ def load_robot(name: str = "panda", params: str | os.PathLike | None = None, pay
     params_name = str(params) if params is not None else spec.default_params
     return Robot(spec, urdf, params_name=params_name, payload=payload, sensor_mount=sensor_mount,
                  num_threads=num_threads, name=ref.name)
+
+
+def with_payload(robot: Robot, payload: Payload | tuple | None) -> Robot:
+    """The same robot (description, parameters, tool, sensor mount) carrying ``payload`` instead of its own:
+    a :class:`Payload` or ``(mass_kg, (x, y, z))``, a point mass at that offset [m] from the tool frame in
+    its axes; None carries none."""
+    from ..description.names import RobotVariant
+
+    name = robot.base_name + RobotVariant(robot.variant.tool, None).suffix()
+    return load_robot(name, params=robot.params_name, payload=payload, sensor_mount=robot.sensor_mount,
+                      num_threads=robot.num_threads)

@@ -66,6 +66,7 @@ class StreamingTare:
     def __init__(self, robot, n_calls: int):
         self.robot = robot
         self.n_calls = int(n_calls)
+        self.residuals = np.zeros((self.n_calls, 3))  # per window call: measured - model force [N]
         self.reset()
 
     def reset(self) -> None:
@@ -80,9 +81,33 @@ class StreamingTare:
         """The tared wrench of one sample that its caller has validated (finite, (nv,) and (6,) float
         arrays: the estimator's gate), so the model wrench skips ``Robot.base_wrench``'s checks."""
         if not self.done:  # only during the tare window: after it, one subtraction per call
+            residual = base_wrench - self.robot.base_wrench_single(q, qd, qdd)
+            self.residuals[self.count] = residual[:3]
             self.count += 1
-            self.offset += (base_wrench - self.robot.base_wrench_single(q, qd, qdd) - self.offset) / self.count
+            self.offset += (residual - self.offset) / self.count
         return base_wrench - self.offset
+
+    def follow(self, q, base_wrench, rate: float) -> None:
+        """At a standstill with no contact: move the offset toward this sample's residual (measured minus
+        the model's gravity wrench at q) by the fraction ``rate`` (dt / tau): a slow re-tare that tracks
+        the sensor's bias drift. The caller decides that the arm stands still and nothing touches it."""
+        zero = np.zeros_like(q)
+        self.offset += rate * (base_wrench - self.robot.base_wrench_single(q, zero, zero) - self.offset)
+
+    def window_step(self, threshold: float, segments: int = 5) -> float | None:
+        """The largest change [N] of the force residual (measured - model) between the window's segments
+        when it exceeds ``threshold`` [N], else None: a contact that began or ended inside the window,
+        or a trend, which a mean would tare into the offset. Medians (the upper one of an even count) of
+        ``segments`` equal parts, so a sensor's white noise and a few outliers do not trip it."""
+        if not self.done or self.n_calls < 2 * segments:
+            return None
+        # A window's last call runs this inside a control cycle: one partial sort per segment, no Python loop
+        # over its samples.
+        parts = np.array_split(self.residuals, segments)
+        medians = np.stack([np.partition(p, len(p) // 2, axis=0)[len(p) // 2] for p in parts])
+        gaps = medians[:, None, :] - medians[None, :, :]
+        spread = float(np.sqrt((gaps * gaps).sum(axis=2).max()))
+        return spread if spread > threshold else None
 
     def set_offset(self, offset) -> None:
         """Use a known offset (e.g. from a tare done elsewhere) and skip the tare window."""

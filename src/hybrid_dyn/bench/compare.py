@@ -14,11 +14,10 @@ against the same profile on less data.
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
+from .integrity import read_checked_report
 from .report_tables import best_row
-from .results import read_results
 
 LEARNED = ("seed-net", "residual", "delan")  # the families a comparison reads (trained, no identified fit)
 UNITS = {"tip_force": "N", "joint_torque": "Nm"}
@@ -38,11 +37,12 @@ def best_analytic(rows: list[dict]) -> dict:
     return best
 
 
-def data_size(report: Path) -> str:
-    """Instances x trajectories per instance of a report's simulated scenarios, from its run.json."""
-    meta = json.loads((Path(report) / "run.json").read_text())
-    over = meta.get("profile", {}).get("scenario_overrides") or {}
-    sizes = {f"{v.get('n_instances')} x {tuple(v.get('trajectories', ()))}" for v in over.values()}
+def data_size(meta: dict) -> str:
+    """Instances x trajectories per instance of a report's simulated scenarios, from its run.json (``meta``)."""
+    over = meta["profile"].get("scenario_overrides")
+    over = over if isinstance(over, dict) else {}
+    sizes = {f"{v.get('n_instances')} x {tuple(v.get('trajectories') or ())}" for v in over.values()
+             if isinstance(v, dict)}
     return ", ".join(sorted(sizes)) or "the generator's default"
 
 
@@ -52,14 +52,17 @@ def compare_reports(small: Path, large: Path, command: str | None = None, labels
     ``labels``: the two reports' names in the tables (default: their folders' names)."""
     small, large = Path(small), Path(large)
     a_name, b_name = labels or (small.name, large.name)
-    rows_a, rows_b = read_results(small / "results.csv"), read_results(large / "results.csv")
+    # Checked as ``hybrid-dyn report`` checks a folder before it draws: a hand-edited number, another report's
+    # run.json or a user's is refused, naming the row or file, never printed (integrity.py).
+    report_a, report_b = read_checked_report(small, replacing=False), read_checked_report(large, replacing=False)
+    rows_a, rows_b = report_a.rows, report_b.rows
     a, b = _ok(rows_a), _ok(rows_b)
     pa, pb = best_analytic(rows_a), best_analytic(rows_b)
     out = [f"# `{small}` against `{large}`: each learned row against its own report's physics", ""]
     if command:
         out += [f"`{command}`", ""]
-    out += [f"- {a_name}: `{small}`, instances x trajectories per instance: {data_size(small)}",
-            f"- {b_name}: `{large}`, instances x trajectories per instance: {data_size(large)}", "",
+    out += [f"- {a_name}: `{small}`, instances x trajectories per instance: {data_size(report_a.meta)}",
+            f"- {b_name}: `{large}`, instances x trajectories per instance: {data_size(report_b.meta)}", "",
             "Ratio: a row's test RMSE over the best analytic row's in the same report, scenario and task (the two "
             "reports test on different instances; physics needs no data). A ratio that falls with more data is "
             "data-limited.", ""]

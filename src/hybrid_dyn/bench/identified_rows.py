@@ -153,13 +153,32 @@ def _excitation_dataset(ctx):
     return ident
 
 
-def _row(task, name, needs, predict_instance, inputs, single=None) -> Row:
-    """Declare an identified row: predict_instance(models, ctx, inst) and single(models, ctx, inst, k)."""
+def review(ctx, methods) -> tuple[list[str], list[str]]:
+    """(problems, notes) of the identified models ``methods`` a row predicts with (``Predictor.review``):
+    each body outside the robot's bounds (``identify.plausibility``; the row is then marked implausible),
+    and what the identification data could not determine (a joint under the range of motion, the
+    condition number). Computed from the parameters and the data, so a fit cached before the checks is
+    checked too."""
+    from ..identify.plausibility import fit_warnings
+
+    problems = [f"identified-{m} parameters outside the robot's bounds: {b}"
+                for m in methods for b in _identified(ctx, m)[0].implausible_bodies()]
+    if "identification-warnings" not in ctx.cache:
+        data, kwargs, what = _identification_data(ctx)
+        q = np.concatenate([np.asarray(i["q"]) for s in kwargs["splits"] for i in data.split(s)])
+        cond = _identified(ctx, methods[0])[0].fit.get("condition_number", float("nan"))  # the same data, any method
+        ctx.cache["identification-warnings"] = fit_warnings(q, float(cond), ctx.robot.joint_names, what)
+    return problems, list(ctx.cache["identification-warnings"])
+
+
+def _row(task, name, needs, predict_instance, inputs, single=None, methods=("consistent",)) -> Row:
+    """Declare an identified row: predict_instance(models, ctx, inst) and single(models, ctx, inst, k);
+    ``methods``: the identified models it predicts with (their parameters are checked, ``review``)."""
     def build(ds, ctx):
         models = _Models(ctx)
         return Predictor(predict=lambda insts: [predict_instance(models, ctx, i) for i in insts],
                          single_call=(lambda inst, k: single(models, ctx, inst, k)) if single else None,
-                         inputs=inputs)
+                         inputs=inputs, review=lambda: review(ctx, methods))
 
     return declare(Row(name, task, "identified", needs=needs, needs_urdf=True, build=build, more_needs=fit_needs))
 
@@ -202,7 +221,8 @@ def _identified_bw_torque(models, ctx, inst, k=None):
 def _torque_row(name: str, method: str):
     """A row predicting with one identified model; per call: the same function on one sample."""
     return _row("joint_torque", name, TORQUE_NEEDS, lambda m, c, i: m[method].predict_torque(i.q, i.qd, i.qdd),
-                "q, qd, qdd", single=lambda m, c, i, k: m[method].predict_torque(i.q[k], i.qd[k], i.qdd[k]))
+                "q, qd, qdd", single=lambda m, c, i, k: m[method].predict_torque(i.q[k], i.qd[k], i.qdd[k]),
+                methods=(method,))
 
 
 def _friction_only(models, ctx, q, qd, qdd):
@@ -225,8 +245,10 @@ def _residual_row(name: str, preset: str) -> Row:
         model = train_model(ds, ctx.profile.preset(preset), out, config=config, wait=True)  # shared runs/: wait
         train_seconds = getattr(model, "train_seconds", None) or (time.perf_counter() - t0)
         # A learned row: its curve is reported, its single call is the user's (learned_rows.py).
-        return learned_predictor(model, train_seconds, inputs=", ".join(model.config.get("inputs", []))
+        pred = learned_predictor(model, train_seconds, inputs=", ".join(model.config.get("inputs", []))
                                  + f"; prior on identified-{RESIDUAL_PRIOR_METHOD} (inertials + friction)")
+        pred.review = lambda: review(ctx, (RESIDUAL_PRIOR_METHOD,))  # a net on absurd parameters is marked too
+        return pred
 
     p = get_preset(preset)
     return declare(Row(name, "joint_torque", "identified", needs=tuple(p.inputs) + tuple(p.targets), needs_urdf=True,
@@ -252,7 +274,8 @@ def _gp_residual_row(name: str) -> Row:
         ctx.log(f"[bench] {ctx.scenario} {name}: validation RMSE {model.config['val_rmse']:.4f} Nm against the "
                 f"prior's {model.config['val_rmse_prior']:.4f}; joints keeping the prior: {kept or 'none'}")
         return gp_predictor(model, t0, prior_kept=prior_kept_text(model.kept_prior),
-                            inputs=f"q, qd, qdd; prior on identified-{RESIDUAL_PRIOR_METHOD} (inertials + friction)")
+                            inputs=f"q, qd, qdd; prior on identified-{RESIDUAL_PRIOR_METHOD} (inertials + friction)",
+                            review=lambda: review(ctx, (RESIDUAL_PRIOR_METHOD,)))
 
     return declare(Row(name, "joint_torque", "identified", needs=TORQUE_NEEDS, needs_urdf=True, build=build,
                        more_needs=fit_needs, prior=f"identified-{RESIDUAL_PRIOR_METHOD}"))
@@ -266,15 +289,18 @@ TARED_INPUTS = "q, qd, qdd, base_wrench (tared on the first 0.5 s)"
 _torque_row("identified-ols", "ols")
 _torque_row("identified-consistent", "consistent")
 _torque_row("identified-sigmoid-friction", "sigmoid-friction")
+# The friction of sigmoid-friction was fitted jointly with its inertials: absurd bodies, suspect friction.
 _row("joint_torque", "rnea+identified-friction", TORQUE_NEEDS, lambda m, c, i: _friction_only(m, c, i.q, i.qd, i.qdd),
-     "q, qd, qdd", single=lambda m, c, i, k: _friction_only(m, c, i.q[k], i.qd[k], i.qdd[k]))
+     "q, qd, qdd", single=lambda m, c, i, k: _friction_only(m, c, i.q[k], i.qd[k], i.qdd[k]),
+     methods=("sigmoid-friction",))
 _row("tip_force", "base-wrench-identified", TIP_NEEDS, _base_wrench_identified, "q, qd, qdd, base_wrench",
      single=lambda m, c, i, k: tip_force_from_base_wrench(_identified_robot(m, c), i.q[k], i.qd[k], i.qdd[k],
                                                           i.base_wrench[k]))
 _row("tip_force", "base-wrench-identified-tared", TIP_NEEDS, _tared_force_identified, TARED_INPUTS,
      single=lambda m, c, i, k: _tared_force_identified(m, c, i, k))
 _row("joint_torque", "identified-bw-tared", ("q", "qd", "qdd", "base_wrench", "tau_m"), _identified_bw_torque,
-     TARED_INPUTS, single=lambda m, c, i, k: _identified_bw_torque(m, c, i, k))
+     TARED_INPUTS, single=lambda m, c, i, k: _identified_bw_torque(m, c, i, k),
+     methods=("sigmoid-friction", "consistent"))
 for _name, _preset in RESIDUAL_ROWS.items():
     _residual_row(_name, _preset)
 _gp_residual_row("gp-residual-identified")

@@ -16,6 +16,8 @@
 """
 from __future__ import annotations
 
+import csv
+import dataclasses
 import hashlib
 import json
 import math
@@ -27,10 +29,14 @@ import numpy as np
 from ..errors import HybridDynError
 from ..outputs import json_marker, refuse_foreign
 from .metrics import ErrorReport
-from .results import read_results
+from .results import SCORED_STATUSES, read_results, write_json
 
 RUN_FILE = "run.json"
+RESULTS_FILE = "results.csv"
 DIGEST_KEY = "results_digest"
+# run.json's record of the files the report wrote (tables, figures, README): all ``report`` ever removes
+# (a stale figure), and what a bench taking the folder over for another profile clears.
+REPORT_FILES = "report_files"
 # results.csv columns that predictions.h5 gives again (``score_row``'s ErrorReport on the test split).
 RECOMPUTED = ("rmse", "nmse", "rmse_contact", "rmse_free", "max_error", "n_test_samples")
 TARGETS = {"tip_force": "tip_force", "joint_torque": "tau_m"}  # rows.TASK_TARGET, without importing the rows
@@ -67,16 +73,19 @@ def same_profile(recorded: dict, profile) -> bool:
     return identity(recorded_profile(recorded)) == identity(profile.to_dict())
 
 
-def read_run_json(out_dir) -> dict | None:
-    """The run.json of report folder ``out_dir``; None when there is none; refused (``OutputPathError``)
-    when it is not the bench's (unreadable, or without the marker)."""
+def read_run_json(out_dir, replacing: bool = True) -> dict | None:
+    """The run.json of report folder ``out_dir``; None when there is none; refused when it is not the
+    bench's (unreadable, or without the marker): ``OutputPathError`` for a command that would write
+    there, ``ReportIntegrityError`` for one that only reads it (``replacing`` False: ``compare``)."""
     path = Path(out_dir) / RUN_FILE
     if not path.is_file():
         return None
     doc = json_marker(path, "bench_report", 1)  # read as every command reads its marker (outputs.py)
     if not is_bench_meta(doc):
-        refuse_foreign(path, "benchmark report", "it is not a run.json of hybrid-dyn bench (it lacks the "
-                                                 "'bench_report': 1 marker and the recorded profile)")
+        why = "it is not a run.json of hybrid-dyn bench (it lacks the 'bench_report': 1 marker and the recorded profile)"
+        if not replacing:
+            raise ReportIntegrityError(f"{path}: {why}; {Path(out_dir)} is not a bench report")
+        refuse_foreign(path, "benchmark report", why)
     return doc
 
 
@@ -129,6 +138,12 @@ def check_meta(meta: dict, path) -> None:
     for key, ok, want in PROFILE_FIELDS:  # those the README quotes; each may be absent (older reports)
         if prof.get(key) is not None and not ok(prof[key]):
             raise ReportIntegrityError(f"{path}: profile.{key} must be {want}, got {prof[key]!r}")
+    requested = meta.get("requested")
+    if requested is not None and not _texts(requested):
+        bad("requested", "a list of rows (scenario / task / model)")
+    files = meta.get(REPORT_FILES)
+    if files is not None and not (isinstance(files, list) and all(_is_plain_name(f) for f in files)):
+        bad(REPORT_FILES, "a list of file names in the report folder")
     machine = meta.get("machine")
     if machine is not None and not (all(k in machine for k in ("machine", "processor", "python"))
                                     and isinstance(machine.get("packages"), dict)):
@@ -142,6 +157,12 @@ PROFILE_FIELDS = (("name", _text, "text"), ("generator_profile", _text, "text"),
                   ("scenarios", _texts, "a list of text"), ("notes", _texts, "a list of text"),
                   ("train", lambda x: isinstance(x, dict), "a mapping"),
                   ("seed", lambda x: _is_number(x) and float(x).is_integer(), "an integer"))
+
+
+def _is_plain_name(name) -> bool:
+    """A file name inside the folder, nothing else: the report deletes by these names."""
+    return isinstance(name, str) and name not in ("", ".", "..") and "/" not in name and "\\" not in name \
+        and not name.startswith(".") and name != RUN_FILE
 
 
 def _is_number(x) -> bool:
@@ -175,7 +196,7 @@ def verify_results(rows: list[dict], meta: dict, preds, where) -> None:
     if preds is None:
         return
     for r in rows:
-        if r.get("status") == "ok":
+        if r.get("status") in SCORED_STATUSES:
             recomputed = _recompute(r, preds)
             if recomputed is None:
                 raise ReportIntegrityError(f"{where}/predictions.h5 holds no predictions of row {row_key(r)} "
@@ -188,7 +209,7 @@ def verify_results(rows: list[dict], meta: dict, preds, where) -> None:
 
 def _first_difference(row: dict, preds) -> str:
     """A hint for the error: the first figure that predictions.h5 gives otherwise, if any."""
-    if preds is None or row.get("status") != "ok":
+    if preds is None or row.get("status") not in SCORED_STATUSES:
         return ""
     recomputed = _recompute(row, preds) or {}
     for col, value in recomputed.items():
@@ -225,3 +246,71 @@ def _same(text, value: float) -> bool:
     except (TypeError, ValueError):
         return False
     return math.isclose(cell, value, rel_tol=1e-5, abs_tol=1e-300)
+
+
+def record_report_files(out_dir, meta: dict, files) -> None:
+    """Record in the folder's run.json (``meta``, as on disk and checked) the files the report wrote there, and
+    vouch for run.json anew with them (its digest's run part); no run.json of the bench's there: nothing."""
+    out_dir = Path(out_dir)
+    if not (out_dir / RUN_FILE).is_file() or not is_bench_meta(meta):
+        return
+    meta = {**meta, REPORT_FILES: sorted(set(files))}
+    if isinstance(meta.get(DIGEST_KEY), dict):
+        meta[DIGEST_KEY] = {**meta[DIGEST_KEY], "run": run_digest(meta)}
+    write_json(out_dir / RUN_FILE, meta)
+
+
+def remove_report_files(out_dir, names) -> None:
+    """Remove the report's files ``names`` (recorded in run.json: the only files ever removed by name) from
+    ``out_dir``; a name already gone is skipped."""
+    for name in names:
+        path = Path(out_dir) / name
+        if _is_plain_name(name) and (path.is_file() or path.is_symlink()):
+            path.unlink()
+
+
+@dataclasses.dataclass
+class CheckedReport:
+    """A report folder's files as the bench wrote them: run.json (``meta``), results.csv (``rows``) and
+    predictions.h5 (``preds``: ``Predictions``, or None where it is absent or unreadable)."""
+
+    meta: dict
+    rows: list
+    preds: object
+
+
+def read_checked_report(out_dir, replacing: bool = True) -> CheckedReport:
+    """Read and check a bench report folder as ``hybrid-dyn report`` does before it draws anything, and as
+    ``compare`` does before it prints a number: the marker (:func:`read_run_json`; ``replacing`` as
+    there), run.json's fields (:func:`check_meta`), and every row of results.csv against run.json's digest
+    and predictions.h5 (:func:`verify_results`). Any failure is one error naming the file, row or field."""
+    from ..errors import OutputPathError
+    from .predictions import PREDICTIONS_FILE, Predictions, PredictionsError
+
+    out_dir = Path(out_dir)
+    if not (out_dir / RUN_FILE).is_file() or not (out_dir / RESULTS_FILE).is_file():
+        raise OutputPathError(f"{out_dir} is not a bench report folder: it needs run.json and results.csv "
+                              "(written by hybrid-dyn bench)")
+    meta = read_run_json(out_dir, replacing=replacing)
+    check_meta(meta, out_dir / RUN_FILE)
+    rows = _read_rows(out_dir / RESULTS_FILE)
+    try:
+        preds = Predictions(out_dir / PREDICTIONS_FILE)
+    except PredictionsError:  # absent or unreadable: the digest alone vouches for the rows (the report notes it)
+        preds = None
+    verify_results(rows, meta, preds, out_dir)
+    return CheckedReport(meta, rows, preds)
+
+
+def _read_rows(path: Path) -> list[dict]:
+    """results.csv's rows; a file that is not a table of the bench's shape is one error, not a traceback
+    (a row with more or fewer cells than the header has a None key or value, which no digest can take)."""
+    try:
+        rows = read_results(path)
+    except (OSError, UnicodeDecodeError, csv.Error) as err:
+        raise ReportIntegrityError(f"{path} does not read as a results table: {err}") from None
+    for line, r in enumerate(rows, start=2):
+        if None in r or None in r.values():
+            raise ReportIntegrityError(f"{path} line {line}: its cells do not match the header's columns "
+                                       "(not what the bench wrote)")
+    return rows

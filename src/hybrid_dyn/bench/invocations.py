@@ -15,9 +15,12 @@ import time
 from pathlib import Path
 
 from ..outputs import refuse_foreign
-from .integrity import DIGEST_KEY, read_run_json, results_digest, run_digest, same_profile
+from .integrity import (DIGEST_KEY, REPORT_FILES, read_run_json, remove_report_files, results_digest, run_digest,
+                        same_profile)
+from .predictions import PREDICTIONS_FILE
 from .profiles import BenchProfile, is_dataset_path
 from .results import CURVES_FILE, write_curves, write_json, write_results
+from .seed_comparison import SEED_COMPARISON_FILE
 
 
 def claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[dict]:
@@ -42,11 +45,7 @@ def claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[di
         if not same_profile(old["profile"], profile):  # an old recipe name or corrected notes: the same profile
             log(f"[bench] {out_dir} held a report of another profile or size: it is replaced, and its "
                 "invocations' wall times are not kept")
-            # From now on run.json says which profile is being run and vouches for no earlier row, and
-            # the other profile's rows leave results.csv and curves.json (nothing reads them under this name).
-            write_json(marker, claim)
-            write_results(out_dir / "results.csv", [])
-            write_curves(out_dir / CURVES_FILE, [])
+            take_over(out_dir, old, claim)
             return []
         if "invocations" in old:
             return list(old["invocations"])
@@ -60,6 +59,25 @@ def claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[di
     # still says what was run, and with which recipe.
     write_json(marker, claim)
     return []
+
+
+# What a bench report of any profile holds beside run.json, whatever its run.json records: the bench's files
+# and the report's fixed names (a report written before run.json recorded its files names no figure).
+BENCH_FILES = ("results.csv", CURVES_FILE, PREDICTIONS_FILE, "README.md", "tip_force.md", "tip_force.tex",
+               "joint_torque.md", "joint_torque.tex", SEED_COMPARISON_FILE)
+
+
+def take_over(out_dir: Path, old: dict, claim: dict) -> None:
+    """Replace another profile's report in ``out_dir`` (``old``: its run.json) by this bench's ``claim``, in one
+    step: its outputs (:data:`BENCH_FILES` and the files its run.json records) are removed first, then the
+    claim is written. A kill in between leaves the old run.json over fewer of its files (a rerun takes over
+    again), never the new run.json beside the other profile's README, tables or figures."""
+    remove_report_files(out_dir, [*BENCH_FILES, *(old.get(REPORT_FILES) or [])])
+    # Empty results.csv and curves.json, and the claim vouching for them: until this bench's first row the
+    # folder is a report of no row (and says so), never the other profile's.
+    write_results(out_dir / "results.csv", [])
+    write_curves(out_dir / CURVES_FILE, [])
+    write_json(out_dir / "run.json", {**claim, DIGEST_KEY: results_digest(out_dir / "results.csv", claim)})
 
 
 def _utc_now() -> str:
@@ -81,6 +99,10 @@ class InvocationClock:
     previous: list
     cold_start: bool = False
     period: float = 60.0
+    # Recorded from the start, so the report of a killed bench names the rows that never ran: every
+    # requested row (``integrity.row_key``), and those found not to apply so far (the bench appends).
+    requested: list = dataclasses.field(default_factory=list)
+    skipped: list = dataclasses.field(default_factory=list)
     started: str = dataclasses.field(default_factory=_utc_now)
     t0: float = dataclasses.field(default_factory=time.perf_counter)
     _lock: object = dataclasses.field(default_factory=threading.Lock, repr=False)
@@ -101,6 +123,7 @@ class InvocationClock:
         with self._lock:
             meta = read_run_json(out_dir)
             meta["invocations"] = self.invocations(rows, finished=False)
+            meta["requested"], meta["skipped"] = self.requested, list(self.skipped)
             old = meta.pop(DIGEST_KEY, None)
             if rows and rows_written:
                 meta[DIGEST_KEY] = results_digest(out_dir / "results.csv", meta)

@@ -25,24 +25,38 @@ def rmse_per_component(pred: np.ndarray, target: np.ndarray) -> np.ndarray:
     return np.sqrt(np.mean(e**2, axis=0))
 
 
+def zero_variance_components(target: np.ndarray) -> list[int]:
+    """The components (0-based) whose target is constant over the samples: zero variance, no nMSE."""
+    target = np.asarray(target, float)
+    return [] if not len(target) else [int(j) for j in np.flatnonzero(~(target.var(axis=0) > 0))]
+
+
 def nmse(pred: np.ndarray, target: np.ndarray) -> float:
     """Normalised MSE: per-component MSE / target variance, averaged over components.
 
-    The figure SARCOS results are usually quoted in; 1.0 is predicting the mean.
+    The figure SARCOS results are usually quoted in; 1.0 is predicting the mean. Undefined (NaN) when a
+    component's target has zero variance (:func:`zero_variance_components`: a dead channel, a joint held
+    still): averaged over the other components alone it ranked a row on a log whose joint 4 torque was 0
+    throughout as the best (issue 39); the bench writes the reason beside the row.
     """
     target = np.asarray(target, float)
     e = np.asarray(pred, float) - target
     var = target.var(axis=0)
-    var = np.where(var > 0, var, np.nan)
-    return float(np.nanmean(np.mean(e**2, axis=0) / var))
+    if not len(target) or not np.all(var > 0):
+        return float("nan")
+    return float(np.mean(np.mean(e**2, axis=0) / var))
 
 
 def standardized_mse(pred: np.ndarray, target: np.ndarray, mean: np.ndarray, std: np.ndarray) -> float:
     """MSE on targets standardised with the training split's statistics: the benchmark's "loss".
 
     Comparable across analytic and learned rows (the seed's losses add a
-    regularisation term; ours are the plain data term).
+    regularisation term; ours are the plain data term). Undefined (NaN) when a component's training std
+    is 0 (a constant training target: divided by a floor it gave losses of 5e13, issue 39).
     """
+    std = np.asarray(std, float)
+    if not np.all(std > 0):
+        return float("nan")
     return float(np.mean(((np.asarray(pred) - np.asarray(target)) / std) ** 2))
 
 

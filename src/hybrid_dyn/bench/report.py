@@ -21,8 +21,11 @@ from ..data import package_versions
 from .catalog import reference_label
 from .predictions import PREDICTIONS_FILE, Predictions, PredictionsError
 from .hybrids import hybrid_lines
-from .report_figures import _figures, _remove_stale_figures, learning_curve_figures
-from .report_tables import CAP_MARK, _cap_mark, _contenders, _is_capped, _ok, task_tables
+from .report_figures import _figures, learning_curve_figures
+from .report_tables import (CAP_MARK, IMPLAUSIBLE_MARK, _cap_mark, _contenders, _is_capped, _ok, notes_by_text,
+                            task_tables)
+from .results import SCORED_STATUSES
+from .row_checks import IMPLAUSIBLE
 from .report_tables import best_row  # noqa: F401  (re-exported: imported from here, e.g. checks/acceptance.py)
 from .results import CURVES_FILE, read_curves
 from .seed_comparison import SEED_COMPARISON_FILE, seed_comparison_text
@@ -54,12 +57,26 @@ def findings(rows) -> list[str]:
                              for r in ranked)
             lines.append(f"- **{scenario}, {task.replace('_', ' ')}** — best per family, RMSE [{unit}] "
                          f"(nMSE): {desc}.")
+            lines += _headline_notes(rows, ranked, scenario, task)
     if lines:
         # Beside physics a net's RMSE can read as "learning is broken"; the nMSE says how much it learned.
         lines.append("- nMSE: the test MSE over the test target's variance, per axis or joint, then averaged: "
                      "1 is what predicting the mean gives, 0 is exact. Every joint weighs the same, so a wrist joint "
                      "with little torque variance counts as much as the shoulder, and nMSE can rank rows "
                      "differently from RMSE.")
+    return lines
+
+
+def _headline_notes(rows, ranked, scenario, task) -> list[str]:
+    """Under a headline: the notes of its rows (what their numbers cannot show) and the rows left out of it
+    because their identified parameters are implausible (issue 39: both headlined in silence before)."""
+    lines = [f"  - note: {n} — " + ", ".join(f"`{r['model']}`" for r in rs)
+             for n, rs in notes_by_text(ranked).items()]
+    out = [r["model"] for r in rows
+           if r["scenario"] == scenario and r["task"] == task and r.get("status") == IMPLAUSIBLE]
+    if out:
+        lines.append(f"  - not a family's best: {', '.join(f'`{m}` {IMPLAUSIBLE_MARK}' for m in out)}, identified "
+                     f"parameters outside the robot's bounds (the bodies are named under `{task}.md`)")
     return lines
 
 
@@ -120,11 +137,15 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
     """Write the tables (``.md``, ``.tex``), the figures and README.md into ``out_dir`` from ``rows`` (as
     results.csv holds them: ``results.read_results``), ``meta`` (run.json), curves.json and predictions.h5
     there. Returns the notes on what could not be drawn (a figure without its predictions), also logged."""
+    from .integrity import REPORT_FILES, record_report_files, remove_report_files
+
     out_dir = Path(out_dir)
+    written = ["README.md"]
     for task in ("tip_force", "joint_torque"):
         md, tex = task_tables(rows, task)
         (out_dir / f"{task}.md").write_text(md)
         (out_dir / f"{task}.tex").write_text(tex)
+        written += [f"{task}.md", f"{task}.tex"]
     notes_out = []
     try:
         preds = Predictions(out_dir / PREDICTIONS_FILE)
@@ -135,9 +156,8 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
     figures = _figures(out_dir, rows, preds, seed=int(prof.get("seed") or 0))
     curve_figures = learning_curve_figures(out_dir, read_curves(out_dir / CURVES_FILE))
     figures += curve_figures
-    _remove_stale_figures(out_dir, figures)
-    failed = [r for r in rows if r.get("status") != "ok"]
-    lines = _what_was_run(meta, prof)
+    failed = [r for r in rows if r.get("status") not in SCORED_STATUSES]
+    lines = _what_was_run(meta, prof, rows)
     notes = prof.get("notes") or []
     if notes:
         lines += ["", "## Method notes", ""] + [f"- {n}" for n in notes]
@@ -150,24 +170,57 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
     seed_text = seed_comparison_text(rows, read_curves(out_dir / CURVES_FILE))
     if seed_text is not None:  # the seed's nets are in this report: its tables beside ours
         (out_dir / SEED_COMPARISON_FILE).write_text(seed_text)
+        written.append(SEED_COMPARISON_FILE)
         lines += ["", "## The seed's tables", "", f"`{SEED_COMPARISON_FILE}`: the seed's Tables 2 and 3 (Kruzic "
                   "et al. 2021, another simulator) row by row beside this report's seed nets, the architecture "
                   "ordering in both, and each net's training and validation loss at the kept round."]
     lines += _left_out_lines(meta, notes_out, failed)
     lines += _files_lines(out_dir, preds, seed_text, curve_figures, figures)
     (out_dir / "README.md").write_text("\n".join(lines))
+    # What an earlier report recorded and this one no longer draws (a figure of another dataset) is removed;
+    # nothing else is: a user's file named like a figure was never recorded (issue 39).
+    written += figures
+    remove_report_files(out_dir, [f for f in meta.get(REPORT_FILES) or [] if f not in written])
+    record_report_files(out_dir, meta, written)
     for note in notes_out:
         log(f"[report] {note}")
     return notes_out
 
 
-def _what_was_run(meta: dict, prof: dict) -> list[str]:
+def unfinished(meta: dict) -> bool:
+    """Whether the bench's last invocation did not finish (killed, interrupted: run.json records no end)."""
+    invocations = meta.get("invocations") or []
+    return bool(invocations) and "finished" in invocations[-1] and invocations[-1]["finished"] is None
+
+
+def _unfinished_lines(meta: dict, rows) -> list[str]:
+    """The README's first words on a report whose bench did not finish: which requested rows never ran."""
+    if not unfinished(meta):
+        return []
+    from .integrity import row_key
+
+    done = {row_key(r) for r in [*rows, *(meta.get("skipped") or [])]}
+    requested = meta.get("requested")
+    if requested is None:
+        missing = "run.json does not record which rows were requested (a bench of an older version)"
+    else:
+        never = [k for k in requested if k not in done]
+        missing = (f"{len(never)} of the {len(requested)} rows requested never ran: "
+                   + ", ".join(f"`{k}`" for k in never) if never else "every row requested ran")
+    return [f"**Incomplete: the last invocation of the bench (started {meta['invocations'][-1].get('started', '?')}) "
+            f"did not finish** (killed or interrupted; the tables hold only the rows it finished). {missing}. "
+            "Rerun the same command to finish it (cached datasets and models are reused).", ""]
+
+
+def _what_was_run(meta: dict, prof: dict, rows=()) -> list[str]:
     """The README's title, provenance and "What was run" section: scenarios, training, machine, datasets."""
     machine = meta.get("machine")
     labels = meta.get("scenarios") or {s: s for s in prof.get("scenarios", [])}
     command = _command(prof)
+    no_machine = ("the bench records it when an invocation finishes, and this one did not" if unfinished(meta)
+                  else "a report written before it was")
     lines = [
-        f"# Benchmark report: profile `{prof.get('name', '?')}`", "",
+        f"# Benchmark report: profile `{prof.get('name', '?')}`", "", *_unfinished_lines(meta, rows),
         f"Produced by `{command}`; every number below and in the "
         "tables was computed by that command on this data (`hybrid-dyn report` redraws it only after checking "
         "every row against the digest the bench recorded in run.json and the stored predictions). Seed (Kruzic et al. 2021) figures in the tables come "
@@ -184,7 +237,7 @@ def _what_was_run(meta: dict, prof: dict) -> list[str]:
         + _invocation_times(meta.get("invocations", [])),
         (f"- machine: {machine['machine']}, {machine['processor']}, Python {machine['python']}; packages: "
          + ", ".join(f"{k} {v}" for k, v in machine["packages"].items())) if machine else
-        "- machine: not recorded in run.json (a report written before it was)",
+        f"- machine: not recorded in run.json ({no_machine})",
     ]
     for s, d in meta.get("datasets", {}).items():
         origin = f"config hash `{d['config_hash']}`" if d.get("config_hash") else "imported (no generator config)"
@@ -248,27 +301,15 @@ def rebuild_report(out_dir, log=print) -> list[str]:
     """``hybrid-dyn report DIR``: rewrite results.csv, the tables, the figures and README.md of a bench report
     folder from its files alone (results.csv, run.json, curves.json, predictions.h5): no training, no
     simulation, no dataset. Holds the folder's lock; refuses a folder that is not a bench report."""
-    from ..errors import OutputPathError
     from ..outputs import output_lock
-    from .integrity import check_meta, read_run_json, verify_results
-    from .results import read_results, results_columns, write_results
+    from .integrity import read_checked_report
+    from .results import results_columns, write_results
 
     out_dir = Path(out_dir)
-    marker = out_dir / "run.json"
-    if not marker.is_file() or not (out_dir / "results.csv").is_file():
-        raise OutputPathError(f"{out_dir} is not a bench report folder: it needs run.json and results.csv "
-                              "(written by hybrid-dyn bench)")
     with output_lock(out_dir, "report folder"):
         # Everything is checked before anything is written: the marker, run.json's fields, and every row
-        # against run.json's digest and predictions.h5 (integrity.py).
-        meta = read_run_json(out_dir)
-        check_meta(meta, marker)
-        rows = read_results(out_dir / "results.csv")
-        try:
-            preds = Predictions(out_dir / PREDICTIONS_FILE)
-        except PredictionsError:  # absent or unreadable: the digest alone vouches for the rows (write_report notes it)
-            preds = None
-        verify_results(rows, meta, preds, out_dir)
+        # against run.json's digest and predictions.h5 (integrity.read_checked_report, as compare reads).
+        report = read_checked_report(out_dir)
         # Its own columns: a report written before a column was added is rewritten as it was.
-        write_results(out_dir / "results.csv", rows, columns=results_columns(out_dir / "results.csv"))
-        return write_report(out_dir, rows, meta, log=log)
+        write_results(out_dir / "results.csv", report.rows, columns=results_columns(out_dir / "results.csv"))
+        return write_report(out_dir, report.rows, report.meta, log=log)

@@ -1,6 +1,6 @@
 """The report's figures: the RMSE bars per family, the traces and the error-vs-force figures (from
-predictions.h5) and the learning curves (from curves.json); and the removal of a figure an earlier
-report left in the folder.
+predictions.h5) and the learning curves (from curves.json). A figure an earlier report left in the
+folder is removed by ``report.write_report``, by run.json's record of what it wrote (never by its name).
 
 Apart from the README (``report.py``) because the figures are matplotlib's concern and the slow
 part of a report: the README only needs their file names (and a test stubs them out).
@@ -189,13 +189,3 @@ def learning_curve_figures(out_dir: Path, curves: dict) -> list[str]:
         made.append(_save(fig, out_dir, f"learning_curves_{scenario}.png", dpi=100))
     return made
 
-
-# The figures a report draws (``_figures``, ``learning_curve_figures``): one of these left from an earlier
-# report in the same folder (another dataset, another scenario) is removed, not shown beside the new ones.
-FIGURE_PREFIXES = ("rmse_by_family_", "traces_", "error_vs_force_", "learning_curves_")
-
-
-def _remove_stale_figures(out_dir: Path, figures: list[str]) -> None:
-    for p in out_dir.glob("*.png"):
-        if p.name.startswith(FIGURE_PREFIXES) and p.name not in figures and p.is_file():
-            p.unlink()

@@ -10,6 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from .catalog import reference_label
+from .results import SCORED_STATUSES
+from .row_checks import IMPLAUSIBLE, row_notes
 from .seed_reference import GAZ2019_VALIDATION_RMSE, SEED_TABLE1, SEED_TABLE2, SEED_TABLE3, seed_dataset_label
 
 
@@ -50,7 +52,7 @@ def _table(header: list, body: list) -> str:
 
 def _latex(header: list, body: list, caption: str) -> str:
     esc = lambda s: (str(s).replace("_", r"\_").replace("%", r"\%").replace("#", r"\#").replace("&", r"\&")
-                     .replace(CAP_MARK, r"$^\dagger$"))
+                     .replace(CAP_MARK, r"$^\dagger$").replace(IMPLAUSIBLE_MARK, r"$^\ddagger$"))
     cols = "l" * 2 + "r" * (len(header) - 2)
     out = [r"\begin{table}[ht]", r"\centering", rf"\caption{{{esc(caption)}}}", rf"\begin{{tabular}}{{{cols}}}",
            r"\hline", " & ".join(esc(h) for h in header) + r" \\", r"\hline"]
@@ -67,6 +69,7 @@ TAU_HEADER = ["model", "family", "inputs", "val loss", "test loss", "RMSE [Nm]",
               "seed val loss*", "seed test loss*", "seed RMSE* [Nm]"]
 N_SEED_COLUMNS = 3  # the headers' last columns: the seed's published figures
 CAP_MARK = "†"  # a learned row stopped by the epoch cap while still improving (footnoted in each table)
+IMPLAUSIBLE_MARK = "‡"  # an identified row whose parameters are outside the robot's bounds (row_checks.py)
 CAP_FOOTNOTE = (f"{CAP_MARK} Stopped by the epoch cap (`max_epochs`) while its validation loss was still improving: "
                 "this row may not have converged, so its error may overstate what the model can do. Its train and "
                 "validation loss per epoch are in `learning_curves_<scenario>.png`.")
@@ -96,7 +99,31 @@ def _stop_cell(r) -> str:
 
 def _model_cell(r) -> str:
     label = reference_label(r["model"])
-    return f"{r['model']} ({label})" if label else r["model"]
+    return (f"{r['model']} ({label})" if label else r["model"]) + implausible_mark(r)
+
+
+def implausible_mark(r) -> str:
+    return f" {IMPLAUSIBLE_MARK}" if r.get("status") == IMPLAUSIBLE else ""
+
+
+def notes_by_text(rows) -> dict:
+    """Each distinct note of ``rows`` (results.csv ``notes``, in first-seen order) -> the rows it applies to."""
+    out: dict = {}
+    for r in rows:
+        for n in row_notes(r):
+            out.setdefault(n, []).append(r)
+    return out
+
+
+def notes_lines(rows) -> list[str]:
+    """The notes under a table: each note once, with the rows it applies to (``row_checks.py``)."""
+    notes = notes_by_text(rows)
+    if not notes:
+        return []
+    lines = [f"Notes (what these numbers cannot show; results.csv `notes`). {IMPLAUSIBLE_MARK}: parameters outside "
+             "the robot's bounds (status `implausible`): scored, never a family's best.", ""]
+    lines += [f"- {n} — " + ", ".join(f"`{r['model']}`{implausible_mark(r)}" for r in rs) for n, rs in notes.items()]
+    return lines + [""]
 
 
 def _row_cells(r, task, scenario):
@@ -107,7 +134,7 @@ def _row_cells(r, task, scenario):
     else:
         seed = SEED_TABLE3.get((r["model"], seed_dataset_label(scenario)))
     header = TIP_HEADER if task == "tip_force" else TAU_HEADER
-    if r.get("status") != "ok":
+    if r.get("status") not in SCORED_STATUSES:
         return [_model_cell(r), r.get("family", ""), r.get("inputs", ""), "FAILED: " + str(r.get("error", ""))[:80]] + \
             ["-"] * (len(header) - 4)
     # Tip force: the RMSE as a multiple of the base sensor's per-axis noise RMS (the limit of a base-sensor method).
@@ -162,6 +189,7 @@ def task_tables(rows, task: str) -> tuple[str, str]:
             md += [f"Base sensor noise RMS per force axis: {noise[0]:.4f} N (recorded minus noise-free force on the "
                    "test split, each run's bias removed); 'RMSE / noise' is each row's RMSE in that unit.", ""]
         md += [_table(header, body), ""]
+        md += notes_lines(here)
         caption = f"{title}, {scenario}"
         if capped:
             md += [CAP_FOOTNOTE.replace("<scenario>", scenario) + f" Here: {', '.join(f'`{m}`' for m in capped)}.", ""]

@@ -21,7 +21,11 @@ COLUMNS = [
     "prior_kept",  # hybrid rows only: where validation kept the physics prior ("all", "none", "joints 2, 5")
     "sigma_coverage",  # estimator rows: share of test samples after the window within 2 sigma on every axis
     "error",
+    "notes",  # what the row's numbers cannot show, " | "-separated (row_checks.py): undefined nMSE, untested motion
 ]
+# The statuses of a scored row (numbers, stored predictions): "implausible" is an identified row whose parameters
+# are outside the robot's bounds (row_checks.py): in the tables with its note, never a family's best.
+SCORED_STATUSES = ("ok", "implausible")
 
 
 def write_results(path: Path, rows: list[dict], columns: list | None = None) -> None:

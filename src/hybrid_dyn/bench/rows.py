@@ -59,6 +59,9 @@ class Predictor:
     # prior_kept_text ("all", "none", "joints 2, 5"); None for a row with no prior.
     prior_kept: str | None = None
     warmup_calls: int = 1  # untimed calls first (lazy allocations, a stream's window and tare)
+    # Called after the row's predictions: (problems, notes) of what it was fitted to. Problems (identified
+    # parameters outside the robot's bounds) mark the row implausible; notes go beside it (row_checks.py).
+    review: Callable[[], tuple] | None = None
     # An estimator row's error-bar coverage (issue 38): called once the row is scored, -> the share of test
     # samples after the window within 2 sigma on every axis, or None (no sigma: an empty cell).
     sigma_coverage: Callable[[], float | None] | None = None

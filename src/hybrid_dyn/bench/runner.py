@@ -47,15 +47,16 @@ from ..errors import UsageError
 from ..outputs import output_lock
 from ..timing import time_calls
 from .catalog import ROWS, get_row  # noqa: F401  (ROWS: every declared row)
-from .integrity import DIGEST_KEY, results_digest
+from .integrity import DIGEST_KEY, REPORT_FILES, read_run_json, results_digest, row_key
 from .invocations import InvocationClock, caches_empty, claim_report_dir
 from .learned_rows import PRESET_ROWS
 from .metrics import ErrorReport, base_force_noise_rms, standardized_mse
 from .predictions import PREDICTIONS_FILE, PredictionWriter
 from .profiles import BenchProfile, is_dataset_path, scenario_label
 from .report import machine_info, write_report
-from .results import (COLUMNS, CURVES_FILE, read_curves, write_json, read_results,  # noqa: F401  (re-exported)
-                      write_curves, write_results)
+from .results import (COLUMNS, CURVES_FILE, SCORED_STATUSES, read_curves, write_json,  # noqa: F401  (re-exported)
+                      read_results, write_curves, write_results)
+from .row_checks import NOTE_SEPARATOR, review_row
 from .rows import TASK_TARGET, BenchContext, Predictor, Row  # noqa: F401  (re-exported for callers)
 
 # ---------------------------------------------------------------------- scoring
@@ -105,6 +106,7 @@ def score_row(spec: Row, ctx: BenchContext, norm: dict) -> dict:
                 row["noise_rms"] = ctx.cache["base-force-noise"]
             row["infer_us_per_sample"] = elapsed / len(pred) * 1e6
             ctx.cache[(spec.task, spec.name)] = preds
+            test_target = tgt
     row.update(val_loss=losses["val"], test_loss=losses["test"], rmse=report.rmse, nmse=report.nmse,
                rmse_contact=report.rmse_contact, rmse_free=report.rmse_free, max_error=report.max_error,
                n_test_samples=report.n_samples)
@@ -114,17 +116,20 @@ def score_row(spec: Row, ctx: BenchContext, norm: dict) -> dict:
         row["sigma_coverage"] = coverage
     if pred_obj.single_call is not None:
         row["infer_us_per_call"] = _median_call_us(pred_obj.single_call, ds.split("test")[0], pred_obj.warmup_calls)
-    row["status"] = "ok"
+    # ok or implausible (identified parameters outside the robot's bounds), and what the numbers cannot show.
+    row["status"], notes = review_row(spec, ctx, pred_obj, target, std, test_target)
+    row["notes"] = NOTE_SEPARATOR.join(notes)
     return row
 
 
 def train_split_stats(ds: Dataset) -> dict:
-    """Per-component mean and std of each target over the train split (std floored)."""
+    """Per-component mean and std of each target over the train split (a std of 0, a constant training target,
+    is kept: the losses standardised by it are undefined, ``metrics.standardized_mse``)."""
     out = {}
     for target in TASK_TARGET.values():
         if target in ds.fields:
             y = np.concatenate([i[target] for i in ds.split("train")])
-            out[target] = (y.mean(0), np.maximum(y.std(0), 1e-6))
+            out[target] = (y.mean(0), y.std(0))
     return out
 
 
@@ -245,8 +250,12 @@ def run_bench(profile: BenchProfile, out_dir, data_root=None, work_root=None, da
     with output_lock(out_dir, "report folder"):  # one bench per report folder at a time
         cold = caches_empty(profile, data_root, work_root)
         previous = claim_report_dir(out_dir, profile, log)
-        return _run_bench_locked(profile, out_dir, InvocationClock(previous, cold_start=cold), data_root,
-                                 work_root, provider, opened, log, train_executor, device)
+        requested = [row_key({"scenario": label, "task": r.task, "model": r.name})
+                     for _, label, _, _ in opened for r in profile.selected_rows()]
+        clock = InvocationClock(previous, cold_start=cold, requested=requested)
+        clock.record(out_dir, [], rows_written=False)  # on record before any work: a kill -9 leaves it unfinished
+        return _run_bench_locked(profile, out_dir, clock, data_root, work_root, provider, opened, log,
+                                 train_executor, device)
 
 
 def _import_warnings(ds) -> list[str]:
@@ -310,7 +319,7 @@ def _open_datasets(profile, provider, log) -> list:
 def _run_bench_locked(profile, out_dir, clock: InvocationClock, data_root, work_root, provider, opened, log,
                       executor=None, device=None) -> list[dict]:
     rows: list[dict] = []
-    skipped: list[dict] = []
+    skipped = clock.skipped  # on record in run.json as it grows
     datasets = {}
     labels = {}
     dataset_seconds = {}
@@ -342,6 +351,8 @@ def _run_bench_locked(profile, out_dir, clock: InvocationClock, data_root, work_
                                data_root, log=log, source=entry)
             _bench_scenario(profile, out_dir, ctx, ref, predictions, rows, skipped, log, clock, executor, device)
     meta = _run_meta(profile, clock, rows, labels, skipped, datasets, dataset_seconds)
+    # The files an earlier report drew here stay on record: this one removes those it no longer draws.
+    meta[REPORT_FILES] = read_run_json(out_dir).get(REPORT_FILES) or []
     write_results(out_dir / "results.csv", rows)  # also when no row applied: the report reads it
     meta[DIGEST_KEY] = results_digest(out_dir / "results.csv", meta)  # what ``hybrid-dyn report`` checks against
     write_json(out_dir / "run.json", meta)
@@ -380,14 +391,16 @@ def _bench_scenario(profile, out_dir, ctx: BenchContext, ref, predictions, rows,
                    "status": "failed", "error": f"{type(err).__name__}: {err}"}
             log(f"[bench] {spec.name} FAILED: {err}\n{traceback.format_exc(limit=3)}")
         rows.append(row)
-        if row["status"] == "ok":  # first: a row in results.csv always has its predictions (report checks them)
+        # First: a row in results.csv always has its predictions (report checks them), implausible ones too.
+        if row["status"] in SCORED_STATUSES:
             predictions.row(scenario, spec.task, spec.name, [i.name for i in test],
                             ctx.cache.pop((spec.task, spec.name)))
         write_results(out_dir / "results.csv", rows)
         clock.record(out_dir, rows)
         write_curves(out_dir / CURVES_FILE, rows)
         log(f"[bench] {scenario} {spec.task:12s} {spec.name:22s} rmse={row.get('rmse', float('nan')):.4g} "
-            f"({time.perf_counter() - t0:.1f} s)" if row["status"] == "ok" else
+            f"({time.perf_counter() - t0:.1f} s){'' if row['status'] == 'ok' else ' ' + row['status']}"
+            if row["status"] in SCORED_STATUSES else
             f"[bench] {scenario} {spec.name} failed")
 
 
@@ -414,7 +427,7 @@ def _run_meta(profile: BenchProfile, clock: InvocationClock, rows: list, labels:
     invocations = clock.invocations(rows, finished=True)
     wall = invocations[-1]["wall_seconds"]
     return {"bench_report": 1, "profile": profile.to_dict(), "wall_seconds": wall, "invocations": invocations,
-            "scenarios": labels, "skipped": skipped, "machine": machine_info(),
+            "scenarios": labels, "requested": clock.requested, "skipped": skipped, "machine": machine_info(),
             "datasets": {s: {"path": recorded_path(d.path), "checksum": d.checksum, "seed": d.meta.get("seed"),
                              "config_hash": d.meta.get("config_hash"), "robot": d.meta.get("robot"),
                              "split": dataset_split_text(d), "dataset_seconds": dataset_seconds.get(s),

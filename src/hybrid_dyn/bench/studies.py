@@ -28,7 +28,8 @@ from pathlib import Path
 
 from ..errors import UsageError
 from .catalog import get_row, select_rows
-from .integrity import read_run_json, same_profile, verify_results
+from ..outputs import json_marker, output_lock, refuse_foreign_files
+from .integrity import is_bench_meta, read_run_json, same_profile, verify_results
 from .profiles import BenchProfile, get_profile
 from .results import read_results
 from .rows import TASK_TARGET, is_physics_family, is_physics_result
@@ -322,6 +323,36 @@ def run_study(study: Study, report: Path, out: Path, work_root: Path = Path("run
     from .study_summaries import SUMMARY_KINDS
 
     out, report = Path(out), Path(report)
+    with output_lock(out, "study summary folder"):  # one study per summary folder at a time
+        check_study_dir(out, study)  # a user's folder is refused before any work, as bench --out refuses
+        run = _run_variants(study, report, out, work_root, data_root, executor, log)
+        check_study_dir(out, study)  # and the summary is written only where it is still the study's own
+        return SUMMARY_KINDS[study.summary](run, out)
+
+
+def summary_file(study: Study) -> str:
+    """The summary's JSON, also the mark of the study's folder (its ``"study"`` is the study's name)."""
+    return "data_scaling.json" if study.summary == "data-scaling" else f"{study.name}.json"
+
+
+def check_study_dir(out: Path, study: Study) -> None:
+    """Refuse ``out`` unless it is new, empty, or the study's own: its summary JSON (:func:`summary_file`)
+    names the study, or (a study stopped before its summary) it holds only the variants' bench reports
+    kept beside the summary and their locks."""
+    out = Path(out)
+    if out.is_dir() and json_marker(out / summary_file(study), "study", study.name) is not None:
+        return
+
+    def is_own(p: Path) -> bool:
+        if p.name.startswith(".") and p.name.endswith(".lock"):
+            return True
+        return p.name in (BASE, *study.variants) and is_bench_meta(json_marker(p / "run.json", "bench_report", 1))
+
+    refuse_foreign_files(out, "study summary folder", is_own, marker=summary_file(study))
+
+
+def _run_variants(study: Study, report: Path, out: Path, work_root, data_root, executor, log) -> "StudyRun":
+    """The reference point and every variant's bench (each resumable: a bench report): the summary's input."""
     variant_root = out if study.keep_variant_reports else Path(work_root) / "studies" / study.name
     run_args = dict(data_root=data_root, work_root=work_root, executor=executor, log=log)
     if study.base.is_empty():
@@ -343,7 +374,7 @@ def run_study(study: Study, report: Path, out: Path, work_root: Path = Path("run
         log(f"[study] {study.name}: variant {variant} ({study.variants[variant].describe()})")
         run.points[variant], run.dirs[variant] = _run_variant(study, variant, rows, variant_root / variant,
                                                               reference_report=report, **run_args)
-    return SUMMARY_KINDS[study.summary](run, out)
+    return run
 
 
 def _named_rows(study: Study) -> tuple:

@@ -8,7 +8,7 @@
   tolerance, whether the variant's gain stays under it (a longer budget that gains less: converged).
   README.md and ``<study>.json``.
 - ``compare``: each variant's report against the reference report, every learned row divided by its own
-  report's best analytic row (``compare.compare_reports``); README.md.
+  report's best analytic row (``compare.compare_reports``); README.md and ``<study>.json``.
 
 Every summary names the command that wrote it. Test figures never choose anything here.
 """
@@ -29,9 +29,10 @@ def _command() -> str:
 
 
 def _write(out: Path, name: str, lines: list, summary: dict) -> None:
+    """The summary's JSON first (it marks the folder as the study's: ``studies.check_study_dir``), then README.md."""
     out.mkdir(parents=True, exist_ok=True)
-    (out / "README.md").write_text("\n".join(lines) + "\n")
     (out / f"{name}.json").write_text(json.dumps(summary, indent=1) + "\n")
+    (out / "README.md").write_text("\n".join(lines) + "\n")
 
 
 # ---------------------------------------------------------------------------------------- data scaling
@@ -74,6 +75,7 @@ def write_data_scaling(out: Path, summary: dict) -> None:
     import matplotlib.pyplot as plt
 
     out.mkdir(parents=True, exist_ok=True)
+    (out / "data_scaling.json").write_text(json.dumps(summary, indent=1) + "\n")  # first: the folder's mark
     sizes = summary["sizes"]
     lines = [f"# Study `{summary['study']}` on profile `{summary['profile']}`", "",
              f"Produced by `{summary['command']}`. Test RMSE on the profile's full test split; each learned row "
@@ -111,7 +113,6 @@ def write_data_scaling(out: Path, summary: dict) -> None:
     plt.close(fig)
     lines += ["![data scaling](data_scaling.png)", ""]
     (out / "README.md").write_text("\n".join(lines))
-    (out / "data_scaling.json").write_text(json.dumps(summary, indent=1) + "\n")
 
 
 # -------------------------------------------------------------------------------------------- controls
@@ -207,10 +208,10 @@ def compare(run, out: Path) -> dict:
         for where in dirs:
             text = compare_reports(where, run.report, labels=(variant, study.profile))
             lines += ["#" + text.replace("\n## ", "\n### "), ""]  # each comparison one level down
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "README.md").write_text("\n".join(lines) + "\n")
-    return {"study": study.name, "profile": study.profile, "command": _command(),
-            "variants": {v: [str(d) for d in dirs] for v, dirs in run.dirs.items()}}
+    summary = {"study": study.name, "profile": study.profile, "command": _command(),
+               "variants": {v: [str(d) for d in dirs] for v, dirs in run.dirs.items()}}
+    _write(out, study.name, lines, summary)
+    return summary
 
 
 SUMMARY_KINDS = {"data-scaling": data_scaling, "controls": controls, "compare": compare}

@@ -59,6 +59,12 @@ class DatasetError(HybridDynError, ValueError):
 
 
 def sha256_file(path: Path) -> str:
+    """A file's sha256; of a folder (a ROS 2 bag), that of its files' names and digests in name order."""
+    if Path(path).is_dir():
+        h = hashlib.sha256()
+        for p in sorted(q for q in Path(path).rglob("*") if q.is_file()):
+            h.update(f"{p.relative_to(path).as_posix()}\0{sha256_file(p)}\n".encode())
+        return h.hexdigest()
     with open(path, "rb") as f:
         return sha256_stream(f)
 

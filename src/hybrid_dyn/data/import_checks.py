@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..input_checks import angle_unit_problems
+from ..input_checks import angle_unit_problems, channel_problems
 from .import_report import ImportReport, RowIssue
 from .import_spec import ANGLE_SIGNALS, JOINT_SIGNALS, TIME_UNITS, LogSpec, LogSpecError, MissingColumnError
 from .log_readers import LogTable, read_log
@@ -108,9 +108,12 @@ def _robot_limits(spec: LogSpec, nv: int):
 
 def validate_log(spec: LogSpec, report: ImportReport) -> tuple[list, list]:
     """Read, check and cut the log into segments; every problem goes to ``report``."""
-    tables = []
-    for f in spec.files:
-        tables += read_log(f, spec.format, spec.variables, spec.delimiter)
+    if spec.ros is not None:  # a ROS bag: its topics on one time base, one table per bag (ros_bag.py)
+        from .ros_bag import read_bags
+
+        tables = read_bags(spec, report)
+    else:
+        tables = [t for f in spec.files for t in read_log(f, spec.format, spec.variables, spec.delimiter)]
     segments, limits, q_peak = [], None, 0.0
     for traj, table, rows in _trajectories(spec, tables):
         data, t = _extract(spec, table, rows)
@@ -139,7 +142,47 @@ def validate_log(spec: LogSpec, report: ImportReport) -> tuple[list, list]:
     if bad_unit:
         raise LogSpecError(f"{spec.name}: {bad_unit[0]}")
     warning = _timebase_warning(segments, spec) if "qdd" not in spec.columns else None
-    return segments, [warning] if warning else []
+    dead = channel_warnings(segments, spec)
+    report.channel_warnings += dead  # a strict import refuses them (importer.py)
+    return segments, dead + ([warning] if warning else [])
+
+
+# The logged signals whose channels are checked (issue 39): a dead torque channel made the bench headline a
+# row whose nMSE dropped that joint, and identification put 32 kg on a 0.65 kg link.
+CHANNEL_SIGNALS = {"q": "rad", "qd": "rad/s", "tau_m": "Nm", "tau_J": "Nm"}
+TORQUE_SIGNALS = ("tau_m", "tau_J")
+
+
+def channel_warnings(segments: list, spec: LogSpec) -> list[str]:
+    """One-line warnings naming each joint whose logged channel carries nothing over all kept rows: constant
+    (q, qd, torques), or for a torque, far below its joint's scale (``[checks] channel_scale_factor`` times the
+    joints' median; the scale is the robot's effort limit [Nm] when it has a description, else 1 Nm for every
+    joint). ``input_checks.channel_problems`` says how."""
+    if not segments:
+        return []
+    names, effort = _robot_names_and_effort(spec, segments[0].fields["q"].shape[1])
+    out = []
+    for signal, unit in CHANNEL_SIGNALS.items():
+        if signal not in spec.columns:  # estimated by the import, not logged: nothing of the sensor to check
+            continue
+        x = np.concatenate([seg.fields[signal] for seg in segments])
+        scale = (effort if effort is not None else np.ones(x.shape[1])) if signal in TORQUE_SIGNALS else None
+        out += channel_problems(signal, x, unit, scale, spec.checks.channel_scale_factor, names)
+    return out
+
+
+def _robot_names_and_effort(spec: LogSpec, nv: int):
+    """The robot's joint names and effort limits [Nm] (nv,) when it has a description, else (None, None)."""
+    from ..description import resolve_robot
+
+    if not resolve_robot(spec.robot).described:
+        return None, None
+    from ..analytic.robot import load_robot
+
+    robot = load_robot(spec.robot)
+    effort = np.asarray(robot.model.effortLimit, float)
+    ok = robot.nv == nv and len(effort) == nv and np.all(np.isfinite(effort) & (effort > 0))
+    return (robot.joint_names if robot.nv == nv else None), (effort if ok else None)
 
 
 def _extract(spec: LogSpec, table: LogTable, rows: np.ndarray):

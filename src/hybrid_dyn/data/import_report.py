@@ -45,6 +45,8 @@ class ImportReport:
     instances: int = 0
     issues: list = field(default_factory=list)
     warnings: list = field(default_factory=list)
+    # Channels that carry nothing (a joint's torque 0 throughout): also in ``warnings``; a strict import refuses them.
+    channel_warnings: list = field(default_factory=list)
 
     @property
     def rows_dropped(self) -> int:

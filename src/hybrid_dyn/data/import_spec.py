@@ -59,7 +59,9 @@ class ValidationChecks:
     far the logged next sample may be from the next row. ``max_drop_fraction``:
     above this fraction of dropped rows the import fails, since the log (or the
     spec) is systematically wrong. ``timebase_tol``: relative disagreement
-    between d(q)/dt and the logged qd that raises a warning.
+    between d(q)/dt and the logged qd that raises a warning. ``channel_scale_factor``: a joint's torque
+    channel whose spread, relative to its joint's effort limit, is below this fraction of the joints'
+    median is warned of as dead (``input_checks.channel_problems``; a constant channel always is).
     """
 
     q_abs_max: float = 2 * np.pi
@@ -69,6 +71,7 @@ class ValidationChecks:
     next_tol: float = 1e-6
     max_drop_fraction: float = 0.05
     timebase_tol: float = 0.05
+    channel_scale_factor: float = 1e-3
 
 
 @dataclass
@@ -106,6 +109,8 @@ class LogSpec:
     split_lists: dict = field(default_factory=dict)  # by = "list": split -> trajectory names
     notes: str = ""
     spec_file: str | None = None
+    ros: object = None  # a ROS bag's topics (ros_bag.RosTopics, the TOML's [ros]): they set columns and time
+
 
     def __post_init__(self):
         from ..description import resolve_robot
@@ -117,6 +122,9 @@ class LogSpec:
         if not isinstance(files, list) or not all(isinstance(f, (str, Path)) for f in files):
             raise LogSpecError(f"invalid import spec: files must be a path or a list of paths, got {self.files!r}")
         self.files = [Path(f) for f in files]
+        ros_problems = self._ros_columns()
+        if ros_problems:  # alone: the column checks below would only repeat them
+            raise LogSpecError("invalid import spec: " + "; ".join(ros_problems))
         try:
             if isinstance(self.derivatives, dict):
                 self.derivatives = DerivativeFilter(**self.derivatives)
@@ -157,6 +165,29 @@ class LogSpec:
         if problems:
             raise LogSpecError("invalid import spec: " + "; ".join(problems))
 
+    def _ros_columns(self) -> list[str]:
+        """A bag's spec names topics, not columns: the columns and time are those of the table that
+        ``ros_bag.read_bags`` makes. Returns the problems of the [ros] table."""
+        if self.ros is None:
+            return []
+        from .ros_bag import RosTopics
+
+        if isinstance(self.ros, dict):
+            try:
+                self.ros = RosTopics(**self.ros)
+            except TypeError as err:  # unknown or missing keys
+                return [f"[ros]: {err}"]
+        if not isinstance(self.ros, RosTopics):
+            return [f"ros must be a [ros] table of topics, got {self.ros!r}"]
+        problems = self.ros.problems()
+        if self.columns or self.time is not None or self.sample_rate_hz is not None:
+            problems.append("a ROS bag's spec names topics in [ros], not [columns] or [time]")
+        if self.format not in (None, "ros"):
+            problems.append(f"format must be 'ros' (or none) with a [ros] table, got {self.format!r}")
+        if not problems:
+            self.columns, self.time, self.format = self.ros.columns(), "t", "ros"
+        return problems
+
     @property
     def split_spec(self) -> SplitSpec:
         """The ``[split]`` section: how trajectories go to train, val and test (``splits.py``)."""
@@ -172,12 +203,13 @@ class LogSpec:
 # The TOML spec
 _SPEC_LAYOUT = {
     "": {"name", "robot", "tool", "payload", "notes", "source", "env_defaults", "time", "columns", "trajectories", "units",
-         "derivatives", "checks", "split"},
+         "derivatives", "checks", "split", "ros"},
     "source": {"files", "format", "variables", "delimiter"},
     "time": {"column", "unit", "sample_rate_hz"},
     "trajectories": {"from", "n_blocks", "column"},
     "units": {"angle"},
     "split": {"seed", "test_frac", "val_frac", "by", *SPLIT_NAMES},
+    "ros": {"joint_states", "base_wrench", "tip_wrench", "frame", "resample", "joints", "effort"},
 }
 
 
@@ -259,6 +291,7 @@ def spec_from_dict(doc: dict, base_dir=".", spec_file=None) -> LogSpec:
             # Lists of trajectories imply by = "list"; a "by" that contradicts them is refused (splits.py).
             split_by=split.get("by", "list" if lists else "random"), split_lists=lists,
             spec_file=str(spec_file) if spec_file else None,
+            ros=dict(doc["ros"]) if "ros" in doc else None,
         )
     except TypeError as err:  # unknown keys in [derivatives] or [checks]
         raise LogSpecError(f"invalid import spec{where}: {err}") from err

@@ -64,7 +64,8 @@ def import_log(source, out, *, overwrite: bool = False, strict: bool = False, **
     dataset at ``out`` intact. An existing ``out`` is replaced only with
     ``overwrite``, and only when it is a hybrid-dyn dataset holding nothing but its
     own files (anything else is refused, named). One import per ``out`` at a time
-    (``outputs.output_lock``). ``strict``: fail on any row issue.
+    (``outputs.output_lock``). ``strict``: fail on any row issue and on any channel that carries nothing
+    (``import_checks.channel_warnings``: a joint's torque 0 throughout).
     """
     is_spec = isinstance(source, LogSpec) or (isinstance(source, (str, Path)) and Path(source).suffix == ".toml")
     if is_spec and spec_args:
@@ -84,11 +85,22 @@ def import_log(source, out, *, overwrite: bool = False, strict: bool = False, **
 
 def _import_locked(spec: "LogSpec", out: Path, overwrite: bool, strict: bool) -> "ImportReport":
     check_replaceable(out, overwrite)
+    segments, report = checked_segments(spec, strict)
+    write_dataset(spec, segments, report, out, overwrite)
+    return report
+
+
+def checked_segments(spec: "LogSpec", strict: bool = False) -> tuple[list, "ImportReport"]:
+    """The log read and checked (``import_checks.validate_log``) and refused as an import refuses it (strict,
+    too many rows dropped, nothing left): its kept segments and the report. ``hybrid-dyn estimate`` replays
+    these, so that it reads exactly what an import of the same spec would write."""
     report = ImportReport(spec.name)
     segments, warnings = validate_log(spec, report)
     report.warnings += warnings
-    if strict and report.issues:
-        raise StrictImportError(f"strict import of {spec.name} found row problems:\n{report.text()}")
+    if strict and (report.issues or report.channel_warnings):
+        found = (("row problems", report.issues), ("dead channels", report.channel_warnings))
+        what = " and ".join(w for w, b in found if b)
+        raise StrictImportError(f"strict import of {spec.name} found {what}:\n{report.text()}")
     frac = report.rows_dropped / max(report.rows_read, 1)
     if frac > spec.checks.max_drop_fraction:
         by_kind = report.dropped_by_kind()
@@ -99,8 +111,7 @@ def _import_locked(spec: "LogSpec", out: Path, overwrite: bool, strict: bool) ->
             f"more than max_drop_fraction = {spec.checks.max_drop_fraction}.{hint}\n{report.text(5)}")
     if not segments:
         raise LogImportError(f"{spec.name}: no usable rows\n{report.text(5)}")
-    write_dataset(spec, segments, report, out, overwrite)
-    return report
+    return segments, report
 
 
 def spec_checksum(spec: LogSpec) -> str:

@@ -26,6 +26,8 @@ class EstimatorStatus(str, Enum):
     OUT_OF_RANGE = "input out of training range"  # learned model: input outside its training distribution
     WRONG_RATE = "wrong rate"            # an untimed stream spaced unlike 1 / call_hz (RateCheck)
     NO_SENSOR = "no usable sensor"       # this call brings nothing the method can estimate from
+    UNCERTAIN = "uncertain"              # the predicted error (last_sigma) exceeds EstimatorConfig.max_sigma
+    CONTACT_AT_START = "contact at start-up"  # the noise window saw a contact: a new window is under way
 
 
 def _auto_or_positive(name: str, value, unit: str) -> None:
@@ -43,18 +45,30 @@ class EstimatorConfig:
     on_bad_input: "raise" or "hold".
     tare_seconds: the contact-free start used as the noise window and to tare the base
     sensor [s]; 0 = no window: trust the sensor's zero, the rule on the specifications.
-    tare_contact_force: a kalman-fusion tare after the window (a base sensor that joins
-    late) starts over while the joint torques see a force above this [N].
+    tare_contact_force: the noise window is trusted only when nothing touched the arm: its base-sensor
+    residual (measured - model) changes by less than this between the window's parts, and the joint
+    torques (where the method reads them) see a force below it [N]; else a new window starts (status
+    "contact at start-up"). A kalman-fusion tare after the window (a base sensor that joins late)
+    starts over while the joint torques see a force above it.
     encoder_resolution: the joint encoders' resolution [rad per count]; "auto" takes the robot
     description's (1e-5 rad on the Panda). Above 0, q (quantized) becomes q, qd and qdd through the
     joint-state Kalman filter (``analytic/joint_state.py``) that every method reads; the reported qd is
     not used (a drive's qd is the difference of the same quantized q). 0: exact encoders, q and qd used
     as given (a simulation's, or a dataset whose sensor model says so).
     joint_filter_bandwidth: that filter's bandwidth [rad/s] ("auto": ``joint_state.DEFAULT_OMEGA``).
-    stamp_jitter: how far a timed stream's stamps may stray from the nominal grid [s]; a step between
-    stamps is accepted within max(rate_tolerance, 2 stamp_jitter call_hz) periods of 1 / call_hz, and
-    never at two periods or more (a lost tick, or a stream at half the rate). The filters
+    stamp_jitter: how far a timed stream's stamps may stray from the robot's sample clock [s]: a stamp
+    is accepted within max(rate_tolerance / call_hz, 1.5 stamp_jitter) of the clock (the stamps' own
+    grid, followed slowly), never 0.9 periods or more off it (a lost tick, or another rate). The filters
     run on the nominal period (the robot samples on its own clock; the stamps carry the PC's jitter).
+
+    max_sigma: a call is ``ok`` only while its predicted 1-sigma error (``last_sigma``) is below this on
+    every axis [N]; above it the status is "uncertain". motion_sigma_gain [N per rad/s^2] and
+    base_drift_rate [N/s, the base sensor's bias drift after its tare]: the error model's motion and
+    drift terms (``estimator/error_bar.py``).
+
+    standstill_speed [rad/s], standstill_seconds [s], retare_seconds [s]: after the window, while every
+    joint is slower than standstill_speed for standstill_seconds and the estimate is below
+    tare_contact_force, the base sensor's tare follows its drift with time constant retare_seconds.
 
     Plausibility bounds (see the module docstring):
     q_margin: how far q may lie outside the URDF position limits [rad]; encoders
@@ -85,6 +99,12 @@ class EstimatorConfig:
     encoder_resolution: float | str = "auto"
     joint_filter_bandwidth: float | str = "auto"
     stamp_jitter: float = 5e-4
+    max_sigma: float = 0.8
+    motion_sigma_gain: float = 0.1
+    base_drift_rate: float = 0.005
+    standstill_speed: float = 5e-3
+    standstill_seconds: float = 0.2
+    retare_seconds: float = 2.0
 
     def __post_init__(self):
         if self.on_bad_input not in ("raise", "hold"):
@@ -101,6 +121,15 @@ class EstimatorConfig:
                 raise UsageError(f"{name} must be >= 0, got {getattr(self, name)!r}")
         if not self.max_tip_force > 0:
             raise UsageError(f"max_tip_force must be > 0 [N], got {self.max_tip_force!r}")
+        for name in ("max_sigma",):
+            if not (isinstance(getattr(self, name), (int, float)) and getattr(self, name) > 0):
+                raise UsageError(f"{name} must be > 0 [N], got {getattr(self, name)!r}")
+        for name in ("standstill_speed", "standstill_seconds", "retare_seconds"):
+            if not (isinstance(getattr(self, name), (int, float)) and getattr(self, name) > 0):
+                raise UsageError(f"{name} must be > 0, got {getattr(self, name)!r}")
+        for name in ("motion_sigma_gain", "base_drift_rate"):
+            if not (isinstance(getattr(self, name), (int, float)) and getattr(self, name) >= 0):
+                raise UsageError(f"{name} must be >= 0, got {getattr(self, name)!r}")
         if not self.tare_contact_force > 0:
             raise UsageError(f"tare_contact_force must be > 0 [N], got {self.tare_contact_force!r}")
         if self.encoder_resolution != "auto" and not (isinstance(self.encoder_resolution, (int, float))

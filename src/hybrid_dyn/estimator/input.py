@@ -66,6 +66,7 @@ class InputGate:
         """A new stream: untimed until its first call with t."""
         self.last_t = None  # set by the first call with t: from then on the stream is timed
         self._gap_t = None  # t of a sample refused for its step: the stream may resume from it
+        self._grid = None  # the robot's sample clock as the stamps show it: where the next stamp belongs [s]
 
     def _build(self) -> None:
         """Precompute the plausibility box [lo, hi] of every value a call brings (module docstring).
@@ -121,8 +122,8 @@ class InputGate:
         self._views = tuple(views)
         self._unused = np.zeros(0)  # the gate's argument for an input this estimator does not read
         self._period = 1.0 / c.call_hz
-        # Stamps jitter (the PC's clock); two periods or more is a lost tick or another rate, never jitter.
-        self._period_tol = min(max(c.rate_tolerance, 2.0 * c.stamp_jitter * c.call_hz), 1.0 - 1e-9) * self._period
+        # Stamps jitter about the robot's clock (the PC's); a lost tick (one period off) is never jitter.
+        self._period_tol = min(max(c.rate_tolerance * self._period, 1.5 * c.stamp_jitter), 0.9 * self._period)
         self._resume_tol = c.rate_tolerance * self._period  # a resumption is judged on the tight tolerance
         self._max_force_sq = c.max_tip_force ** 2
 
@@ -165,11 +166,15 @@ class InputGate:
                 raise EstimatorInputError(f"t must be a number [s], got a {type(t).__name__}: {t!r:.60}") from None
             if not math.isfinite(t):
                 raise EstimatorInputError(f"t must be finite, got {t}")
+            grid = t
             if self.last_t is not None:
                 dt = t - self.last_t
                 if dt <= 0:
                     raise EstimatorInputError(f"time must increase: t={t} after t={self.last_t}")
-                if abs(dt - self._period) > self._period_tol:
+                # The robot samples on its own clock; the stamps jitter about it. A stamp off that clock
+                # by more than the jitter is a lost tick or another rate.
+                off = t - (self._grid + self._period)
+                if abs(off) > self._period_tol:
                     # One period after a sample refused for its step, the stream has resumed on
                     # rate after a gap: accept it and warm up anew. A wrong rate never gets here.
                     if self._gap_t is not None and abs(t - self._gap_t - self._period) <= self._resume_tol:
@@ -177,10 +182,13 @@ class InputGate:
                     else:
                         self._gap_t = t
                         raise EstimatorInputError(
-                            f"t={t} s steps {dt:.6g} s from the last accepted sample, but call_hz="
-                            f"{self.config.call_hz:g} expects {self._period:.6g} s +- "
-                            f"{self._period_tol:.3g} s: a wrong call_hz, or a gap in the stream "
+                            f"t={t} s lies {off:+.3g} s off the stream's clock (it steps {dt:.6g} s from the last "
+                            f"accepted sample, and call_hz={self.config.call_hz:g} expects {self._period:.6g} s, "
+                            f"stamps within +-{self._period_tol:.3g} s): a wrong call_hz, or a gap in the stream "
                             "(it resumes one period after this sample)")
+                else:
+                    grid = self._grid + self._period + 0.01 * off  # follows a slow drift of the two clocks
+            self._grid = grid
         self._gap_t = None
         q, qd, views_w, views_tau = self._views
         if self._optional:  # an absent sensor stays None

@@ -93,9 +93,12 @@ from ..analytic.estimators import ALIASES, estimator_name
 from ..analytic.joint_state import joint_filter_for, with_joint_state_noise
 from ..analytic.kalman import MAX_BRIDGE_CALLS
 from ..analytic.methods import REGISTRY, spec_noise
-from ..analytic.robot import Robot, load_robot
+from ..analytic.robot import Robot, load_robot, with_payload
 from ..analytic.tare import StreamingTare, tare_samples
+from ..analytic.tip_force import tip_force_from_torques
+from ..errors import UsageError
 from .config import EstimatorConfig, EstimatorStatus
+from .error_bar import ErrorBar, qdd_norm
 from .input import EstimatorInputError, InputGate, RateCheck
 
 # The analytic methods, by the estimators' one name (analytic/methods.py registers them; the older
@@ -105,9 +108,27 @@ METHOD_ALIASES = {a: c for a, c in ALIASES.items() if c in METHODS}
 
 
 # The statuses as plain names for the per-call path: an Enum member looked up on its class costs ~0.3 us.
-_OK, _WARMING_UP, _OUT_OF_RANGE, _FORCE_OUT_OF_RANGE, _WRONG_RATE, _NO_SENSOR = (
+_OK, _WARMING_UP, _OUT_OF_RANGE, _FORCE_OUT_OF_RANGE, _WRONG_RATE, _NO_SENSOR, _UNCERTAIN, _CONTACT_AT_START = (
     EstimatorStatus.OK, EstimatorStatus.WARMING_UP, EstimatorStatus.OUT_OF_RANGE, EstimatorStatus.FORCE_OUT_OF_RANGE,
-    EstimatorStatus.WRONG_RATE, EstimatorStatus.NO_SENSOR)
+    EstimatorStatus.WRONG_RATE, EstimatorStatus.NO_SENSOR, EstimatorStatus.UNCERTAIN, EstimatorStatus.CONTACT_AT_START)
+_NO_SIGMA = np.full(3, np.inf)  # no estimate yet (the noise window): an unbounded error bar
+
+
+MAX_PAYLOAD_KG = 50.0  # no arm this toolkit models lifts more; a larger figure is a unit slip (g for kg)
+
+
+def checked_payload(payload) -> tuple:
+    """``(mass_kg, (x, y, z))`` as floats, or UsageError naming what is wrong with it."""
+    try:
+        mass, com = payload
+        mass, com = float(mass), tuple(float(x) for x in com)
+    except (TypeError, ValueError):
+        raise UsageError(f"payload must be (mass_kg, (x, y, z) m in the tool frame), got {payload!r}") from None
+    if len(com) != 3 or not all(np.isfinite(com)) or max(abs(x) for x in com) > 1.0:
+        raise UsageError(f"payload centre of mass must be 3 finite numbers within 1 m of the tool frame [m], got {com!r}")
+    if not 0.0 <= mass <= MAX_PAYLOAD_KG:
+        raise UsageError(f"payload mass must lie in [0, {MAX_PAYLOAD_KG:g}] kg, got {mass!r}")
+    return mass, com
 
 
 class TipForceEstimator:
@@ -137,6 +158,7 @@ class TipForceEstimator:
                                    else float(c.encoder_resolution))
         self._joint = None if model is not None else joint_filter_for(
             robot, c.call_hz, self.encoder_resolution, c.joint_filter_bandwidth)
+        self._error_bar = ErrorBar(c.call_hz, c.motion_sigma_gain, c.base_drift_rate)
         # The bandwidth: a number in the config, or None for the rule at the window's end.
         param = None if self.spec is None else self.spec.parameter
         value = "auto" if param is None else getattr(c, param, "auto")  # a method's own parameter: the rule
@@ -161,23 +183,33 @@ class TipForceEstimator:
         self._win_q, self._win_qd = np.zeros((n_window, nv)), np.zeros((n_window, nv))
         self._win_w, self._win_tau = np.zeros((n_window, 6)), np.zeros((n_window, nv))
         self._win_has = np.zeros((n_window, 2), dtype=bool)
+        # The window's force as the joint torques see it (a tared method that reads them: kalman-fusion).
+        self._check_torques = self.spec is not None and self.spec.tares and "tau_J" in self.spec.reads
+        self._win_force = np.zeros((n_window, 3))
+        if self._check_torques and n_window:  # its first call loads compiled code: now, not in a control cycle
+            tip_force_from_torques(robot, np.array(robot.spec.home, float), np.zeros(nv), np.zeros(nv), np.zeros(nv))
         self.reset()
 
     # ------------------------------------------------------------ factories
     @classmethod
-    def analytic(cls, robot: str | Robot = "panda", method: str = "base-wrench", params=None,
+    def analytic(cls, robot: str | Robot = "panda", method: str = "base-wrench", params=None, payload=None,
                  **config) -> "TipForceEstimator":
         """A model-free estimator, by the estimators' one name (``analytic/methods.py``): "base-wrench",
         "torques-pinv" (needs tau_J), "momentum-observer" (needs tau_J), "base-momentum" (needs
         base_wrench) or "kalman-fusion" (base_wrench, tau_J or both per call); the older spellings
-        (``METHOD_ALIASES``: "base_wrench", "torques", "momentum", "base_momentum", "kalman_fusion") mean the same."""
+        (``METHOD_ALIASES``: "base_wrench", "torques", "momentum", "base_momentum", "kalman_fusion") mean the same.
+        payload: the tool's load, ``(mass_kg, (x, y, z))`` with its centre of mass [m] in the tool frame (as
+        libfranka's ``setLoad``): part of the model every method subtracts (``set_payload`` changes it)."""
         method = estimator_name(method, REGISTRY, "estimator method")
         if not isinstance(robot, Robot):
             robot = load_robot(robot, params=params, num_threads=1)
+        if payload is not None:
+            robot = with_payload(robot, checked_payload(payload))
         return cls(robot, method, EstimatorConfig(**config))
 
     @classmethod
-    def load(cls, model_dir, robot: str | None = None, runtime: str = "auto", **config) -> "TipForceEstimator":
+    def load(cls, model_dir, robot: str | None = None, runtime: str = "auto", payload=None,
+             **config) -> "TipForceEstimator":
         """An estimator around a trained tip-force model (seed net, residual net, ...).
 
         The model's analytic part (if any) comes with it. ``robot``: when given,
@@ -187,8 +219,22 @@ class TipForceEstimator:
         """
         from ..learn.streaming import StreamingModel
 
+        if payload is not None:
+            # A learned model's network learnt the arm it was trained on: a load it never saw is no input it
+            # can remove. Refused rather than ignored.
+            raise UsageError("payload= is not supported for a learned model yet: train it on data with the tool, "
+                             "or use TipForceEstimator.analytic(..., payload=...)")
         model = StreamingModel.load(Path(model_dir), robot=robot, runtime=runtime)
         return cls(model.robot, "learned", EstimatorConfig(**config), model=model)
+
+    def set_payload(self, mass_kg: float, com_xyz=(0.0, 0.0, 0.0)) -> None:
+        """The tool now carries ``mass_kg`` [kg] with its centre of mass at ``com_xyz`` [m] in the tool frame
+        (0 kg: none). Between calls: the model changes, so the estimator starts over (a new noise window
+        re-tares the base sensor with the new model; nothing may touch the arm for its 0.5 s)."""
+        if self.model is not None:
+            raise UsageError("set_payload is not supported for a learned model yet")
+        payload = checked_payload((mass_kg, com_xyz))
+        self.__init__(with_payload(self.robot, payload if payload[0] > 0 else None), self.method, self.config)
 
     # --------------------------------------------------------------- state
     def reset(self) -> None:
@@ -199,7 +245,12 @@ class TipForceEstimator:
         self._rate.reset()
         if self._joint is not None:
             self._joint.reset()
-        self._step_mean, self._steps = 1.0 / self.config.call_hz, 0  # a timed stream's mean step [s]
+        self._error_bar.reset()
+        self.last_sigma = _NO_SIGMA.copy()
+        self._motion = 0.0  # this call's joint-acceleration norm [rad/s^2], for the error bar
+        self._tared_at = None  # the call at which the base sensor's offset was last set
+        self.window_problem = None  # why the last noise window was not trusted (a contact), until one is
+        self._still_calls = 0  # consecutive calls at a standstill (the drift-following tare)
         if self._tare is not None:
             self._tare.reset()
         if self.model is not None:
@@ -244,6 +295,7 @@ class TipForceEstimator:
         if tare is None:
             raise ValueError("this estimator does not use the base sensor's tare")
         tare.set_offset(offset)
+        self._tared_at = self._calls
 
     # ---------------------------------------------------------------- call
     def estimate_tip_force(self, q, qd, base_wrench=None, tau_J=None, t=None) -> np.ndarray:
@@ -257,20 +309,15 @@ class TipForceEstimator:
             self.last_rejection = str(err)
             return self._last_good.copy()
         if resumed:
-            self._restart_dynamics()
+            self._restart_dynamics(t - self._gate.last_t)
         wrong_rate = False
         if t is not None:
-            if self._gate.last_t is not None and not resumed:
-                # Single steps may jitter; their mean over ~100 calls must sit at 1 / call_hz.
-                self._step_mean += 0.01 * ((t - self._gate.last_t) - self._step_mean)
-                self._steps += 1
-                wrong_rate = self._steps >= 100 and abs(self._step_mean * self.config.call_hz - 1.0) > \
-                    self.config.rate_tolerance
             self._gate.last_t = t
         else:
             wrong_rate = self._rate.update(q, qd)
         if self._joint is not None:
-            q, qd, _ = self._joint.step(q)
+            q, qd, qdd_joint = self._joint.step(q)
+            self._motion = qdd_norm(qdd_joint)
         k = self._calls
         in_window = k < self._window_calls
         tare = self._tare
@@ -285,10 +332,17 @@ class TipForceEstimator:
             tared = tare.update(q, qd, qdd, base_wrench)
         if in_window:
             self._record(k, q, qd, base_wrench, tau_J)
+            if self._check_torques and tau_J is not None:
+                self._win_force[k] = tip_force_from_torques(self.robot, q, qd, qdd, tau_J)
             self._stream.window_step(q, qd, qdd, base_wrench, tau_J)
-            if self._calls == self._window_calls:  # the window's last call measures its noise...
-                self._window_noise = self._measure_window()
-            return self._finish(self._last_good, True, wrong_rate, True)
+            if self._calls == self._window_calls:  # the window's last call checks it and measures its noise...
+                problem = self._window_contact()
+                if problem is not None:
+                    self._restart_window(problem)
+                else:
+                    self.window_problem = None
+                    self._window_noise = self._measure_window()
+            return self._finish(self._last_good, True, wrong_rate, True, estimated=False)
         if self._window_noise is not None:  # ...and the next one applies the rule: no call does both
             self._close_window(self._window_noise)
             if self.spec.needs_qdd:
@@ -297,18 +351,48 @@ class TipForceEstimator:
             tare.reset()  # a late tare must not average over a contact the torques see: start over
         if not self._base_tared and tare.done:
             self._base_tared = True
+            self._tared_at = self._calls
         w_in = tared if self._base_tared else None
         usable = True
         if self._optional:
             usable = self._track_sensors(w_in is not None, tau_J is not None)
         f = self._stream.step(q, qd, qdd, w_in, tau_J)
+        if w_in is not None:
+            self._follow_drift(q, qd, base_wrench, f)
         return self._finish(f, True, wrong_rate, usable)
 
-    def _finish(self, f, in_range, wrong_rate, usable) -> np.ndarray:
-        """The status of this call's estimate f, and f (a copy); a force within the bound is kept."""
+    def _follow_drift(self, q, qd, base_wrench, f) -> None:
+        """A base sensor's bias drifts after its tare. While the arm stands still (every joint slower than
+        ``standstill_speed`` for ``standstill_seconds``) and the estimate shows no contact (below
+        ``tare_contact_force``), the tare follows the sensor with time constant ``retare_seconds``: a
+        contact held that still and that small is what it may absorb."""
+        c = self.config
+        if -c.standstill_speed < qd.min() and qd.max() < c.standstill_speed:
+            self._still_calls += 1
+        else:
+            self._still_calls = 0
+        if self._still_calls >= c.standstill_seconds * c.call_hz and f.dot(f) < c.tare_contact_force ** 2:
+            self._tare.follow(q, base_wrench, 1.0 / (c.retare_seconds * c.call_hz))
+            self._tared_at = self._calls
+
+    def _finish(self, f, in_range, wrong_rate, usable, estimated=True) -> np.ndarray:
+        """The status of this call's estimate f, and f (a copy); a force within the bound is kept.
+        estimated: f is the method's estimate of this call (not the held one of the noise window)."""
+        if self._calls < self._warmup_calls:  # the method's own transient: no error model of it
+            estimated = False
+            self._error_bar.reset()
+        if estimated:
+            since = None
+            if self._tared_at is not None:
+                since = (self._calls - self._tared_at) / self.config.call_hz
+            self.last_sigma = self._error_bar.update(f, self._motion, since)
+        else:
+            self.last_sigma = _NO_SIGMA.copy()
         status = _OK if in_range else _OUT_OF_RANGE
+        if status is _OK and not self.last_sigma.max() <= self.config.max_sigma:
+            status = _UNCERTAIN
         if self._calls < self._warmup_calls:
-            status = _WARMING_UP
+            status = _WARMING_UP if self.window_problem is None else _CONTACT_AT_START
         if not usable:
             status = _NO_SENSOR
         if wrong_rate:
@@ -348,6 +432,35 @@ class TipForceEstimator:
             self._win_tau[k] = tau
             self._win_has[k, 1] = True
 
+    def _window_contact(self) -> str | None:
+        """Why the window just ended must not be trusted (a contact in it), or None. The base sensor's
+        residual must not change between the window's parts (a contact that began or ended in it, a
+        trend); the joint torques, where the method reads them, must see no force (a contact held
+        through the whole window, which the base sensor alone cannot tell from its offset)."""
+        limit = self.config.tare_contact_force
+        tare = self._tare
+        if tare is not None and tare.done:
+            step = tare.window_step(limit)
+            if step is not None:
+                return f"the base sensor's residual changed by {step:.2f} N inside the noise window (limit {limit:g} N)"
+        has = self._win_has[:, 1]
+        if self._check_torques and has.sum() >= 8:
+            f = np.median(self._win_force[has], axis=0)
+            if f.dot(f) > limit * limit:
+                return (f"the joint torques saw {np.linalg.norm(f):.2f} N at the tool during the noise window "
+                        f"(limit {limit:g} N): a contact, or a load the model lacks (payload=)")
+        return None
+
+    def _restart_window(self, problem: str) -> None:
+        """The window saw a contact: forget it (its tare and noise) and start a new one now."""
+        self.window_problem = problem
+        if self._tare is not None:
+            self._tare.reset()
+        self._stream.reset()
+        self._win_has[:] = False
+        self._calls = 0
+        self._warmup_calls = self._window_calls + 1
+
     def _measure_window(self):
         """The window's white noise (``bandwidth.measure_window``) on the samples each sensor came with."""
         has = self._win_has
@@ -367,6 +480,8 @@ class TipForceEstimator:
         self.bandwidth = self._stream.close_window(noise, offset, self._fixed)
         self._use_bandwidth(replay=self._win_qd)
         self._base_tared = tare is None or tare.done
+        if tare is not None and tare.done:
+            self._tared_at = self._calls
         self._absent, self._active = [-1, -1], ()
         # A qdd method has no transient (its filter was replayed); an observer settles; kalman-fusion settles
         # for the sensors it gets (``_track_sensors``).
@@ -393,13 +508,15 @@ class TipForceEstimator:
         self.qdd_cutoff_hz = self.bandwidth
         return None if replay is None else self._qdd_filter.replay(replay)
 
-    def _restart_dynamics(self) -> None:
-        """After a gap in a timed stream: the filter and the method restart (a finished tare and the
-        bandwidth are kept), and it warms up for the method's settling time."""
+    def _restart_dynamics(self, gap_seconds: float) -> None:
+        """After a gap of ``gap_seconds`` in a timed stream: the filter and the method restart (a finished
+        tare and the bandwidth are kept), and it warms up for the method's settling time. The joint-state
+        filter predicts across a short gap (its state stays the arm's) and starts over after a long one."""
         self._qdd_filter.reset()
         self._rate.reset()
         if self._joint is not None:
-            self._joint.reset()
+            self._joint.coast(int(round(gap_seconds * self.config.call_hz)) - 1)
+        self._error_bar.reset()
         if self.model is not None:
             self.model.reset()
             self._warmup_calls = max(self._warmup_calls, self._calls + self.model.warmup_calls(self.config.call_hz))

@@ -45,6 +45,10 @@ def cmd_identify(args) -> int:
     print("fit RMSE per joint [Nm]: " + " ".join(f"{x:.4f}" for x in rmse) + f"  (all {np.sqrt(np.mean(rmse**2)):.4f})")
     print(f"physically consistent: {fit['physically_consistent']}" +
           (f"  (IPOPT: {fit['ipopt_status']}, {fit['iterations']} iterations)" if "ipopt_status" in fit else ""))
+    for w in fit["warnings"]:
+        print(f"warning: {w}")
+    for b in fit["implausible"]:
+        print(f"warning: implausible parameters: {b}")
     print(f"wrote {args.out}")
     return 0
 

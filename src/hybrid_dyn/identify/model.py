@@ -33,6 +33,7 @@ from ..errors import UsageError
 from ..outputs import unique_temp
 from . import estimators as est
 from .parameters import N_BODY_PARAMS, check_consistency, to_urdf_form
+from .plausibility import fit_warnings
 from .regressor import (DEFAULT_COULOMB_EPS, BaseParameters, base_parameters, friction_regressor,
                         inertial_regressor, nominal_body_parameters)
 
@@ -204,6 +205,14 @@ class IdentifiedModel:
     @property
     def physically_consistent(self) -> bool:
         return all(r.valid for r in self.consistency())
+
+    def implausible_bodies(self) -> list[str]:
+        """One line per body outside the robot's plausibility bounds (mass, centre of mass, inertia:
+        ``plausibility.PlausibilityBounds``), computed from the parameters (a file written before the check
+        is checked too); empty: every body within them."""
+        from .plausibility import implausible_bodies
+
+        return implausible_bodies(self.robot, self.body_params)
 
     # ---------------------------------------------------------------- file I/O
     def to_dict(self) -> dict:
@@ -391,4 +400,8 @@ def identify(data, method: str = "consistent", robot: Robot | None = None, *, sp
     model = IdentifiedModel(robot, method, pi.reshape(nv, N_BODY_PARAMS), friction, fit)
     model.fit["rmse_per_joint"] = _joint_rmse(data.tau, model.predict_torque(data.q, data.qd, data.qdd)).tolist()
     model.fit["physically_consistent"] = model.physically_consistent
+    # What the data could not determine, and bodies this robot cannot have (issue 39): said, not silent.
+    model.fit["range_of_motion_deg"] = np.degrees(np.ptp(data.q, axis=0)).tolist()
+    model.fit["warnings"] = fit_warnings(data.q, cond, robot.joint_names)
+    model.fit["implausible"] = model.implausible_bodies()
     return model
