@@ -53,10 +53,11 @@ CONTACT = np.array([0.5, -0.6, -0.8]) / np.linalg.norm([0.5, -0.6, -0.8]) * 15.0
 CONTACT_AT = 1.0  # s
 
 
-# contact_stream's sensors: exact encoders (its streams declare encoder_resolution=0 to the estimator), a
+# contact_stream's sensors, the levels its tests were designed on: encoders not quantized, with white noise
+# of 1e-5 rad on q and 2e-4 rad/s on qd (its tests declare encoder_resolution=0: q and qd used as given), a
 # base sensor with 0.05 N (0.0025 Nm) noise and up to 2 N (0.1 Nm) of offset, joint torques at 0.02 Nm.
-CONTACT_SENSORS = HardwareSensors(EncoderModel(0.0, "exact"), ForceTorqueModel(0.05, 0.0025, 2.0, 0.1), ClockModel(0.0),
-                                  tau_J_noise=0.02)
+CONTACT_SENSORS = HardwareSensors(EncoderModel(0.0, "exact", noise=1e-5, velocity_noise=2e-4),
+                                  ForceTorqueModel(0.05, 0.0025, 2.0, 0.1), ClockModel(0.0), tau_J_noise=0.02)
 
 
 def contact_stream(robot, n, hz=HZ, seed=0, contact_at=CONTACT_AT):

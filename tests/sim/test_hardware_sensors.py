@@ -56,6 +56,22 @@ def test_the_drives_velocity_is_the_difference_of_the_quantized_q(panda):
     assert 1e-3 < err.std() < 1e-5 / DT
 
 
+def test_white_encoder_noise_is_drawn_last_at_its_stated_levels(panda):
+    """The kinematic test streams' encoders (white noise on q and qd, not quantized): the levels come back,
+    and every other reading is the one the same seed gives without encoder noise."""
+    n = 20_000
+    q = np.tile(panda.spec.home, (n, 1))
+    qd = np.full((n, panda.nv), 0.3)
+    base = ForceTorqueModel(0.05, 0.0025, 2.0, 0.1)
+    noisy = _read(panda, HardwareSensors(EncoderModel(0.0, "exact", noise=1e-5, velocity_noise=2e-4), base,
+                                         ClockModel(1e-4), 0.02), q, qd, seed=6)
+    clean = _read(panda, HardwareSensors(EncoderModel(0.0, "exact"), base, ClockModel(1e-4), 0.02), q, qd, seed=6)
+    assert (noisy.q - q).std() == pytest.approx(1e-5, rel=0.02) and (noisy.qd - qd).std() == pytest.approx(2e-4, rel=0.02)
+    for name in ("t", "tau_J", "base_wrench", "bias", "drift"):
+        np.testing.assert_array_equal(getattr(noisy, name), getattr(clean, name))
+    np.testing.assert_array_equal(clean.q, q)
+
+
 def test_a_drift_is_recovered_by_a_least_squares_fit(panda):
     n = 12_000  # 12 s at 1 kHz: the issue's 0.3 N over 12 s
     base = ForceTorqueModel(force_noise=0.2, torque_noise=0.01, force_bias=2.0, torque_bias=0.1,

@@ -34,11 +34,16 @@ class EncoderModel:
     None takes the robot description's ``encoder_resolution``; 0 reads q exactly.
     velocity: how the drive makes qd: "difference" (the backward difference of the quantized q over the
     nominal period, what libfranka's dq is), "filtered" (that difference through a first-order low-pass
-    at ``velocity_cutoff_hz`` [Hz]) or "exact" (the simulator's velocity, an ideal tachometer)."""
+    at ``velocity_cutoff_hz`` [Hz]) or "exact" (the simulator's velocity, an ideal tachometer).
+    noise [rad], velocity_noise [rad/s]: white noise on q (before quantizing: an analog encoder's) and on
+    the reported qd (a tachometer's); 0 for a digital encoder. The kinematic test streams state the
+    white-noise levels their tests were designed on this way."""
 
     resolution: float | None = None
     velocity: str = "difference"
     velocity_cutoff_hz: float = 0.0
+    noise: float = 0.0
+    velocity_noise: float = 0.0
 
     def __post_init__(self):
         if self.velocity not in ("difference", "filtered", "exact"):
@@ -47,6 +52,8 @@ class EncoderModel:
             raise ValueError("EncoderModel.velocity='filtered' needs velocity_cutoff_hz > 0 [Hz]")
         if self.resolution is not None and not self.resolution >= 0:
             raise ValueError(f"EncoderModel.resolution must be >= 0 [rad], got {self.resolution!r}")
+        if not (self.noise >= 0 and self.velocity_noise >= 0):
+            raise ValueError(f"EncoderModel noise levels must be >= 0, got {self.noise!r}, {self.velocity_noise!r}")
 
 
 @dataclass(frozen=True)
@@ -126,22 +133,10 @@ def read_sensors(robot, sensors: HardwareSensors, dt: float, q, qd, tau_J, base_
                  rng: np.random.Generator) -> SensorReadings:
     """What ``sensors`` report of a true run sampled every ``dt`` [s]: q, qd (n, nv), link-side joint
     torques tau_J (n, nv) and the base wrench (n, 6), all true. The draws come from ``rng`` in a fixed
-    order (bias, drift direction, F/T noise, torque noise, jitter), so a seed fixes the stream."""
+    order (bias, drift direction, F/T noise, torque noise, jitter, then encoder noise where stated), so a
+    seed fixes the stream."""
     q, qd = np.asarray(q, float), np.asarray(qd, float)
     n = len(q)
-    res = encoder_resolution(robot, sensors.encoder)
-    q_read = np.round(q / res) * res if res > 0 else q.copy()
-    enc = sensors.encoder
-    if enc.velocity == "exact":
-        qd_read = qd.copy()
-    else:
-        qd_read = np.empty_like(q_read)
-        qd_read[0] = qd[0] if res == 0 else 0.0  # the drive's first difference has no predecessor
-        qd_read[1:] = np.diff(q_read, axis=0) / dt
-        if enc.velocity == "filtered":
-            a = np.exp(-2 * np.pi * enc.velocity_cutoff_hz * dt)  # first-order low-pass, zero-order hold
-            for k in range(1, n):
-                qd_read[k] = a * qd_read[k - 1] + (1 - a) * qd_read[k]
     b = sensors.base
     scale = np.r_[np.full(3, b.force_bias), np.full(3, b.torque_bias)]
     bias = rng.uniform(-1, 1, 6) * scale
@@ -157,7 +152,30 @@ def read_sensors(robot, sensors: HardwareSensors, dt: float, q, qd, tau_J, base_
     tau = np.asarray(tau_J, float) + rng.normal(size=(n, q.shape[1])) * sensors.tau_J_noise
     c = sensors.clock
     jitter = np.clip(rng.normal(size=n) * c.jitter, -c.max_jitter, c.max_jitter) if c.jitter > 0 else np.zeros(n)
+    q_read, qd_read = _read_encoders(robot, sensors.encoder, dt, q, qd, rng)
     return SensorReadings(t_true + jitter, q_read, qd_read, tau, w, bias, drift)
+
+
+def _read_encoders(robot, enc: EncoderModel, dt: float, q, qd, rng) -> tuple:
+    """(q, qd) as the encoders report them: white noise where stated (drawn last, so that streams without it
+    keep their draws), quantized q, and qd exact, the difference, or the filtered difference."""
+    n = len(q)
+    if enc.noise > 0:
+        q = q + rng.normal(size=q.shape) * enc.noise
+    n_qd = rng.normal(size=qd.shape) * enc.velocity_noise if enc.velocity_noise > 0 else 0.0
+    res = encoder_resolution(robot, enc)
+    q_read = np.round(q / res) * res if res > 0 else q.copy()
+    if enc.velocity == "exact":
+        qd_read = qd.copy()
+    else:
+        qd_read = np.empty_like(q_read)
+        qd_read[0] = qd[0] if res == 0 else 0.0  # the drive's first difference has no predecessor
+        qd_read[1:] = np.diff(q_read, axis=0) / dt
+        if enc.velocity == "filtered":
+            a = np.exp(-2 * np.pi * enc.velocity_cutoff_hz * dt)  # first-order low-pass, zero-order hold
+            for k in range(1, n):
+                qd_read[k] = a * qd_read[k - 1] + (1 - a) * qd_read[k]
+    return q_read, qd_read + n_qd
 
 
 __all__ = ["ClockModel", "EncoderModel", "ForceTorqueModel", "HardwareSensors", "SensorReadings",
