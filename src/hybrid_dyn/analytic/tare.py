@@ -98,7 +98,8 @@ class StreamingTare:
         """The largest change [N] of the force residual (measured - model) between the window's segments
         when it exceeds ``threshold`` [N], else None: a contact that began or ended inside the window,
         or a trend, which a mean would tare into the offset. Medians (the upper one of an even count) of
-        ``segments`` equal parts, so a sensor's white noise and a few outliers do not trip it."""
+        ``segments`` equal parts, so a sensor's white noise and a few outliers do not trip it; on a noisy
+        residual the bar rises to six times the noise of a difference of two such medians."""
         if not self.done or self.n_calls < 2 * segments:
             return None
         # A window's last call runs this inside a control cycle: one partial sort per segment, no Python loop
@@ -107,7 +108,14 @@ class StreamingTare:
         medians = np.stack([np.partition(p, len(p) // 2, axis=0)[len(p) // 2] for p in parts])
         gaps = medians[:, None, :] - medians[None, :, :]
         spread = float(np.sqrt((gaps * gaps).sum(axis=2).max()))
-        return spread if spread > threshold else None
+        # The residual's own noise (MAD, per axis) moves a segment's median by ~1.25 sigma / sqrt(n): a
+        # change within six such (of a difference of two medians) is no evidence of a contact.
+        r = self.residuals
+        center = np.partition(r, len(r) // 2, axis=0)[len(r) // 2]
+        dev = np.abs(r - center)
+        sigma = 1.4826 * np.partition(dev, len(r) // 2, axis=0)[len(r) // 2]
+        noise_limit = 6.0 * 1.25 * math.sqrt(2.0) * float(np.linalg.norm(sigma)) / math.sqrt(len(parts[-1]))
+        return spread if spread > max(threshold, noise_limit) else None
 
     def set_offset(self, offset) -> None:
         """Use a known offset (e.g. from a tare done elsewhere) and skip the tare window."""

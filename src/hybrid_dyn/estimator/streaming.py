@@ -25,14 +25,16 @@ run); this module runs them on a stream. What happens in one call:
      the arm lies farther from the base);
    - its time breaks the stream: t not increasing, t missing once the stream
      has given t (the first call with t makes a stream timed until ``reset``), or
-     a step off 1/call_hz by more than ``rate_tolerance`` (25 %). The filter and
-     the observer are designed for that step, so a wrong ``call_hz`` (a 100 Hz
-     recording fed to a 1 kHz estimator errs 10 N) or a gap (a lost tick) is
-     refused rather than silently mis-filtered; 25 % lets a loop's jitter through
-     and stops any rate off by 2x. A wrong rate is refused at every call; after a
-     gap, the sample one period after the refused one resumes the stream: the
-     filter and observers restart (a finished tare is kept) and it warms up anew
-     for the method's settling time.
+     a stamp off the stream's clock by more than max(``rate_tolerance`` periods,
+     1.5 ``stamp_jitter``). The robot samples on its own clock; a control PC's
+     stamps jitter about it (up to 0.5 ms by default), so the estimator follows the
+     stamps' grid (slowly, for a drift between the clocks) and runs its filters on
+     the nominal period. A wrong ``call_hz`` (a 100 Hz recording fed to a 1 kHz
+     estimator errs 10 N) or a lost tick is refused rather than silently
+     mis-filtered. A wrong rate is refused at every call; after a gap, the sample
+     one period after the refused one resumes the stream: the filters and observers
+     restart (a finished tare is kept; the joint-state filter predicts across a gap
+     of up to 50 samples) and it warms up anew for the method's settling time.
    A rejected sample raises :class:`EstimatorInputError` (a ``ValueError`` that
    names the argument), or with ``on_bad_input="hold"`` returns the last good
    estimate with ``last_status = INPUT_REJECTED`` (``last_rejection`` says why).
@@ -40,7 +42,11 @@ run); this module runs them on a stream. What happens in one call:
    after it give exactly what they give without it. An untimed stream is checked
    for its rate from its own samples (``RateCheck``: q's increments against
    qd / call_hz): a stream at another rate says "wrong rate".
-2. The first ``tare_seconds`` of calls are the noise window (nothing may touch
+2. Quantized encoders (``encoder_resolution`` > 0, the robot description's by
+   default): q becomes q, qd and qdd through the joint-state Kalman filter
+   (``analytic/joint_state.py``); every method reads its q and qd, and the rules
+   below get the velocity noise it carries in motion (a still window shows none).
+3. The first ``tare_seconds`` of calls are the noise window (nothing may touch
    the arm then; status "warming up"). On it the base sensor is tared
    (``analytic/tare.py``), the sensors' white noise is measured, and the
    method's bandwidth (qdd cutoff, observer gain, Kalman force rate) is chosen by
@@ -48,20 +54,28 @@ run); this module runs them on a stream. What happens in one call:
    instead of "auto" is used as is). Without a window (``tare_seconds=0``) the
    rule runs on the sensors' specifications. Every filter design happens when
    the estimator is built, and the close is split over two calls: the window's
-   last call measures the noise, the first call after it picks the bandwidth
-   (and the method starts there).
-3. Where the method needs it, qdd is estimated from qd causally, with the
+   last call checks and measures it, the first call after it picks the bandwidth
+   (and the method starts there). The check: a window whose base-sensor residual
+   steps or trends by more than ``tare_contact_force`` (or six times its own
+   noise), or in which the joint torques (where the method reads them) see such a
+   force, is not trusted: a new window starts, status "contact at start-up"
+   (``window_problem`` says why). After the window, at a standstill with no
+   contact, the tare follows the base sensor's drift (``retare_seconds``).
+4. Where the method needs it, qdd is estimated from qd causally, with the
    generator's filter (``analytic/acceleration.py``) at the call rate; the
    window is replayed through the chosen filter, so that it runs as if from the start.
-4. The method gives the force. Its transient after a start, a gap, or (for
+5. The method gives the force. Its transient after a start, a gap, or (for
    kalman-fusion, which takes whichever sensors a call brings) a sensor joining
    or leaving is its settling time: "warming up" until it has passed. A sensor
    absent for up to 5 calls (alternating sensors) is bridged, not a leave. A
    base sensor that joins kalman-fusion after the window is tared when it comes;
    while the joint torques see a force above ``tare_contact_force`` the tare starts
    over (it never tares over a contact), and the filter runs on the torques alone.
-5. An estimate above ``max_tip_force`` (500 N) is returned with status
+6. An estimate above ``max_tip_force`` (500 N) is returned with status
    FORCE_OUT_OF_RANGE ("force out of range") and is not kept as the last good one.
+7. Every estimate gets an error bar, ``last_sigma`` (3,) [N] (``estimator/error_bar.py``;
+   infinite while there is no estimate); a settled call whose error bar exceeds
+   ``max_sigma`` on any axis is "uncertain", not "ok".
 
 Statuses (``last_status``), first match wins: INPUT_REJECTED (this sample was
 refused; the last good estimate is returned), FORCE_OUT_OF_RANGE (the estimate
@@ -69,11 +83,14 @@ exceeds ``max_tip_force``), WRONG_RATE (an untimed stream whose samples are
 spaced unlike 1 / call_hz), NO_SENSOR ("no usable sensor": this call brings
 nothing the method can estimate from, e.g. kalman-fusion given only a base
 sensor that is not yet tared; the returned force is a prediction), WARMING_UP
-(the window, tare, filter or observer still settles), OUT_OF_RANGE (a learned
-model's input lies outside its training range: "input out of training range"), OK.
+(the window, tare, filter or observer still settles) or CONTACT_AT_START (the
+same after a window that saw a contact), OUT_OF_RANGE (a learned model's input
+lies outside its training range: "input out of training range"), UNCERTAIN
+(``last_sigma`` above ``max_sigma``), OK.
 
 A known base-sensor offset can be given with ``set_tare_offset``; ``reset``
-tares anew.
+tares anew. A tool's load: ``payload=`` at construction or ``set_payload`` between
+calls (the model every method subtracts carries it; a new window re-tares).
 
 Threading: an estimator holds per-stream state (filter, window, observer) and
 preallocated buffers, so one instance must be used by one thread at a time;
