@@ -100,6 +100,14 @@ class StreamingTare:
             return None
         return window_step(self.residuals, threshold, segments)
 
+    def set_offset(self, offset) -> None:
+        """Use a known offset (e.g. from a tare done elsewhere) and skip the tare window."""
+        offset = np.asarray(offset, float)
+        if offset.shape != (6,) or not math.isfinite(offset.dot(offset)):
+            raise ValueError(f"a base-sensor offset is 6 finite values [N, Nm], got {offset!r}")
+        self.offset = offset.copy()
+        self.count = self.n_calls
+
 
 def window_step(residuals: np.ndarray, threshold: float, segments: int = 5) -> float | None:
     """The largest change [N] of a window's force residual (measured - model, (n, 3)) between its segments
