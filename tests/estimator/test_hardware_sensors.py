@@ -152,7 +152,7 @@ def test_a_drifting_base_sensor_is_followed_at_standstill(panda):
     drift = 0.05 * np.arange(n)[:, None] / HZ * np.r_[0.6, 0.0, 0.8, 0, 0, 0]
     w = w0 + 1.0 + drift + rng.normal(0, 0.2, (n, 6)) * np.r_[1, 1, 1, 0.05, 0.05, 0.05]
     last = {}
-    for label, tau in (("followed", 2.0), ("not followed", 1e6)):
+    for label, tau in (("followed", 2.0), ("not followed", float("inf"))):
         est = TipForceEstimator.analytic(panda, "base-momentum", call_hz=HZ, retare_seconds=tau)
         for k in range(n):
             f = est.estimate_tip_force(q[k], np.zeros(7), base_wrench=w[k], t=k / HZ)
@@ -189,3 +189,22 @@ def test_the_error_bar_covers_the_ok_calls(panda):
     assert np.all(err[ok] <= 2 * sig[ok], axis=1).mean() >= 0.9
     assert np.all(sig[ok].max(axis=1) <= est.config.max_sigma)
     assert np.isinf(sig[:500]).all()  # the window: no estimate, no error bar
+
+
+def test_the_batch_run_is_the_estimator_with_its_window_check_and_error_bar(panda):
+    """run_batch (the bench's rows) against the streaming estimator on a stream with a touch in the first
+    window: the same window (the second), the same forces and the same error bar, call for call."""
+    from hybrid_dyn.analytic.methods import run_batch
+
+    cfg = StreamConfig(seconds=2.5, sensors=QUANTIZED, contacts=None,
+                       touches=(Touch(0.2, 6.0, 0.2, direction=(1.0, 0.0, -0.5)), Touch(1.6, 8.0, 0.5, rise=0.01)))
+    r = simulate_stream(panda, cfg, seed=10).readings
+    for method in ("base-momentum", "base-wrench"):
+        est = TipForceEstimator.analytic(panda, method, call_hz=HZ, retare_seconds=float("inf"))  # as run_batch
+        f, sig, status = run(est, r)
+        fb, used, sb = run_batch(method, panda, HZ, r.q, r.qd, r.base_wrench, with_sigma=True)
+        assert used == pytest.approx(est.bandwidth)
+        np.testing.assert_allclose(fb[1001:], f[1001:], atol=1e-7)
+        settled = np.isfinite(sig).all(axis=1)
+        np.testing.assert_array_equal(settled, np.isfinite(sb).all(axis=1))
+        np.testing.assert_allclose(sb[settled], sig[settled], atol=1e-7)

@@ -95,27 +95,10 @@ class StreamingTare:
         self.offset += rate * (base_wrench - self.robot.base_wrench_single(q, zero, zero) - self.offset)
 
     def window_step(self, threshold: float, segments: int = 5) -> float | None:
-        """The largest change [N] of the force residual (measured - model) between the window's segments
-        when it exceeds ``threshold`` [N], else None: a contact that began or ended inside the window,
-        or a trend, which a mean would tare into the offset. Medians (the upper one of an even count) of
-        ``segments`` equal parts, so a sensor's white noise and a few outliers do not trip it; on a noisy
-        residual the bar rises to six times the noise of a difference of two such medians."""
-        if not self.done or self.n_calls < 2 * segments:
+        """``window_step`` on this window's residuals, once it is full (None before)."""
+        if not self.done:
             return None
-        # A window's last call runs this inside a control cycle: one partial sort per segment, no Python loop
-        # over its samples.
-        parts = np.array_split(self.residuals, segments)
-        medians = np.stack([np.partition(p, len(p) // 2, axis=0)[len(p) // 2] for p in parts])
-        gaps = medians[:, None, :] - medians[None, :, :]
-        spread = float(np.sqrt((gaps * gaps).sum(axis=2).max()))
-        # The residual's own noise (MAD, per axis) moves a segment's median by ~1.25 sigma / sqrt(n): a
-        # change within six such (of a difference of two medians) is no evidence of a contact.
-        r = self.residuals
-        center = np.partition(r, len(r) // 2, axis=0)[len(r) // 2]
-        dev = np.abs(r - center)
-        sigma = 1.4826 * np.partition(dev, len(r) // 2, axis=0)[len(r) // 2]
-        noise_limit = 6.0 * 1.25 * math.sqrt(2.0) * float(np.linalg.norm(sigma)) / math.sqrt(len(parts[-1]))
-        return spread if spread > max(threshold, noise_limit) else None
+        return window_step(self.residuals, threshold, segments)
 
     def set_offset(self, offset) -> None:
         """Use a known offset (e.g. from a tare done elsewhere) and skip the tare window."""
@@ -124,6 +107,29 @@ class StreamingTare:
             raise ValueError(f"a base-sensor offset is 6 finite values [N, Nm], got {offset!r}")
         self.offset = offset.copy()
         self.count = self.n_calls
+
+
+def window_step(residuals: np.ndarray, threshold: float, segments: int = 5) -> float | None:
+    """The largest change [N] of a window's force residual (measured - model, (n, 3)) between its segments
+    when it exceeds ``threshold`` [N], else None: a contact that began or ended inside the window, or a
+    trend, which a mean would tare into the offset. Medians (the upper one of an even count) of
+    ``segments`` equal parts, so a sensor's white noise and a few outliers do not trip it; on a noisy
+    residual the bar rises to six times the noise of a difference of two such medians."""
+    r = np.asarray(residuals, float)
+    if len(r) < 2 * segments:
+        return None
+    # A window's last call runs this inside a control cycle: one partial sort per segment, no Python loop
+    # over its samples.
+    parts = np.array_split(r, segments)
+    medians = np.stack([np.partition(p, len(p) // 2, axis=0)[len(p) // 2] for p in parts])
+    gaps = medians[:, None, :] - medians[None, :, :]
+    spread = float(np.sqrt((gaps * gaps).sum(axis=2).max()))
+    # The residual's own noise (MAD, per axis) moves a segment's median by ~1.25 sigma / sqrt(n): a
+    # change within six such (of a difference of two medians) is no evidence of a contact.
+    center = np.partition(r, len(r) // 2, axis=0)[len(r) // 2]
+    sigma = 1.4826 * np.partition(np.abs(r - center), len(r) // 2, axis=0)[len(r) // 2]
+    noise_limit = 6.0 * 1.25 * math.sqrt(2.0) * float(np.linalg.norm(sigma)) / math.sqrt(len(parts[-1]))
+    return spread if spread > max(threshold, noise_limit) else None
 
 
 class TaredRun:

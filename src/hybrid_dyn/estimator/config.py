@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import Enum
 
+from ..analytic.error_bar import DRIFT_RATE, MOTION_GAIN
 from ..analytic.tare import TARE_SECONDS
 from ..errors import UsageError
 
@@ -64,11 +65,12 @@ class EstimatorConfig:
     max_sigma: a call is ``ok`` only while its predicted 1-sigma error (``last_sigma``) is below this on
     every axis [N]; above it the status is "uncertain". motion_sigma_gain [N per rad/s^2] and
     base_drift_rate [N/s, the base sensor's bias drift after its tare]: the error model's motion and
-    drift terms (``estimator/error_bar.py``).
+    drift terms (``analytic/error_bar.py``).
 
     standstill_speed [rad/s], standstill_seconds [s], retare_seconds [s]: after the window, while every
     joint is slower than standstill_speed for standstill_seconds and the estimate is below
-    tare_contact_force, the base sensor's tare follows its drift with time constant retare_seconds.
+    tare_contact_force, the base sensor's tare follows its drift with time constant retare_seconds
+    (math.inf: it does not).
 
     Plausibility bounds (see the module docstring):
     q_margin: how far q may lie outside the URDF position limits [rad]; encoders
@@ -100,8 +102,8 @@ class EstimatorConfig:
     joint_filter_bandwidth: float | str = "auto"
     stamp_jitter: float = 5e-4
     max_sigma: float = 0.8
-    motion_sigma_gain: float = 0.1
-    base_drift_rate: float = 0.005
+    motion_sigma_gain: float = MOTION_GAIN
+    base_drift_rate: float = DRIFT_RATE
     standstill_speed: float = 5e-3
     standstill_seconds: float = 0.2
     retare_seconds: float = 2.0

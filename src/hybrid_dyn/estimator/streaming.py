@@ -73,7 +73,7 @@ run); this module runs them on a stream. What happens in one call:
    over (it never tares over a contact), and the filter runs on the torques alone.
 6. An estimate above ``max_tip_force`` (500 N) is returned with status
    FORCE_OUT_OF_RANGE ("force out of range") and is not kept as the last good one.
-7. Every estimate gets an error bar, ``last_sigma`` (3,) [N] (``estimator/error_bar.py``;
+7. Every estimate gets an error bar, ``last_sigma`` (3,) [N] (``analytic/error_bar.py``;
    infinite while there is no estimate); a settled call whose error bar exceeds
    ``max_sigma`` on any axis is "uncertain", not "ok".
 
@@ -99,6 +99,7 @@ batch form, ``estimator/batch.py``) is thread-safe: it keeps one robot model per
 """
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -106,6 +107,7 @@ import numpy as np
 
 from ..analytic.acceleration import CausalAccelerationFilter, cutoff_grid, default_qdd_cutoff
 from ..analytic.bandwidth import measure_window
+from ..analytic.error_bar import ErrorBar, qdd_norm
 from ..analytic.estimators import ALIASES, estimator_name
 from ..analytic.joint_state import joint_filter_for, with_joint_state_noise
 from ..analytic.kalman import MAX_BRIDGE_CALLS
@@ -115,7 +117,6 @@ from ..analytic.tare import StreamingTare, tare_samples
 from ..analytic.tip_force import tip_force_from_torques
 from ..errors import UsageError
 from .config import EstimatorConfig, EstimatorStatus
-from .error_bar import ErrorBar, qdd_norm
 from .input import EstimatorInputError, InputGate, RateCheck
 
 # The analytic methods, by the estimators' one name (analytic/methods.py registers them; the older
@@ -384,6 +385,8 @@ class TipForceEstimator:
         ``tare_contact_force``), the tare follows the sensor with time constant ``retare_seconds``: a
         contact held that still and that small is what it may absorb."""
         c = self.config
+        if c.retare_seconds == math.inf:  # told not to follow
+            return
         if -c.standstill_speed < qd.min() and qd.max() < c.standstill_speed:
             self._still_calls += 1
         else:

@@ -38,12 +38,14 @@ SLOW_SECONDS = 1.0   # the noise term's averaging time [s]
 LAG_NOISE_SIGMAS = 1.0  # a deviation within this many noise sigmas is noise, not lag
 NOISE_GAIN = 1.3  # the noise term's factor over the measured deviation variance
 NOISE_FLOOR = 0.05   # [N]: the noise term's least step, so that it can grow from a noise-free start
+MOTION_GAIN = 0.1    # [N per rad/s^2]: the motion term's default (EstimatorConfig.motion_sigma_gain)
+DRIFT_RATE = 0.005   # [N/s]: the drift term's default (EstimatorConfig.base_drift_rate)
 
 
 class ErrorBar:
     """Per-stream state of the error model; ``update`` once per estimate (see the module docstring)."""
 
-    def __init__(self, rate_hz: float, motion_gain: float, drift_rate: float):
+    def __init__(self, rate_hz: float, motion_gain: float = MOTION_GAIN, drift_rate: float = DRIFT_RATE):
         dt = 1.0 / float(rate_hz)
         self.a_fast, self.a_slow = min(1.0, dt / FAST_SECONDS), min(1.0, dt / SLOW_SECONDS)
         self.dt, self.motion_gain, self.drift_rate = dt, float(motion_gain), float(drift_rate)
@@ -91,4 +93,4 @@ def qdd_norm(qdd) -> float:
     return 0.0 if qdd is None else math.sqrt(float(qdd.dot(qdd)))
 
 
-__all__ = ["ErrorBar", "qdd_norm"]
+__all__ = ["DRIFT_RATE", "ErrorBar", "MOTION_GAIN", "qdd_norm"]
