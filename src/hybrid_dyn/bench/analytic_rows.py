@@ -14,8 +14,6 @@ test samples their error bar covers (``sigma_coverage``, :func:`_sigma_coverage`
 """
 from __future__ import annotations
 
-import inspect
-
 import numpy as np
 
 from ..analytic.methods import REGISTRY, add_listener, run_batch
@@ -74,12 +72,6 @@ def _chosen_on_val(ctx, name: str, grid, estimate) -> float:
     return ctx.cache[key]
 
 
-def _gives_sigma() -> bool:
-    """Whether ``run_batch`` gives the error bar (``with_sigma``, issue 38): until the estimator has it,
-    the coverage column stays empty."""
-    return "with_sigma" in inspect.signature(run_batch).parameters
-
-
 def _encoder_resolution(ctx) -> float:
     """The dataset's encoder resolution [rad]: its hardware sensors' (``sim/sensors.py``; the robot
     description's when they state none); 0 for the legacy sensor model and for data without a generator
@@ -91,39 +83,30 @@ def _encoder_resolution(ctx) -> float:
 
 
 def _method_run(method, robot, inst, ctx, value=None):
-    """(forces (T, 3), bandwidth, sigma (T, 3) [N] or None) of the method over one run as the estimator runs
-    it, at the dataset's encoder resolution (cached per value)."""
+    """(forces (T, 3), bandwidth, sigma (T, 3) [N]) of the method over one run as the estimator runs it, at
+    the dataset's encoder resolution (cached per value)."""
     key = ("method-run", method.name, inst.name, value)
     if key not in ctx.cache:
-        kw = {"encoder_resolution": _encoder_resolution(ctx)}
-        if _gives_sigma():
-            kw["with_sigma"] = True
-        out = run_batch(method, robot, ctx.dataset.meta["record_hz"], inst.q, inst.qd,
-                        inst.base_wrench if "base_wrench" in method.reads else None,
-                        inst.tau_J if "tau_J" in method.reads else None, TARE_SECONDS, value, **kw)
-        ctx.cache[key] = tuple(out) if "with_sigma" in kw else (*out, None)
+        ctx.cache[key] = run_batch(method, robot, ctx.dataset.meta["record_hz"], inst.q, inst.qd,
+                                   inst.base_wrench if "base_wrench" in method.reads else None,
+                                   inst.tau_J if "tau_J" in method.reads else None, TARE_SECONDS, value,
+                                   encoder_resolution=_encoder_resolution(ctx), with_sigma=True)
     return ctx.cache[key]
 
 
 def _sigma_coverage(method, ctx, value=None):
-    """A callable for the row's ``sigma_coverage``: the share of the test samples after each run's window
-    whose error lies within 2 sigma on every axis; None (an empty cell) while run_batch gives no sigma."""
+    """A callable for the row's ``sigma_coverage``: of the test samples after each run's first window that
+    have an error bar (a finite sigma: the estimator has a settled estimate, as when it may say ``ok``),
+    the share whose error lies within 2 sigma on every axis (NaN, an empty cell, if none has)."""
     def coverage():
-        if not _gives_sigma():
-            if not ctx.cache.get("no-sigma-logged"):
-                ctx.cache["no-sigma-logged"] = True
-                ctx.log(f"[bench] {ctx.scenario}: sigma_coverage left empty: this run_batch gives no error bar "
-                        "(with_sigma, issue 38)")
-            return None
         n = tare_samples(ctx.dataset.meta["record_hz"], TARE_SECONDS)
         covered = []
         for inst in ctx.dataset.split("test"):
             forces, _, sigma = _method_run(method, ctx.robot, inst, ctx, value() if callable(value) else value)
-            if sigma is None:
-                return None
-            err = np.abs(forces - inst.truth.get("tip_force", inst["tip_force"]))[n:]
-            covered.append(np.all(err <= 2.0 * np.asarray(sigma)[n:], axis=1))
-        return float(np.mean(np.concatenate(covered)))
+            err, sig = np.abs(forces - inst.truth.get("tip_force", inst["tip_force"]))[n:], np.asarray(sigma)[n:]
+            covered.append(np.all(err <= 2.0 * sig, axis=1)[np.all(np.isfinite(sig), axis=1)])
+        covered = np.concatenate(covered)
+        return float(np.mean(covered)) if len(covered) else float("nan")
 
     return coverage
 

@@ -19,7 +19,7 @@ COLUMNS = [
     "train_seconds", "infer_us_per_sample", "infer_us_per_call", "n_params", "n_test_samples",
     "epochs", "stopped_by", "best_epoch",  # learned rows only (``training_summary``); empty for analytic rows
     "prior_kept",  # hybrid rows only: where validation kept the physics prior ("all", "none", "joints 2, 5")
-    "sigma_coverage",  # estimator rows: share of test samples after the window within 2 sigma on every axis
+    "sigma_coverage",  # estimator rows: share of test samples with an error bar within 2 sigma on every axis
     "error",
     "notes",  # what the row's numbers cannot show, " | "-separated (row_checks.py): undefined nMSE, untested motion
 ]

@@ -62,9 +62,9 @@ class Predictor:
     # Called after the row's predictions: (problems, notes) of what it was fitted to. Problems (identified
     # parameters outside the robot's bounds) mark the row implausible; notes go beside it (row_checks.py).
     review: Callable[[], tuple] | None = None
-    # An estimator row's error-bar coverage (issue 38): called once the row is scored, -> the share of test
-    # samples after the window within 2 sigma on every axis, or None (no sigma: an empty cell).
-    sigma_coverage: Callable[[], float | None] | None = None
+    # An estimator row's error-bar coverage (issue 38): called once the row is scored, -> the share of the
+    # test samples with an error bar (after the window) whose error is within 2 sigma on every axis.
+    sigma_coverage: Callable[[], float] | None = None
 
 
 @dataclass(frozen=True)

@@ -112,8 +112,8 @@ def score_row(spec: Row, ctx: BenchContext, norm: dict) -> dict:
                n_test_samples=report.n_samples)
     for j, v in enumerate(report.per_component):
         row[f"rmse_{j + 1}"] = float(v)
-    if pred_obj.sigma_coverage is not None and (coverage := pred_obj.sigma_coverage()) is not None:
-        row["sigma_coverage"] = coverage
+    if pred_obj.sigma_coverage is not None:
+        row["sigma_coverage"] = pred_obj.sigma_coverage()
     if pred_obj.single_call is not None:
         row["infer_us_per_call"] = _median_call_us(pred_obj.single_call, ds.split("test")[0], pred_obj.warmup_calls)
     # ok or implausible (identified parameters outside the robot's bounds), and what the numbers cannot show.
