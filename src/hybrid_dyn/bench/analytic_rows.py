@@ -134,9 +134,12 @@ def declare_method_rows(method) -> None:
                                          for r in method.reads))
 
     def rule_inputs(ctx):
-        values = sorted({_method_run(method, ctx.robot, i, ctx)[1] for i in ctx.dataset.split("test")})
-        shown = f"{values[0]:.3g}" if len(values) == 1 else f"{values[0]:.3g}-{values[-1]:.3g}"
-        return f"{reads}; {method.parameter} {shown} {method.unit} (the rule, per run's window)"
+        runs = [_method_run(method, ctx.robot, i, ctx)[1] for i in ctx.dataset.split("test")]
+        values = sorted({v for v in runs if v is not None})  # None: a run with no contact-free window
+        shown = ("none" if not values else f"{values[0]:.3g}" if len(values) == 1
+                 else f"{values[0]:.3g}-{values[-1]:.3g}")
+        unclean = f"; {runs.count(None)} of {len(runs)} runs without a contact-free window" if None in runs else ""
+        return f"{reads}; {method.parameter} {shown} {method.unit} (the rule, per run's window){unclean}"
 
     _analytic(method.name, "tip_force", needs, rule_inputs,
               lambda r, i, ctx: _method_run(method, r, i, ctx)[0], _user_call(method),

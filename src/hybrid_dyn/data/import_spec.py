@@ -74,6 +74,67 @@ class ValidationChecks:
     channel_scale_factor: float = 1e-3
 
 
+# A ROS bag's spec ([ros]): its resampling rules, and the wrench topics with the fields they fill.
+RESAMPLE_RULES = ("linear", "nearest")
+WRENCH_TOPICS = {"base_wrench": "base_wrench", "tip_wrench": "tip_force"}
+
+
+@dataclass
+class RosTopics:
+    """A spec's ``[ros]`` table: which topics hold what.
+
+    ``joint_states``: a ``sensor_msgs/JointState`` topic: q [rad] from position, qd [rad/s] from
+    velocity, the joint torque [Nm] from effort, matched by joint name. ``effort``: which field the effort
+    fills: "tau_m" (the logged joint torque: what the joint-torque rows predict; the default), "tau_J" (the
+    link-side torque sensors, which the momentum observer and kalman-fusion read: franka_ros publishes
+    the Panda's measured tau_J as effort) or both, ["tau_m", "tau_J"]. ``base_wrench``: a
+    ``geometry_msgs/WrenchStamped`` topic of the base force/torque sensor [N, Nm] (the ground's wrench
+    on the robot, in the base-sensor frame); optional. ``tip_wrench``: the same for a tip force sensor
+    (ground truth: the force on the robot at the tool point, in the base-sensor frame [N]; its moment is
+    not read); optional. ``frame``: the frame_id the bag uses for the robot's base-sensor frame, when
+    it is not the description's name. ``resample``: "linear" or "nearest" (module docstring).
+    ``joints``: the joint names in the robot's order; default the description's (needed for a robot
+    without one).
+    """
+
+    joint_states: str
+    base_wrench: str | None = None
+    tip_wrench: str | None = None
+    frame: str | None = None
+    resample: str = "linear"
+    joints: list | None = None
+    effort: object = "tau_m"
+
+    def problems(self) -> list[str]:
+        out = []
+        for key in ("base_wrench", "tip_wrench", "frame"):
+            value = getattr(self, key)
+            if value is not None and not isinstance(value, str):
+                out.append(f"[ros] {key} must be text, got {value!r}")
+        if not (isinstance(self.joint_states, str) and self.joint_states):
+            out.append(f"[ros] joint_states must name a topic, got {self.joint_states!r}")
+        if self.torque_fields() is None:
+            out.append(f"[ros] effort must be \"tau_m\", \"tau_J\" or [\"tau_m\", \"tau_J\"], got {self.effort!r}")
+        if self.resample not in RESAMPLE_RULES:
+            out.append(f"[ros] resample must be one of {RESAMPLE_RULES}, got {self.resample!r}")
+        if self.joints is not None and not (isinstance(self.joints, list) and self.joints
+                                            and all(isinstance(j, str) for j in self.joints)):
+            out.append(f"[ros] joints must be a list of joint names, got {self.joints!r}")
+        return out
+
+    def torque_fields(self) -> list | None:
+        """The fields the effort fills, or None if ``effort`` names something else."""
+        fields = [self.effort] if isinstance(self.effort, str) else self.effort
+        ok = isinstance(fields, list) and fields and all(f in ("tau_m", "tau_J") for f in fields)
+        return sorted(set(fields)) if ok else None
+
+    def columns(self) -> dict:
+        """The signal -> column map of the tables :func:`read_bags` makes."""
+        cols = {"q": "q", "qd": "qd", **{k: k for k in self.torque_fields()}}
+        cols.update({WRENCH_TOPICS[k]: WRENCH_TOPICS[k] for k in WRENCH_TOPICS if getattr(self, k)})
+        return cols
+
+
 @dataclass
 class LogSpec:
     """What a log holds and how to import it (see the module docstring).
@@ -170,8 +231,6 @@ class LogSpec:
         ``ros_bag.read_bags`` makes. Returns the problems of the [ros] table."""
         if self.ros is None:
             return []
-        from .ros_bag import RosTopics
-
         if isinstance(self.ros, dict):
             try:
                 self.ros = RosTopics(**self.ros)

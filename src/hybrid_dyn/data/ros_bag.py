@@ -31,74 +31,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .import_spec import LogImportError
+from .import_spec import RESAMPLE_RULES, WRENCH_TOPICS, LogImportError, RosTopics  # noqa: F401 (re-exported)
 from .log_readers import LogReadError, LogTable
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 WRENCH = "geometry_msgs/msg/WrenchStamped"
-RESAMPLE_RULES = ("linear", "nearest")
-# The spec's topic keys, and the dataset field each one fills.
-WRENCH_TOPICS = {"base_wrench": "base_wrench", "tip_wrench": "tip_force"}
-
 
 class RosBagError(LogImportError):
     """A bag does not hold what the spec's ``[ros]`` table names (a topic, a joint, a frame)."""
-
-
-@dataclass
-class RosTopics:
-    """A spec's ``[ros]`` table: which topics hold what.
-
-    ``joint_states``: a ``sensor_msgs/JointState`` topic: q [rad] from position, qd [rad/s] from
-    velocity, the joint torque [Nm] from effort, matched by joint name. ``effort``: which field the effort
-    fills: "tau_m" (the logged joint torque: what the joint-torque rows predict; the default), "tau_J" (the
-    link-side torque sensors, which the momentum observer and kalman-fusion read: franka_ros publishes
-    the Panda's measured tau_J as effort) or both, ["tau_m", "tau_J"]. ``base_wrench``: a
-    ``geometry_msgs/WrenchStamped`` topic of the base force/torque sensor [N, Nm] (the ground's wrench
-    on the robot, in the base-sensor frame); optional. ``tip_wrench``: the same for a tip force sensor
-    (ground truth: the force on the robot at the tool point, in the base-sensor frame [N]; its moment is
-    not read); optional. ``frame``: the frame_id the bag uses for the robot's base-sensor frame, when
-    it is not the description's name. ``resample``: "linear" or "nearest" (module docstring).
-    ``joints``: the joint names in the robot's order; default the description's (needed for a robot
-    without one).
-    """
-
-    joint_states: str
-    base_wrench: str | None = None
-    tip_wrench: str | None = None
-    frame: str | None = None
-    resample: str = "linear"
-    joints: list | None = None
-    effort: object = "tau_m"
-
-    def problems(self) -> list[str]:
-        out = []
-        for key in ("base_wrench", "tip_wrench", "frame"):
-            value = getattr(self, key)
-            if value is not None and not isinstance(value, str):
-                out.append(f"[ros] {key} must be text, got {value!r}")
-        if not (isinstance(self.joint_states, str) and self.joint_states):
-            out.append(f"[ros] joint_states must name a topic, got {self.joint_states!r}")
-        if self.torque_fields() is None:
-            out.append(f"[ros] effort must be \"tau_m\", \"tau_J\" or [\"tau_m\", \"tau_J\"], got {self.effort!r}")
-        if self.resample not in RESAMPLE_RULES:
-            out.append(f"[ros] resample must be one of {RESAMPLE_RULES}, got {self.resample!r}")
-        if self.joints is not None and not (isinstance(self.joints, list) and self.joints
-                                            and all(isinstance(j, str) for j in self.joints)):
-            out.append(f"[ros] joints must be a list of joint names, got {self.joints!r}")
-        return out
-
-    def torque_fields(self) -> list | None:
-        """The fields the effort fills, or None if ``effort`` names something else."""
-        fields = [self.effort] if isinstance(self.effort, str) else self.effort
-        ok = isinstance(fields, list) and fields and all(f in ("tau_m", "tau_J") for f in fields)
-        return sorted(set(fields)) if ok else None
-
-    def columns(self) -> dict:
-        """The signal -> column map of the tables :func:`read_bags` makes."""
-        cols = {"q": "q", "qd": "qd", **{k: k for k in self.torque_fields()}}
-        cols.update({WRENCH_TOPICS[k]: WRENCH_TOPICS[k] for k in WRENCH_TOPICS if getattr(self, k)})
-        return cols
 
 
 @dataclass
