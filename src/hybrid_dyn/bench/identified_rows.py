@@ -153,10 +153,13 @@ def _excitation_dataset(ctx):
     return ident
 
 
-def _row(task, name, needs, predict_instance, inputs, single=None) -> Row:
-    """Declare an identified row: predict_instance(models, ctx, inst) and single(models, ctx, inst, k)."""
+def _row(task, name, needs, predict_instance, inputs, single=None, fits=()) -> Row:
+    """Declare an identified row: predict_instance(models, ctx, inst) and single(models, ctx, inst, k);
+    ``fits``: the identification methods it reads, fitted when it is built (its training, not its scoring)."""
     def build(ds, ctx):
         models = _Models(ctx)
+        for method in fits:
+            models[method]
         return Predictor(predict=lambda insts: [predict_instance(models, ctx, i) for i in insts],
                          single_call=(lambda inst, k: single(models, ctx, inst, k)) if single else None,
                          inputs=inputs)
@@ -202,7 +205,8 @@ def _identified_bw_torque(models, ctx, inst, k=None):
 def _torque_row(name: str, method: str):
     """A row predicting with one identified model; per call: the same function on one sample."""
     return _row("joint_torque", name, TORQUE_NEEDS, lambda m, c, i: m[method].predict_torque(i.q, i.qd, i.qdd),
-                "q, qd, qdd", single=lambda m, c, i, k: m[method].predict_torque(i.q[k], i.qd[k], i.qdd[k]))
+                "q, qd, qdd", single=lambda m, c, i, k: m[method].predict_torque(i.q[k], i.qd[k], i.qdd[k]),
+                fits=(method,))
 
 
 def _friction_only(models, ctx, q, qd, qdd):
@@ -267,14 +271,16 @@ _torque_row("identified-ols", "ols")
 _torque_row("identified-consistent", "consistent")
 _torque_row("identified-sigmoid-friction", "sigmoid-friction")
 _row("joint_torque", "rnea+identified-friction", TORQUE_NEEDS, lambda m, c, i: _friction_only(m, c, i.q, i.qd, i.qdd),
-     "q, qd, qdd", single=lambda m, c, i, k: _friction_only(m, c, i.q[k], i.qd[k], i.qdd[k]))
+     "q, qd, qdd", single=lambda m, c, i, k: _friction_only(m, c, i.q[k], i.qd[k], i.qdd[k]),
+     fits=("sigmoid-friction",))
 _row("tip_force", "base-wrench-identified", TIP_NEEDS, _base_wrench_identified, "q, qd, qdd, base_wrench",
      single=lambda m, c, i, k: tip_force_from_base_wrench(_identified_robot(m, c), i.q[k], i.qd[k], i.qdd[k],
-                                                          i.base_wrench[k]))
+                                                          i.base_wrench[k]), fits=("consistent",))
 _row("tip_force", "base-wrench-identified-tared", TIP_NEEDS, _tared_force_identified, TARED_INPUTS,
-     single=lambda m, c, i, k: _tared_force_identified(m, c, i, k))
+     single=lambda m, c, i, k: _tared_force_identified(m, c, i, k), fits=("consistent",))
 _row("joint_torque", "identified-bw-tared", ("q", "qd", "qdd", "base_wrench", "tau_m"), _identified_bw_torque,
-     TARED_INPUTS, single=lambda m, c, i, k: _identified_bw_torque(m, c, i, k))
+     TARED_INPUTS, single=lambda m, c, i, k: _identified_bw_torque(m, c, i, k),
+     fits=("consistent", "sigmoid-friction"))
 for _name, _preset in RESIDUAL_ROWS.items():
     _residual_row(_name, _preset)
 _gp_residual_row("gp-residual-identified")

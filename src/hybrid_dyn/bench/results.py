@@ -20,6 +20,10 @@ COLUMNS = [
     "epochs", "stopped_by", "best_epoch",  # learned rows only (``training_summary``); empty for analytic rows
     "prior_kept",  # hybrid rows only: where validation kept the physics prior ("all", "none", "joints 2, 5")
     "error",
+    # CPU time [s] (issue 40): training (the model file's record, or the fit in the bench's process) and
+    # scoring (predicting val and test, the metrics, the timed single calls). Last: a report written
+    # before them lacks them, read as "not recorded".
+    "train_cpu_seconds", "score_cpu_seconds",
 ]
 
 

@@ -77,8 +77,13 @@ def score_row(spec: Row, ctx: BenchContext, norm: dict) -> dict:
     row = {"task": spec.task, "scenario": ctx.scenario, "model": spec.name, "family": spec.family}
     if target not in ds.fields:
         raise ValueError(f"the dataset has no {target!r} field")
+    cpu0 = time.process_time()  # this process's CPU, every thread (BLAS, torch) included
     pred_obj = spec.build(ds, ctx)
-    row.update(inputs=pred_obj.inputs, train_seconds=pred_obj.train_seconds, n_params=pred_obj.n_params)
+    cpu1 = time.process_time()
+    # A model trained elsewhere (a worker, an earlier invocation) brings its recorded CPU; else the build was the fit.
+    train_cpu = cpu1 - cpu0 if pred_obj.train_cpu_seconds is None else pred_obj.train_cpu_seconds
+    row.update(inputs=pred_obj.inputs, train_seconds=pred_obj.train_seconds, train_cpu_seconds=train_cpu,
+               n_params=pred_obj.n_params)
     if pred_obj.prior_kept is not None:
         row["prior_kept"] = pred_obj.prior_kept
     if pred_obj.training is not None:
@@ -112,6 +117,7 @@ def score_row(spec: Row, ctx: BenchContext, norm: dict) -> dict:
         row[f"rmse_{j + 1}"] = float(v)
     if pred_obj.single_call is not None:
         row["infer_us_per_call"] = _median_call_us(pred_obj.single_call, ds.split("test")[0], pred_obj.warmup_calls)
+    row["score_cpu_seconds"] = time.process_time() - cpu1  # val and test predictions, metrics, the timed calls
     row["status"] = "ok"
     return row
 
