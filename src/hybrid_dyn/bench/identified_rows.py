@@ -102,6 +102,7 @@ def _identified(ctx, method: str):
         {"data": data.checksum, "robot": robot.name, "params": robot.params_name, "method": method,
          "config": dataclasses.asdict(ConsistentConfig()), **kwargs}, sort_keys=True, default=str).encode()).hexdigest()
     path = Path(ctx.work_dir) / "identified" / f"{method}-{digest[:16]}.json"
+    cpu0 = time.process_time()
     if path.is_file():
         model = IdentifiedModel.load(path, robot=robot)
     else:
@@ -109,6 +110,8 @@ def _identified(ctx, method: str):
         model = identify(data, method, robot, **kwargs)
         model.save(path)
     ctx.cache[key] = (model, path)
+    # The fit's CPU [s], claimed by the first row that reads this model (``_row``), whenever it was fitted.
+    ctx.cache[("fit-cpu", method)] = time.process_time() - cpu0
     return ctx.cache[key]
 
 
@@ -160,9 +163,11 @@ def _row(task, name, needs, predict_instance, inputs, single=None, fits=()) -> R
         models = _Models(ctx)
         for method in fits:
             models[method]
+        # Each fit's CPU goes to the first row that reads it (a fit made before, for the residual nets, too).
+        cpu = sum(ctx.cache.pop(("fit-cpu", method), 0.0) for method in fits)
         return Predictor(predict=lambda insts: [predict_instance(models, ctx, i) for i in insts],
                          single_call=(lambda inst, k: single(models, ctx, inst, k)) if single else None,
-                         inputs=inputs)
+                         inputs=inputs, train_cpu_seconds=cpu)
 
     return declare(Row(name, task, "identified", needs=needs, needs_urdf=True, build=build, more_needs=fit_needs))
 
@@ -213,6 +218,16 @@ def _friction_only(models, ctx, q, qd, qdd):
     return ctx.robot.inverse_dynamics(q, qd, qdd) + models["sigmoid-friction"].friction(qd)
 
 
+def residual_training(ctx, name: str, base_config) -> tuple:
+    """(TrainConfig, model folder) of the residual row ``name`` on this scenario's identified model (fitted
+    here if not yet): ``base_config`` with the parameter file as the prior's, the folder named by the file's
+    content, so that a refit never meets a model of the old one. The runner uses it to train these nets in a
+    worker while the bench's process fits the rest (``runner._background_training``)."""
+    _, path = _identified(ctx, RESIDUAL_PRIOR_METHOD)
+    config = dataclasses.replace(base_config, analytic_params=str(Path(path).resolve()))
+    return config, Path(ctx.work_dir) / "models" / f"{name}-{hashlib.sha256(Path(path).read_bytes()).hexdigest()[:12]}"
+
+
 def _residual_row(name: str, preset: str) -> Row:
     """A residual net (``preset``) on the identified model, inertials and friction, trained like the learned rows."""
     from ..learn.presets import get_preset
@@ -220,10 +235,7 @@ def _residual_row(name: str, preset: str) -> Row:
     def build(ds, ctx):
         from ..learn import train_model
 
-        _, path = _identified(ctx, RESIDUAL_PRIOR_METHOD)
-        config = dataclasses.replace(ctx.profile.train_config(), analytic_params=str(Path(path).resolve()))
-        # The folder is named by the parameter file's content: a refit never meets a model of the old one.
-        out = Path(ctx.work_dir) / "models" / f"{name}-{hashlib.sha256(Path(path).read_bytes()).hexdigest()[:12]}"
+        config, out = residual_training(ctx, name, ctx.profile.train_config())
         t0 = time.perf_counter()
         # the profile's preset_overrides (a study's capacity control) apply here as to every trained preset row
         model = train_model(ds, ctx.profile.preset(preset), out, config=config, wait=True)  # shared runs/: wait

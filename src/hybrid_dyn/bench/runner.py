@@ -27,6 +27,7 @@ redraws it.
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import json
@@ -375,7 +376,47 @@ def _bench_scenario(profile, out_dir, ctx: BenchContext, ref, predictions, rows,
     log(f"[bench] {scenario}: training {len(jobs)} learned models on {profile.workers} workers")
     pretrain(jobs, profile.workers, log=log, executor=executor)
     clock.record(out_dir, rows)
+    with _background_training(ctx, specs, tcfg, ref.name, executor) as pending:
+        _score_rows(out_dir, ctx, specs, norm, test, predictions, rows, log, clock, pending)
+
+
+@contextlib.contextmanager
+def _background_training(ctx: BenchContext, specs: list, tcfg, robot: str, executor):
+    """The residual nets on the identified model (which ``pretrain`` cannot train: they need the identified
+    fit first) trained in worker processes while this process fits and scores the other rows, on local
+    workers beyond this process (``profile.workers - 1``); yields {row name: future}. Their row waits for its
+    future before it is built, then finds the model trained (a worker's error is raised again by the build)."""
+    from .identified_rows import RESIDUAL_ROWS, residual_training
+
+    names = [s.name for s in specs if s.name in RESIDUAL_ROWS]
+    if not names or ctx.profile.workers < 2 or executor is not None:
+        yield {}
+        return
+    from ..sim.executors import process_pool
+
+    jobs = {}
+    try:
+        for name in names:
+            config, out = residual_training(ctx, name, tcfg)
+            jobs[name] = (str(ctx.dataset.path), robot, ctx.profile.preset(RESIDUAL_ROWS[name]), str(out), config,
+                          ctx.profile.torch_threads)
+    except Exception as err:  # the identification failed: each row that needs it fails with it, named, when scored
+        ctx.log(f"[bench] {ctx.scenario}: the residual nets on the identified model train when scored ({err})")
+        yield {}
+        return
+    ctx.log(f"[bench] {ctx.scenario}: training {', '.join(jobs)} in a worker while this process fits and scores "
+            "the other rows")
+    with process_pool(min(len(jobs), ctx.profile.workers - 1)) as pool:
+        yield {name: pool.submit(_train_job, job) for name, job in jobs.items()}
+
+
+def _score_rows(out_dir, ctx, specs, norm, test, predictions, rows, log, clock, pending: dict) -> None:
+    """Score ``specs`` in order, each written to results.csv, predictions.h5 and curves.json as it finishes;
+    ``pending``: row name -> the future of its training in a worker (waited for before the row is built)."""
+    scenario = ctx.scenario
     for spec in tqdm(specs, desc=f"bench {scenario}", unit="model"):
+        if spec.name in pending:
+            pending[spec.name].result()
         t0 = time.perf_counter()
         try:
             row = score_row(spec, ctx, norm)
