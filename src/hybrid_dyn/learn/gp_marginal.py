@@ -14,10 +14,10 @@ d/d log c = 1/2 sum M; d/d log s = 1/2 s tr W; d/d log l_d = 1/2 sum_ij M_ij (z_
 as (z_d^2)^T M 1 - z_d^T M z_d (two matrix products), where scikit-learn builds the (n, n, d) gradient
 tensor (66 MB at n = 600, d = 21) and reduces it.
 
-Measured (issue 40, ``benchmarks/gp_hyper.py``) on a 2-core machine: scikit-learn's BLAS threads
-contend with the process's other thread pools (torch's OpenMP, the second OpenBLAS) and a 600 x 600
-Cholesky factor took 0.1-2 s in the bench's process against 3-10 ms on one BLAS thread; the fits run
-under :func:`one_blas_thread`.
+Why one BLAS thread (:func:`one_blas_thread`): in a process that has imported torch, on a 2-core machine,
+a 600 x 600 Cholesky factor by scipy took 0.1-2 s on the BLAS libraries' own threads against 3-10 ms on
+one (measured while writing issue 40; the threads of two OpenBLAS copies and torch's OpenMP spin against
+each other). ``benchmarks/gp_hyper.py`` measures the whole fit before and after on the real Panda.
 """
 from __future__ import annotations
 
