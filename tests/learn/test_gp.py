@@ -62,26 +62,28 @@ def fitted(ds, tmp_path_factory):
 
 
 def test_the_loaded_model_predicts_what_sklearn_predicts(ds, fitted):
-    """One GP per joint, fitted by scikit-learn directly on the standardized training split,
-    predicts the test split as the toolkit's loaded file does, to 1e-8 Nm."""
+    """One GP per joint, conditioned by scikit-learn directly on the standardized training split with the
+    fitted hyperparameters, predicts the test split as the toolkit's loaded file does, to 1e-8 Nm; and the
+    fitted hyperparameters are a maximum of the marginal likelihood at least as high as scikit-learn's own
+    optimizer reaches from its start (issue 40: gp_marginal keeps the better of that start and l = sqrt(d))."""
     x, y = _xy(ds.split("train"))
     xte, _ = _xy(ds.split("test"))
     mx, sx = x.mean(0), x.std(0) + 1e-9  # the documented standardization (GPConfig)
     expect = np.empty((len(xte), y.shape[1]))
+    t = fitted.tensors
     for j in range(y.shape[1]):
         k = (kernels.ConstantKernel(1.0, (1e-2, 1e2)) * kernels.RBF(np.ones(x.shape[1]), (1e-2, 1e3))
              + kernels.WhiteKernel(1e-2, (1e-6, 1.0)))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # sklearn's bound warnings are not what this test checks
             ref = sklearn_gp.GaussianProcessRegressor(k, normalize_y=True).fit((x - mx) / sx, y[:, j])
-        expect[:, j] = ref.predict((xte - mx) / sx)
-        # The same objective and optimizer, evaluated by gp_marginal (issue 40): L-BFGS-B from the same start
-        # reaches the same maximum to its own stop test (2.2e-9 relative on the objective), no longer along
-        # sklearn's bits, so a length scale on a flat ridge of the likelihood moves by 1e-6; the objective
-        # itself is checked to 1e-9 below (test_the_marginal_likelihood_and_its_gradient_are_sklearns).
-        assert fitted.config["log_marginal_likelihood"][j] == pytest.approx(ref.log_marginal_likelihood_value_,
-                                                                             rel=1e-8)
-        np.testing.assert_allclose(fitted.tensors["length_scale"][j], ref.kernel_.k1.k2.length_scale, rtol=1e-5)
+        # The optimum: never below scikit-learn's (its objective is checked to 1e-9 in the next test).
+        assert fitted.config["log_marginal_likelihood"][j] >= ref.log_marginal_likelihood_value_ - 1e-8 * abs(
+            ref.log_marginal_likelihood_value_)
+        mine = (kernels.ConstantKernel(t["constant"][j], "fixed") * kernels.RBF(t["length_scale"][j], "fixed")
+                + kernels.WhiteKernel(t["noise_level"][j], "fixed"))
+        cond = sklearn_gp.GaussianProcessRegressor(mine, optimizer=None, normalize_y=True).fit((x - mx) / sx, y[:, j])
+        expect[:, j] = cond.predict((xte - mx) / sx)
     got = np.concatenate(fitted.predict(ds.split("test")))
     np.testing.assert_allclose(got, expect, rtol=0, atol=1e-8)
     assert fitted.config["n_rows"] == len(x) and fitted.path is not None

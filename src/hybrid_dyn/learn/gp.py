@@ -11,7 +11,8 @@ SARCOS:
   white noise s, with c in [1e-2, 1e2], l_i in [1e-2, 1e3], s in [1e-6, 1], on targets
   standardized per joint (scikit-learn's ``normalize_y``);
 - hyperparameters (c, l, s) by maximum marginal likelihood on ``hyper_rows`` random
-  training rows (scikit-learn's objective and L-BFGS from c = 1, l = 1, s = 1e-2, by ``gp_marginal``);
+  training rows (scikit-learn's objective and L-BFGS, from c = 1, s = 1e-2 and l = 1 or sqrt(d), the
+  better optimum kept, by ``gp_marginal``);
 - the GP then conditioned on at most ``rows`` random training rows (a subset-of-data GP:
   the cost is O(rows^3) to fit, O(rows) per predicted sample).
 
