@@ -55,7 +55,8 @@ def test_the_identified_residual_nets_train_in_a_worker_to_the_serial_runs_bytes
     def bench(workers, name):
         messages = []
         profile = profile_for_data([panda_log], families=(), workers=workers,
-                                   rows=("identified-consistent", "residual-rnea-identified", "identified-ols"),
+                                   rows=("identified-consistent", "residual-rnea-identified", "identified-ols",
+                                         "gp-residual-identified"),
                                    train=dict(budget_steps=3, budget_evals=1, batch_size=64, progress=False))
         # One work root for both (the model's config names its prior's file there), kept aside after each run.
         rows = run_bench(profile, tmp_path / f"report-{name}", data_root=tmp_path / "data",
@@ -66,7 +67,7 @@ def test_the_identified_residual_nets_train_in_a_worker_to_the_serial_runs_bytes
     serial, _ = bench(1, "serial")
     parallel, said = bench(2, "parallel")
     assert any("residual-rnea-identified" in m and "in a worker" in m for m in said), said
-    assert [r["status"] for r in parallel] == ["ok"] * 3
+    assert [r["status"] for r in parallel] == ["ok"] * 4
     a, b = model_bytes(tmp_path / "runs-serial"), model_bytes(tmp_path / "runs-parallel")
     assert len(a) >= 2 and a == b
     assert [(r["model"], r["rmse"]) for r in serial] == [(r["model"], r["rmse"]) for r in parallel]

@@ -51,6 +51,9 @@ EXCITATION_ITERATIONS = {"quick": 30, "default": 150, "paper": 150}
 LOG_SPLITS = ("train", "val")  # what an imported log's identification sees; never its test split
 RESIDUAL_PRIOR_METHOD = "consistent"  # the identified model the residual rows sit on
 RESIDUAL_ROWS = {"residual-rnea-identified": "residual-rnea", "residual-rnea-bw-identified": "residual-rnea-bw"}
+# Rows whose model the bench fits ahead in its own process while it waits for the residual nets' worker
+# (runner._score_rows): the fit is saved to the work dir, and the row's build reads it back when scored.
+FIT_WHILE_WAITING = ("gp-residual-identified",)
 
 
 def has_simulated_plant(ds) -> bool:

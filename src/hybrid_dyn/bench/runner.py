@@ -413,9 +413,18 @@ def _background_training(ctx: BenchContext, specs: list, tcfg, robot: str, execu
 def _score_rows(out_dir, ctx, specs, norm, test, predictions, rows, log, clock, pending: dict) -> None:
     """Score ``specs`` in order, each written to results.csv, predictions.h5 and curves.json as it finishes;
     ``pending``: row name -> the future of its training in a worker (waited for before the row is built)."""
+    from .identified_rows import FIT_WHILE_WAITING
+
     scenario = ctx.scenario
-    for spec in tqdm(specs, desc=f"bench {scenario}", unit="model"):
+    for i, spec in enumerate(tqdm(specs, desc=f"bench {scenario}", unit="model")):
         if spec.name in pending:
+            if not pending[spec.name].done():  # fit a later row's model meanwhile: its build then reads it
+                for later in specs[i + 1:]:
+                    if later.name in FIT_WHILE_WAITING:
+                        try:
+                            later.build(ctx.dataset, ctx)
+                        except Exception:  # noqa: BLE001  (raised again, with its row, when it is scored)
+                            pass
             pending[spec.name].result()
         t0 = time.perf_counter()
         try:
