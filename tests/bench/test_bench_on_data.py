@@ -71,6 +71,29 @@ def test_predictions_h5_holds_each_rows_test_predictions_and_their_targets(bench
         assert np.sqrt(np.mean((pred - tau) ** 2)) == pytest.approx(rmse, rel=1e-5)
 
 
+@pytest.mark.slow  # the shared fixture: a tiny bench, ~25 s on 2 busy cores
+def test_every_row_has_its_cpu_time_and_the_invocation_its_own(bench):
+    """Issue 40: results.csv carries each row's training and scoring CPU seconds, run.json each invocation's.
+    A trained row's figure is the one its model file recorded (not the CPU of loading it again); a row fitted
+    in the bench's process (identified-ols: the identification in its build) has that fit's."""
+    from hybrid_dyn.learn import load_model
+    from hybrid_dyn.learn.model import recorded_train_cpu
+
+    tmp, _, _ = bench
+    with open(tmp / "report" / "results.csv", newline="") as f:
+        rows = {r["model"]: r for r in csv.DictReader(f)}
+    for r in rows.values():
+        assert float(r["train_cpu_seconds"]) >= 0 and float(r["score_cpu_seconds"]) > 0, r["model"]
+    assert float(rows["identified-ols"]["train_cpu_seconds"]) > 0
+    net = load_model(next((tmp / "runs").rglob("models/seed-tau-mlp")))
+    assert recorded_train_cpu(net) > 0
+    assert float(rows["seed-tau-mlp"]["train_cpu_seconds"]) == pytest.approx(recorded_train_cpu(net), rel=1e-5)
+    (inv,) = json.loads((tmp / "report" / "run.json").read_text())["invocations"]
+    # This process scored every row (and trained seed-tau-mlp: one worker is this process).
+    assert inv["cpu_seconds"] >= sum(float(r["score_cpu_seconds"]) + float(r["train_cpu_seconds"])
+                                     for r in rows.values())
+
+
 def test_a_bad_robot_name_fails_before_any_work_with_the_accepted_names(tmp_path, capsys):
     spec = write_log(tmp_path / "logs", n=200)
     assert cli_main(["import", "--spec", str(spec), "--out", str(tmp_path / "log")]) == 0

@@ -44,3 +44,33 @@ def test_gpus_per_job_needs_a_ray_executor(tmp_path):
     with pytest.raises(UsageError, match="--executor ray"):
         run_bench(tiny_profile(), tmp_path / "r", data_root=tmp_path / "d", work_root=tmp_path / "w",
                   executor=ProcessExecutor(2), gpus_per_job=0.5)
+
+
+@pytest.mark.slow  # two small benches, the second with a worker process
+def test_the_identified_residual_nets_train_in_a_worker_to_the_serial_runs_bytes(panda_log, tmp_path):
+    """Issue 40: with 2 workers the residual nets on the identified model train in a worker process while
+    the bench's process fits and scores the rest; the model files and the rows are those of one process."""
+    from hybrid_dyn.bench.profiles import profile_for_data
+
+    def bench(workers, name):
+        messages = []
+        profile = profile_for_data([panda_log], families=(), workers=workers,
+                                   rows=("identified-consistent", "residual-rnea-identified", "identified-ols",
+                                         "gp-residual-identified"),
+                                   train=dict(budget_steps=3, budget_evals=1, batch_size=64, progress=False))
+        # One work root for both (the model's config names its prior's file there), kept aside after each run.
+        rows = run_bench(profile, tmp_path / f"report-{name}", data_root=tmp_path / "data",
+                         work_root=tmp_path / "runs", log=messages.append)
+        (tmp_path / "runs").rename(tmp_path / f"runs-{name}")
+        return rows, messages
+
+    serial, _ = bench(1, "serial")
+    parallel, said = bench(2, "parallel")
+    assert any("residual-rnea-identified" in m and "in a worker" in m for m in said), said
+    assert [r["status"] for r in parallel] == ["ok"] * 4
+    a, b = model_bytes(tmp_path / "runs-serial"), model_bytes(tmp_path / "runs-parallel")
+    assert len(a) >= 2 and a == b
+    assert [(r["model"], r["rmse"]) for r in serial] == [(r["model"], r["rmse"]) for r in parallel]
+    # The identification's CPU goes to the first row that reads it, though it ran before any row was scored.
+    row = next(r for r in parallel if r["model"] == "identified-consistent")
+    assert row["train_cpu_seconds"] > 0

@@ -3,7 +3,7 @@ then run again, must resume to the uninterrupted run's bytes with no orphan proc
 file left (the checks and the commands: helpers/fault_injection.py).
 
 The whole matrix is 24 cases (generate with 1 and 2 workers, train with one preset of each family, under
-each signal), about 11 minutes on 2 cores: more than the suite's budget. `make test` runs the cases
+each signal), about 11 minutes on 2 cores: more than the suite's budget. `make test-all` (and CI) runs the cases
 marked below as DEFAULT, one per command and none that another test already covers (a SIGKILLed
 generate resuming to the same bytes: sim/test_generator_dataset.py; a SIGKILLed train resuming:
 learn/test_train.py; a killed generate's workers dying: sim/test_executors.py). The rest run with
@@ -21,7 +21,7 @@ from helpers import fault_injection as fi
 pytestmark = [pytest.mark.system, pytest.mark.slow,
               pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")]
 
-# The cases of every `make test`: SIGINT (Ctrl-C) of generate, SIGTERM (a scheduler's stop) of train.
+# The cases of every `make test-all`: SIGINT (Ctrl-C) of generate, SIGTERM (a scheduler's stop) of train.
 DEFAULT = {"generate-w1-SIGINT", "train-seed-tip-5-SIGTERM"}
 
 

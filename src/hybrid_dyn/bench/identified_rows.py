@@ -51,6 +51,9 @@ EXCITATION_ITERATIONS = {"quick": 30, "default": 150, "paper": 150}
 LOG_SPLITS = ("train", "val")  # what an imported log's identification sees; never its test split
 RESIDUAL_PRIOR_METHOD = "consistent"  # the identified model the residual rows sit on
 RESIDUAL_ROWS = {"residual-rnea-identified": "residual-rnea", "residual-rnea-bw-identified": "residual-rnea-bw"}
+# Rows whose model the bench fits ahead in its own process while it waits for the residual nets' worker
+# (runner._score_rows): the fit is saved to the work dir, and the row's build reads it back when scored.
+FIT_WHILE_WAITING = ("gp-residual-identified",)
 
 
 def has_simulated_plant(ds) -> bool:
@@ -102,6 +105,7 @@ def _identified(ctx, method: str):
         {"data": data.checksum, "robot": robot.name, "params": robot.params_name, "method": method,
          "config": dataclasses.asdict(ConsistentConfig()), **kwargs}, sort_keys=True, default=str).encode()).hexdigest()
     path = Path(ctx.work_dir) / "identified" / f"{method}-{digest[:16]}.json"
+    cpu0 = time.process_time()
     if path.is_file():
         model = IdentifiedModel.load(path, robot=robot)
     else:
@@ -109,6 +113,8 @@ def _identified(ctx, method: str):
         model = identify(data, method, robot, **kwargs)
         model.save(path)
     ctx.cache[key] = (model, path)
+    # The fit's CPU [s], claimed by the first row that reads this model (``_row``), whenever it was fitted.
+    ctx.cache[("fit-cpu", method)] = time.process_time() - cpu0
     return ctx.cache[key]
 
 
@@ -153,6 +159,7 @@ def _excitation_dataset(ctx):
     return ident
 
 
+<<<<<<< HEAD
 def review(ctx, methods) -> tuple[list[str], list[str]]:
     """(problems, notes) of the identified models ``methods`` a row predicts with (``Predictor.review``):
     each body outside the robot's bounds (``identify.plausibility``; the row is then marked implausible),
@@ -174,11 +181,24 @@ def review(ctx, methods) -> tuple[list[str], list[str]]:
 def _row(task, name, needs, predict_instance, inputs, single=None, methods=("consistent",)) -> Row:
     """Declare an identified row: predict_instance(models, ctx, inst) and single(models, ctx, inst, k);
     ``methods``: the identified models it predicts with (their parameters are checked, ``review``)."""
+=======
+def _row(task, name, needs, predict_instance, inputs, single=None, fits=()) -> Row:
+    """Declare an identified row: predict_instance(models, ctx, inst) and single(models, ctx, inst, k);
+    ``fits``: the identification methods it reads, fitted when it is built (its training, not its scoring)."""
+>>>>>>> speed
     def build(ds, ctx):
         models = _Models(ctx)
+        for method in fits:
+            models[method]
+        # Each fit's CPU goes to the first row that reads it (a fit made before, for the residual nets, too).
+        cpu = sum(ctx.cache.pop(("fit-cpu", method), 0.0) for method in fits)
         return Predictor(predict=lambda insts: [predict_instance(models, ctx, i) for i in insts],
                          single_call=(lambda inst, k: single(models, ctx, inst, k)) if single else None,
+<<<<<<< HEAD
                          inputs=inputs, review=lambda: review(ctx, methods))
+=======
+                         inputs=inputs, train_cpu_seconds=cpu)
+>>>>>>> speed
 
     return declare(Row(name, task, "identified", needs=needs, needs_urdf=True, build=build, more_needs=fit_needs))
 
@@ -222,11 +242,25 @@ def _torque_row(name: str, method: str):
     """A row predicting with one identified model; per call: the same function on one sample."""
     return _row("joint_torque", name, TORQUE_NEEDS, lambda m, c, i: m[method].predict_torque(i.q, i.qd, i.qdd),
                 "q, qd, qdd", single=lambda m, c, i, k: m[method].predict_torque(i.q[k], i.qd[k], i.qdd[k]),
+<<<<<<< HEAD
                 methods=(method,))
+=======
+                fits=(method,))
+>>>>>>> speed
 
 
 def _friction_only(models, ctx, q, qd, qdd):
     return ctx.robot.inverse_dynamics(q, qd, qdd) + models["sigmoid-friction"].friction(qd)
+
+
+def residual_training(ctx, name: str, base_config) -> tuple:
+    """(TrainConfig, model folder) of the residual row ``name`` on this scenario's identified model (fitted
+    here if not yet): ``base_config`` with the parameter file as the prior's, the folder named by the file's
+    content, so that a refit never meets a model of the old one. The runner uses it to train these nets in a
+    worker while the bench's process fits the rest (``runner._background_training``)."""
+    _, path = _identified(ctx, RESIDUAL_PRIOR_METHOD)
+    config = dataclasses.replace(base_config, analytic_params=str(Path(path).resolve()))
+    return config, Path(ctx.work_dir) / "models" / f"{name}-{hashlib.sha256(Path(path).read_bytes()).hexdigest()[:12]}"
 
 
 def _residual_row(name: str, preset: str) -> Row:
@@ -236,10 +270,7 @@ def _residual_row(name: str, preset: str) -> Row:
     def build(ds, ctx):
         from ..learn import train_model
 
-        _, path = _identified(ctx, RESIDUAL_PRIOR_METHOD)
-        config = dataclasses.replace(ctx.profile.train_config(), analytic_params=str(Path(path).resolve()))
-        # The folder is named by the parameter file's content: a refit never meets a model of the old one.
-        out = Path(ctx.work_dir) / "models" / f"{name}-{hashlib.sha256(Path(path).read_bytes()).hexdigest()[:12]}"
+        config, out = residual_training(ctx, name, ctx.profile.train_config())
         t0 = time.perf_counter()
         # the profile's preset_overrides (a study's capacity control) apply here as to every trained preset row
         model = train_model(ds, ctx.profile.preset(preset), out, config=config, wait=True)  # shared runs/: wait
@@ -292,15 +323,23 @@ _torque_row("identified-sigmoid-friction", "sigmoid-friction")
 # The friction of sigmoid-friction was fitted jointly with its inertials: absurd bodies, suspect friction.
 _row("joint_torque", "rnea+identified-friction", TORQUE_NEEDS, lambda m, c, i: _friction_only(m, c, i.q, i.qd, i.qdd),
      "q, qd, qdd", single=lambda m, c, i, k: _friction_only(m, c, i.q[k], i.qd[k], i.qdd[k]),
+<<<<<<< HEAD
      methods=("sigmoid-friction",))
+=======
+     fits=("sigmoid-friction",))
+>>>>>>> speed
 _row("tip_force", "base-wrench-identified", TIP_NEEDS, _base_wrench_identified, "q, qd, qdd, base_wrench",
      single=lambda m, c, i, k: tip_force_from_base_wrench(_identified_robot(m, c), i.q[k], i.qd[k], i.qdd[k],
-                                                          i.base_wrench[k]))
+                                                          i.base_wrench[k]), fits=("consistent",))
 _row("tip_force", "base-wrench-identified-tared", TIP_NEEDS, _tared_force_identified, TARED_INPUTS,
-     single=lambda m, c, i, k: _tared_force_identified(m, c, i, k))
+     single=lambda m, c, i, k: _tared_force_identified(m, c, i, k), fits=("consistent",))
 _row("joint_torque", "identified-bw-tared", ("q", "qd", "qdd", "base_wrench", "tau_m"), _identified_bw_torque,
      TARED_INPUTS, single=lambda m, c, i, k: _identified_bw_torque(m, c, i, k),
+<<<<<<< HEAD
      methods=("sigmoid-friction", "consistent"))
+=======
+     fits=("consistent", "sigmoid-friction"))
+>>>>>>> speed
 for _name, _preset in RESIDUAL_ROWS.items():
     _residual_row(_name, _preset)
 _gp_residual_row("gp-residual-identified")

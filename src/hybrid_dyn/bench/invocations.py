@@ -15,9 +15,14 @@ import time
 from pathlib import Path
 
 from ..outputs import refuse_foreign
+<<<<<<< HEAD
 from .integrity import (DIGEST_KEY, REPORT_FILES, read_run_json, remove_report_files, results_digest, run_digest,
                         same_profile)
 from .predictions import PREDICTIONS_FILE
+=======
+from ..timing import cpu_seconds
+from .integrity import DIGEST_KEY, read_run_json, results_digest, run_digest, same_profile
+>>>>>>> speed
 from .profiles import BenchProfile, is_dataset_path
 from .results import CURVES_FILE, write_curves, write_json, write_results
 from .seed_comparison import SEED_COMPARISON_FILE
@@ -105,14 +110,21 @@ class InvocationClock:
     skipped: list = dataclasses.field(default_factory=list)
     started: str = dataclasses.field(default_factory=_utc_now)
     t0: float = dataclasses.field(default_factory=time.perf_counter)
+    cpu0: float = dataclasses.field(default_factory=cpu_seconds)
     _lock: object = dataclasses.field(default_factory=threading.Lock, repr=False)
 
     def seconds(self) -> float:
         return time.perf_counter() - self.t0
 
+    def cpu_used(self) -> float:
+        """CPU time [s] of this invocation so far: its process and its finished worker processes (a worker
+        still running is counted when it ends: training pools end with each scenario's training)."""
+        return cpu_seconds() - self.cpu0
+
     def invocations(self, rows: list, finished: bool) -> list:
         return self.previous + [{"started": self.started, "finished": _utc_now() if finished else None,
-                                 "wall_seconds": self.seconds(), "cold_start": self.cold_start,
+                                 "wall_seconds": self.seconds(), "cpu_seconds": self.cpu_used(),
+                                 "cold_start": self.cold_start,
                                  "rows": len(rows), "rows_ok": sum(r.get("status") == "ok" for r in rows)}]
 
     def record(self, out_dir: Path, rows: list, rows_written: bool = True) -> None:

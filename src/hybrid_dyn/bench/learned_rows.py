@@ -25,6 +25,7 @@ import numpy as np
 
 from ..analytic.tare import tare_samples, tared_base_wrench
 from ..errors import UsageError
+from ..learn.model import recorded_train_cpu
 from ..learn.presets import PRESETS
 from .rows import Predictor, Row, declare, prior_kept_text
 
@@ -95,7 +96,8 @@ def learned_predictor(model, train_seconds: float, inputs: str | None = None) ->
     # beats it on validation (best_epoch -1): the whole prior, every output at once.
     kept = None if model.preset.prior is None else prior_kept_text([training["best_epoch"] == -1])
     return Predictor(predict=model.predict, single_call=single, warmup_calls=warmup,
-                     train_seconds=float(train_seconds), n_params=int(model.n_params),
+                     train_seconds=float(train_seconds), train_cpu_seconds=recorded_train_cpu(model),
+                     n_params=int(model.n_params),
                      inputs=", ".join(model.config.get("inputs", [])) if inputs is None else inputs,
                      training=training, prior_kept=kept)
 
@@ -205,7 +207,8 @@ def gp_predictor(model, t0: float, **fields) -> Predictor:
     seconds = model.train_seconds
     return Predictor(predict=model.predict, single_call=single,
                      train_seconds=float(seconds if np.isfinite(seconds) else time.perf_counter() - t0),
-                     n_params=int(model.n_params), **{"inputs": ", ".join(model.inputs), **fields})
+                     train_cpu_seconds=recorded_train_cpu(model), n_params=int(model.n_params),
+                     **{"inputs": ", ".join(model.inputs), **fields})
 
 
 declare(Row("gp", "joint_torque", "gp", needs=("q", "qd", "qdd", "tau_m"), needs_urdf=False, build=_build_gp))

@@ -9,15 +9,19 @@ Layout (HDF5, float64 arrays, one per test instance, in physical units)::
     /<scenario>/<task>/<model>/<instance>       (T, C)  the row's prediction
 
 Each group's ``order`` attribute (JSON) lists its members in the order the bench scored them (HDF5
-lists names alphabetically). The file is rewritten atomically after every row (a copy of the last
-file plus the new row, renamed over it), so an interrupted bench keeps the rows it finished and a
-reader never sees half a row.
+lists names alphabetically); a reader reads only what ``order`` lists. A run's first write starts the
+file anew (a new file renamed into place); every later row is written in place (issue 40: copying the
+whole file per row cost a copy of up to 1.6 GB per row), atomically per row: its arrays go into a group
+under a temporary name, the file is flushed, then the group is renamed to the row's name and listed in
+``order``, and the file flushed again. A kill before the rename leaves the temporary group unlisted (a
+reader never sees half a row; the next writer of the file deletes it) and the rows before it intact.
+HDF5 keeps no journal: a kill in the middle of a flush can still leave the file unreadable, which a
+resumed bench starts anew, and ``hybrid-dyn report`` then names the rows whose predictions it lacks.
 """
 from __future__ import annotations
 
 import json
 import os
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -56,6 +60,9 @@ def _readable(path: Path) -> bool:
         return False
 
 
+PARTIAL = ".partial-"  # a group being written: "<name>.partial-<pid>", renamed to <name> once complete
+
+
 class PredictionWriter:
     """Writes one bench run's predictions.h5; the first write of a run starts the file anew, unless
     ``resume``: then it adds to the file an earlier invocation of the same profile left (each row's
@@ -68,19 +75,22 @@ class PredictionWriter:
         self.started = bool(resume) and _readable(self.path)
 
     def _update(self, fill) -> None:
+        """``fill(f)`` on the file: a new file renamed into place on the run's first write, else in place."""
         import h5py
 
-        tmp = unique_temp(self.path)
-        try:
-            if self.started and self.path.is_file():
-                shutil.copyfile(self.path, tmp)
-            with h5py.File(tmp, "a" if self.started else "w") as f:
-                fill(f)
-            os.replace(tmp, self.path)
-        finally:
-            if tmp.exists():
-                tmp.unlink()
-        self.started = True
+        if not self.started:
+            tmp = unique_temp(self.path)
+            try:
+                with h5py.File(tmp, "w") as f:
+                    fill(f)
+                os.replace(tmp, self.path)
+            finally:
+                if tmp.exists():
+                    tmp.unlink()
+            self.started = True
+            return
+        with h5py.File(self.path, "a") as f:
+            fill(f)
 
     def test_data(self, scenario: str, instances: list, targets: list) -> None:
         """The scenario's test instances: their time, the ``targets`` fields they hold and the noise-free tip force."""
@@ -89,15 +99,15 @@ class PredictionWriter:
             _ordered(f, scenario)
             grp = root.require_group(TEST_GROUP)
             for inst in instances:
-                if _key(inst.name, "instance") in grp:  # a resumed run's file: this run's test data replace it
-                    del grp[inst.name]
-                g = grp.require_group(_key(inst.name, "instance"))
-                _ordered(grp, inst.name)
-                g["t"] = np.asarray(inst.t, dtype=np.float64)
-                for field in targets:
-                    g[field] = np.asarray(inst[field], dtype=np.float64)
-                if "tip_force" in targets and "tip_force" in inst.truth:
-                    g["tip_force_truth"] = np.asarray(inst.truth["tip_force"], dtype=np.float64)
+                def arrays(g, inst=inst):
+                    g["t"] = np.asarray(inst.t, dtype=np.float64)
+                    for field in targets:
+                        g[field] = np.asarray(inst[field], dtype=np.float64)
+                    if "tip_force" in targets and "tip_force" in inst.truth:
+                        g["tip_force_truth"] = np.asarray(inst.truth["tip_force"], dtype=np.float64)
+
+                # a resumed run's file: this run's test data replace it
+                _write_group(f, grp, _key(inst.name, "instance"), arrays)
 
         self._update(fill)
 
@@ -106,15 +116,30 @@ class PredictionWriter:
         def fill(f):
             grp = f.require_group(_key(scenario, "scenario")).require_group(_key(task, "task"))
             _ordered(f[scenario], task)
-            if model in grp:
-                del grp[model]
-            g = grp.create_group(_key(model, "model"))
-            _ordered(grp, model)
-            g.attrs["order"] = json.dumps([str(n) for n in names])
-            for name, p in zip(names, preds):
-                g[_key(name, "instance")] = np.asarray(p, dtype=np.float64)
+
+            def arrays(g):
+                g.attrs["order"] = json.dumps([str(n) for n in names])
+                for name, p in zip(names, preds):
+                    g[_key(name, "instance")] = np.asarray(p, dtype=np.float64)
+
+            _write_group(f, grp, _key(model, "model"), arrays)
 
         self._update(fill)
+
+
+def _write_group(f, parent, name: str, arrays) -> None:
+    """``arrays(group)`` into ``parent[name]``, atomically as far as HDF5 allows: written under a temporary
+    name and flushed, then renamed over any old group of that name and listed in ``order``, and flushed."""
+    for stale in [k for k in parent if PARTIAL in k]:  # a killed write's leftovers: never listed, never read
+        del parent[stale]
+    tmp = f"{name}{PARTIAL}{os.getpid()}"
+    arrays(parent.create_group(tmp))
+    f.flush()
+    if name in parent:
+        del parent[name]
+    parent.move(tmp, name)
+    _ordered(parent, name)
+    f.flush()
 
 
 class Predictions:

@@ -52,6 +52,9 @@ class Predictor:
     # run as a control loop does) and times the calls after the first ``warmup_calls``.
     single_call: Callable[[object, int], np.ndarray] | None = None
     train_seconds: float = 0.0
+    # CPU time [s] of training as the model's file recorded it (NaN: not recorded, a model trained before
+    # issue 40); None: the row was fitted in the bench's process by ``build``, whose CPU time is the figure.
+    train_cpu_seconds: float | None = None
     n_params: int = 0
     inputs: str = ""
     training: dict | None = None  # learned rows: ``training_summary`` of the model's config

@@ -27,6 +27,7 @@ redraws it.
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import json
@@ -78,8 +79,13 @@ def score_row(spec: Row, ctx: BenchContext, norm: dict) -> dict:
     row = {"task": spec.task, "scenario": ctx.scenario, "model": spec.name, "family": spec.family}
     if target not in ds.fields:
         raise ValueError(f"the dataset has no {target!r} field")
+    cpu0 = time.process_time()  # this process's CPU, every thread (BLAS, torch) included
     pred_obj = spec.build(ds, ctx)
-    row.update(inputs=pred_obj.inputs, train_seconds=pred_obj.train_seconds, n_params=pred_obj.n_params)
+    cpu1 = time.process_time()
+    # A model trained elsewhere (a worker, an earlier invocation) brings its recorded CPU; else the build was the fit.
+    train_cpu = cpu1 - cpu0 if pred_obj.train_cpu_seconds is None else pred_obj.train_cpu_seconds
+    row.update(inputs=pred_obj.inputs, train_seconds=pred_obj.train_seconds, train_cpu_seconds=train_cpu,
+               n_params=pred_obj.n_params)
     if pred_obj.prior_kept is not None:
         row["prior_kept"] = pred_obj.prior_kept
     if pred_obj.training is not None:
@@ -116,6 +122,7 @@ def score_row(spec: Row, ctx: BenchContext, norm: dict) -> dict:
         row["sigma_coverage"] = pred_obj.sigma_coverage()
     if pred_obj.single_call is not None:
         row["infer_us_per_call"] = _median_call_us(pred_obj.single_call, ds.split("test")[0], pred_obj.warmup_calls)
+    row["score_cpu_seconds"] = time.process_time() - cpu1  # val and test predictions, metrics, the timed calls
     # ok or implausible (identified parameters outside the robot's bounds), and what the numbers cannot show.
     row["status"], notes = review_row(spec, ctx, pred_obj, target, std, test_target)
     row["notes"] = NOTE_SEPARATOR.join(notes)
@@ -382,7 +389,56 @@ def _bench_scenario(profile, out_dir, ctx: BenchContext, ref, predictions, rows,
     log(f"[bench] {scenario}: training {len(jobs)} learned models on {profile.workers} workers")
     pretrain(jobs, profile.workers, log=log, executor=executor)
     clock.record(out_dir, rows)
-    for spec in tqdm(specs, desc=f"bench {scenario}", unit="model"):
+    with _background_training(ctx, specs, tcfg, ref.name, executor) as pending:
+        _score_rows(out_dir, ctx, specs, norm, test, predictions, rows, log, clock, pending)
+
+
+@contextlib.contextmanager
+def _background_training(ctx: BenchContext, specs: list, tcfg, robot: str, executor):
+    """The residual nets on the identified model (which ``pretrain`` cannot train: they need the identified
+    fit first) trained in worker processes while this process fits and scores the other rows, on local
+    workers beyond this process (``profile.workers - 1``); yields {row name: future}. Their row waits for its
+    future before it is built, then finds the model trained (a worker's error is raised again by the build)."""
+    from .identified_rows import RESIDUAL_ROWS, residual_training
+
+    names = [s.name for s in specs if s.name in RESIDUAL_ROWS]
+    if not names or ctx.profile.workers < 2 or executor is not None:
+        yield {}
+        return
+    from ..sim.executors import process_pool
+
+    jobs = {}
+    try:
+        for name in names:
+            config, out = residual_training(ctx, name, tcfg)
+            jobs[name] = (str(ctx.dataset.path), robot, ctx.profile.preset(RESIDUAL_ROWS[name]), str(out), config,
+                          ctx.profile.torch_threads)
+    except Exception as err:  # the identification failed: each row that needs it fails with it, named, when scored
+        ctx.log(f"[bench] {ctx.scenario}: the residual nets on the identified model train when scored ({err})")
+        yield {}
+        return
+    ctx.log(f"[bench] {ctx.scenario}: training {', '.join(jobs)} in a worker while this process fits and scores "
+            "the other rows")
+    with process_pool(min(len(jobs), ctx.profile.workers - 1)) as pool:
+        yield {name: pool.submit(_train_job, job) for name, job in jobs.items()}
+
+
+def _score_rows(out_dir, ctx, specs, norm, test, predictions, rows, log, clock, pending: dict) -> None:
+    """Score ``specs`` in order, each written to results.csv, predictions.h5 and curves.json as it finishes;
+    ``pending``: row name -> the future of its training in a worker (waited for before the row is built)."""
+    from .identified_rows import FIT_WHILE_WAITING
+
+    scenario = ctx.scenario
+    for i, spec in enumerate(tqdm(specs, desc=f"bench {scenario}", unit="model")):
+        if spec.name in pending:
+            if not pending[spec.name].done():  # fit a later row's model meanwhile: its build then reads it
+                for later in specs[i + 1:]:
+                    if later.name in FIT_WHILE_WAITING:
+                        try:
+                            later.build(ctx.dataset, ctx)
+                        except Exception:  # noqa: BLE001  (raised again, with its row, when it is scored)
+                            pass
+            pending[spec.name].result()
         t0 = time.perf_counter()
         try:
             row = score_row(spec, ctx, norm)

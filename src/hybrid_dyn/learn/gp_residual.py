@@ -45,6 +45,7 @@ from ..errors import UsageError
 from ..outputs import output_lock
 from .gp import (GP_FORMAT, GP_FORMAT_VERSION, GPConfig, GPModel, STD_EPS, _inputs, _refuse_foreign_files, _rows,
                  _standardization, fit_gp_hyperparameters, load_gp, save_gp)
+from .gp_marginal import one_blas_thread
 from .model import ModelError, canonical_json, check_instances
 
 FAMILY = "gp-residual"
@@ -277,12 +278,13 @@ def train_gp_residual(dataset, params, out_dir, config: GPResidualConfig | None 
                              f"(missing fields {missing})")
         widths = {n: int(np.asarray(train[0][n]).reshape(len(train[0]), -1).shape[1]) for n in names}
         check_instances(train + val, names, widths, "residual GP")
-        start = time.perf_counter()
+        start, cpu0 = time.perf_counter(), time.process_time()  # process CPU: every BLAS thread counts
         (x, r), (xv, rv) = (_residual_xy(prior, insts, config) for insts in (train, val))
         if len(x) > config.max_rows:  # all rows when they are few enough: the same rows, in order
             keep = _rows(len(x), config.max_rows, config.seed + 2)
             x, r = x[keep], r[keep]
-        tensors, choice = fit_sparse_residual(x, r, xv, rv, config)
+        with one_blas_thread():  # O(N M^2) products and M x M factors: one thread beside torch's (gp_marginal.py)
+            tensors, choice = fit_sparse_residual(x, r, xv, rv, config)
         doc = {"format": GP_FORMAT, "format_version": GP_FORMAT_VERSION, "family": FAMILY,
                "gp": config.gp_config().to_dict(), "gp_residual": config.to_dict(), "widths": widths,
                "prior": {"params": str(params), "params_sha256": _sha256(params), "method": prior.method,
@@ -292,7 +294,7 @@ def train_gp_residual(dataset, params, out_dir, config: GPResidualConfig | None 
                "dataset_checksum": ds.checksum, "fingerprint": fingerprint,
                "val_rmse_prior": float(np.sqrt(np.mean([c["val_mse_prior"] for c in choice]))),
                "val_rmse": float(np.sqrt(np.mean([c["val_mse"] for c in choice])))}
-        save_gp(GPModel(tensors, doc), out_dir, time.perf_counter() - start)
+        save_gp(GPModel(tensors, doc), out_dir, time.perf_counter() - start, time.process_time() - cpu0)
     return load_gp_residual(out_dir, robot=robot)  # what the caller gets is what the file holds
 
 

@@ -365,9 +365,11 @@ class TrainedModel:
         save_model(self.module, self.config, model_dir, None if np.isnan(seconds) else seconds)
 
 
-def save_model(module: HybridModel, config: dict, model_dir, train_seconds: float | None = None) -> None:
+def save_model(module: HybridModel, config: dict, model_dir, train_seconds: float | None = None,
+               train_cpu_seconds: float | None = None) -> None:
     """Write model.safetensors (config and tensor digests in its metadata), timing.json
-    (train_seconds, when given) and config.json, each atomically.
+    (train_seconds, when given, and train_cpu_seconds, the CPU time training took [s], when known)
+    and config.json, each atomically.
 
     Only what the digests cover is reproducible, so wall-clock figures stay out of
     config.json and the metadata: two identical runs write byte-identical files.
@@ -384,21 +386,39 @@ def save_model(module: HybridModel, config: dict, model_dir, train_seconds: floa
     os.replace(tmp, model_dir / "model.safetensors")
     if train_seconds is not None:
         ttmp = model_dir / "timing.json.partial"
-        ttmp.write_text(json.dumps({"format": TIMING_FORMAT, "config_sha256": digest,
-                                    "train_seconds": float(train_seconds)}, indent=1))
+        ttmp.write_text(json.dumps(timing_doc(digest, train_seconds, train_cpu_seconds), indent=1))
         os.replace(ttmp, model_dir / "timing.json")
     os.replace(ctmp, model_dir / "config.json")
 
 
-def _read_timing(path: Path, digest: str) -> float | None:
-    """train_seconds from timing.json when it belongs to this config (None otherwise)."""
+def timing_doc(digest: str, train_seconds: float, train_cpu_seconds: float | None = None) -> dict:
+    """timing.json's content: wall-clock training time [s] and, when measured, its CPU time [s]."""
+    doc = {"format": TIMING_FORMAT, "config_sha256": digest, "train_seconds": float(train_seconds)}
+    if train_cpu_seconds is not None and np.isfinite(train_cpu_seconds):
+        doc["train_cpu_seconds"] = float(train_cpu_seconds)
+    return doc
+
+
+def _read_timing(path: Path, digest: str, key: str = "train_seconds") -> float | None:
+    """``key`` (train_seconds, train_cpu_seconds) from timing.json when it belongs to this config (None
+    otherwise: a model trained before the figure was recorded lacks train_cpu_seconds)."""
     try:
         doc = json.loads(path.read_text())
         if doc.get("format") == TIMING_FORMAT and doc.get("config_sha256") == digest:
-            return float(doc["train_seconds"])
+            return float(doc[key])
     except (OSError, ValueError, KeyError, TypeError, AttributeError):
         pass  # a lost or foreign timing file only loses a figure no result depends on
     return None
+
+
+def recorded_train_cpu(model) -> float:
+    """The CPU time [s] a saved model's training took (its timing.json), NaN when not recorded
+    (a model without a folder, or trained before issue 40)."""
+    path = getattr(model, "path", None)
+    if path is None:
+        return float("nan")
+    cpu = _read_timing(Path(path) / "timing.json", config_digest(model.config), "train_cpu_seconds")
+    return float("nan") if cpu is None else cpu
 
 
 def read_model_config(model_dir: Path, what: str):

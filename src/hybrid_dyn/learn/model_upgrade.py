@@ -60,7 +60,7 @@ def upgrade_model(model_dir) -> bool:
     folder's output lock, so it never races a training run there.
     """
     from ..outputs import output_lock
-    from .model import MODEL_FORMAT_VERSION, load_model, save_model
+    from .model import MODEL_FORMAT_VERSION, load_model, recorded_train_cpu, save_model
 
     model_dir = Path(model_dir)
     with output_lock(model_dir, "model folder"):
@@ -70,6 +70,7 @@ def upgrade_model(model_dir) -> bool:
         if model.config.get("format_version") == MODEL_FORMAT_VERSION and not older_spellings(model.config):
             return False
         config = {**model.config, "format_version": MODEL_FORMAT_VERSION}
-        seconds = model.train_seconds
-        save_model(model.module, config, model_dir, None if seconds != seconds else seconds)  # NaN: no timing
+        seconds, cpu = model.train_seconds, recorded_train_cpu(model)  # read under the old config's digest
+        save_model(model.module, config, model_dir, None if seconds != seconds else seconds,  # NaN: no timing
+                   None if cpu != cpu else cpu)
     return True

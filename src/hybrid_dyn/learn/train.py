@@ -183,6 +183,7 @@ def _train_locked(ds: Dataset, preset: Preset, out_dir: Path, config: TrainConfi
         seen = tared_runs(instances, robot, ds.meta.get("record_hz"), sensor_tare)
         return WindowedSplit(seen, preset.window, list(preset.inputs), list(preset.targets), extra=extra)
 
+    cpu0 = time.process_time()  # training's CPU time includes the windows and the prior (process: every thread)
     ws_train, ws_val = split_data(train), split_data(val)
     x_mean, x_std = _stats(ws_train.x)
     y_mean, y_std = _stats(ws_train.y)
@@ -194,7 +195,7 @@ def _train_locked(ds: Dataset, preset: Preset, out_dir: Path, config: TrainConfi
         module.to(device)
         opt = _optimizer(module, config)
         return _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint, widths, prior, device,
-                    sensor_tare)
+                    sensor_tare, cpu0)
 
 
 def _optimizer(module: torch.nn.Module, config: TrainConfig) -> torch.optim.Optimizer:
@@ -314,9 +315,11 @@ def _train_round(module, opt, ws_train, batches, clip, device, bar) -> list[floa
     return losses
 
 
-def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint, widths, prior, device, sensor_tare):
+def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint, widths, prior, device, sensor_tare,
+         cpu0: float):
+    """The training loop; ``cpu0``: ``time.process_time()`` when this invocation's training work began."""
     n_rounds, steps_per_round, round_batches = _rounds(config, len(ws_train))
-    history, bad_epochs, lr_bad_epochs, start_epoch, seconds = [], 0, 0, 0, 0.0
+    history, bad_epochs, lr_bad_epochs, start_epoch, seconds, cpu_before = [], 0, 0, 0, 0.0, 0.0
     best_epoch, stopped_by = -1, None
     clip = config.grad_clip if _is_recurrent(preset) else None
     # The untrained model is the first candidate: a residual model starts as its physics
@@ -329,6 +332,8 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
         best_state = _restore(module, opt, tensors, info, device)
         history, best_val, bad_epochs = info["history"], info["best_val"], info["bad_epochs"]
         start_epoch, seconds = info["epoch"] + 1, info["train_seconds"]
+        # The CPU of the invocations before this one; a checkpoint written before issue 40 has none: not recorded.
+        cpu_before = info.get("train_cpu_seconds", float("nan"))
         lr_bad_epochs, best_epoch, stopped_by = info["lr_bad_epochs"], info["best_epoch"], info["stopped_by"]
     stopped = stopped_by is not None
     bar = tqdm(total=n_rounds * steps_per_round, initial=start_epoch * steps_per_round, disable=not config.progress,
@@ -361,7 +366,8 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
             _save_checkpoint(out_dir, module, best_state, opt, {
                 "fingerprint": fingerprint, "epoch": epoch, "history": history, "best_val": best_val,
                 "bad_epochs": bad_epochs, "lr_bad_epochs": lr_bad_epochs, "best_epoch": best_epoch,
-                "stopped_by": stopped_by, "train_seconds": seconds})
+                "stopped_by": stopped_by, "train_seconds": seconds,
+                "train_cpu_seconds": cpu_before + time.process_time() - cpu0})
     finally:
         bar.close()
 
@@ -371,7 +377,8 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
                "initial_val_loss": initial_val, "train_samples": len(ws_train)}
     config_doc = _model_config(module, preset, config, ds, widths, prior, sensor_tare, fingerprint, outcome)
     module.cpu()
-    save_model(module, config_doc, out_dir, train_seconds=seconds)
+    save_model(module, config_doc, out_dir, train_seconds=seconds,
+               train_cpu_seconds=cpu_before + time.process_time() - cpu0)
     for name in ("checkpoint.safetensors", "checkpoint.json"):
         (out_dir / name).unlink(missing_ok=True)
     return load_model(out_dir)
