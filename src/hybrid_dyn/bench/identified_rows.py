@@ -159,7 +159,6 @@ def _excitation_dataset(ctx):
     return ident
 
 
-<<<<<<< HEAD
 def review(ctx, methods) -> tuple[list[str], list[str]]:
     """(problems, notes) of the identified models ``methods`` a row predicts with (``Predictor.review``):
     each body outside the robot's bounds (``identify.plausibility``; the row is then marked implausible),
@@ -180,25 +179,17 @@ def review(ctx, methods) -> tuple[list[str], list[str]]:
 
 def _row(task, name, needs, predict_instance, inputs, single=None, methods=("consistent",)) -> Row:
     """Declare an identified row: predict_instance(models, ctx, inst) and single(models, ctx, inst, k);
-    ``methods``: the identified models it predicts with (their parameters are checked, ``review``)."""
-=======
-def _row(task, name, needs, predict_instance, inputs, single=None, fits=()) -> Row:
-    """Declare an identified row: predict_instance(models, ctx, inst) and single(models, ctx, inst, k);
-    ``fits``: the identification methods it reads, fitted when it is built (its training, not its scoring)."""
->>>>>>> speed
+    ``methods``: the identified models it predicts with, fitted when it is built (its training, not its
+    scoring) and their parameters checked (``review``)."""
     def build(ds, ctx):
         models = _Models(ctx)
-        for method in fits:
+        for method in methods:
             models[method]
         # Each fit's CPU goes to the first row that reads it (a fit made before, for the residual nets, too).
-        cpu = sum(ctx.cache.pop(("fit-cpu", method), 0.0) for method in fits)
+        cpu = sum(ctx.cache.pop(("fit-cpu", method), 0.0) for method in methods)
         return Predictor(predict=lambda insts: [predict_instance(models, ctx, i) for i in insts],
                          single_call=(lambda inst, k: single(models, ctx, inst, k)) if single else None,
-<<<<<<< HEAD
-                         inputs=inputs, review=lambda: review(ctx, methods))
-=======
-                         inputs=inputs, train_cpu_seconds=cpu)
->>>>>>> speed
+                         inputs=inputs, review=lambda: review(ctx, methods), train_cpu_seconds=cpu)
 
     return declare(Row(name, task, "identified", needs=needs, needs_urdf=True, build=build, more_needs=fit_needs))
 
@@ -242,11 +233,7 @@ def _torque_row(name: str, method: str):
     """A row predicting with one identified model; per call: the same function on one sample."""
     return _row("joint_torque", name, TORQUE_NEEDS, lambda m, c, i: m[method].predict_torque(i.q, i.qd, i.qdd),
                 "q, qd, qdd", single=lambda m, c, i, k: m[method].predict_torque(i.q[k], i.qd[k], i.qdd[k]),
-<<<<<<< HEAD
                 methods=(method,))
-=======
-                fits=(method,))
->>>>>>> speed
 
 
 def _friction_only(models, ctx, q, qd, qdd):
@@ -323,23 +310,15 @@ _torque_row("identified-sigmoid-friction", "sigmoid-friction")
 # The friction of sigmoid-friction was fitted jointly with its inertials: absurd bodies, suspect friction.
 _row("joint_torque", "rnea+identified-friction", TORQUE_NEEDS, lambda m, c, i: _friction_only(m, c, i.q, i.qd, i.qdd),
      "q, qd, qdd", single=lambda m, c, i, k: _friction_only(m, c, i.q[k], i.qd[k], i.qdd[k]),
-<<<<<<< HEAD
      methods=("sigmoid-friction",))
-=======
-     fits=("sigmoid-friction",))
->>>>>>> speed
 _row("tip_force", "base-wrench-identified", TIP_NEEDS, _base_wrench_identified, "q, qd, qdd, base_wrench",
      single=lambda m, c, i, k: tip_force_from_base_wrench(_identified_robot(m, c), i.q[k], i.qd[k], i.qdd[k],
-                                                          i.base_wrench[k]), fits=("consistent",))
+                                                          i.base_wrench[k]), methods=("consistent",))
 _row("tip_force", "base-wrench-identified-tared", TIP_NEEDS, _tared_force_identified, TARED_INPUTS,
-     single=lambda m, c, i, k: _tared_force_identified(m, c, i, k), fits=("consistent",))
+     single=lambda m, c, i, k: _tared_force_identified(m, c, i, k), methods=("consistent",))
 _row("joint_torque", "identified-bw-tared", ("q", "qd", "qdd", "base_wrench", "tau_m"), _identified_bw_torque,
      TARED_INPUTS, single=lambda m, c, i, k: _identified_bw_torque(m, c, i, k),
-<<<<<<< HEAD
      methods=("sigmoid-friction", "consistent"))
-=======
-     fits=("consistent", "sigmoid-friction"))
->>>>>>> speed
 for _name, _preset in RESIDUAL_ROWS.items():
     _residual_row(_name, _preset)
 _gp_residual_row("gp-residual-identified")

@@ -15,14 +15,10 @@ import time
 from pathlib import Path
 
 from ..outputs import refuse_foreign
-<<<<<<< HEAD
+from ..timing import cpu_seconds
 from .integrity import (DIGEST_KEY, REPORT_FILES, read_run_json, remove_report_files, results_digest, run_digest,
                         same_profile)
 from .predictions import PREDICTIONS_FILE
-=======
-from ..timing import cpu_seconds
-from .integrity import DIGEST_KEY, read_run_json, results_digest, run_digest, same_profile
->>>>>>> speed
 from .profiles import BenchProfile, is_dataset_path
 from .results import CURVES_FILE, write_curves, write_json, write_results
 from .seed_comparison import SEED_COMPARISON_FILE

@@ -21,14 +21,11 @@ COLUMNS = [
     "prior_kept",  # hybrid rows only: where validation kept the physics prior ("all", "none", "joints 2, 5")
     "sigma_coverage",  # estimator rows: share of test samples with an error bar within 2 sigma on every axis
     "error",
-<<<<<<< HEAD
     "notes",  # what the row's numbers cannot show, " | "-separated (row_checks.py): undefined nMSE, untested motion
-=======
     # CPU time [s] (issue 40): training (the model file's record, or the fit in the bench's process) and
     # scoring (predicting val and test, the metrics, the timed single calls). Last: a report written
     # before them lacks them, read as "not recorded".
     "train_cpu_seconds", "score_cpu_seconds",
->>>>>>> speed
 ]
 # The statuses of a scored row (numbers, stored predictions): "implausible" is an identified row whose parameters
 # are outside the robot's bounds (row_checks.py): in the tables with its note, never a family's best.
