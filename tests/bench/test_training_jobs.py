@@ -51,6 +51,7 @@ def test_the_identified_residual_nets_train_in_a_worker_to_the_serial_runs_bytes
     """Issue 40: with 2 workers the residual nets on the identified model train in a worker process while
     the bench's process fits and scores the rest; the model files and the rows are those of one process."""
     from hybrid_dyn.bench.profiles import profile_for_data
+    from hybrid_dyn.bench.results import SCORED_STATUSES
 
     def bench(workers, name):
         messages = []
@@ -67,7 +68,9 @@ def test_the_identified_residual_nets_train_in_a_worker_to_the_serial_runs_bytes
     serial, _ = bench(1, "serial")
     parallel, said = bench(2, "parallel")
     assert any("residual-rnea-identified" in m and "in a worker" in m for m in said), said
-    assert [r["status"] for r in parallel] == ["ok"] * 4
+    # Scored rows (an identified row on this small log may be "implausible", issue 39), as the serial run's.
+    assert [r["status"] for r in parallel] == [r["status"] for r in serial]
+    assert all(r["status"] in SCORED_STATUSES for r in parallel), [r["status"] for r in parallel]
     a, b = model_bytes(tmp_path / "runs-serial"), model_bytes(tmp_path / "runs-parallel")
     assert len(a) >= 2 and a == b
     assert [(r["model"], r["rmse"]) for r in serial] == [(r["model"], r["rmse"]) for r in parallel]

@@ -7,6 +7,7 @@ worth. Why each bound is what it is: ``estimator/streaming.py``'s module docstri
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import Enum
 
@@ -142,3 +143,20 @@ class EstimatorConfig:
             raise UsageError(f"stamp_jitter must lie in [0, 1) [s], got {self.stamp_jitter!r}")
         if not 0 < self.rate_tolerance < 1:
             raise UsageError(f"rate_tolerance must lie in (0, 1), got {self.rate_tolerance!r}")
+
+
+MAX_PAYLOAD_KG = 50.0  # no arm this toolkit models lifts more; a larger figure is a unit slip (g for kg)
+
+
+def checked_payload(payload) -> tuple:
+    """``(mass_kg, (x, y, z))`` as floats, or UsageError naming what is wrong with it."""
+    try:
+        mass, com = payload
+        mass, com = float(mass), tuple(float(x) for x in com)
+    except (TypeError, ValueError):
+        raise UsageError(f"payload must be (mass_kg, (x, y, z) m in the tool frame), got {payload!r}") from None
+    if len(com) != 3 or not all(math.isfinite(x) for x in com) or max(abs(x) for x in com) > 1.0:
+        raise UsageError(f"payload centre of mass must be 3 finite numbers within 1 m of the tool frame [m], got {com!r}")
+    if not 0.0 <= mass <= MAX_PAYLOAD_KG:
+        raise UsageError(f"payload mass must lie in [0, {MAX_PAYLOAD_KG:g}] kg, got {mass!r}")
+    return mass, com

@@ -106,7 +106,6 @@ from pathlib import Path
 import numpy as np
 
 from ..analytic.acceleration import CausalAccelerationFilter, cutoff_grid, default_qdd_cutoff
-from ..analytic.bandwidth import measure_window
 from ..analytic.error_bar import ErrorBar, qdd_norm
 from ..analytic.estimators import ALIASES, estimator_name
 from ..analytic.joint_state import joint_filter_for, with_joint_state_noise
@@ -114,10 +113,10 @@ from ..analytic.kalman import MAX_BRIDGE_CALLS
 from ..analytic.methods import REGISTRY, spec_noise
 from ..analytic.robot import Robot, load_robot, with_payload
 from ..analytic.tare import StreamingTare, tare_samples
-from ..analytic.tip_force import tip_force_from_torques
 from ..errors import UsageError
-from .config import EstimatorConfig, EstimatorStatus
+from .config import EstimatorConfig, EstimatorStatus, checked_payload
 from .input import EstimatorInputError, InputGate, RateCheck
+from .noise_window import NoiseWindow
 
 # The analytic methods, by the estimators' one name (analytic/methods.py registers them; the older
 # spellings base_wrench, torques, momentum, base_momentum, kalman_fusion are accepted).
@@ -130,23 +129,6 @@ _OK, _WARMING_UP, _OUT_OF_RANGE, _FORCE_OUT_OF_RANGE, _WRONG_RATE, _NO_SENSOR, _
     EstimatorStatus.OK, EstimatorStatus.WARMING_UP, EstimatorStatus.OUT_OF_RANGE, EstimatorStatus.FORCE_OUT_OF_RANGE,
     EstimatorStatus.WRONG_RATE, EstimatorStatus.NO_SENSOR, EstimatorStatus.UNCERTAIN, EstimatorStatus.CONTACT_AT_START)
 _NO_SIGMA = np.full(3, np.inf)  # no estimate yet (the noise window): an unbounded error bar
-
-
-MAX_PAYLOAD_KG = 50.0  # no arm this toolkit models lifts more; a larger figure is a unit slip (g for kg)
-
-
-def checked_payload(payload) -> tuple:
-    """``(mass_kg, (x, y, z))`` as floats, or UsageError naming what is wrong with it."""
-    try:
-        mass, com = payload
-        mass, com = float(mass), tuple(float(x) for x in com)
-    except (TypeError, ValueError):
-        raise UsageError(f"payload must be (mass_kg, (x, y, z) m in the tool frame), got {payload!r}") from None
-    if len(com) != 3 or not all(np.isfinite(com)) or max(abs(x) for x in com) > 1.0:
-        raise UsageError(f"payload centre of mass must be 3 finite numbers within 1 m of the tool frame [m], got {com!r}")
-    if not 0.0 <= mass <= MAX_PAYLOAD_KG:
-        raise UsageError(f"payload mass must lie in [0, {MAX_PAYLOAD_KG:g}] kg, got {mass!r}")
-    return mass, com
 
 
 class TipForceEstimator:
@@ -198,14 +180,8 @@ class TipForceEstimator:
             self._tare = StreamingTare(robot, n_window)
         self._window_calls = n_window
         # The noise window's samples, preallocated (a row per call; presence per optional sensor).
-        self._win_q, self._win_qd = np.zeros((n_window, nv)), np.zeros((n_window, nv))
-        self._win_w, self._win_tau = np.zeros((n_window, 6)), np.zeros((n_window, nv))
-        self._win_has = np.zeros((n_window, 2), dtype=bool)
-        # The window's force as the joint torques see it (a tared method that reads them: kalman-fusion).
-        self._check_torques = self.spec is not None and self.spec.tares and "tau_J" in self.spec.reads
-        self._win_force = np.zeros((n_window, 3))
-        if self._check_torques and n_window:  # its first call loads compiled code: now, not in a control cycle
-            tip_force_from_torques(robot, np.array(robot.spec.home, float), np.zeros(nv), np.zeros(nv), np.zeros(nv))
+        check_torques = self.spec is not None and self.spec.tares and "tau_J" in self.spec.reads
+        self._window = NoiseWindow(robot, n_window, check_torques)
         self.reset()
 
     # ------------------------------------------------------------ factories
@@ -276,7 +252,7 @@ class TipForceEstimator:
         if self._stream is not None:
             self._stream.reset()
         self._calls = 0
-        self._win_has[:] = False
+        self._window.clear()
         self._absent = [-1, -1]  # calls each sensor has been absent from the method (-1: never given)
         self._active = ()  # the sensors the method currently estimates from (kalman-fusion)
         self._base_tared = self._tare is None  # the base wrench may enter the method
@@ -349,17 +325,15 @@ class TipForceEstimator:
         if tare is not None and base_wrench is not None:
             tared = tare.update(q, qd, qdd, base_wrench)
         if in_window:
-            self._record(k, q, qd, base_wrench, tau_J)
-            if self._check_torques and tau_J is not None:
-                self._win_force[k] = tip_force_from_torques(self.robot, q, qd, qdd, tau_J)
+            self._window.record(k, q, qd, qdd, base_wrench, tau_J)
             self._stream.window_step(q, qd, qdd, base_wrench, tau_J)
             if self._calls == self._window_calls:  # the window's last call checks it and measures its noise...
-                problem = self._window_contact()
+                problem = self._window.contact(self._tare, self.config.tare_contact_force)
                 if problem is not None:
                     self._restart_window(problem)
                 else:
                     self.window_problem = None
-                    self._window_noise = self._measure_window()
+                    self._window_noise = self._window.measure(self._joint)
             return self._finish(self._last_good, True, wrong_rate, True, estimated=False)
         if self._window_noise is not None:  # ...and the next one applies the rule: no call does both
             self._close_window(self._window_noise)
@@ -442,51 +416,15 @@ class TipForceEstimator:
         return bool(active)
 
     # ------------------------------------------------------- noise window
-    def _record(self, k, q, qd, w, tau) -> None:
-        self._win_q[k] = q
-        self._win_qd[k] = qd
-        if w is not None:
-            self._win_w[k] = w
-            self._win_has[k, 0] = True
-        if tau is not None:
-            self._win_tau[k] = tau
-            self._win_has[k, 1] = True
-
-    def _window_contact(self) -> str | None:
-        """Why the window just ended must not be trusted (a contact in it), or None. The base sensor's
-        residual must not change between the window's parts (a contact that began or ended in it, a
-        trend); the joint torques, where the method reads them, must see no force (a contact held
-        through the whole window, which the base sensor alone cannot tell from its offset)."""
-        limit = self.config.tare_contact_force
-        tare = self._tare
-        if tare is not None and tare.done:
-            step = tare.window_step(limit)
-            if step is not None:
-                return f"the base sensor's residual changed by {step:.2f} N inside the noise window (limit {limit:g} N)"
-        has = self._win_has[:, 1]
-        if self._check_torques and has.sum() >= 8:
-            f = np.median(self._win_force[has], axis=0)
-            if f.dot(f) > limit * limit:
-                return (f"the joint torques saw {np.linalg.norm(f):.2f} N at the tool during the noise window "
-                        f"(limit {limit:g} N): a contact, or a load the model lacks (payload=)")
-        return None
-
     def _restart_window(self, problem: str) -> None:
         """The window saw a contact: forget it (its tare and noise) and start a new one now."""
         self.window_problem = problem
         if self._tare is not None:
             self._tare.reset()
         self._stream.reset()
-        self._win_has[:] = False
+        self._window.clear()
         self._calls = 0
         self._warmup_calls = self._window_calls + 1
-
-    def _measure_window(self):
-        """The window's white noise (``bandwidth.measure_window``) on the samples each sensor came with."""
-        has = self._win_has
-        rows = lambda x, i: x[has[:, i]] if has[:, i].sum() >= 8 else None  # noqa: E731
-        noise = measure_window(self._win_q, self._win_qd, rows(self._win_w, 0), rows(self._win_tau, 1))
-        return with_joint_state_noise(noise, self._joint)  # a still window shows no encoder noise: predict it
 
     def _close_window(self, noise) -> None:
         """The first call after the noise window: set the bandwidth by the rule (or the config's) from the
@@ -498,7 +436,7 @@ class TipForceEstimator:
         if offset is None and tare is not None:  # the base sensor did not fill the window: no model error from it
             self._stream_stats_drop_base()
         self.bandwidth = self._stream.close_window(noise, offset, self._fixed)
-        self._use_bandwidth(replay=self._win_qd)
+        self._use_bandwidth(replay=self._window.qd)
         self._base_tared = tare is None or tare.done
         if tare is not None and tare.done:
             self._tared_at = self._calls
