@@ -2,6 +2,7 @@
 #   make demo     - virtual environment, install, then the main job on a small default
 #   make test     - the same set-up, then the test suite but the tests marked slow, on 2 processes
 #   make test-all - every test `make test` ran before issue 40, slow ones included (what CI runs)
+#   make lint     - ruff, as configured in pyproject.toml (CI runs it first)
 PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
@@ -11,7 +12,7 @@ TORCH  ?= torch==2.13.0
 # Test processes (pytest-xdist): the project's machine has 2 cores.
 TEST_WORKERS ?= 2
 
-.PHONY: demo test test-all install bench clean
+.PHONY: demo test test-all lint install bench clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -34,6 +35,10 @@ test: install
 
 test-all: install
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS)
+
+# The linter (ruff, configured in pyproject.toml); .ci/run runs it before the tests.
+lint: install
+	$(BIN)/ruff check src tests benchmarks checks examples
 
 bench: install
 	$(BIN)/python benchmarks/analytic_speed.py

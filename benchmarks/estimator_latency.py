@@ -153,7 +153,7 @@ def main(argv=None) -> None:
             print(f"{name:44s} floors met in {met} of {len(runs)} runs")
     if args.out:
         load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-        text = [f"# Streaming estimator latency (`benchmarks/estimator_latency.py`)", "",
+        text = ["# Streaming estimator latency (`benchmarks/estimator_latency.py`)", "",
                 f"`benchmarks/estimator_latency.py {' '.join(sys.argv[1:] if argv is None else argv)}`: {args.calls} calls per estimator and run "
                 f"at 1 kHz on one core (CPU 0), torch on one thread, the estimators taking turns in blocks of "
                 f"{BLOCK} calls, {args.repeat} run(s) in one process with fresh estimators; "

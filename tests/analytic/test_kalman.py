@@ -64,7 +64,8 @@ def test_fusion_beats_each_sensor_alone():
     both = momentum_filter(DT, q, r, 0.6).filter(y)[1000:, -1]
     one = momentum_filter(DT, q[:1], r[:1], 0.6).filter(y[:, :1])[1000:, -1]
     two = momentum_filter(DT, q[1:], r[1:], 0.6).filter(y[:, 1:])[1000:, -1]
-    rms = lambda e: float(np.sqrt(np.mean(e**2)))
+    def rms(e):
+        return float(np.sqrt(np.mean(e**2)))
     e_both, e_one, e_two = rms(both - F[1000:]), rms(one - F[1000:]), rms(two - F[1000:])
     assert e_both < 0.95 * min(e_one, e_two), (e_both, e_one, e_two)
 

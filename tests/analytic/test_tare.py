@@ -35,7 +35,8 @@ def test_tare_removes_an_offset_the_raw_method_turns_into_force(offset_set, pand
     truth_f = inst.truth["tip_force"]
     raw = tip_force_from_base_wrench(panda, inst.q, inst.qd, inst.qdd, inst.base_wrench)
     fixed = tip_force_from_base_wrench(panda, inst.q, inst.qd, inst.qdd, tared)
-    rms = lambda e: float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
+    def rms(e):
+        return float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
     # The oracle knows the offset from the whole run and the noise-free wrench; what it leaves is the
     # noise floor of the method at noisy states.
     oracle_offset = (inst.base_wrench - inst.truth["base_wrench"]).mean(0)

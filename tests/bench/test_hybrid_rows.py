@@ -30,7 +30,7 @@ def test_report_sets_each_hybrid_against_its_prior_and_says_when_it_kept_it():
     rows = [_row("rnea", 0.5), _row("residual-rnea", 0.4, prior_kept="none"),
             _row("identified-consistent", 0.3), _row("gp-residual-identified", 0.3, prior_kept="all"),
             _row("residual-rnea-identified", 0.27, prior_kept="joints 7"), _row("gp", 6.8)]
-    lines = [l for l in hybrid_lines(rows) if l.startswith("- ")]
+    lines = [line for line in hybrid_lines(rows) if line.startswith("- ")]
     # One line per hybrid beside its prior, in results order (gp has no prior; the priors are not hybrids).
     named = [next(m for m in ("residual-rnea-identified", "gp-residual-identified", "residual-rnea")
                   if f"`{m}`" in line) for line in lines]

@@ -148,4 +148,4 @@ def test_tiny_bench_carries_the_model_config_into_the_report(tmp_path, panda):
     assert curve["task"] == "tip_force"
     assert (tmp_path / "report" / "learning_curves_synthetic.png").read_bytes()[:8] == PNG_MAGIC
     md = (tmp_path / "report" / "tip_force.md").read_text()
-    assert f"| 1 (epoch-cap" in md and CAP_MARK in md
+    assert "| 1 (epoch-cap" in md and CAP_MARK in md

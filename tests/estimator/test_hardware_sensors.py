@@ -13,7 +13,7 @@ from hybrid_dyn.analytic.joint_state import (JointStateDesign, JointStateFilter,
                                              quantization_variance)
 from hybrid_dyn.errors import UsageError
 from hybrid_dyn.estimator import EstimatorStatus, TipForceEstimator
-from hybrid_dyn.sim.sensors import ClockModel, EncoderModel, ForceTorqueModel, HardwareSensors
+from hybrid_dyn.sim.sensors import EncoderModel, ForceTorqueModel, HardwareSensors
 from hybrid_dyn.sim.stream import StreamConfig, Touch, simulate_stream
 
 HZ = 1000.0

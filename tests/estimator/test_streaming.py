@@ -5,7 +5,6 @@ import threading
 import numpy as np
 import pytest
 
-import hybrid_dyn as hd
 from hybrid_dyn.data import load_dataset
 from hybrid_dyn.data.synthetic import make_synthetic_dataset
 from hybrid_dyn.estimator import (
@@ -227,7 +226,7 @@ def test_streaming_base_momentum_equals_the_batch_observer_after_the_tare(record
     from hybrid_dyn.analytic.base_momentum import BaseMomentumObserver
 
     est = TipForceEstimator.analytic(panda, "base_momentum", call_hz=RATE, tare_seconds=0.5, momentum_gain=20.0,
-                                     encoder_resolution=0.0, max_sigma=1e3)  # max_sigma: these statuses are the warm-up's, not the error bar's (test_error_bar.py)
+                                     encoder_resolution=0.0, max_sigma=1e3)  # statuses of the warm-up, not of the error bar
     stream, statuses = [], []
     for k in range(len(recorded)):
         stream.append(est.estimate_tip_force(recorded.q[k], recorded.qd[k], base_wrench=recorded.base_wrench[k],
@@ -278,7 +277,7 @@ def test_kalman_fusion_needs_one_sensor_at_least(panda):
 def test_a_gap_in_a_timed_stream_costs_one_sample_and_a_warm_up(recorded):
     """A sample late by a lost tick is refused; the stream resumes one period after it and warms up anew."""
     est = TipForceEstimator.analytic("panda", "momentum", call_hz=RATE, momentum_gain=50.0, on_bad_input="hold",
-                                     encoder_resolution=0.0, max_sigma=1e3)  # max_sigma: these statuses are the warm-up's, not the error bar's (test_error_bar.py)
+                                     encoder_resolution=0.0, max_sigma=1e3)  # statuses of the warm-up, not of the error bar
     tau = recorded.tau_J
     for k in range(40):
         est.estimate_tip_force(recorded.q[k], recorded.qd[k], tau_J=tau[k], t=recorded.t[k])

@@ -55,8 +55,8 @@ def test_parameter_forms_agree_with_pinocchio():
         m, c, icom = to_urdf_form(pi)
         assert m == pytest.approx(inertia.mass)
         np.testing.assert_allclose(c, inertia.lever, atol=1e-12)
-        I = inertia.inertia
-        np.testing.assert_allclose(icom, [I[0, 0], I[0, 1], I[0, 2], I[1, 1], I[1, 2], I[2, 2]], atol=1e-12)
+        i3 = inertia.inertia
+        np.testing.assert_allclose(icom, [i3[0, 0], i3[0, 1], i3[0, 2], i3[1, 1], i3[1, 2], i3[2, 2]], atol=1e-12)
         np.testing.assert_allclose(from_urdf_form(m, c, icom), pi, atol=1e-12)
     assert rng is not None
 

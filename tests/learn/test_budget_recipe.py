@@ -40,7 +40,7 @@ def test_the_schedule_warms_up_then_decays_to_zero():
 
 
 def test_a_budgeted_run_spends_its_steps_on_the_whole_pool(tiny, tmp_path, monkeypatch):
-    seen, steps = [], []
+    seen = []
     real = train_mod._batches
 
     def spy(ws, idx, device):

@@ -9,7 +9,6 @@
 import numpy as np
 import pytest
 
-import hybrid_dyn as hd
 from hybrid_dyn.analytic.robot import InputError
 from hybrid_dyn.sim.collision import collision_checker
 from hybrid_dyn.sim.generator import Simulator, simulate_instance, simulate_reference

@@ -1,7 +1,6 @@
 """Scenarios declared once (issue 30): a registry entry is all a new scenario needs, and
 mismatch-ext's plant comes from the robot's declared parameter sets."""
 import shutil
-from pathlib import Path
 
 import numpy as np
 import pytest

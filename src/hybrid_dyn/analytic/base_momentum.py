@@ -119,7 +119,7 @@ class BaseMomentumObserver:
         aff = np.zeros_like(self._vff)
         aff[6:] = qdd
         dhg = pin.computeCentroidalMomentumTimeVariation(self.robot.model_ff, self._data, self._qff, self._vff, aff)
-        c, h = self._data.com[0], self._data.hg.linear
+        c = self._data.com[0]
         # d/dt (L_com + c x h) = dL_com + c_dot x h + c x h_dot, and c_dot x h = 0 (h = m c_dot).
         return np.concatenate([dhg.linear, dhg.angular + np.cross(c, dhg.linear)])
 

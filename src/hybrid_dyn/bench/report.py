@@ -230,7 +230,7 @@ def _what_was_run(meta: dict, prof: dict, rows=()) -> list[str]:
         f"seed {prof.get('seed')}; training: "
         + (f"recipe `{prof['recipe']}`, {json.dumps(prof.get('train', {}))}" if prof.get("recipe")
            else "not recorded in run.json (an interrupted bench of an older version, which recorded it only at the end)"),
-        *([f"- analytic model: " + ", ".join(f"{k} `{prof[k]}`" for k in ("robot", "params", "tool") if prof.get(k))]
+        *(["- analytic model: " + ", ".join(f"{k} `{prof[k]}`" for k in ("robot", "params", "tool") if prof.get(k))]
           if any(prof.get(k) for k in ("robot", "params", "tool")) else []),
         f"- wall time of this invocation: {_minutes(meta.get('wall_seconds'))} min (datasets and trained "
         "models found in the caches are reused; each row's `train_seconds` is its own training time)"

@@ -51,8 +51,10 @@ def _table(header: list, body: list) -> str:
 
 
 def _latex(header: list, body: list, caption: str) -> str:
-    esc = lambda s: (str(s).replace("_", r"\_").replace("%", r"\%").replace("#", r"\#").replace("&", r"\&")
-                     .replace(CAP_MARK, r"$^\dagger$").replace(IMPLAUSIBLE_MARK, r"$^\ddagger$"))
+    def esc(s):
+        return (str(s).replace("_", r"\_").replace("%", r"\%").replace("#", r"\#").replace("&", r"\&")
+                .replace(CAP_MARK, r"$^\dagger$").replace(IMPLAUSIBLE_MARK, r"$^\ddagger$"))
+
     cols = "l" * 2 + "r" * (len(header) - 2)
     out = [r"\begin{table}[ht]", r"\centering", rf"\caption{{{esc(caption)}}}", rf"\begin{{tabular}}{{{cols}}}",
            r"\hline", " & ".join(esc(h) for h in header) + r" \\", r"\hline"]

@@ -77,7 +77,7 @@ class InputGate:
         NaN (or inf), so they fail too. An unbounded value (no limit in the
         description) gets lo = 1/(hi - lo) = 0: u = 0 when finite.
         """
-        r, c, nv = self.robot, self.config, self.robot.nv
+        r, c = self.robot, self.config
         v_max = np.asarray(r.spec.max_velocity or r.model.velocityLimit, float)
         tau_max = np.asarray(r.model.effortLimit, float)
         # Base wrench: the arm's weight, up to 2 g of inertial load, and the largest believable

@@ -119,7 +119,6 @@ class StreamingModel:
         # The control-loop path: the ring holds standardised rows (one 25-value
         # operation per call instead of a whole window), fed straight to the
         # numba network. DeLaN goes through the model's own single-sample path.
-        from .fastpath import FastNet
 
         self._fast = None
         self.runtime = "pytorch (DeLaN)"
