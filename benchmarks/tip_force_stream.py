@@ -60,7 +60,6 @@ PATTERNS = {
     "payload-unknown": StreamConfig(sensors=HARDWARE, payload=PAYLOAD),
 }
 DECLARED_PAYLOAD = {"payload": PAYLOAD}
-EXACT_ENCODERS = ("exact",)  # patterns whose encoders read q and qd exactly: the estimator is told so
 
 
 def contact_edges(force: np.ndarray, dt: float) -> np.ndarray:
@@ -70,12 +69,13 @@ def contact_edges(force: np.ndarray, dt: float) -> np.ndarray:
     return np.r_[np.flatnonzero(moving[:1]), change] * dt
 
 
-def run_method(robot, method, stream, payload=None, exact=False):
-    """Feed one stream to one estimator: forces, sigmas, statuses, accepted flags and CPU time per call."""
+def run_method(robot, method, stream, payload=None):
+    """Feed one stream to one estimator, told the stream's encoder resolution (0 for exact encoders): forces,
+    sigmas, statuses, accepted flags and CPU time per call."""
     r = stream.readings
-    kwargs = {} if payload is None else {"payload": payload}
-    if exact:
-        kwargs["encoder_resolution"] = 0.0
+    kwargs = {"encoder_resolution": stream.encoder_resolution}
+    if payload is not None:
+        kwargs["payload"] = payload
     est = TipForceEstimator.analytic(robot, method, call_hz=1000.0, on_bad_input="hold", **kwargs)
     n = len(r.t)
     f, sig = np.zeros((n, 3)), np.full((n, 3), np.inf)
@@ -127,7 +127,7 @@ def main(argv=None) -> None:
         cfg = PATTERNS[name]
         streams = [simulate_stream(robot, cfg, seed=100 + s) for s in range(args.streams)]
         for m in args.methods.split(","):
-            runs = [run_method(robot, m, s, DECLARED_PAYLOAD.get(name), name in EXACT_ENCODERS) for s in streams]
+            runs = [run_method(robot, m, s, DECLARED_PAYLOAD.get(name)) for s in streams]
             rows = [score(s, *run[:4]) for s, run in zip(streams, runs)]
             walls = np.concatenate([run[4] for run in runs])
             agg = {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}

@@ -27,8 +27,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from tip_force_stream import (DECLARED_PAYLOAD, EXACT_ENCODERS, METHODS, PATTERNS, run_method,  # noqa: E402
-                              score)
+from tip_force_stream import DECLARED_PAYLOAD, METHODS, PATTERNS, run_method, score  # noqa: E402
 
 import hybrid_dyn as hd  # noqa: E402
 from hybrid_dyn.sim.stream import simulate_stream  # noqa: E402
@@ -47,7 +46,7 @@ def main(argv=None) -> int:
     for name in LATE_PATTERNS + ("payload", "exact"):
         streams = [simulate_stream(robot, PATTERNS[name], seed=100 + s) for s in range(args.streams)]
         for m in METHODS:
-            rows = [score(s, *run_method(robot, m, s, DECLARED_PAYLOAD.get(name), name in EXACT_ENCODERS)[:4])
+            rows = [score(s, *run_method(robot, m, s, DECLARED_PAYLOAD.get(name))[:4])
                     for s in streams]
             results[name, m] = {"rmse": float(np.sqrt(np.mean([r["rmse"] ** 2 for r in rows]))),
                                 "late_bad_ok": sum(r["late_bad_ok"] for r in rows),

@@ -8,9 +8,8 @@ model of the same encoder would say, and nothing a window at standstill can meas
 
 :class:`JointStateFilter` is the textbook answer: per joint, a constant-acceleration model (state
 q, qd, qdd; white jerk of spectral density ``s`` [rad^2/s^5]) observed through q with the
-quantization's variance res^2 / 12 (plus any white noise the window measured). Its steady-state gain
-solves the discrete algebraic Riccati equation once, at construction; a call is three small matrix
-products over the joints. The jerk density is set by a bandwidth ``omega`` [rad/s]:
+quantization's variance res^2 / 12. Its steady-state gain solves the discrete algebraic Riccati
+equation once, at construction; a call is one compiled predict-and-correct pass over the joints. The jerk density is set by a bandwidth ``omega`` [rad/s]:
 ``s = r omega^6`` with r = R dt the measurement's noise density, the corner at which the filter's
 position tracking and its measurement noise trade (for a triple integrator the steady-state filter's
 closed-loop poles sit at about omega).
@@ -26,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
-from scipy.linalg import solve_discrete_are
+from scipy.linalg import solve_discrete_are, solve_discrete_lyapunov
 
 # The filter's default bandwidth [rad/s]: 1/omega (~3 ms) is its lag; on the hardware stream of
 # benchmarks/tip_force_stream.py (1e-5 rad, 1 kHz) 300 rad/s served the observers best of 80-800.
@@ -47,15 +46,14 @@ def _model(dt: float):
 
 @dataclass(frozen=True)
 class JointStateDesign:
-    """One steady-state design: rate [Hz], position variance R [rad^2], bandwidth omega [rad/s]; the
-    gain (3,), the posterior covariance P (3, 3) per unit... in rad units, and the one-step transition."""
+    """One steady-state design: rate [Hz], position measurement variance R [rad^2], bandwidth omega [rad/s];
+    the one-step transition A (3, 3) and the steady-state gain (3,) on (q, qd, qdd)."""
 
     rate_hz: float
     variance: float
     omega: float
     A: np.ndarray
     gain: np.ndarray
-    P: np.ndarray
 
     @classmethod
     def solve(cls, rate_hz: float, variance: float, omega: float = DEFAULT_OMEGA) -> "JointStateDesign":
@@ -69,15 +67,7 @@ class JointStateDesign:
         Ti = np.linalg.inv(T)
         P_prior = R * Ti @ P1 @ Ti
         K = (P_prior @ H.T / (H @ P_prior @ H.T + R)).ravel()
-        P_post = (np.eye(3) - np.outer(K, H)) @ P_prior
-        return cls(float(rate_hz), R, float(omega), A, K, P_post)
-
-    def settle_calls(self) -> int:
-        """Calls until a start's transient (an error in q) is below 1 % in every state."""
-        H = np.array([[1.0, 0.0, 0.0]])
-        closed = (np.eye(3) - np.outer(self.gain, H)) @ self.A
-        rho = max(abs(np.linalg.eigvals(closed)))
-        return int(math.ceil(math.log(0.01) / math.log(rho))) if rho < 1 else 10 ** 6
+        return cls(float(rate_hz), R, float(omega), A, K)
 
 
 def joint_state_noise(design: JointStateDesign) -> tuple[float, float]:
@@ -87,8 +77,6 @@ def joint_state_noise(design: JointStateDesign) -> tuple[float, float]:
     H = np.array([[1.0, 0.0, 0.0]])
     closed = (np.eye(3) - np.outer(design.gain, H)) @ design.A
     # x_{k+1} = closed x_k + K v_{k+1}: the stationary covariance solves a discrete Lyapunov equation.
-    from scipy.linalg import solve_discrete_lyapunov
-
     dt = 1.0 / design.rate_hz
     T = np.diag([1.0, dt, dt * dt])  # per-sample units, as in ``solve``
     k = T @ design.gain

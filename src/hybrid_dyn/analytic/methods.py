@@ -37,7 +37,7 @@ from .joint_state import joint_filter_for, with_joint_state_noise
 from .kalman import (SENSORS, KalmanTipForce, channel_factors, increment_stats, window_fusion_noise)
 from .momentum_observer import MomentumObserver
 from .robot import Robot
-from .tare import base_sensor_offset, tare_samples
+from .tare import base_sensor_offset, residual_change, tare_samples, window_force
 from .tip_force import base_wrench_force_core, tip_force_from_base_wrench, tip_force_from_torques
 
 SENSOR_NAMES = {"base_wrench": "base", "tau_J": "joint"}  # an input's name -> the Kalman filter's channel
@@ -370,30 +370,29 @@ def run_batch(method: str | Method, robot: Robot, rate_hz: float, q, qd, base_wr
     out[end:] = stream.batch(q[end:], qd[end:], qdd, after(w_tared), after(tau))
     if not with_sigma:
         return out, used
-    return out, used, _batch_sigma(m, stream, out, end, rate_hz, qdd_joint, error_bar)
+    tared = m.tares and w is not None  # the estimator's drift term runs from the base sensor's tare
+    return out, used, _batch_sigma(m, stream, out, end, rate_hz, qdd_joint, error_bar, tared)
 
 
 def _clean_window(m: Method, robot: Robot, n: int, q, qd, qdd, w, tau, limit: float) -> int | None:
     """The first sample of the first window of n samples that the estimator trusts (``TipForceEstimator``'s
     ``_window_contact``), windows following each other as the estimator starts them; None if none."""
-    from .tare import window_step
-
     check_torques = m.tares and tau is not None and "tau_J" in m.reads
     for s0 in range(0, len(q) - n - 8 + 1, n):
         sl = slice(s0, s0 + n)
         if m.tares and w is not None:
             residual = w[sl] - robot.base_wrench(q[sl], qd[sl], qdd[sl])
-            if window_step(residual[:, :3], limit) is not None:
+            if residual_change(residual[:, :3], limit) is not None:
                 continue
-        if check_torques:
-            f = np.median(tip_force_from_torques(robot, q[sl], qd[sl], qdd[sl], tau[sl]), axis=0)
-            if f.dot(f) > limit * limit:
-                continue
+        seen = tip_force_from_torques(robot, q[sl], qd[sl], qdd[sl], tau[sl]) if check_torques else None
+        if seen is not None and window_force(seen, limit) is not None:
+            continue
         return s0
     return None
 
 
-def _batch_sigma(m: Method, stream: MethodStream, forces, start: int, rate_hz: float, qdd_joint, error_bar):
+def _batch_sigma(m: Method, stream: MethodStream, forces, start: int, rate_hz: float, qdd_joint, error_bar,
+                 tared: bool):
     """The estimator's error bar over a batch run whose method starts at sample ``start``: inf until its
     settling time has passed, then ``ErrorBar`` sample by sample (the same compiled step)."""
     error_bar = error_bar or ErrorBar(rate_hz)
@@ -402,7 +401,7 @@ def _batch_sigma(m: Method, stream: MethodStream, forces, start: int, rate_hz: f
     settle = 0 if m.needs_qdd else stream.settle_calls(m.reads)
     for k in range(start + settle, len(forces)):
         motion = 0.0 if qdd_joint is None else qdd_norm(qdd_joint[k])
-        since = (k - start) / rate_hz if m.tares else None
+        since = (k - start) / rate_hz if tared else None
         sigma[k] = error_bar.update(forces[k], motion, since)
     return sigma
 

@@ -94,11 +94,11 @@ class StreamingTare:
         zero = np.zeros_like(q)
         self.offset += rate * (base_wrench - self.robot.base_wrench_single(q, zero, zero) - self.offset)
 
-    def window_step(self, threshold: float, segments: int = 5) -> float | None:
-        """``window_step`` on this window's residuals, once it is full (None before)."""
+    def residual_change(self, threshold: float, segments: int = 5) -> float | None:
+        """``residual_change`` on this window's residuals, once it is full (None before)."""
         if not self.done:
             return None
-        return window_step(self.residuals, threshold, segments)
+        return residual_change(self.residuals, threshold, segments)
 
     def set_offset(self, offset) -> None:
         """Use a known offset (e.g. from a tare done elsewhere) and skip the tare window."""
@@ -109,7 +109,16 @@ class StreamingTare:
         self.count = self.n_calls
 
 
-def window_step(residuals: np.ndarray, threshold: float, segments: int = 5) -> float | None:
+def window_force(forces: np.ndarray, threshold: float) -> float | None:
+    """The force [N] a window's joint torques see (the median of its per-sample estimates (n, 3)) when it
+    exceeds ``threshold`` [N], else None: a contact held through the whole window, which the base
+    sensor alone cannot tell from its offset."""
+    f = np.median(np.asarray(forces, float), axis=0)
+    seen = math.sqrt(float(f.dot(f)))
+    return seen if seen > threshold else None
+
+
+def residual_change(residuals: np.ndarray, threshold: float, segments: int = 5) -> float | None:
     """The largest change [N] of a window's force residual (measured - model, (n, 3)) between its segments
     when it exceeds ``threshold`` [N], else None: a contact that began or ended inside the window, or a
     trend, which a mean would tare into the offset. Medians (the upper one of an even count) of

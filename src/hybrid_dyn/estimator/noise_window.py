@@ -10,6 +10,7 @@ import numpy as np
 
 from ..analytic.bandwidth import measure_window
 from ..analytic.joint_state import with_joint_state_noise
+from ..analytic.tare import window_force
 from ..analytic.tip_force import tip_force_from_torques
 
 
@@ -46,19 +47,18 @@ class NoiseWindow:
     def contact(self, tare, limit: float) -> str | None:
         """Why this window must not be trusted (a contact in it), or None. The base sensor's residual must
         not change between the window's parts (a contact that began or ended in it, a trend:
-        ``StreamingTare.window_step``); the joint torques, where kept, must see no force above ``limit``
+        ``StreamingTare.residual_change``); the joint torques, where kept, must see no force above ``limit``
         [N] (a contact held through the whole window, which the base sensor alone cannot tell from its
         offset)."""
         if tare is not None and tare.done:
-            step = tare.window_step(limit)
+            step = tare.residual_change(limit)
             if step is not None:
                 return f"the base sensor's residual changed by {step:.2f} N inside the noise window (limit {limit:g} N)"
         has = self.has[:, 1]
-        if self.check_torques and has.sum() >= 8:
-            f = np.median(self.force[has], axis=0)
-            if f.dot(f) > limit * limit:
-                return (f"the joint torques saw {np.linalg.norm(f):.2f} N at the tool during the noise window "
-                        f"(limit {limit:g} N): a contact, or a load the model lacks (payload=)")
+        seen = window_force(self.force[has], limit) if self.check_torques and has.sum() >= 8 else None
+        if seen is not None:
+            return (f"the joint torques saw {seen:.2f} N at the tool during the noise window "
+                    f"(limit {limit:g} N): a contact, or a load the model lacks (payload=)")
         return None
 
     def measure(self, joint):
