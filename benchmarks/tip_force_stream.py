@@ -8,6 +8,7 @@ runs with ``TipForceEstimator.analytic(robot, method)`` defaults, fed every tick
 (and ``payload=`` where the pattern declares the tool's load). Per method and pattern:
 
 - RMSE [N]: the 3-D error over every call after the 0.5 s noise window;
+- edge share: the share of that squared error within 20 ms of a contact's onset or release;
 - late bad ok: calls whose status is ``ok`` with an error over 2 N later than 100 ms after a
   contact's onset or release;
 - ok: the share of calls after the window whose status is ``ok``;
@@ -107,8 +108,10 @@ def score(stream, f, sig, status, accepted, dt=1e-3, window=0.5):
     for e in edges:
         since = np.where(t >= e, np.minimum(since, t - e), since)
     late_bad = int(np.sum(ok & (e3 > 2.0) & (since > 0.1)))
+    sq = e3[after] ** 2
+    edge = float(sq[since[after] < 0.02].sum() / sq.sum()) if sq.sum() > 0 else float("nan")
     inside = np.all(np.abs(err) <= 2 * sig, axis=1)
-    return {"rmse": float(np.sqrt(np.mean(e3[after] ** 2))), "late_bad_ok": late_bad,
+    return {"rmse": float(np.sqrt(np.mean(e3[after] ** 2))), "late_bad_ok": late_bad, "edge": edge,
             "ok": float(ok.sum() / after.sum()), "cover": float(inside[ok].mean()) if ok.any() else float("nan"),
             "accepted": float(accepted.mean())}
 
@@ -121,8 +124,9 @@ def main(argv=None) -> None:
     ap.add_argument("--out", type=Path, default=None, help="write the table here (Markdown)")
     args = ap.parse_args(argv)
     robot = hd.load_robot("panda", num_threads=1)
-    lines = ["| pattern | method | RMSE [N] | late bad ok | ok | 2-sigma | accepted | median call CPU [us] | max call CPU [us] |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| pattern | method | RMSE [N] | edge share | late bad ok | ok | 2-sigma | accepted | median call CPU [us] "
+             "| max call CPU [us] |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for name in args.patterns.split(","):
         cfg = PATTERNS[name]
         streams = [simulate_stream(robot, cfg, seed=100 + s) for s in range(args.streams)]
@@ -133,7 +137,7 @@ def main(argv=None) -> None:
             agg = {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
             agg["rmse"] = float(np.sqrt(np.mean([r["rmse"] ** 2 for r in rows])))
             agg["late_bad_ok"] = int(sum(r["late_bad_ok"] for r in rows))
-            line = (f"| {name} | {m} | {agg['rmse']:.3f} | {agg['late_bad_ok']} | {agg['ok']:.1%} | {agg['cover']:.1%} "
+            line = (f"| {name} | {m} | {agg['rmse']:.3f} | {agg['edge']:.0%} | {agg['late_bad_ok']} | {agg['ok']:.1%} | {agg['cover']:.1%} "
                     f"| {agg['accepted']:.2%} | {np.median(walls) * 1e6:.1f} | {walls.max() * 1e6:.0f} |")
             print(line, flush=True)
             lines.append(line)
