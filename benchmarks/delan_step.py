@@ -23,7 +23,7 @@ PRESETS = ("delan-friction", "delan-residual", "delan")
 def steps_of(ds, names, batch: int):
     """{preset: (step, batch)}: one training step of a freshly initialised model of each preset."""
     from hybrid_dyn.data.windows import WindowedSplit
-    from hybrid_dyn.learn.model import HybridModel
+    from hybrid_dyn.learn.trained_model import HybridModel
     from hybrid_dyn.learn.presets import get_preset
     from hybrid_dyn.learn.training_data import _batches, _stats, field_widths
 

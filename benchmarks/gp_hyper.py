@@ -61,7 +61,7 @@ def timed(fn):
 
 def residual_data(ds, tmp: Path, config):
     from hybrid_dyn.analytic.robot import load_robot
-    from hybrid_dyn.identify.model import IdentifiedModel, identify
+    from hybrid_dyn.identify.identified_model import IdentifiedModel, identify
     from hybrid_dyn.learn.gp import _rows
     from hybrid_dyn.learn.gp_residual import _residual_xy
 
@@ -148,7 +148,7 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         if args.real_panda:
-            from hybrid_dyn.data.real import real_dataset
+            from hybrid_dyn.data.logs.real_logs import real_dataset
 
             run("real-panda", load_dataset(real_dataset("real-panda", tmp / "data")), tmp)
         for d in args.data:

@@ -49,7 +49,7 @@ def write_log_csv(path: Path, seconds: float = 30.0, hz: float = 100.0, seed: in
 
 def import_small_log(csv: Path, out: Path):
     """The CSV imported as the real Panda's spec imports its log (Savitzky-Golay qdd, 10 blocks in time order)."""
-    from hybrid_dyn.data.importer import import_log
+    from hybrid_dyn.data.logs.importer import import_log
 
     cols = {k: [f"{c}{j}" for j in range(1, NV + 1)] for k, c in (("q", "q"), ("qd", "qd"), ("tau_m", "tau"))}
     # qdd: the importer's default derivative, Savitzky-Golay (cubic, 0.11 s), as the real Panda's spec says

@@ -19,7 +19,7 @@ from .errors import HybridDynError
 SUBCOMMAND_MODULES = [
     "hybrid_dyn.analytic.cli",
     "hybrid_dyn.sim.cli",
-    "hybrid_dyn.data.import_cli",
+    "hybrid_dyn.data.logs.cli",
     "hybrid_dyn.estimator.replay_cli",
     "hybrid_dyn.bench.cli",
     "hybrid_dyn.identify.cli",

@@ -15,7 +15,7 @@ Each figure is one of four measurements, and each is taken here, the same way ev
 one block of work, such as generating a dataset.
 
 Callers: the bench's per-row single call (``bench/runner.py``), the streaming runtime's choice
-(``learn/streaming.py``), the training throughput (``learn/speed.py``) and ``benchmarks/*.py``.
+(``learn/stream_predictor.py``), the training throughput (``learn/speed.py``) and ``benchmarks/*.py``.
 """
 from __future__ import annotations
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from hybrid_dyn import TipForceEstimator
-from hybrid_dyn.analytic.estimators import ALIASES, ESTIMATORS
+from hybrid_dyn.analytic.method_names import ALIASES, ESTIMATORS
 from hybrid_dyn.bench.catalog import ROWS
 from hybrid_dyn.deprecation import DeprecatedNameWarning
 from hybrid_dyn.estimator import METHODS

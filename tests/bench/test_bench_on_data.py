@@ -77,7 +77,7 @@ def test_every_row_has_its_cpu_time_and_the_invocation_its_own(bench):
     A trained row's figure is the one its model file recorded (not the CPU of loading it again); a row fitted
     in the bench's process (identified-ols: the identification in its build) has that fit's."""
     from hybrid_dyn.learn import load_model
-    from hybrid_dyn.learn.model import recorded_train_cpu
+    from hybrid_dyn.learn.trained_model import recorded_train_cpu
 
     tmp, _, _ = bench
     with open(tmp / "report" / "results.csv", newline="") as f:

@@ -152,7 +152,7 @@ def test_the_compare_summary_sets_each_variant_report_against_the_reference(tmp_
 
 
 def test_a_real_sets_scenario_overrides_reach_its_import(monkeypatch, tmp_path):
-    from hybrid_dyn.data import real as real_mod
+    from hybrid_dyn.data.logs import real_logs as real_mod
 
     seen = {}
 

@@ -13,8 +13,8 @@ import scipy.io
 
 from hybrid_dyn.cli import main as cli_main
 from hybrid_dyn.data import DatasetError, import_log, load_dataset
-from hybrid_dyn.data.real import real_specs_dir
-from hybrid_dyn.data.importer import (
+from hybrid_dyn.data.logs.real_logs import real_specs_dir
+from hybrid_dyn.data.logs.importer import (
     LogSpecError, MissingColumnError, StrictImportError, TooManyRowsDroppedError, read_spec,
 )
 

@@ -8,7 +8,7 @@ import pytest
 
 from hybrid_dyn.cli import main as cli_main
 from hybrid_dyn.data import import_log, load_dataset
-from hybrid_dyn.data.log_readers import LogReadError
+from hybrid_dyn.data.logs.log_readers import LogReadError
 
 from helpers.logs import sine_log
 
@@ -59,7 +59,7 @@ def test_parquet_unmapped_text_column_is_ignored_and_a_mapped_one_named(tmp_path
     report = import_log(path, tmp_path / "ds", time="t", columns={"q": "q", "qd": "qd", "tau_m": "tau"})
     assert report.rows_kept == 300 and not report.issues
     # Mapped, the text column's cells are named by row (here the time column: every row has no time).
-    from hybrid_dyn.data.importer import TooManyRowsDroppedError
+    from hybrid_dyn.data.logs.importer import TooManyRowsDroppedError
 
     with pytest.raises(TooManyRowsDroppedError, match="no value in t") as err:
         import_log(path, tmp_path / "ds2", time="note", columns={"q": "q", "qd": "qd", "tau_m": "tau"})

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from hybrid_dyn.data import import_log, load_dataset
-from hybrid_dyn.data.importer import LogSpecError, read_spec
+from hybrid_dyn.data.logs.importer import LogSpecError, read_spec
 from hybrid_dyn.data.splits import SplitSpecError
 
 from helpers.logs import CSV_COLUMNS, sine_log, write_csv

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from hybrid_dyn.data import load_dataset, read_spec
-from hybrid_dyn.data.real import RealLogMissingError, missing_real_log, real_dataset, real_spec_path
+from hybrid_dyn.data.logs.real_logs import RealLogMissingError, missing_real_log, real_dataset, real_spec_path
 
 from helpers import REPO
 

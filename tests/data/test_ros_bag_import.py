@@ -10,8 +10,8 @@ import pytest
 
 from hybrid_dyn.cli import main as cli_main
 from hybrid_dyn.data import import_log, load_dataset
-from hybrid_dyn.data.import_spec import LogSpecError, read_spec
-from hybrid_dyn.data.ros_bag import RosBagError
+from hybrid_dyn.data.logs.log_spec import LogSpecError, read_spec
+from hybrid_dyn.data.logs.ros_bag import RosBagError
 
 from helpers.messages import says
 from helpers.ros_bags import PANDA_JOINTS, panda_signals, ros_spec, write_bag
@@ -226,7 +226,7 @@ def test_any_value_in_any_ros_key_ends_in_a_dataset_or_one_error(sig, tmp_path):
     """A small fuzz of the [ros] table (as issue 28's of the spec): never a traceback, never a partial output."""
     import tomllib
 
-    from hybrid_dyn.data.importer import spec_from_dict
+    from hybrid_dyn.data.logs.importer import spec_from_dict
     from hybrid_dyn.errors import HybridDynError
 
     bag = write_bag(tmp_path / "run", sig)

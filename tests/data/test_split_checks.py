@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from hybrid_dyn.input_checks import split_problems
+from hybrid_dyn.data.data_checks import split_problems
 
 from helpers.logs import write_log
 
@@ -22,7 +22,7 @@ from helpers.logs import write_log
     ({"seed": True}, "split seed must be a non-negative integer"),
 ])
 def test_bad_split_settings_are_refused_in_one_line_before_the_log_is_read(tmp_path, split, message):
-    from hybrid_dyn.data.importer import LogSpecError, spec_from_dict
+    from hybrid_dyn.data.logs.importer import LogSpecError, spec_from_dict
 
     doc = {"name": "x", "robot": "panda", "source": {"files": ["missing.csv"]}, "time": {"sample_rate_hz": 100},
            "columns": {"q": "1-7", "tau_m": "8-14"}, "split": split}

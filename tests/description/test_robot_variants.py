@@ -163,7 +163,7 @@ def test_an_unknown_name_is_refused_before_any_data_is_read(tmp_path):
     msg = str(err.value)
     for accepted in ("'ur11'", "panda", "ur10", "kuka-lwr", ".urdf", "[tool=none]"):
         assert accepted in msg
-    from hybrid_dyn.data.importer import import_log, read_spec
+    from hybrid_dyn.data.logs.importer import import_log, read_spec
 
     # The log file does not exist: the robot is checked before it would be opened.
     with pytest.raises(RobotDescriptionError, match="unknown robot 'ur11'"):
@@ -178,7 +178,7 @@ def test_an_unknown_name_is_refused_before_any_data_is_read(tmp_path):
 
 
 def test_an_import_spec_chooses_the_variant(tmp_path):
-    from hybrid_dyn.data.importer import read_spec
+    from hybrid_dyn.data.logs.importer import read_spec
 
     spec = tmp_path / "spec.toml"
     spec.write_text('name = "x"\nrobot = "panda"\ntool = "none"\npayload = { mass = 0.5, offset = [0, 0, 0.1] }\n'
@@ -206,7 +206,7 @@ def test_the_import_cli_chooses_the_tool(tmp_path):
 
 
 def test_spec_paths_of_robot_and_tool_are_relative_to_the_spec(tmp_path):
-    from hybrid_dyn.data.importer import read_spec
+    from hybrid_dyn.data.logs.importer import read_spec
 
     (tmp_path / "arm.urdf").write_text(PENDULUM.format(m=1.0, L=0.2, tip=0.4))
     (tmp_path / "tool.urdf").write_text('<robot name="t"><link name="t_body"/><link name="t_tcp"/><joint name="tj" '

@@ -8,8 +8,8 @@ from hybrid_dyn.data import load_dataset
 from hybrid_dyn.data.synthetic import make_synthetic_dataset
 from hybrid_dyn.estimator import EstimatorStatus, TipForceEstimator, estimate_tip_force
 from hybrid_dyn.learn import TrainConfig, train_model
-from hybrid_dyn.learn.model import ModelError
-from hybrid_dyn.learn.streaming import StreamingModel
+from hybrid_dyn.learn.trained_model import ModelError
+from hybrid_dyn.learn.stream_predictor import StreamingModel
 from hybrid_dyn.sim.sensors import causal_acceleration
 
 RATE = 100.0

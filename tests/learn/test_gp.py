@@ -16,7 +16,7 @@ import pytest
 from hybrid_dyn.data import import_log, load_dataset
 from hybrid_dyn.errors import OutputPathError
 from hybrid_dyn.learn.gp import GPConfig, GPHyperparameters, condition_gp, fit_gp_hyperparameters, load_gp, train_gp
-from hybrid_dyn.learn.model import ModelError
+from hybrid_dyn.learn.trained_model import ModelError
 
 sklearn_gp = pytest.importorskip("sklearn.gaussian_process")
 kernels = pytest.importorskip("sklearn.gaussian_process.kernels")

@@ -16,10 +16,10 @@ import pytest
 from hybrid_dyn.data import import_log, load_dataset
 from hybrid_dyn.data.synthetic import make_synthetic_dataset
 from hybrid_dyn.identify import identify
-from hybrid_dyn.identify.model import IdentifiedModel
+from hybrid_dyn.identify.identified_model import IdentifiedModel
 from hybrid_dyn.learn.gp import load_gp
 from hybrid_dyn.learn.gp_residual import GPResidualConfig, load_gp_residual, train_gp_residual
-from hybrid_dyn.learn.model import ModelError
+from hybrid_dyn.learn.trained_model import ModelError
 
 NV = 7
 SMALL = GPResidualConfig(hyper_rows=200, inducing=300, length_scale_factors=(1.0, 2.0), noise_factors=(1.0, 10.0))

@@ -81,7 +81,7 @@ def test_untrained_residual_on_an_identified_file_is_the_identified_model(identi
     """Through training, the model file and a fresh load: the prior is rebuilt from the config alone."""
     from hybrid_dyn.data.windows import window_index
     from hybrid_dyn.learn import TrainConfig, load_model, train_model
-    from hybrid_dyn.learn.model import ModelError
+    from hybrid_dyn.learn.trained_model import ModelError
 
     ds, model, path = identified_log
     own = tmp_path / "identified.json"

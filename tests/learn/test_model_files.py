@@ -18,7 +18,7 @@ from hybrid_dyn.data.synthetic import make_synthetic_dataset
 from hybrid_dyn.errors import OutputPathError, UsageError
 from hybrid_dyn.learn import ModelError, TrainConfig, load_model, train_model
 from hybrid_dyn.learn import train as train_mod
-from hybrid_dyn.learn.model import config_digest
+from hybrid_dyn.learn.trained_model import config_digest
 from hybrid_dyn.outputs import output_lock
 
 from helpers.resume import killed_then_resumed

@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import pytest
 
-from hybrid_dyn.analytic.estimators import ESTIMATORS, estimator_name
+from hybrid_dyn.analytic.method_names import ESTIMATORS, estimator_name
 from hybrid_dyn.deprecation import DeprecatedNameWarning
 from hybrid_dyn.learn.presets import PRESETS, PRIOR_FINGERPRINT_SPELLING, Preset
 from hybrid_dyn.learn.priors import PRIOR_FIELDS, AnalyticPrior
@@ -74,7 +74,7 @@ def _as_format_2(src, dst):
     """A copy of model folder ``src`` as format 2 wrote it: the older spellings, every digest matching."""
     import shutil
 
-    from hybrid_dyn.learn.model import save_model
+    from hybrid_dyn.learn.trained_model import save_model
 
     shutil.copytree(src, dst)
     model = __import__("hybrid_dyn.learn", fromlist=["load_model"]).load_model(dst)

@@ -253,7 +253,7 @@ def test_tampered_config_is_refused(tip11, tmp_path):
 def test_unknown_or_other_robot_is_refused(tip11, friction_set, tmp_path):
     import shutil
 
-    from hybrid_dyn.learn.model import file_metadata
+    from hybrid_dyn.learn.trained_model import file_metadata
 
     with pytest.raises(ModelError, match="not 'ur5'"):
         load_model(tip11.path, robot="ur5")

@@ -150,7 +150,7 @@ def _check_outcome(run, what: str, allow_report: bool = False):
 @pytest.mark.slow  # a few hundred imports, ~10-20 s on 2 busy cores
 def test_fuzzed_import_specs_end_in_a_dataset_or_one_error(tmp_path):
     from hybrid_dyn.data import import_log, load_dataset
-    from hybrid_dyn.data.importer import spec_from_dict
+    from hybrid_dyn.data.logs.importer import spec_from_dict
 
     rng = np.random.default_rng(SPEC_SEED)
     counts = {"ok": 0, "refused": 0}
@@ -312,7 +312,7 @@ def test_fuzzed_spec_files_end_in_a_dataset_or_one_error(tmp_path):
     """The spec file's text itself: lines dropped, repeated or swapped, characters inserted; read by
     ``hybrid-dyn import --spec`` as a user's file would be (TOML errors included)."""
     from hybrid_dyn.data import import_log, load_dataset
-    from hybrid_dyn.data.importer import read_spec
+    from hybrid_dyn.data.logs.importer import read_spec
 
     rng = np.random.default_rng(SPEC_SEED + 1)
     counts = {"ok": 0, "refused": 0}

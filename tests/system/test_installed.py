@@ -22,8 +22,8 @@ pytestmark = pytest.mark.system
 # the real-panda spec's robot and split, and the robot names the installed descriptions give.
 PROBE = """
 import json, hybrid_dyn as hd
-from hybrid_dyn.data.importer import read_spec
-from hybrid_dyn.data.real import REAL_SETS, missing_real_log, real_spec_path
+from hybrid_dyn.data.logs.importer import read_spec
+from hybrid_dyn.data.logs.real_logs import REAL_SETS, missing_real_log, real_spec_path
 from hybrid_dyn.description import available_robots, data_only_robots, load_spec
 robot = hd.load_robot("panda")
 spec = read_spec(real_spec_path("real-panda"))

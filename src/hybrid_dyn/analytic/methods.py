@@ -10,10 +10,10 @@ it (``prior``), and how to build one stream of it
 
 Everything else is built from :data:`REGISTRY`:
 
-- ``TipForceEstimator.analytic(robot, method=name)`` (``estimator/streaming.py``);
+- ``TipForceEstimator.analytic(robot, method=name)`` (``estimator/tip_force_estimator.py``);
 - the bench's rows ``name`` (the bandwidth by the rule, what the estimator does)
   and ``name-val`` (chosen on validation, a labelled reference) (``bench/analytic_rows.py``);
-- the residual priors (``learn/priors.py``) and ``StreamingModel`` (``learn/streaming.py``).
+- the residual priors (``learn/priors.py``) and ``StreamingModel`` (``learn/stream_predictor.py``).
 
 Adding a method is one class and one :func:`register` call (``tests/analytic/test_methods.py``
 registers a toy one). :func:`run_batch` is what the estimator does over a whole run,
@@ -32,7 +32,7 @@ from .acceleration import (causal_acceleration, cutoff_grid, cutoff_index, defau
 from .bandwidth import WindowNoise, measure_window, observer_gain, observer_settle_calls
 from .base_momentum import BaseMomentumObserver
 from .error_bar import ErrorBar, qdd_norm
-from .estimators import ESTIMATORS
+from .method_names import ESTIMATORS
 from .joint_state import joint_filter_for, with_joint_state_noise
 from .kalman import (SENSORS, KalmanTipForce, channel_factors, increment_stats, window_fusion_noise)
 from .momentum_observer import MomentumObserver

@@ -96,8 +96,8 @@ def _identified(ctx, method: str):
     key = ("identified", method)
     if key in ctx.cache:
         return ctx.cache[key]
-    from ..identify.estimators import ConsistentConfig
-    from ..identify.model import IdentifiedModel, identify
+    from ..identify.least_squares import ConsistentConfig
+    from ..identify.identified_model import IdentifiedModel, identify
 
     data, kwargs, what = _identification_data(ctx)
     robot = ctx.robot

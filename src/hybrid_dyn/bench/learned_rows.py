@@ -25,7 +25,7 @@ import numpy as np
 
 from ..analytic.tare import tare_samples, tared_base_wrench
 from ..errors import UsageError
-from ..learn.model import recorded_train_cpu
+from ..learn.trained_model import recorded_train_cpu
 from ..learn.presets import PRESETS
 from .rows import Predictor, Row, declare, prior_kept_text
 
@@ -112,7 +112,7 @@ def user_single_call(model):
 def _streaming_call(model):
     """``StreamingModel.step`` at the model's record rate, restarted at each run's first sample
     (k = 0) and fed it in order, as ``TipForceEstimator`` feeds it (the sample already validated)."""
-    from ..learn.streaming import StreamingModel
+    from ..learn.stream_predictor import StreamingModel
 
     stream = StreamingModel(model, call_hz=float(model.config["record_hz"]))
 

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..data import DatasetError
 from ..errors import UsageError
-from ..input_checks import empty_split_problems
+from ..data.data_checks import empty_split_problems
 
 
 def check_dataset(profile, label: str, ds, ref) -> None:

@@ -10,7 +10,7 @@ real     the joint-torque models that need no URDF on the three real-robot logs
 
 A profile is data: it names datasets (``scenarios``) and rows. A scenario is a
 name (a simulated scenario of ``sim/scenarios.py``, generated and cached, or a
-real set of ``data/real.py``, imported and cached) or the path of any dataset
+real set of ``data/logs/real_logs.py``, imported and cached) or the path of any dataset
 in the toolkit's format, which is read as it is (:func:`profile_for_data`:
 ``hybrid-dyn bench --data DIR``). Each row runs where it applies; every other
 row is skipped with its reason (:meth:`BenchProfile.skip_reason`).
@@ -147,7 +147,7 @@ class BenchProfile:
         if is_dataset_path(scenario):
             return load_dataset(scenario)
         if scenario.startswith("real-"):
-            from ..data.real import real_dataset
+            from ..data.logs.real_logs import real_dataset
 
             spec = self.scenario_overrides.get(scenario, {})  # e.g. another split of the same log
             return load_dataset(real_dataset(scenario, Path(data_root), log=log, **spec))
@@ -197,7 +197,7 @@ class BenchProfile:
 def is_dataset_path(scenario: str) -> bool:
     """Whether a profile's scenario entry is a dataset path (anything but a simulated scenario's or a
     real set's name)."""
-    from ..data.real import REAL_SETS
+    from ..data.logs.real_logs import REAL_SETS
     from ..sim.scenarios import SCENARIOS
 
     return str(scenario) not in SCENARIOS and str(scenario) not in REAL_SETS

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..input_checks import MOTION_THRESHOLDS, range_of_motion_problems, standstill_problems
+from ..data.data_checks import MOTION_THRESHOLDS, range_of_motion_problems, standstill_problems
 from .metrics import zero_variance_components
 
 IMPLAUSIBLE = "implausible"

@@ -42,7 +42,7 @@ from tqdm.auto import tqdm
 
 from ..analytic.robot import load_robot
 from ..data import Dataset, load_dataset
-from ..data.real import RealLogMissingError
+from ..data.logs.real_logs import RealLogMissingError
 from ..data.splits import dataset_split_text
 from ..errors import UsageError
 from ..outputs import output_lock

@@ -3,8 +3,8 @@ from .dataset import (
     FIELD_UNITS, SPLITS, Dataset, DatasetError, Instance, load_dataset, package_versions, read_manifest,
     split_by_instance, write_instance, write_manifest,
 )
-from .importer import ImportReport, LogImportError, LogSpec, RowIssue, import_log, read_spec
-from .real import REAL_SETS, real_dataset
+from .logs.importer import ImportReport, LogImportError, LogSpec, RowIssue, import_log, read_spec
+from .logs.real_logs import REAL_SETS, real_dataset
 from .windows import WindowedSplit
 
 __all__ = [

@@ -59,7 +59,7 @@ class DerivativeFilter:
     def __post_init__(self):
         if self.method not in METHODS:
             raise UsageError(f"derivative method must be one of {METHODS}, got {self.method!r}")
-        from .spec_checks import is_number
+        from .logs.spec_checks import is_number
 
         if not all(is_number(v) for v in (self.window_s, self.cutoff_hz)) or not all(
                 is_number(v, integer=True) for v in (self.polyorder, self.order)):  # "abc" or nan: a traceback before

@@ -83,7 +83,7 @@ def split_trajectories(spec: SplitSpec, start_times: dict) -> dict:
 
     start_times: trajectory name -> its first sample's time [s] (the order of a time split).
     """
-    from .log_readers import natural_key
+    from .logs.log_readers import natural_key
 
     names = list(start_times)
     if spec.by == "random":

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from ..errors import HybridDynError
-from ..input_checks import urdf_tree_problems
+from .physical_checks import urdf_tree_problems
 
 
 class RobotDescriptionError(HybridDynError, ValueError):

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..input_checks import inertial_problems
+from .physical_checks import inertial_problems
 from .base import RobotDescriptionError
 
 

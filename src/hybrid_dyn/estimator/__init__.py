@@ -24,7 +24,7 @@ from ..analytic.acceleration import (  # noqa: F401  (re-exported: the estimator
 from .batch import estimate_tip_force
 from .config import EstimatorConfig, EstimatorStatus
 from .input import EstimatorInputError, InputGate, RateCheck
-from .streaming import METHOD_ALIASES, METHODS, TipForceEstimator
+from .tip_force_estimator import METHOD_ALIASES, METHODS, TipForceEstimator
 
 __all__ = ["DEFAULT_QDD_CUTOFF_HZ", "METHODS", "METHOD_ALIASES", "CausalAccelerationFilter", "EstimatorConfig",
            "EstimatorInputError", "EstimatorStatus", "InputGate", "RateCheck", "TipForceEstimator", "auto_qdd_cutoff",

@@ -40,7 +40,7 @@ def estimate_tip_force(q, qd, qdd, base_wrench=None, tau_J=None, model=None, rob
             base_wrench = tared_base_wrench(r, np.atleast_2d(q), np.atleast_2d(qd), np.atleast_2d(qdd),
                                             np.atleast_2d(base_wrench), tare_samples)
         return tip_force_from_base_wrench(r, q, qd, qdd, base_wrench)
-    from ..learn.streaming import StreamingModel
+    from ..learn.stream_predictor import StreamingModel
 
     m = model if isinstance(model, StreamingModel) else StreamingModel.load(Path(model))
     return m.predict_arrays(q, qd, qdd, base_wrench, tau_J)

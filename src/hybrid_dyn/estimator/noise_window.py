@@ -2,7 +2,7 @@
 
 What a window holds (a row per call, preallocated: no allocation in a control cycle), whether it may be
 trusted (nothing touched the arm: ``contact``), and the white noise it shows (``measure``). The estimator
-(``estimator/streaming.py``) decides what follows: a refused window starts a new one.
+(``estimator/tip_force_estimator.py``) decides what follows: a refused window starts a new one.
 """
 from __future__ import annotations
 

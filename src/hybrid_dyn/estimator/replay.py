@@ -63,8 +63,8 @@ def replay_log(spec, method: str = "base-momentum", model=None, encoder_resoluti
     or the trained model in folder ``model``); returns the :class:`Replay` and the import report.
     encoder_resolution [rad]: the log's encoders ("auto": the robot description's; 0: exact q and qd)."""
     from ..analytic.robot import load_robot
-    from ..data.importer import checked_segments
-    from .streaming import TipForceEstimator
+    from ..data.logs.importer import checked_segments
+    from .tip_force_estimator import TipForceEstimator
 
     segments, report = checked_segments(spec)
     report.instances = len(segments)  # what an import would write: the report's line reads the same

@@ -20,7 +20,7 @@ def register(sub) -> None:
 
 
 def cmd_estimate(args) -> int:
-    from ..data.importer import read_spec
+    from ..data.logs.importer import read_spec
     from .replay import check_outputs, replay_log, write_estimate
 
     check_outputs(args.out)  # before the log is read: a taken name costs nothing

@@ -7,8 +7,8 @@
 - :mod:`.excitation`: optimized finite-Fourier-series excitation trajectories (CasADi);
 - :mod:`.experiment`: run an excitation trajectory on the DART plant and record it.
 """
-from .estimators import ConsistentConfig, IdentificationError
-from .model import (METHODS, IdentificationData, IdentifiedModel, LinearFriction, friction_from_file,
+from .least_squares import ConsistentConfig, IdentificationError
+from .identified_model import (METHODS, IdentificationData, IdentifiedModel, LinearFriction, friction_from_file,
                     identify)
 from .parameters import check_consistency
 from .regressor import base_parameters, full_regressor, inertial_regressor

@@ -5,7 +5,7 @@ import numpy as np
 
 
 def register(sub) -> None:
-    from .model import METHODS
+    from .identified_model import METHODS
 
     p = sub.add_parser("identify", help="identify inertial and friction parameters from a dataset")
     p.add_argument("--data", required=True, help="dataset directory (toolkit format)")
@@ -31,7 +31,7 @@ def register(sub) -> None:
 def cmd_identify(args) -> int:
     from ..analytic.robot import load_robot
     from ..data import load_dataset
-    from .model import identify
+    from .identified_model import identify
 
     ds = load_dataset(args.data)
     robot = load_robot(args.robot or ds.meta.get("robot", "panda"), tool=args.tool)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..input_checks import MOTION_THRESHOLDS, range_of_motion_problems
+from ..data.data_checks import MOTION_THRESHOLDS, range_of_motion_problems
 from .parameters import N_BODY_PARAMS, to_urdf_form
 
 
@@ -71,7 +71,7 @@ class BodyBounds:
 
 def body_bounds(robot, bounds: PlausibilityBounds = PLAUSIBILITY_BOUNDS) -> list[BodyBounds]:
     """Each joint's body bounds, from the nominal ``robot`` (its merged per-joint masses and frames)."""
-    from .estimators import com_boxes
+    from .least_squares import com_boxes
 
     out = []
     for j, (lo, hi) in enumerate(com_boxes(robot, 0.0)):

@@ -5,7 +5,7 @@ Entry points: :func:`train_model`, :func:`load_model`, the preset registry
 :data:`PRESETS`, :func:`train_gp`, :func:`load_gp`; see ``docs/models.md``.
 """
 from .gp import GPConfig, GPModel, load_gp, train_gp
-from .model import HybridModel, ModelError, TrainedModel, load_model
+from .trained_model import HybridModel, ModelError, TrainedModel, load_model
 from .presets import PRESETS, Preset, get_preset
 from .recipes import TrainConfig
 from .train import train_model

@@ -108,7 +108,7 @@ def cmd_predict(args) -> int:
 
     from ..data import load_dataset
     from ..data.windows import concat_fields
-    from .model import ModelError, load_model
+    from .trained_model import ModelError, load_model
 
     if args.save:
         _check_save_path(args.save, args.overwrite)  # before the work, not after it

@@ -26,7 +26,7 @@ the fitted kernels in words, dataset checksum) and ``model.safetensors`` (the te
 float64: ``x_mean``, ``x_std`` (d,); ``z_train`` (n, d), the standardized conditioning
 inputs; ``alpha`` (nv, n); ``constant`` (nv,), ``length_scale`` (nv, d), ``noise_level``
 (nv,); ``y_mean``, ``y_std`` (nv,)), whose metadata holds the sha256 of the canonical
-config and of the tensors, as for the PyTorch models (``learn/model.py``); ``timing.json``
+config and of the tensors, as for the PyTorch models (``learn/trained_model.py``); ``timing.json``
 holds the wall-clock training time outside both digests. Loading refuses a file that does
 not match its digests, a model of another family, or arrays of inconsistent shapes.
 Nothing is unpickled.
@@ -50,7 +50,7 @@ from scipy.spatial.distance import cdist
 from ..data.dataset import Dataset, load_dataset
 from ..errors import UsageError
 from ..outputs import json_marker, output_lock, refuse_foreign, refuse_foreign_files, unique_temp
-from .model import (METADATA_KEY, TIMING_FORMAT, ModelError, _read_timing, canonical_json, check_instances,
+from .trained_model import (METADATA_KEY, TIMING_FORMAT, ModelError, _read_timing, canonical_json, check_instances,
                     config_digest, read_file_metadata, read_model_config, tensors_digest, timing_doc)
 
 GP_FORMAT = "hybrid_dyn.gp"

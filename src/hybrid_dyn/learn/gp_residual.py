@@ -3,7 +3,7 @@
 tau_m(x) = identified(q, qd, qdd) + r(x),  x = [q, qd, qdd]  [Nm]
 
 The prior is an identified parameter file (``hybrid-dyn identify``: inertials and the friction
-law fitted with them, :class:`~hybrid_dyn.identify.model.IdentifiedModel`); the residual
+law fitted with them, :class:`~hybrid_dyn.identify.identified_model.IdentifiedModel`); the residual
 r = tau_m - prior is one GP per joint (Nguyen-Tuong & Peters, ICRA 2010: the rigid-body model
 as the GP's mean). So that 20 k samples fit on a laptop the GP is sparse: the subset-of-
 regressors / DTC posterior mean on M inducing inputs Z, chosen at random among the training rows
@@ -46,7 +46,7 @@ from ..outputs import output_lock
 from .gp import (GP_FORMAT, GP_FORMAT_VERSION, GPConfig, GPModel, STD_EPS, _inputs, _refuse_foreign_files, _rows,
                  _standardization, fit_gp_hyperparameters, load_gp, save_gp)
 from .gp_marginal import one_blas_thread
-from .model import ModelError, canonical_json, check_instances
+from .trained_model import ModelError, canonical_json, check_instances
 
 FAMILY = "gp-residual"
 CHUNK = 4096  # training rows per kernel block when accumulating K(Z, X) K(X, Z)
@@ -235,7 +235,7 @@ def _sha256(path) -> str:
 
 def load_gp_residual(model_dir, robot=None) -> GPResidualModel:
     """Open a residual GP folder and its prior; refuses a prior file that changed since the fit."""
-    from ..identify.model import IdentifiedModel
+    from ..identify.identified_model import IdentifiedModel
 
     residual = load_gp(model_dir, family=FAMILY)
     prior = residual.config.get("prior")
@@ -253,7 +253,7 @@ def load_gp_residual(model_dir, robot=None) -> GPResidualModel:
 def train_gp_residual(dataset, params, out_dir, config: GPResidualConfig | None = None, robot=None) -> GPResidualModel:
     """Fit the residual GP of the identified parameter file ``params`` on ``dataset``'s train split, choose
     on its val split, write it to ``out_dir``; a finished model of the same run there is returned as is."""
-    from ..identify.model import IdentifiedModel
+    from ..identify.identified_model import IdentifiedModel
 
     config = config or GPResidualConfig()
     ds: Dataset = dataset if isinstance(dataset, Dataset) else load_dataset(dataset)

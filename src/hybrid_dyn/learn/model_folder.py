@@ -14,7 +14,7 @@ from pathlib import Path
 from safetensors import safe_open
 
 from ..outputs import json_marker, refuse_foreign, refuse_foreign_files
-from .model import MODEL_FORMAT, TIMING_FORMAT, ModelError, TrainedModel, load_model, read_file_metadata
+from .trained_model import MODEL_FORMAT, TIMING_FORMAT, ModelError, TrainedModel, load_model, read_file_metadata
 
 
 def _reuse(out_dir: Path, fingerprint: str) -> TrainedModel:

@@ -1,7 +1,7 @@
 """Model files of an older format: reading their estimator spellings, and upgrading them in place.
 
 Model format 3 (issue 30) writes the analytic prior by its canonical estimator name
-(``analytic/estimators.py``: ``base-wrench``, ``momentum-observer``, ``rnea-bw``) in the
+(``analytic/method_names.py``: ``base-wrench``, ``momentum-observer``, ``rnea-bw``) in the
 preset (``preset.prior``) and in the prior's description (``prior.kind``). Formats 1-2 wrote
 the older spellings (``basewrench``, ``momentum``, ``rnea-basewrench``). An older file still
 loads and predicts as before: :func:`read_older_spellings` maps its names once, with one
@@ -13,7 +13,7 @@ from __future__ import annotations
 import warnings
 from pathlib import Path
 
-from ..analytic.estimators import estimator_name
+from ..analytic.method_names import estimator_name
 from ..deprecation import DeprecatedNameWarning
 
 FIRST_CANONICAL_FORMAT = 3  # the first model format that writes the canonical estimator names
@@ -60,7 +60,7 @@ def upgrade_model(model_dir) -> bool:
     folder's output lock, so it never races a training run there.
     """
     from ..outputs import output_lock
-    from .model import MODEL_FORMAT_VERSION, load_model, recorded_train_cpu, save_model
+    from .trained_model import MODEL_FORMAT_VERSION, load_model, recorded_train_cpu, save_model
 
     model_dir = Path(model_dir)
     with output_lock(model_dir, "model folder"):

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, replace
 
-from ..analytic.estimators import estimator_name
+from ..analytic.method_names import estimator_name
 from ..errors import UsageError
 from .kinds import KINDS, preset_problems  # noqa: F401  (KINDS re-exported: the network kinds' names)
 
@@ -27,7 +27,7 @@ STATE = ["q", "qd", "qdd"]
 TIP_INPUTS = ["base_wrench", "q", "qd", "qdd"]
 TIP_INPUTS_TAU = TIP_INPUTS + ["tau_J"]
 
-# The analytic estimators a residual can sit on, by their one name (analytic/estimators.py): the two
+# The analytic estimators a residual can sit on, by their one name (analytic/method_names.py): the two
 # torque models, and the tip-force methods registered as priors (analytic/methods.py).
 TORQUE_PRIORS = ("rnea", "rnea-bw")
 

@@ -15,7 +15,7 @@ an identified one):
 - any tip-force method registered with ``prior=True`` (``analytic/methods.py``): its
   batch run from its one definition, at the bandwidth ``observer_gain``
 
-The kinds are the estimators' one name (``analytic/estimators.py``); the older
+The kinds are the estimators' one name (``analytic/method_names.py``); the older
 spellings ``rnea-basewrench``, ``basewrench`` and ``momentum`` are accepted with a
 warning. Model files (from format 3) and cache file names write the canonical names;
 the cache keys and training fingerprints keep hashing the older spellings
@@ -55,7 +55,7 @@ import h5py
 import numpy as np
 import pinocchio as pin
 
-from ..analytic.estimators import estimator_name
+from ..analytic.method_names import estimator_name
 from ..analytic.methods import REGISTRY, add_listener
 from ..analytic.tare import tare_samples, tared_base_wrench
 from ..analytic.tip_force import base_wrench_force_core, contact_joint_torques, tip_force_from_base_wrench
@@ -114,7 +114,7 @@ class AnalyticPrior:
         self.observer_gain = float(observer_gain)
         self.fields = PRIOR_FIELDS[kind]
         self._single = None
-        from ..identify.model import friction_from_dict, read_identified_file
+        from ..identify.identified_model import friction_from_dict, read_identified_file
 
         identified = None if str(robot.params_name) in robot.spec.param_sets else read_identified_file(robot.params_name)
         # The identified file's digest: its inertials are in the prior's values, and the path alone

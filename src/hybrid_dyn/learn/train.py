@@ -57,7 +57,7 @@ from ..data.windows import WindowedSplit
 from ..errors import UsageError
 from ..outputs import output_lock
 from .checkpoints import _load_checkpoint, _restore_optimizer, _save_checkpoint
-from .model import (MODEL_FORMAT, MODEL_FORMAT_VERSION, HybridModel, ModelError, TrainedModel, canonical_json,
+from .trained_model import (MODEL_FORMAT, MODEL_FORMAT_VERSION, HybridModel, ModelError, TrainedModel, canonical_json,
                     check_instances, load_model, save_model)
 from .kinds import clips_gradients  # declared with the network kind
 from .model_folder import _refuse_foreign_files, _reuse

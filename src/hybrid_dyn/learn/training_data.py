@@ -11,7 +11,7 @@ import torch
 
 from ..data import Dataset
 from ..data.windows import WindowedSplit
-from .model import HybridModel, ModelError
+from .trained_model import HybridModel, ModelError
 
 STD_FLOOR = 1e-6  # a (nearly) constant column is scaled by 1, not blown up
 

@@ -44,7 +44,7 @@ import optuna
 
 from ..data import Dataset, load_dataset
 from ..errors import UsageError
-from .model import canonical_json
+from .trained_model import canonical_json
 from .kinds import SPACE, network_kind  # noqa: F401  (SPACE re-exported: the searched values)
 from .presets import Preset, get_preset
 from .recipes import TrainConfig

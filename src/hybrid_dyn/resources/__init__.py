@@ -3,7 +3,7 @@
 - ``robots/``: the robot descriptions (``<name>.toml``, ``data_only.toml``) and their
   published parameter sets (``params/*.json``); read by :mod:`hybrid_dyn.description`.
 - ``real/``: the import specs of the real-robot logs (``*.toml``) and the three public logs
-  that ship with them (``real/logs``, 4.7 MB); read by :mod:`hybrid_dyn.data.real`.
+  that ship with them (``real/logs``, 4.7 MB); read by :mod:`hybrid_dyn.data.logs.real_logs`.
 
 They live here rather than at the repository's root so that an installed toolkit (a wheel,
 ``pip install .``) carries them: before issue 30 they were found through the source file's

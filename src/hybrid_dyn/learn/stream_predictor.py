@@ -32,7 +32,7 @@ from ..analytic.tare import StreamingTare, tare_samples, tared_runs
 from ..data.windows import window_index
 from ..errors import UsageError
 from ..timing import median_call_us
-from .model import ModelError, TrainedModel, load_model
+from .trained_model import ModelError, TrainedModel, load_model
 from .priors import AnalyticPrior
 
 RANGE_SIGMAS = 5.0

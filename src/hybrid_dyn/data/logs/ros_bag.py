@@ -2,7 +2,7 @@
 
 A spec's ``[ros]`` table (:class:`RosTopics`) names the topics; :func:`read_bags` turns each bag into
 one :class:`RosTable` with the columns the spec maps (``t``, ``q[1..n]``, ``qd``, ``tau_m`` and/or
-``tau_J`` (``effort``), ``base_wrench[1..6]``, ``tip_force[1..3]``), and the importer's own checks (``import_checks.py``) run
+``tau_J`` (``effort``), ``base_wrench[1..6]``, ``tip_force[1..3]``), and the importer's own checks (``log_validation.py``) run
 on it exactly as on a CSV file: a row is one ``/joint_states`` message (row 1 = the first).
 
 The time base (stated in the import report):
@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .import_spec import RESAMPLE_RULES, WRENCH_TOPICS, LogImportError, RosTopics  # noqa: F401 (re-exported)
+from .log_spec import RESAMPLE_RULES, WRENCH_TOPICS, LogImportError, RosTopics  # noqa: F401 (re-exported)
 from .log_readers import LogReadError, LogTable
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
@@ -62,14 +62,14 @@ def read_bags(spec, report) -> list[RosTable]:
 
 def _robot_names(spec) -> tuple[list, str | None]:
     """The joint names to match (the robot's order) and the robot's base-sensor frame name."""
-    from ..description import resolve_robot
+    from ...description import resolve_robot
 
     if not resolve_robot(spec.robot).described:
         if spec.ros.joints is None:
             raise RosBagError(f"robot {spec.robot!r} has no description to match joint names against: "
                               "give them in order as [ros] joints = [...]")
         return list(spec.ros.joints), None
-    from ..analytic.robot import load_robot
+    from ...analytic.robot import load_robot
 
     robot = load_robot(spec.robot)
     joints = list(spec.ros.joints) if spec.ros.joints is not None else list(robot.joint_names)

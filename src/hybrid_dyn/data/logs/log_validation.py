@@ -13,9 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..input_checks import angle_unit_problems, channel_problems
+from ..data_checks import angle_unit_problems, channel_problems
 from .import_report import ImportReport, RowIssue
-from .import_spec import ANGLE_SIGNALS, JOINT_SIGNALS, TIME_UNITS, LogSpec, LogSpecError, MissingColumnError
+from .log_spec import ANGLE_SIGNALS, JOINT_SIGNALS, TIME_UNITS, LogSpec, LogSpecError, MissingColumnError
 from .log_readers import LogTable, read_log
 
 @dataclass
@@ -93,11 +93,11 @@ def _robot_limits(spec: LogSpec, nv: int):
     """Per-joint (lower, upper) q bounds [rad]: the robot's limits widened by ``limit_margin`` if it has a
     description (both sides: the Panda's joint 4 lies in [-3.07, -0.07], not within +-3.07), else
     +-``q_abs_max``."""
-    from ..description import resolve_robot
+    from ...description import resolve_robot
 
     if not resolve_robot(spec.robot).described:
         return np.full(nv, -spec.checks.q_abs_max), np.full(nv, spec.checks.q_abs_max)
-    from ..analytic.robot import load_robot
+    from ...analytic.robot import load_robot
 
     robot = load_robot(spec.robot)
     if robot.nv != nv:
@@ -157,7 +157,7 @@ def channel_warnings(segments: list, spec: LogSpec) -> list[str]:
     """One-line warnings naming each joint whose logged channel carries nothing over all kept rows: constant
     (q, qd, torques), or for a torque, far below its joint's scale (``[checks] channel_scale_factor`` times the
     joints' median; the scale is the robot's effort limit [Nm] when it has a description, else 1 Nm for every
-    joint). ``input_checks.channel_problems`` says how."""
+    joint). ``data_checks.channel_problems`` says how."""
     if not segments:
         return []
     names, effort = _robot_names_and_effort(spec, segments[0].fields["q"].shape[1])
@@ -173,11 +173,11 @@ def channel_warnings(segments: list, spec: LogSpec) -> list[str]:
 
 def _robot_names_and_effort(spec: LogSpec, nv: int):
     """The robot's joint names and effort limits [Nm] (nv,) when it has a description, else (None, None)."""
-    from ..description import resolve_robot
+    from ...description import resolve_robot
 
     if not resolve_robot(spec.robot).described:
         return None, None
-    from ..analytic.robot import load_robot
+    from ...analytic.robot import load_robot
 
     robot = load_robot(spec.robot)
     effort = np.asarray(robot.model.effortLimit, float)

@@ -13,7 +13,7 @@ import pytest
 
 import hybrid_dyn as hd
 from hybrid_dyn.description import RobotDescriptionError, read_param_file, resolve_robot, robots_dir
-from hybrid_dyn.input_checks import inertial_problems, urdf_tree_problems
+from hybrid_dyn.description.physical_checks import inertial_problems, urdf_tree_problems
 
 from helpers.timelimit import time_limit
 
@@ -44,7 +44,7 @@ def test_a_urdf_with_a_joint_cycle_is_refused_at_once_not_walked_forever(tmp_pat
 
 def test_the_bench_and_import_refuse_a_cyclic_robot_before_reading_data(tmp_path):
     from hybrid_dyn.bench.profiles import profile_for_data
-    from hybrid_dyn.data.importer import LogSpec
+    from hybrid_dyn.data.logs.importer import LogSpec
 
     cyc = urdf(tmp_path, ["base", "a", "b"], [("j0", "base", "a"), ("j1", "a", "b"), ("j2", "b", "a")], "cyc.urdf")
     with time_limit(10, "bench profile"), pytest.raises(RobotDescriptionError, match="joint cycle|child of two"):

@@ -26,9 +26,9 @@ def register(sub) -> None:
 
 
 def cmd_import(args) -> int:
-    from ..description import parse_robot_name, resolve_robot
+    from ...description import parse_robot_name, resolve_robot
     from .importer import import_log, read_spec
-    from .real import REAL_SETS, real_spec_path
+    from .real_logs import REAL_SETS, real_spec_path
 
     # A shipped set by name: its spec lives inside the installed package, whose path a user need not know.
     path = real_spec_path(args.spec) if args.spec in REAL_SETS and not Path(args.spec).exists() else args.spec

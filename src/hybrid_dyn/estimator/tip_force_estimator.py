@@ -107,7 +107,7 @@ import numpy as np
 
 from ..analytic.acceleration import CausalAccelerationFilter, cutoff_grid, default_qdd_cutoff
 from ..analytic.error_bar import ErrorBar, qdd_norm
-from ..analytic.estimators import ALIASES, estimator_name
+from ..analytic.method_names import ALIASES, estimator_name
 from ..analytic.joint_state import joint_filter_for, with_joint_state_noise
 from ..analytic.kalman import MAX_BRIDGE_CALLS
 from ..analytic.methods import REGISTRY, spec_noise
@@ -211,7 +211,7 @@ class TipForceEstimator:
         runs: "auto" (the faster of onnxruntime and numba, timed at load), "onnx"
         (float32) or "numba" (float64: agrees with the batch form to round-off).
         """
-        from ..learn.streaming import StreamingModel
+        from ..learn.stream_predictor import StreamingModel
 
         if payload is not None:
             # A learned model's network learnt the arm it was trained on: a load it never saw is no input it

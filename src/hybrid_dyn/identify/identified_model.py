@@ -31,7 +31,7 @@ from ..analytic.robot import InputError, Robot, as_batch, load_robot
 from ..description import GazFriction, RobotDescriptionError
 from ..errors import UsageError
 from ..outputs import unique_temp
-from . import estimators as est
+from . import least_squares as est
 from .parameters import N_BODY_PARAMS, check_consistency, to_urdf_form
 from .plausibility import fit_warnings
 from .regressor import (DEFAULT_COULOMB_EPS, BaseParameters, base_parameters, friction_regressor,

@@ -14,15 +14,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..input_checks import empty_split_problems
-from ..outputs import refuse_foreign, unique_temp
-from .dataset import FIELD_UNITS, package_versions, sha256_file, write_instance, write_manifest
-from .derivatives import differentiate
-from .import_checks import Segment
+from ..data_checks import empty_split_problems
+from ...outputs import refuse_foreign, unique_temp
+from ..dataset import FIELD_UNITS, package_versions, sha256_file, write_instance, write_manifest
+from ..derivatives import differentiate
+from .log_validation import Segment
 from .import_report import ImportReport
-from .import_spec import LogImportError, LogSpec, LogSpecError
+from .log_spec import LogImportError, LogSpec, LogSpecError
 from .log_readers import natural_key
-from .splits import split_trajectories
+from ..splits import split_trajectories
 
 IMPORTER_VERSION = 1  # bump when the importer's algorithm changes what a spec and its logs produce
 

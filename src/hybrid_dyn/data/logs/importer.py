@@ -22,9 +22,9 @@ The importer then
    of one trajectory are in one split: at random, in time order or as listed,
    :mod:`.splits`) with the report in the manifest.
 
-By concept: the spec and the importer's errors in :mod:`.import_spec`, the report in
-:mod:`.import_report`, steps 1-2 in :mod:`.import_checks`, steps 3-4 in
-:mod:`.import_writer`; this module runs them (:func:`import_log`) and keeps every
+By concept: the spec and the importer's errors in :mod:`.log_spec`, the report in
+:mod:`.import_report`, steps 1-2 in :mod:`.log_validation`, steps 3-4 in
+:mod:`.log_writer`; this module runs them (:func:`import_log`) and keeps every
 name importable from here.
 
 Units after import are the toolkit's SI units (``FIELD_UNITS``): t [s], q [rad],
@@ -37,16 +37,16 @@ import json
 import re
 from pathlib import Path
 
-from ..outputs import output_lock
-from .dataset import sha256_file
-from .import_checks import validate_log
+from ...outputs import output_lock
+from ..dataset import sha256_file
+from .log_validation import validate_log
 # The importer's public names, by concept: the spec, the report, the checks, the writer.
 from .import_report import DROP_KINDS, SPLIT_KINDS, ImportReport, RowIssue  # noqa: F401
-from .import_spec import (  # noqa: F401
+from .log_spec import (  # noqa: F401
     ANGLE_SIGNALS, JOINT_SIGNALS, SIGNALS, TIME_UNITS, TRAJECTORY_MODES, LogImportError, LogSpec, LogSpecError,
     MissingColumnError, StrictImportError, TooManyRowsDroppedError, ValidationChecks, read_spec, spec_from_dict,
 )
-from .import_writer import IMPORTER_VERSION, check_replaceable, write_dataset
+from .log_writer import IMPORTER_VERSION, check_replaceable, write_dataset
 
 
 def import_log(source, out, *, overwrite: bool = False, strict: bool = False, **spec_args) -> ImportReport:
@@ -65,7 +65,7 @@ def import_log(source, out, *, overwrite: bool = False, strict: bool = False, **
     ``overwrite``, and only when it is a hybrid-dyn dataset holding nothing but its
     own files (anything else is refused, named). One import per ``out`` at a time
     (``outputs.output_lock``). ``strict``: fail on any row issue and on any channel that carries nothing
-    (``import_checks.channel_warnings``: a joint's torque 0 throughout).
+    (``log_validation.channel_warnings``: a joint's torque 0 throughout).
     """
     is_spec = isinstance(source, LogSpec) or (isinstance(source, (str, Path)) and Path(source).suffix == ".toml")
     if is_spec and spec_args:
@@ -91,7 +91,7 @@ def _import_locked(spec: "LogSpec", out: Path, overwrite: bool, strict: bool) ->
 
 
 def checked_segments(spec: "LogSpec", strict: bool = False) -> tuple[list, "ImportReport"]:
-    """The log read and checked (``import_checks.validate_log``) and refused as an import refuses it (strict,
+    """The log read and checked (``log_validation.validate_log``) and refused as an import refuses it (strict,
     too many rows dropped, nothing left): its kept segments and the report. ``hybrid-dyn estimate`` replays
     these, so that it reads exactly what an import of the same spec would write."""
     report = ImportReport(spec.name)

@@ -13,11 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..input_checks import split_problems
-from .dataset import DatasetError
-from .derivatives import DerivativeFilter
+from ..data_checks import split_problems
+from ..dataset import DatasetError
+from ..derivatives import DerivativeFilter
 from .spec_checks import spec_type_problems
-from .splits import SPLIT_NAMES, SplitSpec
+from ..splits import SPLIT_NAMES, SplitSpec
 
 # Signals a spec may map: the dataset fields (but t) and the next-sample columns.
 SIGNALS = ("q", "qd", "qdd", "tau_m", "tau_J", "base_wrench", "tip_force", "q_next", "qd_next")
@@ -61,7 +61,7 @@ class ValidationChecks:
     spec) is systematically wrong. ``timebase_tol``: relative disagreement
     between d(q)/dt and the logged qd that raises a warning. ``channel_scale_factor``: a joint's torque
     channel whose spread, relative to its joint's effort limit, is below this fraction of the joints'
-    median is warned of as dead (``input_checks.channel_problems``; a constant channel always is).
+    median is warned of as dead (``data_checks.channel_problems``; a constant channel always is).
     """
 
     q_abs_max: float = 2 * np.pi
@@ -174,7 +174,7 @@ class LogSpec:
 
 
     def __post_init__(self):
-        from ..description import resolve_robot
+        from ...description import resolve_robot
 
         # The robot first, before anything is read: one RobotDescriptionError listing the names
         # accepted; a variant's name is made canonical ("panda[tool=hand]" is "panda").
@@ -332,7 +332,7 @@ def spec_from_dict(doc: dict, base_dir=".", spec_file=None) -> LogSpec:
     if isinstance(tool, str) and Path(tool).suffix == ".urdf":
         tool = str(expand(tool))
     if tool is not None or "payload" in doc:  # the variant, folded into the robot's name
-        from ..description import resolve_robot
+        from ...description import resolve_robot
 
         robot = resolve_robot(robot, tool=tool, payload=doc.get("payload")).name
     try:

@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..resources import resource_dir
-from .dataset import DatasetError, load_dataset
+from ...resources import resource_dir
+from ..dataset import DatasetError, load_dataset
 from .importer import import_log, read_spec, spec_checksum
 
 REAL_SETS = {"real-kuka": "kuka.toml", "real-baxter": "baxter.toml", "real-sarcos": "sarcos.toml",

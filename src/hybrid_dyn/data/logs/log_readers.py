@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .dataset import DatasetError
+from ..dataset import DatasetError
 
 FORMATS = ("csv", "npz", "mat", "parquet")
 
