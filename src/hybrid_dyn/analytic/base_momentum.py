@@ -195,24 +195,6 @@ class BaseMomentumObserver:
         return f, r
 
 
-def base_momentum_tip_force(robot: Robot, q, qd, tared_wrench, dt: float, gain: float = 20.0,
-                            n_tare: int = 0, moment_weight: float = 0.0) -> np.ndarray:
-    """The base momentum observer over one run as a stream computes it: (N, 3) [N].
-
-    The first ``n_tare`` samples are the tare window (the estimate is 0 there);
-    the observer starts at the first sample after it, so that no offset of the
-    still-running tare lingers in its state. ``tared_wrench``: the run's base
-    wrench with the tare's offset removed [N, Nm] (N, 6). The one definition the
-    bench row, the residual prior and ``TipForceEstimator`` share.
-    """
-    q = np.asarray(q, float)
-    out = np.zeros((len(q), 3))
-    if n_tare < len(q):
-        obs = BaseMomentumObserver(robot, gain=gain, dt=dt, moment_weight=moment_weight)
-        out[n_tare:] = obs.run(q[n_tare:], np.asarray(qd, float)[n_tare:], np.asarray(tared_wrench, float)[n_tare:])[0]
-    return out
-
-
 @njit(cache=True)
 def _observer_step(state, started, hg, c, mg, R, w, gain, dt):  # pragma: no cover (compiled)
     """One observer update (``BaseMomentumObserver.step_unchecked``). state rows: H(0), the integral,

@@ -19,7 +19,7 @@ Older spellings (:data:`ALIASES`: ``basewrench`` and ``base_wrench``, ``torques`
 ``momentum``, ``base_momentum``, ``kalman_fusion``, ``rnea-basewrench``) mean the same
 estimator, and are accepted with a warning (``deprecation.DeprecatedNameWarning``) that names
 the canonical one. Model files write the canonical names since format 3 (issue 30); an older
-file's spellings are read by ``learn.model.load_model``, which warns once per file instead.
+file's spellings are read by ``learn.trained_model.load_model``, which warns once per file instead.
 """
 from __future__ import annotations
 

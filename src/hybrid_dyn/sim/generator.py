@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..data.dataset import FIELD_UNITS, DatasetError, manifest_text, package_versions, read_manifest, split_by_instance
+from ..data.dataset import FIELD_UNITS, DatasetError, manifest_text, package_versions, split_by_instance
 from ..data.store import DatasetStore
 from ..errors import OutputPathError, UsageError
 from ..outputs import output_lock, refuse_foreign
@@ -186,11 +186,3 @@ def _generate_locked(config, store, workers, progress, executor, log, tqdm, lock
         "tracking_error": _tracking_summary(ordered),
     }))
     return store.local if store.local is not None else store.location
-
-
-def verify_dataset_config(out_dir, config: GeneratorConfig) -> bool:
-    """True when ``out_dir`` holds a finished dataset of exactly ``config``."""
-    try:
-        return read_manifest(Path(out_dir)).get("config_hash") == config.config_hash()
-    except DatasetError:
-        return False

@@ -249,7 +249,7 @@ class LogSpec:
 
     @property
     def split_spec(self) -> SplitSpec:
-        """The ``[split]`` section: how trajectories go to train, val and test (``splits.py``)."""
+        """The ``[split]`` section: how trajectories go to train, val and test (``data/splits.py``)."""
         return SplitSpec(self.split_by, self.split_seed, self.test_frac, self.val_frac, dict(self.split_lists))
 
     def to_dict(self) -> dict:
@@ -347,7 +347,7 @@ def spec_from_dict(doc: dict, base_dir=".", spec_file=None) -> LogSpec:
             derivatives=DerivativeFilter(**doc.get("derivatives", {})),
             checks=ValidationChecks(**doc.get("checks", {})),
             split_seed=split.get("seed", 0), test_frac=split.get("test_frac", 0.2), val_frac=split.get("val_frac", 0.2),
-            # Lists of trajectories imply by = "list"; a "by" that contradicts them is refused (splits.py).
+            # Lists of trajectories imply by = "list"; a "by" that contradicts them is refused (data/splits.py).
             split_by=split.get("by", "list" if lists else "random"), split_lists=lists,
             spec_file=str(spec_file) if spec_file else None,
             ros=dict(doc["ros"]) if "ros" in doc else None,

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...description import joint_limits, resolve_robot
 from ..data_checks import angle_unit_problems, channel_problems
 from .import_report import ImportReport, RowIssue
 from .log_spec import ANGLE_SIGNALS, JOINT_SIGNALS, TIME_UNITS, LogSpec, LogSpecError, MissingColumnError
@@ -89,21 +90,24 @@ def _trajectories(spec: LogSpec, tables: list[LogTable]) -> list[tuple[str, LogT
     return [(re.sub(r"[^A-Za-z0-9_.-]", "_", n), t, r) for n, t, r in out]
 
 
+def _described_joints(spec: LogSpec):
+    """The moving joints of the log's robot and their limits (:class:`~hybrid_dyn.description.JointLimits`),
+    or None for a robot known for data only."""
+    ref = resolve_robot(spec.robot)
+    return joint_limits(ref.spec) if ref.described else None
+
+
 def _robot_limits(spec: LogSpec, nv: int):
     """Per-joint (lower, upper) q bounds [rad]: the robot's limits widened by ``limit_margin`` if it has a
     description (both sides: the Panda's joint 4 lies in [-3.07, -0.07], not within +-3.07), else
     +-``q_abs_max``."""
-    from ...description import resolve_robot
-
-    if not resolve_robot(spec.robot).described:
+    joints = _described_joints(spec)
+    if joints is None:
         return np.full(nv, -spec.checks.q_abs_max), np.full(nv, spec.checks.q_abs_max)
-    from ...analytic.robot import load_robot
-
-    robot = load_robot(spec.robot)
-    if robot.nv != nv:
-        raise LogSpecError(f"robot {spec.robot!r} has {robot.nv} joints but the log maps {nv}")
+    if joints.nv != nv:
+        raise LogSpecError(f"robot {spec.robot!r} has {joints.nv} joints but the log maps {nv}")
     margin = spec.checks.limit_margin
-    return np.maximum(robot.q_lower, -1e3) - margin, np.minimum(robot.q_upper, 1e3) + margin
+    return np.maximum(joints.lower, -1e3) - margin, np.minimum(joints.upper, 1e3) + margin
 
 
 def validate_log(spec: LogSpec, report: ImportReport) -> tuple[list, list]:
@@ -173,16 +177,12 @@ def channel_warnings(segments: list, spec: LogSpec) -> list[str]:
 
 def _robot_names_and_effort(spec: LogSpec, nv: int):
     """The robot's joint names and effort limits [Nm] (nv,) when it has a description, else (None, None)."""
-    from ...description import resolve_robot
-
-    if not resolve_robot(spec.robot).described:
+    joints = _described_joints(spec)
+    if joints is None:
         return None, None
-    from ...analytic.robot import load_robot
-
-    robot = load_robot(spec.robot)
-    effort = np.asarray(robot.model.effortLimit, float)
-    ok = robot.nv == nv and len(effort) == nv and np.all(np.isfinite(effort) & (effort > 0))
-    return (robot.joint_names if robot.nv == nv else None), (effort if ok else None)
+    effort = joints.effort
+    ok = joints.nv == nv and np.all(np.isfinite(effort) & (effort > 0))
+    return (joints.names if joints.nv == nv else None), (effort if ok else None)
 
 
 def _extract(spec: LogSpec, table: LogTable, rows: np.ndarray):

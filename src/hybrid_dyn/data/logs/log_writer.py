@@ -28,7 +28,7 @@ IMPORTER_VERSION = 1  # bump when the importer's algorithm changes what a spec a
 
 
 def _derive(spec: LogSpec, seg: Segment) -> dict:
-    """A segment's fields with qd (when not logged) and qdd (unless logged) estimated (``derivatives.py``)."""
+    """A segment's fields with qd (when not logged) and qdd (unless logged) estimated (``data/derivatives.py``)."""
     f = dict(seg.fields)
     flt = spec.derivatives
     if "qdd" in f:
@@ -110,7 +110,7 @@ def _build(spec: LogSpec, segments: list, report: ImportReport, partial: Path) -
     for seg in segments:
         by_traj.setdefault(seg.trajectory, []).append(seg)
     # The split first: fractions that leave a split empty are refused before any instance is written.
-    # Each trajectory's first sample time [s]: the order of a time split (splits.py).
+    # Each trajectory's first sample time [s]: the order of a time split (data/splits.py).
     traj_split = split_trajectories(spec.split_spec, {k: min(float(s.fields["t"][0]) for s in v)
                                                       for k, v in by_traj.items()})
     empty = empty_split_problems(traj_split) if len(by_traj) >= 3 else []  # fewer: warned below

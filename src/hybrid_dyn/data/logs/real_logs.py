@@ -19,7 +19,6 @@ import os
 from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
 
 from ...resources import resource_dir
 from ..dataset import DatasetError, load_dataset
@@ -97,22 +96,3 @@ def real_dataset(name: str, cache_dir, /, log=None, **spec_overrides) -> Path:
     if log:
         log(report.text(3))
     return path
-
-
-def target_statistics(dataset, field: str = "tau_m", split: str = "test") -> dict:
-    """Per-joint mean, standard deviation and variance of a target over a split.
-
-    nMSE = MSE / variance (per joint) is the figure SARCOS results are quoted in;
-    the variance of the *test* targets is the usual normaliser. Units: those of
-    the field (Nm, Nm^2 for torques).
-    """
-    y = np.concatenate([np.asarray(inst[field], np.float64) for inst in dataset.split(split)])
-    return {"split": split, "field": field, "n_samples": len(y), "mean": y.mean(axis=0).tolist(),
-            "std": y.std(axis=0).tolist(), "variance": y.var(axis=0).tolist()}
-
-
-def nmse_per_joint(pred: np.ndarray, target: np.ndarray, variance=None) -> np.ndarray:
-    """MSE / variance per column; ``variance`` defaults to that of ``target``."""
-    target = np.asarray(target, np.float64)
-    var = target.var(axis=0) if variance is None else np.asarray(variance, np.float64)
-    return np.mean((np.asarray(pred, np.float64) - target) ** 2, axis=0) / var

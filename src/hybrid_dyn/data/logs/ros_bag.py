@@ -62,20 +62,19 @@ def read_bags(spec, report) -> list[RosTable]:
 
 def _robot_names(spec) -> tuple[list, str | None]:
     """The joint names to match (the robot's order) and the robot's base-sensor frame name."""
-    from ...description import resolve_robot
+    from ...description import joint_limits, resolve_robot
 
-    if not resolve_robot(spec.robot).described:
+    ref = resolve_robot(spec.robot)
+    if not ref.described:
         if spec.ros.joints is None:
             raise RosBagError(f"robot {spec.robot!r} has no description to match joint names against: "
                               "give them in order as [ros] joints = [...]")
         return list(spec.ros.joints), None
-    from ...analytic.robot import load_robot
-
-    robot = load_robot(spec.robot)
-    joints = list(spec.ros.joints) if spec.ros.joints is not None else list(robot.joint_names)
+    robot = joint_limits(ref.spec)
+    joints = list(spec.ros.joints) if spec.ros.joints is not None else list(robot.names)
     if len(joints) != robot.nv:
         raise RosBagError(f"[ros] joints names {len(joints)} joints, robot {spec.robot!r} has {robot.nv}")
-    return joints, robot.spec.base_sensor_frame
+    return joints, ref.spec.base_sensor_frame
 
 
 def _open(path: Path):
