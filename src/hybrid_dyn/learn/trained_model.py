@@ -22,7 +22,8 @@ byte-identical config and weights). Loading refuses a config or tensors that do
 not match their digests, a file older than the tensor digest, a robot the model
 needs a description of and the toolkit lacks, or a robot other than the one
 asked for. Nothing is unpickled. A file of an older format that spells its prior the
-old way loads with one warning (``model_upgrade.py``, which also upgrades it).
+old way loads with one warning (``model_spellings.py``; ``model_upgrade.py`` upgrades it).
+The file handling every model family shares is ``model_file.py``.
 """
 from __future__ import annotations
 
@@ -46,7 +47,7 @@ from .priors import AnalyticPrior
 
 MODEL_FORMAT = "hybrid_dyn.model"
 # 2: tensor digest in the metadata, wall-clock figures in timing.json; 3: the analytic prior by its
-# canonical estimator name (issue 30; older spellings are read with a warning, model_upgrade.py).
+# canonical estimator name (issue 30; older spellings are read with a warning, model_spellings.py).
 MODEL_FORMAT_VERSION = 3
 # What training writes into a model folder besides the model's files: checkpoints (``checkpoints.py``).
 _OWN_TEMPORARY = re.compile(r"(model\.safetensors|config\.json|timing\.json|checkpoint\.safetensors|checkpoint\.json)"
