@@ -29,6 +29,9 @@ again. The autograd form is kept as the oracle of the tests and of
 Friction, which the Lagrangian cannot hold, is a separate term: the Gaz et al.
 (2019) sigmoid law with learnable per-joint parameters kept positive by
 softplus (:class:`LearnedGazFriction`).
+
+The network kind ``delan`` (DeLaN, its friction, and an optional residual branch of a net kind) is
+declared at the end of this module, in the kind registry (``learn/kind_registry.py``).
 """
 from __future__ import annotations
 
@@ -38,7 +41,8 @@ import torch
 from torch import nn
 from torch.func import grad, jvp
 
-from .nets import glorot_init
+from .kind_registry import DELAN_PARTS, SPACE, NetworkKind, build_net, register
+from .nets import fast_path, glorot_init
 
 
 def _mlp(n_in: int, hidden: tuple, n_out: int) -> nn.Sequential:
@@ -228,3 +232,31 @@ class LearnedGazFriction(nn.Module):
     def forward(self, qd: torch.Tensor) -> torch.Tensor:
         p1, p2, p3 = self.phi1, self.phi2, self.phi3
         return p1 * (torch.sigmoid(p2 * (qd + p3)) - torch.sigmoid(p2 * p3))
+
+
+# ------------------------------------------------------------ the kind
+def _build_delan(p, n_in, n_out, widths):
+    """DeLaN, its learned friction, and a residual branch of a net kind (ReLU)."""
+    nv = widths["q"]
+    if list(p.inputs[:3]) != ["q", "qd", "qdd"] or n_out != nv:
+        raise ValueError(f"preset {p.name!r}: DeLaN needs inputs q, qd, qdd first and joint-torque targets")
+    delan = DeepLagrangianNetwork(nv, p.delan_hidden, p.delan_eps)
+    friction = LearnedGazFriction(nv) if p.friction else None
+    net = None
+    if p.residual_kind:
+        net = build_net(p.residual_kind, n_in, n_out, p.window, p.front_units, p.fc_layers, p.fc_units, "relu",
+                        p.conv_kernel)
+    return {"delan": delan, "friction": friction, "net": net}
+
+
+def _search_delan(trial, base) -> dict:
+    depth = trial.suggest_categorical("delan_layers", SPACE["delan_layers"])
+    width = trial.suggest_categorical("delan_units", SPACE["delan_units"])
+    return {"delan_hidden": (width,) * depth}
+
+
+# Budgeted steps and cost rank: see the note above the net kinds (``nets.py``); a DeLaN with a
+# residual net counts as DeLaN.
+register(NetworkKind("delan", "Deep Lagrangian Network: H = L L^T + eps I, V(q); c, g by autograd",
+                     build=_build_delan, fast=fast_path("delan_fast"), clips_gradients=False, cost_rank=2,
+                     search=_search_delan, budget_steps=16000, sequence=False, needs_front=False, parts=DELAN_PARTS))

@@ -5,7 +5,7 @@ PyTorch spends most of such a call in dispatch (about 250 us for a 2-layer LSTM
 on one core here); the arithmetic is a few thousand multiply-adds. This module
 copies a trained network's weights into float64 arrays once and evaluates them
 with small numba-compiled kernels (MLP, conv, LSTM; each kind names its front
-here in its declaration, ``learn/kinds.py``): a few microseconds for an
+here in its declaration, ``learn/nets.py`` and ``learn/delan.py``): a few microseconds for an
 MLP, ~25-40 us here for residual-base-momentum's 10-step, 32-unit LSTM window,
 whose exp calls and ~75 k multiply-adds are most of it. Results agree with the
 PyTorch path in float64 to 1e-13 (tests/learn/test_fastpath.py).
@@ -15,6 +15,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 from torch import nn
+
+from .kind_registry import fast_net_front
 
 _ACT = {nn.ReLU: 1, nn.Tanh: 2}
 
@@ -145,11 +147,9 @@ def delan_fast(parts):
 
 class FastNet:
     """A float64 copy of a net kind's network for single windows (L, F) -> (n_out,): its front as the
-    kind declares it (``learn/kinds.py``: ``fast``), then the shared FC head (:func:`_dense_stack`)."""
+    kind declares it (``learn/kind_registry.py``: ``fast``), then the shared FC head (:func:`_dense_stack`)."""
 
     def __init__(self, net: nn.Module):
-        from .kinds import fast_net_front
-
         if not hasattr(net, "kind") or not hasattr(net, "head"):
             raise TypeError(f"no fast path for {type(net).__name__}: not a net kind's network (kind, head)")
         self.kind = net.kind

@@ -26,7 +26,7 @@ the fitted kernels in words, dataset checksum) and ``model.safetensors`` (the te
 float64: ``x_mean``, ``x_std`` (d,); ``z_train`` (n, d), the standardized conditioning
 inputs; ``alpha`` (nv, n); ``constant`` (nv,), ``length_scale`` (nv, d), ``noise_level``
 (nv,); ``y_mean``, ``y_std`` (nv,)), whose metadata holds the sha256 of the canonical
-config and of the tensors, as for the PyTorch models (``learn/trained_model.py``); ``timing.json``
+config and of the tensors, as for the PyTorch models (both written by ``learn/model_file.py``); ``timing.json``
 holds the wall-clock training time outside both digests. Loading refuses a file that does
 not match its digests, a model of another family, or arrays of inconsistent shapes.
 Nothing is unpickled.
@@ -34,8 +34,6 @@ Nothing is unpickled.
 from __future__ import annotations
 
 import hashlib
-import json
-import os
 import re
 import time
 from dataclasses import asdict, dataclass, fields
@@ -43,21 +41,34 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from safetensors import safe_open
 from safetensors.numpy import save_file
 from scipy.spatial.distance import cdist
 
 from ..data.dataset import Dataset, load_dataset
 from ..errors import UsageError
-from ..outputs import json_marker, output_lock, refuse_foreign, refuse_foreign_files, unique_temp
-from .trained_model import (METADATA_KEY, TIMING_FORMAT, ModelError, _read_timing, canonical_json, check_instances,
-                    config_digest, read_file_metadata, read_model_config, tensors_digest, timing_doc)
+from ..outputs import output_lock, unique_temp
+from .model_file import ModelError, ModelFiles, SavedModel, canonical_json, tensors_digest
+from .trained_model import check_instances
 
 GP_FORMAT = "hybrid_dyn.gp"
 GP_FORMAT_VERSION = 1
 TENSORS = ("x_mean", "x_std", "z_train", "alpha", "constant", "length_scale", "noise_level", "y_mean", "y_std")
 STD_EPS = 1e-9  # added to each input's standard deviation: a constant input must not divide by zero
 PREDICT_CHUNK = 1024  # samples per kernel block: 1024 x rows x 8 bytes (64 MB at 8000 rows)
+
+
+def _digest(tensors: dict) -> str:
+    """The tensor digest of the PyTorch models (``model_file.tensors_digest``: name, dtype, shape, bytes),
+    on numpy arrays."""
+    return tensors_digest({k: torch.from_numpy(np.ascontiguousarray(v)) for k, v in tensors.items()})
+
+
+# A GP's files: those of every model family (``model_file.py``), its tensors numpy arrays, written through
+# per-run temporaries (``outputs.unique_temp``).
+_OWN_TEMPORARY = re.compile(r"(model\.safetensors|config\.json|timing\.json)\.partial\.\d+\.[0-9a-f]{8}")
+GP_FILES = ModelFiles(GP_FORMAT, GP_FORMAT_VERSION, "GP model", framework="np", save_tensors=save_file,
+                      digest=_digest, temporary=unique_temp, own_temporary=_OWN_TEMPORARY, saved_with="tensors",
+                      redo="refit", run_differs="config or data", choose="output folder")
 
 
 @dataclass
@@ -211,21 +222,20 @@ def _describe(tensors: dict) -> list[str]:
 
 # --------------------------------------------------------------------------- the model
 
-class GPModel:
-    """A fitted GP with the API of the PyTorch models (``TrainedModel``).
+class GPModel(SavedModel):
+    """A fitted GP with the API of the PyTorch models (``TrainedModel``; both :class:`SavedModel`).
 
     ``predict(instances)``: one (T, nv) array per instance [Nm], every sample.
     ``predict_rows(x)``: (N, d) raw inputs -> (N, nv). ``config``: the dict in config.json.
     """
 
     window = 1
+    FILES = GP_FILES
 
     def __init__(self, tensors: dict, config: dict, path: Path | None = None, train_seconds: float | None = None):
         _check_tensors(tensors, path or "GP model")
+        super().__init__(config, path, train_seconds)
         self.tensors = tensors
-        self.config = config
-        self.path = path
-        self._train_seconds = train_seconds
         # Training inputs divided by each joint's length scales, once (as the kernel divides them).
         self._z_scaled = [tensors["z_train"] / ls for ls in tensors["length_scale"]]
 
@@ -245,19 +255,6 @@ class GPModel:
     def n_params(self) -> int:
         """Stored numbers the prediction uses (the training inputs and alpha dominate)."""
         return int(sum(t.size for t in self.tensors.values()))
-
-    @property
-    def train_seconds(self) -> float:
-        """Wall-clock training time [s] (timing.json; NaN when it is not known)."""
-        return float("nan") if self._train_seconds is None else float(self._train_seconds)
-
-    @property
-    def val_loss(self) -> float:
-        return float(self.config.get("val_loss", float("nan")))
-
-    @property
-    def history(self) -> list:
-        return []  # no epochs: a GP is fitted, not trained in steps
 
     def predict_rows(self, x: np.ndarray) -> np.ndarray:
         """Posterior mean (N, nv) [target units] at raw inputs x (N, d), in blocks of PREDICT_CHUNK rows."""
@@ -325,36 +322,12 @@ def _check_tensors(tensors: dict, where) -> None:
 
 # --------------------------------------------------------------------------- files
 
-def _metadata(config: dict, tensors: dict) -> dict:
-    """safetensors metadata: one canonical-JSON key, as ``learn.model.file_metadata`` writes for nets."""
-    return {METADATA_KEY: canonical_json({"format": GP_FORMAT, "format_version": GP_FORMAT_VERSION,
-                                          "config_sha256": config_digest(config),
-                                          "tensors_sha256": _digest(tensors)})}
-
-
-def _digest(tensors: dict) -> str:
-    """The tensor digest of ``learn.model.tensors_digest`` (name, dtype, shape, bytes), on numpy arrays."""
-    return tensors_digest({k: torch.from_numpy(np.ascontiguousarray(v)) for k, v in tensors.items()})
-
-
 def save_gp(model: GPModel, model_dir, train_seconds: float | None = None,
             train_cpu_seconds: float | None = None) -> None:
     """Write model.safetensors, timing.json (when ``train_seconds``; with ``train_cpu_seconds`` [s] when
     known) and config.json, each through a
     per-run temporary and renamed into place; config.json last, so a folder with it is complete."""
-    model_dir = Path(model_dir)
-    model_dir.mkdir(parents=True, exist_ok=True)
-    wpath, cpath, tpath = model_dir / "model.safetensors", model_dir / "config.json", model_dir / "timing.json"
-    wtmp, ctmp = unique_temp(wpath), unique_temp(cpath)
-    save_file(model.tensors, str(wtmp), metadata=_metadata(model.config, model.tensors))
-    ctmp.write_text(json.dumps(model.config, indent=1, sort_keys=True))
-    os.replace(wtmp, wpath)
-    if train_seconds is not None:
-        ttmp = unique_temp(tpath)
-        ttmp.write_text(json.dumps(timing_doc(config_digest(model.config), train_seconds, train_cpu_seconds),
-                                   indent=1))
-        os.replace(ttmp, tpath)
-    os.replace(ctmp, cpath)
+    GP_FILES.write(model_dir, model.tensors, model.config, train_seconds, train_cpu_seconds)
 
 
 def load_gp(model_dir, family: str = "gp") -> GPModel:
@@ -364,7 +337,7 @@ def load_gp(model_dir, family: str = "gp") -> GPModel:
     that do not match the digests saved with them."""
     model_dir = Path(model_dir)
     cpath, wpath = model_dir / "config.json", model_dir / "model.safetensors"
-    config = read_model_config(model_dir, "GP model")
+    config = GP_FILES.read_config(model_dir)
     if not isinstance(config, dict) or config.get("format") != GP_FORMAT:
         found = config.get("format") if isinstance(config, dict) else type(config).__name__
         raise ModelError(f"{model_dir} is not a GP model ({cpath} has format {found!r}, expected {GP_FORMAT!r}); "
@@ -378,24 +351,15 @@ def load_gp(model_dir, family: str = "gp") -> GPModel:
         raise ModelError(f"{cpath}: GP format_version must be an integer, got {version!r} (edited?)")
     if version > GP_FORMAT_VERSION:
         raise ModelError(f"{cpath}: GP format version {version} is newer than this toolkit's ({GP_FORMAT_VERSION})")
-    try:
-        with safe_open(str(wpath), framework="np") as f:
-            meta = read_file_metadata(f.metadata() or {})
-            tensors = {k: f.get_tensor(k) for k in f.keys()}
-    except Exception as err:  # safetensors raises its own error types
-        raise ModelError(f"{wpath} is corrupt: {err}") from err
+    meta, tensors = GP_FILES.read_tensors(model_dir)
     if meta.get("format") != GP_FORMAT:
         raise ModelError(f"{wpath} is not a GP model file (its metadata has format {meta.get('format')!r})")
-    if meta.get("config_sha256") != config_digest(config):
-        raise ModelError(f"{cpath} does not match the tensors it was saved with (edited or tampered); refusing to load")
-    if meta.get("tensors_sha256") != _digest(tensors):
-        raise ModelError(f"{wpath}: its tensors do not match the sha256 saved with them (corrupted or edited); "
-                         f"refusing to load; refit or restore the file")
+    GP_FILES.check_config_digest(model_dir, config, meta)
+    GP_FILES.check_tensors_digest(model_dir, meta, tensors)
     bad = sorted(k for k, v in tensors.items() if v.dtype != np.float64 or not np.isfinite(v).all())
     if bad:
         raise ModelError(f"{wpath}: tensors {bad} are not finite float64")
-    return GPModel(tensors, config, path=model_dir, train_seconds=_read_timing(model_dir / "timing.json",
-                                                                               config_digest(config)))
+    return GPModel(tensors, config, path=model_dir, train_seconds=GP_FILES.train_seconds(model_dir, config))
 
 
 # --------------------------------------------------------------------------- training on a dataset
@@ -455,39 +419,9 @@ def _fit_locked(ds: Dataset, out_dir: Path, config: GPConfig, fingerprint: str) 
 
 
 def _reuse(out_dir: Path, fingerprint: str) -> GPModel:
-    if json_marker(out_dir / "config.json", "format") is None:  # a user's config.json, not a model's
-        refuse_foreign(out_dir, "GP model folder", f"its config.json lacks the format {GP_FORMAT!r}")
-    model = load_gp(out_dir)
-    if model.config.get("fingerprint") != fingerprint:
-        raise ModelError(f"{out_dir} holds a finished GP model of another run (other config or data); "
-                         "choose another output folder or delete it")
-    return model
-
-
-# What a GP fit writes into its folder: the three files and their per-run temporaries.
-_OWN_TEMPORARY = re.compile(r"(model\.safetensors|config\.json|timing\.json)\.partial\.\d+\.[0-9a-f]{8}")
-
-
-def _is_own(path: Path) -> bool:
-    """Whether ``path`` (in a GP folder without config.json) is something a GP fit wrote: proof by content."""
-    if not path.is_file():
-        return False
-    if _OWN_TEMPORARY.fullmatch(path.name):
-        return True
-    if path.name == "model.safetensors":  # killed between writing the tensors and the config
-        try:
-            with safe_open(str(path), framework="np") as f:
-                return read_file_metadata(f.metadata() or {}).get("format") == GP_FORMAT
-        except Exception:  # unreadable is simply not ours
-            return False
-    if path.name == "timing.json":
-        try:
-            return json.loads(path.read_text()).get("format") == TIMING_FORMAT
-        except (OSError, ValueError, AttributeError):
-            return False
-    return False
+    return GP_FILES.reuse(out_dir, fingerprint, load_gp)
 
 
 def _refuse_foreign_files(out_dir: Path) -> None:
-    """An output folder must be missing, empty, or hold only what a GP fit writes."""
-    refuse_foreign_files(out_dir, "GP model folder", _is_own)
+    """An output folder must be missing, empty, or hold only what a GP fit writes (``ModelFiles.is_own``)."""
+    GP_FILES.refuse_foreign_files(out_dir)

@@ -1,67 +1,31 @@
-"""Model files of an older format: reading their estimator spellings, and upgrading them in place.
+"""Model files of an older format, upgraded in place: :func:`upgrade_model`.
 
-Model format 3 (issue 30) writes the analytic prior by its canonical estimator name
-(``analytic/method_names.py``: ``base-wrench``, ``momentum-observer``, ``rnea-bw``) in the
-preset (``preset.prior``) and in the prior's description (``prior.kind``). Formats 1-2 wrote
-the older spellings (``basewrench``, ``momentum``, ``rnea-basewrench``). An older file still
-loads and predicts as before: :func:`read_older_spellings` maps its names once, with one
-warning that names the upgrade, and :func:`upgrade_model` rewrites the folder in format 3 (the
-same weights and training fingerprint, so a bench or ``train`` run still reuses it).
+Formats 1-2 spelled the analytic prior's estimator the old way (``model_spellings.py``, which
+also reads them when such a file is loaded, with a warning that names this upgrade). The upgrade
+rewrites the folder in format 3 with canonical names: the same weights and training fingerprint,
+so a bench or ``train`` run still reuses it. It sits above the model (it loads and saves one);
+nothing below imports it.
 """
 from __future__ import annotations
 
 import warnings
 from pathlib import Path
 
-from ..analytic.method_names import estimator_name
 from ..deprecation import DeprecatedNameWarning
-
-FIRST_CANONICAL_FORMAT = 3  # the first model format that writes the canonical estimator names
-
-
-def older_spellings(config: dict) -> dict:
-    """``{where: (spelled, canonical)}`` for each estimator name ``config`` (a config.json) spells the old way."""
-    found = {}
-    places = (("preset.prior", (config.get("preset") or {}).get("prior")),
-              ("prior.kind", (config.get("prior") or {}).get("kind")))
-    for where, name in places:
-        if isinstance(name, str):
-            canonical = estimator_name(name, warn=False)  # an unknown name is refused here, named
-            if canonical != name:
-                found[where] = (name, canonical)
-    return found
-
-
-def read_older_spellings(config: dict, model_dir) -> dict:
-    """``config`` with its estimator names canonical; a warning when an older file spelled them otherwise."""
-    found = older_spellings(config)
-    if not found:
-        return config
-    names = ", ".join(f"{where} {old!r} (now {new!r})" for where, (old, new) in found.items())
-    warnings.warn(f"model {model_dir} is model format {config.get('format_version', 1)}, which spells the "
-                  f"estimators the old way: {names}. It loads and predicts as before; "
-                  f"hybrid_dyn.learn.model_upgrade.upgrade_model({str(model_dir)!r}) rewrites it in format "
-                  f"{FIRST_CANONICAL_FORMAT} (the same weights and training fingerprint)",
-                  DeprecatedNameWarning, stacklevel=3)
-    config = {**config, "preset": dict(config["preset"])}
-    if "preset.prior" in found:
-        config["preset"]["prior"] = found["preset.prior"][1]
-    if "prior.kind" in found:
-        config["prior"] = {**config["prior"], "kind": found["prior.kind"][1]}
-    return config
+from ..outputs import output_lock
+from .model_file import recorded_train_cpu
+from .model_spellings import FIRST_CANONICAL_FORMAT, older_spellings, read_older_spellings  # noqa: F401  (re-exported)
+from .trained_model import MODEL_FORMAT_VERSION, load_model, save_model
 
 
 def upgrade_model(model_dir) -> bool:
     """Rewrite the model folder ``model_dir`` in the current model format with canonical estimator names.
 
     The weights, the training fingerprint and every other field stay; the digests in the weights'
-    metadata and timing.json are written again for the new config.json (``model.save_model``, each
+    metadata and timing.json are written again for the new config.json (``trained_model.save_model``, each
     file atomically). Returns whether anything was rewritten (False: already canonical). Holds the
     folder's output lock, so it never races a training run there.
     """
-    from ..outputs import output_lock
-    from .trained_model import MODEL_FORMAT_VERSION, load_model, recorded_train_cpu, save_model
-
     model_dir = Path(model_dir)
     with output_lock(model_dir, "model folder"):
         with warnings.catch_warnings():

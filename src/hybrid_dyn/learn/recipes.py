@@ -198,8 +198,8 @@ class TrainConfig:
 
 LR_SCHEDULES = ("plateau", "none", "cosine")
 
-# Optimizer steps of the budgeted recipe per network kind: declared with each kind (learn/kinds.py,
-# where the budget study's numbers are explained); BUDGET_STEPS reads them (kind -> steps).
+# Optimizer steps of the budgeted recipe per network kind: declared with each kind (learn/nets.py,
+# where the budget study's numbers are explained, and learn/delan.py); BUDGET_STEPS reads them (kind -> steps).
 
 
 def budget_steps_of(preset: Preset) -> int:

@@ -22,84 +22,44 @@ byte-identical config and weights). Loading refuses a config or tensors that do
 not match their digests, a file older than the tensor digest, a robot the model
 needs a description of and the toolkit lacks, or a robot other than the one
 asked for. Nothing is unpickled. A file of an older format that spells its prior the
-old way loads with one warning (``model_upgrade.py``, which also upgrades it).
+old way loads with one warning (``model_spellings.py``; ``model_upgrade.py`` upgrades it).
+The file handling every model family shares is ``model_file.py``.
 """
 from __future__ import annotations
 
-import hashlib
-import json
-import os
+import re
 from pathlib import Path
 
 import numpy as np
 import torch
-from safetensors import safe_open
 from safetensors.torch import save_file
 from torch import nn
 
 from ..data.windows import concat_fields, window_index
-from ..errors import HybridDynError
 from .kinds import build_parts, network_kind
+from .model_file import (METADATA_KEY, TIMING_FORMAT, ModelError, ModelFiles, SavedModel, canonical_json,  # noqa: F401
+                         config_digest, partial, read_file_metadata, read_model_config, read_timing,
+                         recorded_train_cpu, tensors_digest, timing_doc)  # (re-exported: imported from here before)
+from .model_spellings import read_older_spellings
 from .presets import Preset
 from ..analytic.tare import tared_runs
 from .priors import AnalyticPrior
 
 MODEL_FORMAT = "hybrid_dyn.model"
 # 2: tensor digest in the metadata, wall-clock figures in timing.json; 3: the analytic prior by its
-# canonical estimator name (issue 30; older spellings are read with a warning, model_upgrade.py).
+# canonical estimator name (issue 30; older spellings are read with a warning, model_spellings.py).
 MODEL_FORMAT_VERSION = 3
-TIMING_FORMAT = "hybrid_dyn.model-timing"
-
-
-class ModelError(HybridDynError, ValueError):
-    """A model directory is missing, tampered with, or does not fit the robot or data."""
-
-
-def canonical_json(obj) -> str:
-    return json.dumps(obj, sort_keys=True, separators=(",", ":"))
-
-
-def config_digest(config: dict) -> str:
-    return hashlib.sha256(canonical_json(config).encode()).hexdigest()
-
-
-def tensors_digest(tensors: dict) -> str:
-    """sha256 over every tensor's name, dtype, shape and raw bytes, in name order.
-
-    Stored in the safetensors metadata: a flipped bit anywhere in the weights or
-    the normalization buffers changes it (the config digest does not see them).
-    """
-    h = hashlib.sha256()
-    for name in sorted(tensors):
-        t = tensors[name].detach().cpu().contiguous()
-        h.update(f"{name}:{t.dtype}:{list(t.shape)};".encode())
-        h.update(t.reshape(-1).view(torch.uint8).numpy().tobytes())
-    return h.hexdigest()
-
-
-METADATA_KEY = "hybrid_dyn"
+# What training writes into a model folder besides the model's files: checkpoints (``checkpoints.py``).
+_OWN_TEMPORARY = re.compile(r"(model\.safetensors|config\.json|timing\.json|checkpoint\.safetensors|checkpoint\.json)"
+                            r"\.partial")
+MODEL_FILES = ModelFiles(MODEL_FORMAT, MODEL_FORMAT_VERSION, "model", framework="pt", save_tensors=save_file,
+                         digest=tensors_digest, temporary=partial, own_temporary=_OWN_TEMPORARY, saved_with="weights",
+                         redo="retrain", run_differs="preset, config or data", choose="--out")
 
 
 def file_metadata(config: dict, tensors: dict) -> dict:
-    """The safetensors metadata of a model file: one key holding canonical JSON.
-
-    One key because safetensors writes several in hash-map order, which differs
-    between processes: the file of two identical runs would differ in its header.
-    """
-    return {METADATA_KEY: canonical_json({"format": MODEL_FORMAT, "format_version": MODEL_FORMAT_VERSION,
-                                          "config_sha256": config_digest(config),
-                                          "tensors_sha256": tensors_digest(tensors)})}
-
-
-def read_file_metadata(meta: dict) -> dict:
-    """format, config_sha256 and (from format 2 on) tensors_sha256 of a model file's metadata."""
-    if METADATA_KEY in meta:
-        try:
-            doc = json.loads(meta[METADATA_KEY])
-        except ValueError:
-            return {}
-        return doc if isinstance(doc, dict) else {}
-    return {k: meta[k] for k in ("format", "config_sha256") if k in meta}  # format 1: two plain keys
+    """The safetensors metadata of a model file (``ModelFiles.metadata``): one key holding canonical JSON."""
+    return MODEL_FILES.metadata(config, tensors)
 
 
 def check_instances(instances, fields, widths: dict, who: str) -> None:
@@ -177,23 +137,23 @@ class HybridModel(nn.Module):
         return torch.mean(((y_pred - y) / self.y_std) ** 2)
 
 
-class TrainedModel:
+class TrainedModel(SavedModel):
     """A trained model with the uniform API the bench harness and the streaming estimator use.
 
     ``predict(instances)``: one (T, n_out) array per instance, physical units, every
     sample (sequence models edge-padded, see ``hybrid_dyn.data.windows``).
     ``predict_window(x, prior=None)``: one raw window (L, n_in) -> (n_out,).
     ``config``: the dict stored in config.json. ``n_params``, ``train_seconds``,
-    ``history`` (per-epoch train/val loss), ``val_loss`` (standardized MSE).
+    ``history`` (per-epoch train/val loss), ``val_loss`` (standardized MSE): see :class:`SavedModel`.
     """
+
+    FILES = MODEL_FILES
 
     def __init__(self, module: HybridModel, config: dict, path: Path | None = None,
                  train_seconds: float | None = None):
+        super().__init__(config, path, train_seconds)
         self.module = module.eval()
-        self.config = config
-        self._train_seconds = train_seconds
         self.preset = Preset.from_dict(config["preset"])
-        self.path = path
         self._robot = None
         self._prior = None
         self._fast = None
@@ -202,21 +162,6 @@ class TrainedModel:
     @property
     def n_params(self) -> int:
         return sum(p.numel() for p in self.module.parameters())
-
-    @property
-    def train_seconds(self) -> float:
-        """Wall-clock training time [s] (timing.json; NaN when it is not known)."""
-        if self._train_seconds is not None:
-            return float(self._train_seconds)
-        return float(self.config.get("train_seconds", float("nan")))  # format 1 kept it in the config
-
-    @property
-    def history(self) -> list:
-        return self.config.get("history", [])
-
-    @property
-    def val_loss(self) -> float:
-        return float(self.config.get("val_loss", float("nan")))
 
     @property
     def inputs(self) -> list:
@@ -369,68 +314,13 @@ def save_model(module: HybridModel, config: dict, model_dir, train_seconds: floa
                train_cpu_seconds: float | None = None) -> None:
     """Write model.safetensors (config and tensor digests in its metadata), timing.json
     (train_seconds, when given, and train_cpu_seconds, the CPU time training took [s], when known)
-    and config.json, each atomically.
+    and config.json, each atomically (``ModelFiles.write``).
 
     Only what the digests cover is reproducible, so wall-clock figures stay out of
     config.json and the metadata: two identical runs write byte-identical files.
     """
-    model_dir = Path(model_dir)
-    model_dir.mkdir(parents=True, exist_ok=True)
     tensors = {k: v.detach().cpu().contiguous() for k, v in module.state_dict().items()}
-    digest = config_digest(config)
-    tmp = model_dir / "model.safetensors.partial"
-    save_file(tensors, str(tmp), metadata=file_metadata(config, tensors))
-    ctmp = model_dir / "config.json.partial"
-    ctmp.write_text(json.dumps(config, indent=1, sort_keys=True))
-    # Weights first, config last: a model dir with config.json is complete.
-    os.replace(tmp, model_dir / "model.safetensors")
-    if train_seconds is not None:
-        ttmp = model_dir / "timing.json.partial"
-        ttmp.write_text(json.dumps(timing_doc(digest, train_seconds, train_cpu_seconds), indent=1))
-        os.replace(ttmp, model_dir / "timing.json")
-    os.replace(ctmp, model_dir / "config.json")
-
-
-def timing_doc(digest: str, train_seconds: float, train_cpu_seconds: float | None = None) -> dict:
-    """timing.json's content: wall-clock training time [s] and, when measured, its CPU time [s]."""
-    doc = {"format": TIMING_FORMAT, "config_sha256": digest, "train_seconds": float(train_seconds)}
-    if train_cpu_seconds is not None and np.isfinite(train_cpu_seconds):
-        doc["train_cpu_seconds"] = float(train_cpu_seconds)
-    return doc
-
-
-def _read_timing(path: Path, digest: str, key: str = "train_seconds") -> float | None:
-    """``key`` (train_seconds, train_cpu_seconds) from timing.json when it belongs to this config (None
-    otherwise: a model trained before the figure was recorded lacks train_cpu_seconds)."""
-    try:
-        doc = json.loads(path.read_text())
-        if doc.get("format") == TIMING_FORMAT and doc.get("config_sha256") == digest:
-            return float(doc[key])
-    except (OSError, ValueError, KeyError, TypeError, AttributeError):
-        pass  # a lost or foreign timing file only loses a figure no result depends on
-    return None
-
-
-def recorded_train_cpu(model) -> float:
-    """The CPU time [s] a saved model's training took (its timing.json), NaN when not recorded
-    (a model without a folder, or trained before issue 40)."""
-    path = getattr(model, "path", None)
-    if path is None:
-        return float("nan")
-    cpu = _read_timing(Path(path) / "timing.json", config_digest(model.config), "train_cpu_seconds")
-    return float("nan") if cpu is None else cpu
-
-
-def read_model_config(model_dir: Path, what: str):
-    """The parsed config.json of a finished model folder (config.json and model.safetensors both
-    there), or a ModelError naming the folder; what: "model" or "GP model", for the message."""
-    cpath = model_dir / "config.json"
-    if not cpath.is_file() or not (model_dir / "model.safetensors").is_file():
-        raise ModelError(f"{model_dir} is not a finished {what} (needs config.json and model.safetensors)")
-    try:
-        return json.loads(cpath.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as err:
-        raise ModelError(f"{cpath} is corrupt: {err}") from err
+    MODEL_FILES.write(model_dir, tensors, config, train_seconds, train_cpu_seconds)
 
 
 def load_model(model_dir, robot=None, device: str = "cpu") -> TrainedModel:
@@ -444,26 +334,18 @@ def load_model(model_dir, robot=None, device: str = "cpu") -> TrainedModel:
     """
     model_dir = Path(model_dir)
     cpath, wpath = model_dir / "config.json", model_dir / "model.safetensors"
-    config = read_model_config(model_dir, "model")
-    try:
-        with safe_open(str(wpath), framework="pt") as f:
-            meta = read_file_metadata(f.metadata() or {})
-            tensors = {k: f.get_tensor(k) for k in f.keys()}
-    except Exception as err:  # safetensors raises its own error types
-        raise ModelError(f"{wpath} is corrupt: {err}") from err
-    digest = config_digest(config)
-    if meta.get("config_sha256") != digest:
-        raise ModelError(f"{cpath} does not match the weights it was saved with (edited or tampered); refusing to load")
+    config = MODEL_FILES.read_config(model_dir)
+    meta, tensors = MODEL_FILES.read_tensors(model_dir)
+    MODEL_FILES.check_config_digest(model_dir, config, meta)
     if config.get("format") != MODEL_FORMAT or config.get("format_version", 0) > MODEL_FORMAT_VERSION:
         raise ModelError(f"{cpath}: not a {MODEL_FORMAT} v<={MODEL_FORMAT_VERSION} model")
     if "tensors_sha256" not in meta:
         raise ModelError(f"{wpath} predates the tensor digest (model format {MODEL_FORMAT_VERSION}): its weights "
                          f"cannot be checked for corruption; retrain it (delete {model_dir}, rerun train)")
-    if meta["tensors_sha256"] != tensors_digest(tensors):
-        raise ModelError(f"{wpath}: its tensors do not match the sha256 saved with them (corrupted or edited); "
-                         f"refusing to load; retrain or restore the file")
+    MODEL_FILES.check_tensors_digest(model_dir, meta, tensors)
+    train_seconds = MODEL_FILES.train_seconds(model_dir, config)  # timing.json names the config as saved
+
     from ..description import available_robots, has_description
-    from .model_upgrade import read_older_spellings
 
     config = read_older_spellings(config, model_dir)  # formats 1-2: older estimator spellings, one warning
     # The analytic part, and the base sensor's tare, need the robot's model.
@@ -485,4 +367,4 @@ def load_model(model_dir, robot=None, device: str = "cpu") -> TrainedModel:
     module.to(device)
     # The analytic part always uses the model's own robot and parameter set (config), never a
     # caller's Robot that may carry other parameters, a payload or a mis-mounted sensor.
-    return TrainedModel(module, config, path=model_dir, train_seconds=_read_timing(model_dir / "timing.json", digest))
+    return TrainedModel(module, config, path=model_dir, train_seconds=train_seconds)
