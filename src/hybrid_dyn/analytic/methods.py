@@ -178,13 +178,13 @@ def add_listener(on_register: Callable[[Method], None], on_unregister: Callable[
 class _QddMethod(MethodStream):
     """A per-sample method whose bandwidth is the qdd filter's cutoff [Hz] (the estimator's filter)."""
 
-    kind = "base_wrench"
+    sensor_input = "base_wrench"  # the input whose noise the qdd estimate's noise is weighed against
 
     def sensor_noise(self, noise: WindowNoise) -> float:
         return noise.base_force
 
     def choose(self, noise):
-        per_gain = qdd_noise_per_gain(self.robot, noise.q_mean, noise.qd, self.kind, self.data)
+        per_gain = qdd_noise_per_gain(self.robot, noise.q_mean, noise.qd, self.sensor_input, self.data)
         return float(cutoff_grid(self.rate_hz)[0][cutoff_index(self.rate_hz, per_gain, self.sensor_noise(noise))])
 
     def settle_calls(self, sensors=()) -> int:
@@ -202,7 +202,7 @@ class BaseWrench(_QddMethod):
 
 
 class TorquesPinv(_QddMethod):
-    kind = "tau_J"
+    sensor_input = "tau_J"
 
     def sensor_noise(self, noise):
         return noise.joint_torque_rms
