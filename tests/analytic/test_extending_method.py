@@ -178,3 +178,13 @@ def test_a_method_needs_its_bandwidth_parameter_declared():
     with pytest.raises(UsageError, match="bandwidth parameter 'toy_rate' is not declared"):
         register(Method("toy", "a toy", ("base_wrench",), False, False, True, "toy_rate", StaticBase))
     assert "toy" not in REGISTRY and "toy" not in ESTIMATORS
+
+
+def test_the_old_prior_field_of_a_method_still_works_with_a_warning():
+    from hybrid_dyn.deprecation import DeprecatedNameWarning
+
+    with pytest.warns(DeprecatedNameWarning, match="Method field 'prior' is deprecated: use 'residual_prior'"):
+        method = Method("toy", "a toy", ("base_wrench",), False, False, True, "momentum_gain", StaticBase, prior=True)
+    assert method.residual_prior
+    with pytest.warns(DeprecatedNameWarning):
+        assert method.prior

@@ -19,9 +19,9 @@ Everything else is built from :data:`REGISTRY` (a ``registry.Registry``):
 
 Adding a method is one module: its :class:`MethodStream`, a ``BANDWIDTHS.register`` call if its
 bandwidth parameter is new, and one :func:`register` call (``docs/extending.md``;
-``tests/analytic/test_extending_method.py`` registers a toy one). :func:`run_batch` is what the estimator does over a whole run,
-as a batch: the noise window (tare, measured noise, bandwidth by the rule), then the
-method from the first sample after it.
+``tests/analytic/test_extending_method.py`` registers a toy one). :func:`run_batch` is what the
+estimator does over a whole run, as a batch: the noise window (tare, measured noise, bandwidth by
+the rule), then the method from the first sample after it.
 """
 from __future__ import annotations
 
@@ -159,7 +159,8 @@ def register(method: Method) -> Method:
     if method.parameter not in BANDWIDTHS:
         raise UsageError(f"estimator method {method.name!r}: its bandwidth parameter {method.parameter!r} is not "
                          f"declared; declare it first (bandwidth.BANDWIDTHS.register(BandwidthParameter(...)))")
-    ESTIMATOR_NAMES.register(EstimatorName(method.name, "tip_force", method.residual_prior))  # refuses a name taken by any estimator
+    # The estimators' one name: refuses a name any estimator (a torque model too) has taken.
+    ESTIMATOR_NAMES.register(EstimatorName(method.name, "tip_force", method.residual_prior))
     return REGISTRY.register(method)
 
 
@@ -428,4 +429,5 @@ def spec_noise(robot: Robot) -> WindowNoise:
     return WindowNoise(np.full(robot.nv, c.qd), c.force, np.full(robot.nv, c.tau_J), np.array(robot.spec.home, float))
 
 
-__all__ = ["BANDWIDTHS", "BandwidthParameter", "Method", "MethodStream", "REGISTRY", "add_listener", "register", "run_batch", "spec_noise", "unregister"]
+__all__ = ["BANDWIDTHS", "BandwidthParameter", "Method", "MethodStream", "REGISTRY", "add_listener", "register",
+           "run_batch", "spec_noise", "unregister"]

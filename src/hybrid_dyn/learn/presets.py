@@ -32,7 +32,7 @@ TIP_INPUTS_TAU = TIP_INPUTS + ["tau_J"]
 
 # The analytic estimators a residual can sit on, by their one name (analytic/method_names.py): the two
 # torque models, and the tip-force methods declared with residual_prior=True (analytic/methods.py).
-TORQUE_PRIORS = ("rnea", "rnea-bw")
+TORQUE_PRIORS = tuple(e.name for e in ESTIMATOR_NAMES.where(estimates="joint_torque", residual_prior=True))
 PRIORS = (None,) + residual_prior_names()  # at import; residual_prior_names() for a method registered later
 # How training fingerprints (and the keys of the prior caches) spell each prior: the spellings model
 # files wrote until format 3 (issue 30), each an older spelling of the estimator's name
@@ -206,12 +206,14 @@ for _preset in (
     Preset("seed-tau-lstm", "lstm", tuple(STATE), ("tau_m",), window=10, front_units=(16,),
            family="seed-net", description="seed Table 3 LSTM (widths as Table 1 #7)"),
     Preset("seed-tau-lstm-opt", "lstm", tuple(STATE), ("tau_m",), window=10, front_units=(32, 32),
-           fc_units=8, activation="tanh", family="seed-net", description="seed Table 3 #10: optimized LSTM, 2 x 32, FC 2 x 8, tanh"),
+           fc_units=8, activation="tanh", family="seed-net",
+           description="seed Table 3 #10: optimized LSTM, 2 x 32, FC 2 x 8, tanh"),
     # Not from the seed: for small real-robot sets (a handful of trajectories), width plus dropout
     # generalise to unseen trajectories better than the seed's 2 x 32 (a search on the validation
     # split of the three real sets, issue 8's closing note; docs/models.md).
     Preset("tau-mlp-wide", "mlp", tuple(STATE), ("tau_m",), fc_units=128, dropout=0.2,
-           family="learned", description="regularised MLP for small real-robot sets: FC 2 x 128, dropout 0.2 (not from the seed)"),
+           family="learned",
+           description="regularised MLP for small real-robot sets: FC 2 x 128, dropout 0.2 (not from the seed)"),
     # Residual (hybrid) models: a small LSTM learns what the analytic part misses.
     Preset("residual-rnea", "lstm", tuple(STATE), ("tau_m",), window=10, front_units=(32,),
            prior="rnea", family="residual", description="tau = RNEA_nominal(q, qd, qdd) + LSTM(window of q, qd, qdd)"),
@@ -219,13 +221,15 @@ for _preset in (
            front_units=(32,), prior="rnea-bw",
            family="residual", description="tau = RNEA - J_v^T F_basewrench + LSTM(window of q, qd, qdd, base_wrench)"),
     Preset("residual-basewrench", "lstm", tuple(TIP_INPUTS), ("tip_force",), window=10, front_units=(32,),
-           prior="base-wrench", family="residual", description="F = base-wrench method + LSTM(window of base_wrench, q, qd, qdd)"),
+           prior="base-wrench", family="residual",
+           description="F = base-wrench method + LSTM(window of base_wrench, q, qd, qdd)"),
     Preset("residual-momentum", "lstm", tuple(STATE + ["tau_J"]), ("tip_force",), window=10,
            front_units=(32,), prior="momentum-observer",
            family="residual", description="F = momentum observer(q, qd, tau_J) + LSTM(window of q, qd, qdd, tau_J)"),
     Preset("residual-base-momentum", "lstm", tuple(TIP_INPUTS), ("tip_force",), window=10, front_units=(32,),
            prior="base-momentum",
-           family="residual", description="F = base momentum observer(q, qd, tared base_wrench) + LSTM(window of base_wrench, q, qd, qdd)"),
+           family="residual",
+           description="F = base momentum observer(q, qd, tared base_wrench) + LSTM(window of base_wrench, q, qd, qdd)"),
     # DeLaN (Lutter et al. 2019): tau = H qdd + c + g (+ friction) (+ residual).
     Preset("delan", "delan", tuple(STATE), ("tau_m",), activation="tanh",
            family="delan", description="DeLaN: H = L L^T + eps I, V(q); c, g by autograd"),
