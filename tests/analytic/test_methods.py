@@ -1,6 +1,6 @@
 """Issue 27: every estimator method defined once (analytic/methods.py), and what is built from it.
 
-- a toy method registered in one place is found by TipForceEstimator, the bench and a residual prior;
+- (a toy method registered in one place is found everywhere: test_extending_method.py);
 - each method's streaming step (the user's TipForceEstimator) equals its batch run on the same samples;
 - no filter design or Riccati solve runs inside ``estimate_tip_force``, the window-closing call included.
 """
@@ -10,9 +10,8 @@ import scipy.linalg
 import scipy.signal
 
 from hybrid_dyn.analytic import kalman
-from hybrid_dyn.analytic.methods import REGISTRY, Method, MethodStream, register, run_batch, unregister
+from hybrid_dyn.analytic.methods import REGISTRY, run_batch
 from hybrid_dyn.estimator import EstimatorStatus, TipForceEstimator
-from hybrid_dyn.sim.sensors import causal_acceleration
 
 from helpers.motion import contact_stream
 
@@ -24,65 +23,6 @@ def noisy_stream(robot, n, seed=0, hz=HZ):
     0.8 s) as arrays: (t, q, qd, base wrench, tau_J, true force)."""
     samples, f = contact_stream(robot, n, hz=hz, seed=seed, contact_at=0.8)
     return (*(np.stack([s[k] for s in samples]) for k in ("t", "q", "qd", "base_wrench", "tau_J")), f)
-
-
-class StaticBase(MethodStream):
-    """A toy: the quasi-static force from the base sensor alone, F = -(R w + m g), low-passed by K."""
-
-    def choose(self, noise):
-        return 0.5 * self.rate_hz
-
-    def reset(self):
-        self._f = None
-
-    def _raw(self, w):
-        r = self.robot
-        return -(r.base_wrench_to_root(w)[..., :3] + r.total_mass * np.asarray(r.model_ff.gravity.linear))
-
-    def step(self, q, qd, qdd, w, tau):
-        raw = self._raw(w)
-        a = self.value * self.dt
-        self._f = raw if self._f is None else self._f + a * (raw - self._f)
-        return self._f.copy()
-
-    def batch(self, q, qd, qdd, w, tau):
-        raw, a = self._raw(np.asarray(w)), self.value * self.dt
-        return scipy.signal.lfilter([a], [1.0, a - 1.0], raw, axis=0, zi=(1 - a) * raw[:1])[0]
-
-    def settle_calls(self, sensors=()):
-        return 7
-
-
-@pytest.fixture
-def toy():
-    method = register(Method("static-base", "a toy", ("base_wrench",), False, False, True, "toy_gain", "1/s",
-                             lambda hz: (50.0, 500.0), StaticBase, prior=True))
-    yield method
-    unregister("static-base")
-
-
-def test_a_toy_method_registered_once_is_found_everywhere(toy, panda):
-    from hybrid_dyn.bench.catalog import ROWS
-    from hybrid_dyn.learn.presets import prior_kinds
-    from hybrid_dyn.learn.priors import AnalyticPrior
-
-    t, q, qd, w, tau, f = noisy_stream(panda, 1500)
-    est = TipForceEstimator.analytic(panda, "static-base", call_hz=HZ, encoder_resolution=0.0)
-    out = np.stack([est.estimate_tip_force(q[k], qd[k], base_wrench=w[k], t=t[k]) for k in range(len(t))])
-    assert est.bandwidth == 0.5 * HZ and est.last_status is EstimatorStatus.OK
-    # Physics: the arm moves slowly, so the quasi-static force is near the true one (the inertial part
-    # is m J_com qdd: a few tenths of a newton here), far from the 15 N it is not.
-    assert np.sqrt(np.mean(np.sum((out[1000:] - f[1000:]) ** 2, axis=1))) < 1.0
-    batch, used = run_batch("static-base", panda, HZ, q, qd, w, None, encoder_resolution=0.0)
-    np.testing.assert_allclose(out[501:], batch[501:], atol=1e-9)  # the stream starts after its window
-    assert ROWS["static-base"].family == "analytic" and ROWS["static-base-val"].reference
-    assert "static-base" in prior_kinds()
-    prior = AnalyticPrior("static-base", panda, HZ, observer_gain=used, tare_seconds=0.5)
-    qdd = causal_acceleration(qd, 1.0 / HZ, 20.0)  # what the stream's tare reads in its window
-    np.testing.assert_allclose(prior.compute({"q": q, "qd": qd, "qdd": qdd, "base_wrench": w}), batch, atol=1e-9)
-    unregister("static-base")
-    assert "static-base" not in ROWS and "static-base" not in prior_kinds()
-    register(toy)  # for the fixture's teardown
 
 
 @pytest.mark.parametrize("method", ["base-wrench", "torques-pinv", "momentum-observer", "base-momentum",

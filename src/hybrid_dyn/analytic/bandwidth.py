@@ -54,9 +54,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
+from ..errors import UsageError
+from ..registry import Registry
 from .acceleration import white_noise_rms
 
 CONTACT_STEP = 0.1  # N per axis and sample: the contact model, the force as a random walk of this step
@@ -172,3 +175,59 @@ def random_walk_gain(force_rate: float, dt: float, s_e2: float) -> float:
 def kalman_settle_calls(k: float) -> int:
     """Calls until a start's transient (1 - k)^n is below SETTLE_FRACTION."""
     return 1 if k >= 1.0 else int(math.ceil(math.log(SETTLE_FRACTION) / math.log(1.0 - k)))
+
+
+# ------------------------------------------------- the bandwidth parameters
+def no_grid(rate_hz: float) -> tuple:
+    """A parameter the bench does not choose on validation (its methods have no ``-val`` row)."""
+    return ()
+
+
+@dataclass(frozen=True)
+class BandwidthParameter:
+    """One bandwidth parameter of the estimator methods: the knob that trades noise against lag.
+
+    name: its setting's key (an ``EstimatorConfig`` field or key of ``EstimatorConfig.bandwidths``, a keyword
+    of ``TipForceEstimator.analytic``); unit: its physical unit; meaning: what it is, in a phrase.
+    val_grid(rate_hz [Hz]) -> the values the bench's ``-val`` row chooses from at that rate.
+    default: "auto" (the rule above, on the noise window) or a number. below_nyquist: a value must lie
+    below half the call rate (a filter's cutoff [Hz]); else any positive number is a setting."""
+
+    name: str
+    unit: str
+    meaning: str
+    val_grid: Callable[[float], tuple] = no_grid
+    default: float | str = "auto"
+    below_nyquist: bool = False
+
+    def check(self, value, call_hz: float) -> None:
+        """Refuse (UsageError, naming the parameter and its unit) a value that is no setting of it."""
+        number = isinstance(value, (int, float))
+        if self.below_nyquist:
+            if value != "auto" and not (number and 0 < value < 0.5 * call_hz):
+                raise UsageError(f"{self.name} must be 'auto' or lie in (0, call_hz / 2) [{self.unit}], got {value!r}")
+        elif value != "auto" and not (number and value > 0):
+            raise UsageError(f"{self.name} must be 'auto' or > 0 [{self.unit}], got {value!r}")
+
+
+BANDWIDTHS = Registry("bandwidth parameter", UsageError)  # name -> BandwidthParameter
+
+
+def observer_gains(rate_hz: float) -> tuple:
+    """The observer gains [1/s] the bench's ``-val`` rows choose from: up to K dt = 1."""
+    return tuple(k for k in (5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0) if k / rate_hz <= 1.0)
+
+
+def force_rates(rate_hz: float) -> tuple:
+    """The Kalman force rates [N/sqrt(s)] the bench's ``-val`` rows choose from."""
+    return (0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0)
+
+
+QDD_CUTOFF = BANDWIDTHS.register(BandwidthParameter(
+    "qdd_cutoff_hz", "Hz", "the qdd filter's cutoff (the rule's noise side: acceleration.auto_qdd_cutoff)",
+    below_nyquist=True))
+MOMENTUM_GAIN = BANDWIDTHS.register(BandwidthParameter(
+    "momentum_gain", "1/s", "a momentum observer's gain K (observer_gain)", observer_gains))
+FUSION_FORCE_RATE = BANDWIDTHS.register(BandwidthParameter(
+    "fusion_force_rate", "N/sqrt(s)", "the Kalman filter's random-walk intensity of the tip force (contact_rate)",
+    force_rates))

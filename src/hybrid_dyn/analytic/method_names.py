@@ -15,34 +15,55 @@ name                          estimates    what
 ``rnea-bw``                   tau_m        RNEA - J_v^T F, F from ``base-wrench``
 ============================  ===========  =================================================
 
-Older spellings (:data:`ALIASES`: ``basewrench`` and ``base_wrench``, ``torques``,
-``momentum``, ``base_momentum``, ``kalman_fusion``, ``rnea-basewrench``) mean the same
-estimator, and are accepted with a warning (``deprecation.DeprecatedNameWarning``) that names
-the canonical one. Model files write the canonical names since format 3 (issue 30); an older
+The names are declared in one registry, :data:`ESTIMATOR_NAMES`: the two torque models here,
+each tip-force method by its own declaration (``analytic/methods.register``). :data:`ESTIMATORS`
+(name -> what it estimates) is read from it.
+
+Older spellings (``ESTIMATOR_NAMES.alias``: ``basewrench`` and ``base_wrench``, ``torques``,
+``momentum``, ``base_momentum``, ``kalman_fusion``, ``rnea-basewrench``; :data:`ALIASES` reads them)
+mean the same estimator, and are accepted with a warning (``deprecation.DeprecatedNameWarning``)
+that names the canonical one. Model files write the canonical names since format 3 (issue 30); an older
 file's spellings are read by ``learn.trained_model.load_model``, which warns once per file instead.
 """
 from __future__ import annotations
 
-from ..errors import UsageError
+from dataclasses import dataclass
 
-ESTIMATORS = {
-    "base-wrench": "tip_force",
-    "torques-pinv": "tip_force",
-    "momentum-observer": "tip_force",
-    "base-momentum": "tip_force",
-    "kalman-fusion": "tip_force",
-    "rnea": "joint_torque",
-    "rnea-bw": "joint_torque",
-}
-ALIASES = {
-    "basewrench": "base-wrench",  # residual priors until issue 15
-    "base_wrench": "base-wrench",  # TipForceEstimator methods until issue 15
-    "torques": "torques-pinv",
-    "momentum": "momentum-observer",
-    "base_momentum": "base-momentum",
-    "kalman_fusion": "kalman-fusion",
-    "rnea-basewrench": "rnea-bw",
-}
+from ..deprecation import warn_renamed
+from ..errors import UsageError
+from ..registry import Registry
+
+
+@dataclass(frozen=True)
+class EstimatorName:
+    """An analytic estimator's one name, and what it estimates: "tip_force" [N] or "joint_torque" [Nm]
+    (the bench task of its row). residual_prior: a residual network may sit on it (``learn/priors.py``)."""
+
+    name: str
+    estimates: str
+    residual_prior: bool = False
+
+
+ESTIMATOR_NAMES = Registry("analytic estimator", UsageError)
+ESTIMATORS: dict[str, str] = {}  # name -> what it estimates, read from ESTIMATOR_NAMES (tip-force names first)
+
+
+def _update_estimators(_changed=None) -> None:
+    ESTIMATORS.clear()
+    ESTIMATORS.update(sorted(((n, e.estimates) for n, e in ESTIMATOR_NAMES.items()), key=lambda x: x[1] != "tip_force"))
+
+
+ESTIMATOR_NAMES.listen(_update_estimators, _update_estimators)
+ESTIMATOR_NAMES.register(EstimatorName("rnea", "joint_torque", residual_prior=True))
+ESTIMATOR_NAMES.register(EstimatorName("rnea-bw", "joint_torque", residual_prior=True))
+ESTIMATOR_NAMES.alias("basewrench", "base-wrench", "the residual priors' spelling until issue 15")
+ESTIMATOR_NAMES.alias("base_wrench", "base-wrench", "TipForceEstimator's spelling until issue 15")
+ESTIMATOR_NAMES.alias("torques", "torques-pinv")
+ESTIMATOR_NAMES.alias("momentum", "momentum-observer")
+ESTIMATOR_NAMES.alias("base_momentum", "base-momentum")
+ESTIMATOR_NAMES.alias("kalman_fusion", "kalman-fusion")
+ESTIMATOR_NAMES.alias("rnea-basewrench", "rnea-bw")
+ALIASES = {old: new for old, (new, _) in ESTIMATOR_NAMES.aliases.items()}  # older spelling -> the one name
 
 
 def estimator_name(name, among=None, what: str = "analytic estimator", warn: bool = True) -> str:
@@ -52,12 +73,17 @@ def estimator_name(name, among=None, what: str = "analytic estimator", warn: boo
     which warns about the file once). An unknown name is refused with the canonical names it could
     have been."""
     among = tuple(ESTIMATORS) if among is None else tuple(among)
-    canonical = ALIASES.get(name, name) if isinstance(name, str) else name
+    canonical = ESTIMATOR_NAMES.aliases.get(name, (name,))[0] if isinstance(name, str) else name
     if canonical not in among:
+        older = (old for old, (new, _) in ESTIMATOR_NAMES.aliases.items() if new in among)
         raise UsageError(f"unknown {what} {name!r}; known: {', '.join(among)} "
-                         f"(older spellings accepted: {', '.join(a for a, c in ALIASES.items() if c in among)})")
+                         f"(older spellings accepted: {', '.join(older)})")
     if warn and canonical != name:
-        from ..deprecation import warn_renamed
-
+        # The warning names the caller's sort (``what``), not the registry's, as it always has.
         warn_renamed(f"{what} spelling", name, canonical, stacklevel=3)
     return canonical
+
+
+def residual_prior_names() -> tuple:
+    """Every estimator a residual network may sit on now (a method registered later included)."""
+    return tuple(e.name for e in ESTIMATOR_NAMES.where(residual_prior=True))

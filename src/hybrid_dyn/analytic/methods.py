@@ -2,23 +2,26 @@
 
 A :class:`Method` says what an estimator reads (the sensors beyond q and qd, and
 whether a call may bring any of them), whether it needs qdd, whether it reads the
-base sensor tared, the name of its bandwidth parameter, the values the bench's
-``-val`` row chooses that parameter from, whether a residual network may sit on
-it (``prior``), and how to build one stream of it
+base sensor tared, its bandwidth parameter (a declaration of ``bandwidth.BANDWIDTHS``:
+its unit, its default, the values the bench's ``-val`` row chooses it from), whether
+a residual network may sit on it (``residual_prior``), and how to build one stream of it
 (:class:`MethodStream`): its rule for the bandwidth from a noise window
 (``bandwidth.py``), its streaming step, its batch run and its settling time.
 
-Everything else is built from :data:`REGISTRY`:
+Everything else is built from :data:`REGISTRY` (a ``registry.Registry``):
 
-- ``TipForceEstimator.analytic(robot, method=name)`` (``estimator/tip_force_estimator.py``);
+- ``TipForceEstimator.analytic(robot, method=name)`` (``estimator/tip_force_estimator.py``),
+  its bandwidth setting read from ``EstimatorConfig`` by the parameter's name;
 - the bench's rows ``name`` (the bandwidth by the rule, what the estimator does)
   and ``name-val`` (chosen on validation, a labelled reference) (``bench/analytic_rows.py``);
-- the residual priors (``learn/priors.py``) and ``StreamingModel`` (``learn/stream_predictor.py``).
+- the estimators' one name (``method_names.ESTIMATOR_NAMES``), the residual priors
+  (``learn/priors.py``) and ``StreamingModel`` (``learn/stream_predictor.py``).
 
-Adding a method is one class and one :func:`register` call (``tests/analytic/test_methods.py``
-registers a toy one). :func:`run_batch` is what the estimator does over a whole run,
-as a batch: the noise window (tare, measured noise, bandwidth by the rule), then the
-method from the first sample after it.
+Adding a method is one module: its :class:`MethodStream`, a ``BANDWIDTHS.register`` call if its
+bandwidth parameter is new, and one :func:`register` call (``docs/extending.md``;
+``tests/analytic/test_extending_method.py`` registers a toy one). :func:`run_batch` is what the
+estimator does over a whole run, as a batch: the noise window (tare, measured noise, bandwidth by
+the rule), then the method from the first sample after it.
 """
 from __future__ import annotations
 
@@ -27,12 +30,17 @@ from typing import Callable
 
 import numpy as np
 
+from ..deprecation import renamed_field
+from ..description.sensor_noise import NoiseConfig
+from ..errors import UsageError
+from ..registry import Registry
 from .acceleration import (causal_acceleration, cutoff_grid, cutoff_index, default_qdd_cutoff, filter_settle_calls,
                            qdd_noise_per_gain)
-from .bandwidth import WindowNoise, measure_window, observer_gain, observer_settle_calls
+from .bandwidth import (BANDWIDTHS, BandwidthParameter, WindowNoise, measure_window, observer_gain,
+                        observer_settle_calls)
 from .base_momentum import BaseMomentumObserver
 from .error_bar import ErrorBar, qdd_norm
-from .method_names import ESTIMATORS
+from .method_names import ESTIMATOR_NAMES, EstimatorName
 from .joint_state import joint_filter_for, with_joint_state_noise
 from .kalman import (SENSORS, KalmanTipForce, channel_factors, increment_stats, window_fusion_noise)
 from .momentum_observer import MomentumObserver
@@ -91,16 +99,18 @@ class MethodStream:
         raise NotImplementedError
 
 
+@renamed_field("prior", "residual_prior", why="'prior' also names a residual model's analytic part")
 @dataclass(frozen=True)
 class Method:
-    """One analytic tip-force estimator.
+    """One analytic tip-force estimator: its declaration, read by every consumer of :data:`REGISTRY`.
 
     reads: the inputs beyond q, qd ("base_wrench", "tau_J"). any_of: a call may bring any non-empty
     subset of them (else all, every call). needs_qdd: the method reads qdd at every call. tares: it
-    reads the base sensor tared on the noise window. parameter: its bandwidth parameter (an
-    ``EstimatorConfig`` field, "auto" there by default) and unit. val_grid: the values the bench's
-    ``-val`` row chooses from (``rate_hz -> tuple``). make(robot, rate_hz) -> :class:`MethodStream`.
-    bench_rows: the bench declares its rows from here (False where ``analytic_rows`` declares them)."""
+    reads the base sensor tared on the noise window. parameter: the name of its bandwidth parameter,
+    a declaration of ``bandwidth.BANDWIDTHS`` (its unit, default and the values the bench's ``-val``
+    row chooses from: :attr:`bandwidth`). make(robot, rate_hz) -> :class:`MethodStream`.
+    bench_rows: the bench declares its rows from here (False where ``analytic_rows`` declares them).
+    residual_prior: a residual network may sit on it (``learn/priors.py``; formerly ``prior``)."""
 
     name: str
     summary: str
@@ -109,11 +119,23 @@ class Method:
     needs_qdd: bool
     tares: bool
     parameter: str
-    unit: str
-    val_grid: Callable[[float], tuple]
     make: Callable[[Robot, float], MethodStream]
     bench_rows: bool = True
-    prior: bool = False  # a residual network may sit on it (``learn/priors.py``)
+    residual_prior: bool = False
+
+    @property
+    def bandwidth(self) -> BandwidthParameter:
+        """The declaration of its bandwidth parameter."""
+        return BANDWIDTHS[self.parameter]
+
+    @property
+    def unit(self) -> str:
+        """Its bandwidth parameter's unit."""
+        return self.bandwidth.unit
+
+    def val_grid(self, rate_hz: float) -> tuple:
+        """The values of its bandwidth parameter the bench's ``-val`` row chooses from at rate_hz [Hz]."""
+        return self.bandwidth.val_grid(rate_hz)
 
     @property
     def stateful(self) -> bool:
@@ -126,45 +148,44 @@ class Method:
         return ("q", "qd") + (("qdd",) if self.needs_qdd or self.tares else ()) + self.reads
 
 
-REGISTRY: dict[str, Method] = {}
-_LISTENERS: list = []  # (on_register, on_unregister): the bench declares rows for a method registered late
+# The methods by name; a consumer that derives something per method (the bench's rows, the residual
+# priors) reads the registry and listens to it (REGISTRY.listen, or add_listener) for later declarations.
+REGISTRY = Registry("estimator method", UsageError)
 
 
 def register(method: Method) -> Method:
-    """Add a method to the registry (and the estimators' names, as a tip-force estimator)."""
-    if method.name in REGISTRY or method.name in ESTIMATORS and ESTIMATORS[method.name] != "tip_force":
-        raise ValueError(f"estimator method {method.name!r} is registered twice")
-    REGISTRY[method.name] = method
-    ESTIMATORS[method.name] = "tip_force"
-    for on_register, _ in _LISTENERS:
-        on_register(method)
-    return method
+    """Declare a method (after its bandwidth parameter, ``BANDWIDTHS.register``): from now on the estimator,
+    ``run_batch``, the bench's rows and, with ``residual_prior``, the residual priors know it by its name."""
+    if method.parameter not in BANDWIDTHS:
+        raise UsageError(f"estimator method {method.name!r}: its bandwidth parameter {method.parameter!r} is not "
+                         f"declared; declare it first (bandwidth.BANDWIDTHS.register(BandwidthParameter(...)))")
+    # The estimators' one name: refuses a name any estimator (a torque model too) has taken.
+    ESTIMATOR_NAMES.register(EstimatorName(method.name, "tip_force", method.residual_prior))
+    return REGISTRY.register(method)
 
 
 def unregister(name: str) -> None:
     """Remove a method (a test's toy) from the registry and from whatever was built from it."""
-    method = REGISTRY.pop(name)
-    ESTIMATORS.pop(name, None)
-    for _, on_unregister in _LISTENERS:
-        on_unregister(method)
+    REGISTRY.unregister(name)
+    ESTIMATOR_NAMES.unregister(name)
 
 
 def add_listener(on_register: Callable[[Method], None], on_unregister: Callable[[Method], None]) -> None:
-    """Be told of every method registered or removed from now on."""
-    _LISTENERS.append((on_register, on_unregister))
+    """Be told of every method registered or removed from now on (``REGISTRY.listen``)."""
+    REGISTRY.listen(on_register, on_unregister)
 
 
 # ----------------------------------------------------------- the methods
 class _QddMethod(MethodStream):
     """A per-sample method whose bandwidth is the qdd filter's cutoff [Hz] (the estimator's filter)."""
 
-    kind = "base_wrench"
+    sensor_input = "base_wrench"  # the input whose noise the qdd estimate's noise is weighed against
 
     def sensor_noise(self, noise: WindowNoise) -> float:
         return noise.base_force
 
     def choose(self, noise):
-        per_gain = qdd_noise_per_gain(self.robot, noise.q_mean, noise.qd, self.kind, self.data)
+        per_gain = qdd_noise_per_gain(self.robot, noise.q_mean, noise.qd, self.sensor_input, self.data)
         return float(cutoff_grid(self.rate_hz)[0][cutoff_index(self.rate_hz, per_gain, self.sensor_noise(noise))])
 
     def settle_calls(self, sensors=()) -> int:
@@ -182,7 +203,7 @@ class BaseWrench(_QddMethod):
 
 
 class TorquesPinv(_QddMethod):
-    kind = "tau_J"
+    sensor_input = "tau_J"
 
     def sensor_noise(self, noise):
         return noise.joint_torque_rms
@@ -304,21 +325,16 @@ class KalmanFusionMethod(MethodStream):
         return self.kalman.settle_calls(tuple(SENSOR_NAMES.get(s, s) for s in sensors))
 
 
-def _observer_gains(rate_hz):
-    return tuple(k for k in (5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0) if k / rate_hz <= 1.0)
-
-
 register(Method("base-wrench", "the base sensor's wrench minus the model's (needs qdd)", ("base_wrench",), False,
-                True, True, "qdd_cutoff_hz", "Hz", lambda hz: (), BaseWrench, bench_rows=False, prior=True))
+                True, True, "qdd_cutoff_hz", BaseWrench, bench_rows=False, residual_prior=True))
 register(Method("torques-pinv", "F = pinv(J_v^T) (ID(q, qd, qdd) - tau_J)", ("tau_J",), False, True, False,
-                "qdd_cutoff_hz", "Hz", lambda hz: (), TorquesPinv, bench_rows=False))
+                "qdd_cutoff_hz", TorquesPinv, bench_rows=False))
 register(Method("momentum-observer", "the joint-torque momentum observer (no qdd)", ("tau_J",), False, False, False,
-                "momentum_gain", "1/s", _observer_gains, MomentumObserverMethod, prior=True))
+                "momentum_gain", MomentumObserverMethod, residual_prior=True))
 register(Method("base-momentum", "the whole robot's momentum against the base sensor (no qdd)", ("base_wrench",),
-                False, False, True, "momentum_gain", "1/s", _observer_gains, BaseMomentumMethod, prior=True))
+                False, False, True, "momentum_gain", BaseMomentumMethod, residual_prior=True))
 register(Method("kalman-fusion", "both sensors fused by a Kalman filter (a call may bring either or both)",
-                ("base_wrench", "tau_J"), True, False, True, "fusion_force_rate", "N/sqrt(s)",
-                lambda hz: (0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0), KalmanFusionMethod))
+                ("base_wrench", "tau_J"), True, False, True, "fusion_force_rate", KalmanFusionMethod))
 
 
 def run_batch(method: str | Method, robot: Robot, rate_hz: float, q, qd, base_wrench=None, tau_J=None,
@@ -409,10 +425,9 @@ def _batch_sigma(m: Method, stream: MethodStream, forces, start: int, rate_hz: f
 def spec_noise(robot: Robot) -> WindowNoise:
     """The sensors' specifications as a window's noise (the generator's ``NoiseConfig`` defaults): what
     the rule uses when a stream has no noise window (tare_seconds = 0)."""
-    from ..sim.scenarios import NoiseConfig
-
     c = NoiseConfig()
     return WindowNoise(np.full(robot.nv, c.qd), c.force, np.full(robot.nv, c.tau_J), np.array(robot.spec.home, float))
 
 
-__all__ = ["Method", "MethodStream", "REGISTRY", "add_listener", "register", "run_batch", "spec_noise", "unregister"]
+__all__ = ["BANDWIDTHS", "BandwidthParameter", "Method", "MethodStream", "REGISTRY", "add_listener", "register",
+           "run_batch", "spec_noise", "unregister"]

@@ -23,6 +23,10 @@ from ..estimator import EstimatorConfig, TipForceEstimator
 from .rows import ROWS, Predictor, Row, declare
 
 TARED = "(tared on the first 0.5 s)"  # how the inputs column says a row reads the tared base sensor
+# A residual preset's prior -> the analytic row that computes it as the preset reads it (the base wrench
+# tared, unless raw_sensor), for the report's hybrid-against-prior comparison: the rows declared by hand
+# below, and each registered method with rows of its own and residual_prior (declare_method_rows).
+PRIOR_ROWS = {"rnea": "rnea", "rnea-bw": "rnea-bw-tared", "base-wrench": "base-wrench-tared"}
 
 
 def _analytic(name: str, task: str, needs: tuple, inputs, batch_fn, single_fn=None, reference=None,
@@ -129,6 +133,8 @@ def declare_method_rows(method) -> None:
     """The rows ``name`` and ``name-val`` of a registered method (``analytic.methods.register`` calls it)."""
     if not method.bench_rows:
         return
+    if method.residual_prior:
+        PRIOR_ROWS[method.name] = method.name
     needs = method.fields + ("tip_force",)
     reads = ", ".join(("q", "qd") + tuple(f"{r} (tared)" if r == "base_wrench" and method.tares else r
                                          for r in method.reads))
@@ -155,9 +161,9 @@ def declare_method_rows(method) -> None:
     def val_single(robot, inst, k, ctx):
         if k == 0:
             ctx.cache[("estimator-val", method.name)] = TipForceEstimator(
-                robot, method.name, EstimatorConfig(call_hz=ctx.dataset.meta["record_hz"],
-                                                    encoder_resolution=_encoder_resolution(ctx),
-                                                    **{method.parameter: chosen(ctx)}))
+                robot, method.name, EstimatorConfig.from_settings(  # the parameter by its declared name
+                    call_hz=ctx.dataset.meta["record_hz"], encoder_resolution=_encoder_resolution(ctx),
+                    **{method.parameter: chosen(ctx)}))
         kw = {name: inst[name][k] for name in method.reads}
         return ctx.cache[("estimator-val", method.name)].estimate_tip_force(inst.q[k], inst.qd[k], **kw)
 
@@ -169,8 +175,11 @@ def declare_method_rows(method) -> None:
 
 
 def forget_method_rows(method) -> None:
+    """Remove what ``declare_method_rows`` declared for ``method`` (it was unregistered)."""
     for name in (method.name, f"{method.name}-val"):
         ROWS.pop(name, None)
+    if PRIOR_ROWS.get(method.name) == method.name:
+        del PRIOR_ROWS[method.name]
 
 
 def _tared(robot, inst, ctx) -> np.ndarray:

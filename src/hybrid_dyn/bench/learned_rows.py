@@ -2,11 +2,10 @@
 
 A preset already says what a row reads (its inputs and targets), whether it
 needs a URDF (an analytic prior) and, by ``raw_sensor``, whether it is a
-reference row; what it does not say is its family, declared once in
-:data:`PRESET_FAMILIES`. A preset missing there is refused when this module is
-imported, naming it. The family is the preset's, not its network kind's (an MLP
-is ``seed-net`` or ``learned``, an LSTM ``seed-net`` or ``residual``); a new kind
-is declared once in ``learn/kinds.py``, a new preset of it needs its line here.
+reference row; its family is declared with it (``Preset.family``, ``learn.presets.register_preset``;
+:data:`PRESET_FAMILIES` is read from the declarations). The family is the preset's, not its network
+kind's (an MLP is ``seed-net`` or ``learned``, an LSTM ``seed-net`` or ``residual``). A preset declared
+later gets its row too (this module listens to ``PRESETS``).
 
 Rows are declared tip-force presets first, then joint-torque presets, each in
 the order of ``PRESETS``: the order results.csv lists them in.
@@ -27,33 +26,21 @@ from ..analytic.tare import tare_samples, tared_base_wrench
 from ..errors import UsageError
 from ..learn.trained_model import recorded_train_cpu
 from ..learn.presets import PRESETS
-from .rows import Predictor, Row, declare, prior_kept_text
+from .analytic_rows import PRIOR_ROWS  # noqa: F401  (re-exported: read from here before)
+from .rows import ROWS, Predictor, Row, declare, prior_kept_text
 
-PRESET_FAMILIES = {
-    "seed-net": ("seed-tip-1", "seed-tip-2", "seed-tip-3", "seed-tip-4", "seed-tip-5", "seed-tip-6", "seed-tip-7",
-                 "seed-tip-8", "seed-tip-9", "seed-tip-10", "seed-tip-11", "seed-tip-11-raw",
-                 "seed-tau-mlp", "seed-tau-conv", "seed-tau-lstm", "seed-tau-lstm-opt"),
-    "residual": ("residual-basewrench", "residual-momentum", "residual-base-momentum", "residual-rnea",
-                 "residual-rnea-bw", "delan-residual"),
-    "delan": ("delan", "delan-friction"),
-    "learned": ("tau-mlp-wide",),
-}
-# A residual preset's prior -> the analytic row that computes it (the base wrench tared, as the presets
-# read it unless raw_sensor), for the report's hybrid-against-prior comparison.
-PRIOR_ROWS = {"rnea": "rnea", "rnea-bw": "rnea-bw-tared", "base-wrench": "base-wrench-tared",
-              "momentum-observer": "momentum-observer", "base-momentum": "base-momentum"}
+# The presets of each family, read from their declarations (``Preset.family``); the family is declared
+# with the preset (``learn.presets.register_preset``).
+PRESET_FAMILIES = {family: tuple(p.name for p in PRESETS.values() if p.family == family)
+                   for family in dict.fromkeys(p.family for p in PRESETS.values())}
 RAW_SENSOR_LABEL = "raw sensor, untared: reference"  # a preset with raw_sensor=True (what the offset costs)
 TASK_OF_TARGETS = {("tip_force",): "tip_force", ("tau_m",): "joint_torque"}
 PRESET_ROWS: set = set()  # the rows declared here, one per preset (the runner trains them in parallel first)
 
 
 def preset_family(name: str) -> str:
-    """The family :data:`PRESET_FAMILIES` declares for preset ``name``."""
-    for family, names in PRESET_FAMILIES.items():
-        if name in names:
-            return family
-    raise UsageError(f"preset {name!r} has no bench family: add it to PRESET_FAMILIES in "
-                     f"hybrid_dyn/bench/learned_rows.py (one of {', '.join(PRESET_FAMILIES)})")
+    """The family preset ``name`` is declared with."""
+    return PRESETS.lookup(name).family
 
 
 def training_summary(config: dict) -> dict:
@@ -162,23 +149,36 @@ def _build(preset: str):
     return build
 
 
+def declare_preset_row(p) -> None:
+    """The row of preset ``p`` (``learn.presets.register_preset`` tells this module of a later one)."""
+    task = TASK_OF_TARGETS.get(tuple(p.targets))
+    if task is None:
+        raise UsageError(f"preset {p.name!r} predicts neither the tip force nor tau_m: no bench task for it")
+    declare(Row(p.name, task, p.family, needs=tuple(p.inputs) + tuple(p.targets),
+                needs_urdf=p.prior is not None, build=_build(p.name), trains=True,
+                reference=RAW_SENSOR_LABEL if p.raw_sensor else None,
+                prior=None if p.raw_sensor else PRIOR_ROWS.get(p.prior)))
+    PRESET_ROWS.add(p.name)
+
+
+def forget_preset_row(p) -> None:
+    ROWS.pop(p.name, None)
+    PRESET_ROWS.discard(p.name)
+
+
 def _declare_presets() -> None:
     presets = list(PRESETS.values())
-    for task in ("tip_force", "joint_torque"):
-        for p in presets:
-            if TASK_OF_TARGETS.get(tuple(p.targets)) != task:
-                continue
-            declare(Row(p.name, task, preset_family(p.name), needs=tuple(p.inputs) + tuple(p.targets),
-                        needs_urdf=p.prior is not None, build=_build(p.name), trains=True,
-                        reference=RAW_SENSOR_LABEL if p.raw_sensor else None,
-                        prior=None if p.raw_sensor else PRIOR_ROWS.get(p.prior)))
-            PRESET_ROWS.add(p.name)
     odd = [p.name for p in presets if tuple(p.targets) not in TASK_OF_TARGETS]
     if odd:
         raise UsageError(f"presets {odd} predict neither the tip force nor tau_m: no bench task for them")
+    for task in ("tip_force", "joint_torque"):  # the order results.csv lists them in
+        for p in presets:
+            if TASK_OF_TARGETS[tuple(p.targets)] == task:
+                declare_preset_row(p)
 
 
 _declare_presets()
+PRESETS.listen(declare_preset_row, forget_preset_row)
 
 
 # ---------------------------------------------------------------- Gaussian process

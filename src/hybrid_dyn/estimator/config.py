@@ -8,9 +8,11 @@ worth. Why each bound is what it is: ``estimator/tip_force_estimator.py``'s modu
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import Enum
+from typing import Mapping
 
+from ..analytic.bandwidth import BANDWIDTHS
 from ..analytic.error_bar import DRIFT_RATE, MOTION_GAIN
 from ..analytic.tare import TARE_SECONDS
 from ..errors import UsageError
@@ -44,6 +46,9 @@ class EstimatorConfig:
     (kalman-fusion's random-walk intensity of the tip force [N/sqrt(s)]): each method's
     bandwidth; "auto" (the default): chosen by the rule of ``analytic/bandwidth.py`` from
     the noise window, as the bench's headline rows choose it; a number: used as is.
+    bandwidths: the setting of every other bandwidth parameter registered there (a method's
+    own, declared with it), by name; :meth:`bandwidth` reads any of them, :meth:`from_settings`
+    takes them as keywords. Each is checked by its declaration (``BandwidthParameter.check``).
     on_bad_input: "raise" or "hold".
     tare_seconds: the contact-free start used as the noise window and to tare the base
     sensor [s]; 0 = no window: trust the sensor's zero, the rule on the specifications.
@@ -108,17 +113,36 @@ class EstimatorConfig:
     standstill_speed: float = 5e-3
     standstill_seconds: float = 0.2
     retare_seconds: float = 2.0
+    # The registered bandwidth parameters without a field of their own (a method registered later): name -> value.
+    bandwidths: Mapping[str, float | str] = field(default_factory=dict, hash=False)
+
+    @classmethod
+    def from_settings(cls, **settings) -> "EstimatorConfig":
+        """The config of keyword settings (``TipForceEstimator.analytic(**settings)``): each field by its name,
+        and each registered bandwidth parameter by its name, those without a field going into ``bandwidths``."""
+        extra = {k: settings.pop(k) for k in list(settings) if k not in _FIELDS and k in BANDWIDTHS}
+        if extra:
+            settings["bandwidths"] = {**settings.get("bandwidths", {}), **extra}
+        return cls(**settings)
+
+    def bandwidth(self, name: str) -> float | str:
+        """The setting of bandwidth parameter ``name`` (``analytic/bandwidth.py``): a number, or "auto" (the rule)."""
+        if name in _FIELDS:
+            return getattr(self, name)
+        return self.bandwidths.get(name, BANDWIDTHS.lookup(name).default)
 
     def __post_init__(self):
         if self.on_bad_input not in ("raise", "hold"):
             raise UsageError(f"on_bad_input must be 'raise' or 'hold', got {self.on_bad_input!r}")
         if not (isinstance(self.call_hz, (int, float)) and self.call_hz > 0):
             raise UsageError(f"call_hz must be > 0 [Hz], got {self.call_hz!r}")
-        if self.qdd_cutoff_hz != "auto" and not (isinstance(self.qdd_cutoff_hz, (int, float))
-                                                 and 0 < self.qdd_cutoff_hz < 0.5 * self.call_hz):
-            raise UsageError(f"qdd_cutoff_hz must be 'auto' or lie in (0, call_hz / 2) [Hz], got {self.qdd_cutoff_hz!r}")
-        _auto_or_positive("momentum_gain", self.momentum_gain, "1/s")
-        _auto_or_positive("fusion_force_rate", self.fusion_force_rate, "N/sqrt(s)")
+        object.__setattr__(self, "bandwidths", dict(self.bandwidths))  # the caller's dict may change later
+        for name in self.bandwidths:
+            if name in _FIELDS:
+                raise UsageError(f"bandwidths: {name!r} is a field of its own: set {name}= instead")
+            BANDWIDTHS.lookup(name)  # an unknown parameter is refused, naming the registered ones
+        for parameter in BANDWIDTHS.values():  # each registered parameter's setting, by its declaration
+            parameter.check(self.bandwidth(parameter.name), self.call_hz)
         for name in ("q_margin", "qd_margin", "tau_margin", "tare_seconds"):
             if not getattr(self, name) >= 0:
                 raise UsageError(f"{name} must be >= 0, got {getattr(self, name)!r}")
@@ -145,6 +169,7 @@ class EstimatorConfig:
             raise UsageError(f"rate_tolerance must lie in (0, 1), got {self.rate_tolerance!r}")
 
 
+_FIELDS = frozenset(EstimatorConfig.__dataclass_fields__) - {"bandwidths"}
 MAX_PAYLOAD_KG = 50.0  # no arm this toolkit models lifts more; a larger figure is a unit slip (g for kg)
 
 

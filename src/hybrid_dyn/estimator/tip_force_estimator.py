@@ -106,6 +106,7 @@ from pathlib import Path
 import numpy as np
 
 from ..analytic.acceleration import CausalAccelerationFilter, cutoff_grid, default_qdd_cutoff
+from ..analytic.bandwidth import QDD_CUTOFF
 from ..analytic.error_bar import ErrorBar, qdd_norm
 from ..analytic.method_names import ALIASES, estimator_name
 from ..analytic.joint_state import joint_filter_for, with_joint_state_noise
@@ -119,7 +120,8 @@ from .input import EstimatorInputError, InputGate, RateCheck
 from .noise_window import NoiseWindow
 
 # The analytic methods, by the estimators' one name (analytic/methods.py registers them; the older
-# spellings base_wrench, torques, momentum, base_momentum, kalman_fusion are accepted).
+# spellings base_wrench, torques, momentum, base_momentum, kalman_fusion are accepted). Read at import:
+# a method registered later is served all the same (the estimator reads REGISTRY at each construction).
 METHODS = tuple(REGISTRY)
 METHOD_ALIASES = {a: c for a, c in ALIASES.items() if c in METHODS}
 
@@ -160,8 +162,7 @@ class TipForceEstimator:
             robot, c.call_hz, self.encoder_resolution, c.joint_filter_bandwidth)
         self._error_bar = ErrorBar(c.call_hz, c.motion_sigma_gain, c.base_drift_rate)
         # The bandwidth: a number in the config, or None for the rule at the window's end.
-        param = None if self.spec is None else self.spec.parameter
-        value = "auto" if param is None else getattr(c, param, "auto")  # a method's own parameter: the rule
+        value = "auto" if self.spec is None else c.bandwidth(self.spec.parameter)  # by its declaration's name
         self._fixed = None if value == "auto" else float(value)
         if model is not None and c.qdd_cutoff_hz == "auto":
             # The network saw qdd through its training filter: the stream runs it too, a fixed number the
@@ -193,13 +194,14 @@ class TipForceEstimator:
         base_wrench) or "kalman-fusion" (base_wrench, tau_J or both per call); the older spellings
         (``METHOD_ALIASES``: "base_wrench", "torques", "momentum", "base_momentum", "kalman_fusion") mean the same.
         payload: the tool's load, ``(mass_kg, (x, y, z))`` with its centre of mass [m] in the tool frame (as
-        libfranka's ``setLoad``): part of the model every method subtracts (``set_payload`` changes it)."""
+        libfranka's ``setLoad``): part of the model every method subtracts (``set_payload`` changes it).
+        config: ``EstimatorConfig`` settings, a method's bandwidth parameter by its name (``momentum_gain=50.0``)."""
         method = estimator_name(method, REGISTRY, "estimator method")
         if not isinstance(robot, Robot):
             robot = load_robot(robot, params=params, num_threads=1)
         if payload is not None:
             robot = with_payload(robot, checked_payload(payload))
-        return cls(robot, method, EstimatorConfig(**config))
+        return cls(robot, method, EstimatorConfig.from_settings(**config))
 
     @classmethod
     def load(cls, model_dir, robot: str | None = None, runtime: str = "auto", payload=None,
@@ -219,7 +221,7 @@ class TipForceEstimator:
             raise UsageError("payload= is not supported for a learned model yet: train it on data with the tool, "
                              "or use TipForceEstimator.analytic(..., payload=...)")
         model = StreamingModel.load(Path(model_dir), robot=robot, runtime=runtime)
-        return cls(model.robot, "learned", EstimatorConfig(**config), model=model)
+        return cls(model.robot, "learned", EstimatorConfig.from_settings(**config), model=model)
 
     def set_payload(self, mass_kg: float, com_xyz=(0.0, 0.0, 0.0)) -> None:
         """The tool now carries ``mass_kg`` [kg] with its centre of mass at ``com_xyz`` [m] in the tool frame
@@ -457,7 +459,7 @@ class TipForceEstimator:
         returns the replay's last qdd (None without one)."""
         kalman = getattr(self._stream, "kalman", None)
         self.fusion_noise = None if kalman is None else kalman.noise
-        if self.spec.parameter != "qdd_cutoff_hz":
+        if self.spec.parameter != QDD_CUTOFF.name:
             return None
         grid = cutoff_grid(float(self.config.call_hz))[0]
         hit = np.flatnonzero(np.isclose(grid, self.bandwidth, rtol=1e-12))

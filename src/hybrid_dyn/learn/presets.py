@@ -17,10 +17,13 @@ length 10 for the torque sequence nets.
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 
-from ..analytic.method_names import estimator_name
+from ..analytic import methods  # noqa: F401  (registers the tip-force methods: their names are read below)
+from ..analytic.method_names import ESTIMATOR_NAMES, estimator_name, residual_prior_names
+from ..deprecation import module_aliases
 from ..errors import UsageError
+from ..registry import Registry
 from .kinds import KINDS, preset_problems  # noqa: F401  (KINDS re-exported: the network kinds' names)
 
 STATE = ["q", "qd", "qdd"]
@@ -28,29 +31,26 @@ TIP_INPUTS = ["base_wrench", "q", "qd", "qdd"]
 TIP_INPUTS_TAU = TIP_INPUTS + ["tau_J"]
 
 # The analytic estimators a residual can sit on, by their one name (analytic/method_names.py): the two
-# torque models, and the tip-force methods registered as priors (analytic/methods.py).
-TORQUE_PRIORS = ("rnea", "rnea-bw")
-
-
-def prior_kinds() -> tuple:
-    """Every prior a preset may name now (a method registered later included)."""
-    from ..analytic.methods import REGISTRY
-
-    return TORQUE_PRIORS + tuple(name for name, m in REGISTRY.items() if m.prior)
-
-
-PRIORS = (None,) + prior_kinds()
+# torque models, and the tip-force methods declared with residual_prior=True (analytic/methods.py).
+TORQUE_PRIORS = tuple(e.name for e in ESTIMATOR_NAMES.where(estimates="joint_torque", residual_prior=True))
+PRIORS = (None,) + residual_prior_names()  # at import; residual_prior_names() for a method registered later
 # How training fingerprints (and the keys of the prior caches) spell each prior: the spellings model
-# files wrote until format 3 (issue 30). Frozen: every trained model and every cached training run is
-# keyed by them, so a run of today finds the models trained before. Files write the canonical names
+# files wrote until format 3 (issue 30), each an older spelling of the estimator's name
+# (``ESTIMATOR_NAMES.alias``). Frozen: every trained model and every cached training run is keyed by
+# them, so a run of today finds the models trained before. Files write the canonical names
 # (:meth:`Preset.to_dict`); only these digests keep the old ones. A prior not listed is spelled by its name.
-PRIOR_FINGERPRINT_SPELLING = {"rnea": "rnea", "rnea-bw": "rnea-basewrench", "base-wrench": "basewrench",
-                              "momentum-observer": "momentum", "base-momentum": "base-momentum"}
+_FINGERPRINT_SPELLINGS = ("rnea-basewrench", "basewrench", "momentum")
 
 
-def prior_fingerprint_spelling(kind: str) -> str:
-    """The prior ``kind`` (a canonical name) as fingerprints and cache keys spell it (:data:`PRIOR_FINGERPRINT_SPELLING`)."""
-    return PRIOR_FINGERPRINT_SPELLING.get(kind, kind)
+def prior_fingerprint_spelling(name: str) -> str:
+    """The prior ``name`` (a canonical name) as fingerprints and cache keys spell it."""
+    for old in _FINGERPRINT_SPELLINGS:
+        if ESTIMATOR_NAMES.aliases[old][0] == name:
+            return old
+    return name
+
+
+PRIOR_FINGERPRINT_SPELLING = {name: prior_fingerprint_spelling(name) for name in PRIORS[1:]}  # read from the above
 
 
 @dataclass(frozen=True)
@@ -80,6 +80,8 @@ class Preset:
     delan_*: DeLaN's hidden layers for L(q) and V(q); friction: learn a Gaz
     sigmoid friction per joint; residual: add a residual network of the other
     fields (kind of the residual net: residual_kind, with its own window).
+    family: the bench family of its row ("seed-net", "residual", "delan", "learned"; ``bench/learned_rows.py``),
+    metadata of a declared preset, not of the model: files and fingerprints leave it out, equality ignores it.
     """
 
     name: str
@@ -101,12 +103,15 @@ class Preset:
     delan_eps: float = 1e-3
     friction: bool = False
     residual_kind: str | None = None
+    # Not part of the model (model files and fingerprints leave it out): the bench family of its row.
+    family: str | None = field(default=None, compare=False)
 
     def __post_init__(self):
         if self.kind not in KINDS:
             raise ValueError(f"preset {self.name!r}: kind must be one of {tuple(KINDS)}, got {self.kind!r}")
         if self.prior is not None:  # one name per estimator; a saved model's older spelling is read as it
-            object.__setattr__(self, "prior", estimator_name(self.prior, prior_kinds(), f"prior of preset {self.name!r}"))
+            object.__setattr__(self, "prior",
+                               estimator_name(self.prior, residual_prior_names(), f"prior of preset {self.name!r}"))
         if self.activation not in ("relu", "tanh"):
             raise ValueError(f"preset {self.name!r}: activation must be relu or tanh, got {self.activation!r}")
         if self.window < 1:
@@ -122,8 +127,9 @@ class Preset:
         return self.window > 1
 
     def to_dict(self) -> dict:
-        """The preset as model files store it (JSON types; the prior by its canonical name)."""
+        """The preset as model files store it (JSON types; the prior by its canonical name; not its family)."""
         d = asdict(self)
+        del d["family"]
         for k, v in d.items():
             if isinstance(v, tuple):
                 d[k] = list(v)
@@ -160,76 +166,89 @@ def _tip(no, kind, torques, fc_units, window, front=(16,), activation="relu"):
     return Preset(
         name=f"seed-tip-{no}", kind=kind, inputs=tuple(TIP_INPUTS_TAU if torques else TIP_INPUTS),
         targets=("tip_force",), window=window, front_units=tuple(front) if kind != "mlp" else (),
-        fc_layers=2, fc_units=fc_units, activation=activation,
+        fc_layers=2, fc_units=fc_units, activation=activation, family="seed-net",
         description=f"seed Table 1 #{no}: {kind.upper()}, joint torques {'yes' if torques else 'no'}, "
                     f"FC 2 x {fc_units}{seq}",
     )
 
 
-def _build_registry() -> dict:
-    presets = [
-        _tip(1, "mlp", False, 32, 1),
-        _tip(2, "mlp", True, 32, 1),
-        _tip(3, "mlp", True, 16, 1),
-        _tip(4, "conv", False, 16, 10),
-        _tip(5, "conv", False, 16, 5),
-        _tip(6, "conv", True, 16, 5),
-        _tip(7, "lstm", False, 16, 10),
-        _tip(8, "lstm", True, 16, 10),
-        _tip(9, "lstm", True, 16, 5),
-        _tip(10, "lstm", False, 16, 10, front=(32, 32)),
-        _tip(11, "lstm", True, 8, 10, front=(32, 32)),
-        # Reference row: #11 on the raw base sensor, its per-run offset left in (issue 14).
-        _tip(11, "lstm", True, 8, 10, front=(32, 32)).replace(
-            name="seed-tip-11-raw", raw_sensor=True,
-            description="seed Table 1 #11 on the raw (untared) base sensor: a reference row for the offset's cost"),
-        Preset("seed-tau-mlp", "mlp", tuple(STATE), ("tau_m",), fc_units=32,
-               description="seed Table 3 MLP (widths as Table 1 #1)"),
-        Preset("seed-tau-conv", "conv", tuple(STATE), ("tau_m",), window=10, front_units=(16,),
-               description="seed Table 3 conv (widths as Table 1 #4)"),
-        Preset("seed-tau-lstm", "lstm", tuple(STATE), ("tau_m",), window=10, front_units=(16,),
-               description="seed Table 3 LSTM (widths as Table 1 #7)"),
-        Preset("seed-tau-lstm-opt", "lstm", tuple(STATE), ("tau_m",), window=10, front_units=(32, 32),
-               fc_units=8, activation="tanh", description="seed Table 3 #10: optimized LSTM, 2 x 32, FC 2 x 8, tanh"),
-        # Not from the seed: for small real-robot sets (a handful of trajectories), width plus dropout
-        # generalise to unseen trajectories better than the seed's 2 x 32 (a search on the validation
-        # split of the three real sets, issue 8's closing note; docs/models.md).
-        Preset("tau-mlp-wide", "mlp", tuple(STATE), ("tau_m",), fc_units=128, dropout=0.2,
-               description="regularised MLP for small real-robot sets: FC 2 x 128, dropout 0.2 (not from the seed)"),
-        # Residual (hybrid) models: a small LSTM learns what the analytic part misses.
-        Preset("residual-rnea", "lstm", tuple(STATE), ("tau_m",), window=10, front_units=(32,),
-               prior="rnea", description="tau = RNEA_nominal(q, qd, qdd) + LSTM(window of q, qd, qdd)"),
-        Preset("residual-rnea-bw", "lstm", tuple(STATE + ["base_wrench"]), ("tau_m",), window=10,
-               front_units=(32,), prior="rnea-bw",
-               description="tau = RNEA - J_v^T F_basewrench + LSTM(window of q, qd, qdd, base_wrench)"),
-        Preset("residual-basewrench", "lstm", tuple(TIP_INPUTS), ("tip_force",), window=10, front_units=(32,),
-               prior="base-wrench", description="F = base-wrench method + LSTM(window of base_wrench, q, qd, qdd)"),
-        Preset("residual-momentum", "lstm", tuple(STATE + ["tau_J"]), ("tip_force",), window=10,
-               front_units=(32,), prior="momentum-observer",
-               description="F = momentum observer(q, qd, tau_J) + LSTM(window of q, qd, qdd, tau_J)"),
-        Preset("residual-base-momentum", "lstm", tuple(TIP_INPUTS), ("tip_force",), window=10, front_units=(32,),
-               prior="base-momentum",
-               description="F = base momentum observer(q, qd, tared base_wrench) + LSTM(window of base_wrench, q, qd, qdd)"),
-        # DeLaN (Lutter et al. 2019): tau = H qdd + c + g (+ friction) (+ residual).
-        Preset("delan", "delan", tuple(STATE), ("tau_m",), activation="tanh",
-               description="DeLaN: H = L L^T + eps I, V(q); c, g by autograd"),
-        Preset("delan-friction", "delan", tuple(STATE), ("tau_m",), activation="tanh", friction=True,
-               description="DeLaN + learned Gaz sigmoid friction"),
-        Preset("delan-residual", "delan", tuple(STATE), ("tau_m",), window=10, activation="tanh", friction=True,
-               residual_kind="lstm", front_units=(32,),
-               description="DeLaN + learned friction + LSTM residual on the window of q, qd, qdd"),
-    ]
-    return {p.name: p for p in presets}
+PRESETS = Registry("preset", UsageError)  # name -> Preset: training, the CLI and the bench's rows read it
 
 
-PRESETS: dict[str, Preset] = _build_registry()
+def register_preset(preset: Preset) -> Preset:
+    """Declare a preset (with its bench ``family``): from now on ``train_model``, the CLI and the bench's rows
+    (``bench/learned_rows.py``, which listens) know it by its name."""
+    if preset.family is None:
+        raise UsageError(f"preset {preset.name!r} has no bench family: declare it with family=...")
+    return PRESETS.register(preset)
+
+
+for _preset in (
+    _tip(1, "mlp", False, 32, 1),
+    _tip(2, "mlp", True, 32, 1),
+    _tip(3, "mlp", True, 16, 1),
+    _tip(4, "conv", False, 16, 10),
+    _tip(5, "conv", False, 16, 5),
+    _tip(6, "conv", True, 16, 5),
+    _tip(7, "lstm", False, 16, 10),
+    _tip(8, "lstm", True, 16, 10),
+    _tip(9, "lstm", True, 16, 5),
+    _tip(10, "lstm", False, 16, 10, front=(32, 32)),
+    _tip(11, "lstm", True, 8, 10, front=(32, 32)),
+    # Reference row: #11 on the raw base sensor, its per-run offset left in (issue 14).
+    _tip(11, "lstm", True, 8, 10, front=(32, 32)).replace(
+        name="seed-tip-11-raw", raw_sensor=True,
+        description="seed Table 1 #11 on the raw (untared) base sensor: a reference row for the offset's cost"),
+    Preset("seed-tau-mlp", "mlp", tuple(STATE), ("tau_m",), fc_units=32,
+           family="seed-net", description="seed Table 3 MLP (widths as Table 1 #1)"),
+    Preset("seed-tau-conv", "conv", tuple(STATE), ("tau_m",), window=10, front_units=(16,),
+           family="seed-net", description="seed Table 3 conv (widths as Table 1 #4)"),
+    Preset("seed-tau-lstm", "lstm", tuple(STATE), ("tau_m",), window=10, front_units=(16,),
+           family="seed-net", description="seed Table 3 LSTM (widths as Table 1 #7)"),
+    Preset("seed-tau-lstm-opt", "lstm", tuple(STATE), ("tau_m",), window=10, front_units=(32, 32),
+           fc_units=8, activation="tanh", family="seed-net",
+           description="seed Table 3 #10: optimized LSTM, 2 x 32, FC 2 x 8, tanh"),
+    # Not from the seed: for small real-robot sets (a handful of trajectories), width plus dropout
+    # generalise to unseen trajectories better than the seed's 2 x 32 (a search on the validation
+    # split of the three real sets, issue 8's closing note; docs/models.md).
+    Preset("tau-mlp-wide", "mlp", tuple(STATE), ("tau_m",), fc_units=128, dropout=0.2,
+           family="learned",
+           description="regularised MLP for small real-robot sets: FC 2 x 128, dropout 0.2 (not from the seed)"),
+    # Residual (hybrid) models: a small LSTM learns what the analytic part misses.
+    Preset("residual-rnea", "lstm", tuple(STATE), ("tau_m",), window=10, front_units=(32,),
+           prior="rnea", family="residual", description="tau = RNEA_nominal(q, qd, qdd) + LSTM(window of q, qd, qdd)"),
+    Preset("residual-rnea-bw", "lstm", tuple(STATE + ["base_wrench"]), ("tau_m",), window=10,
+           front_units=(32,), prior="rnea-bw",
+           family="residual", description="tau = RNEA - J_v^T F_basewrench + LSTM(window of q, qd, qdd, base_wrench)"),
+    Preset("residual-basewrench", "lstm", tuple(TIP_INPUTS), ("tip_force",), window=10, front_units=(32,),
+           prior="base-wrench", family="residual",
+           description="F = base-wrench method + LSTM(window of base_wrench, q, qd, qdd)"),
+    Preset("residual-momentum", "lstm", tuple(STATE + ["tau_J"]), ("tip_force",), window=10,
+           front_units=(32,), prior="momentum-observer",
+           family="residual", description="F = momentum observer(q, qd, tau_J) + LSTM(window of q, qd, qdd, tau_J)"),
+    Preset("residual-base-momentum", "lstm", tuple(TIP_INPUTS), ("tip_force",), window=10, front_units=(32,),
+           prior="base-momentum",
+           family="residual",
+           description="F = base momentum observer(q, qd, tared base_wrench) + LSTM(window of base_wrench, q, qd, qdd)"),
+    # DeLaN (Lutter et al. 2019): tau = H qdd + c + g (+ friction) (+ residual).
+    Preset("delan", "delan", tuple(STATE), ("tau_m",), activation="tanh",
+           family="delan", description="DeLaN: H = L L^T + eps I, V(q); c, g by autograd"),
+    Preset("delan-friction", "delan", tuple(STATE), ("tau_m",), activation="tanh", friction=True,
+           family="delan", description="DeLaN + learned Gaz sigmoid friction"),
+    Preset("delan-residual", "delan", tuple(STATE), ("tau_m",), window=10, activation="tanh", friction=True,
+           residual_kind="lstm", front_units=(32,),
+           family="residual", description="DeLaN + learned friction + LSTM residual on the window of q, qd, qdd"),
+):
+    register_preset(_preset)
 
 
 def get_preset(name_or_preset) -> Preset:
     """A preset by name (see :data:`PRESETS`), or the preset itself."""
     if isinstance(name_or_preset, Preset):
         return name_or_preset
-    try:
-        return PRESETS[name_or_preset]
-    except KeyError:
-        raise UsageError(f"unknown preset {name_or_preset!r}; known: {', '.join(PRESETS)}") from None
+    return PRESETS.lookup(name_or_preset)
+
+
+# prior_kinds: the residual priors' names were called "kinds", as the networks' are.
+__getattr__ = module_aliases(__name__, {"prior_kinds": "residual_prior_names"}, globals(),
+                             why="a prior is an estimator, not a kind")

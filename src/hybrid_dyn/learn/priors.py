@@ -12,10 +12,12 @@ an identified one):
 - ``momentum-observer`` F = MomentumObserver(q, qd, tau_J), dt = 1 / record_hz [N] (3)
 - ``base-momentum``     F = the base momentum observer (q, qd, tared base wrench) [N] (3),
   0 in the tare window and started after it
-- any tip-force method registered with ``prior=True`` (``analytic/methods.py``): its
-  batch run from its one definition, at the bandwidth ``observer_gain``
+- any tip-force method registered with ``residual_prior=True`` (``analytic/methods.py``): its
+  batch run from its one definition, at the bandwidth ``observer_gain`` (the training config's name
+  for the prior method's bandwidth, in that method's unit: kept, as model files and cache keys hold it)
 
-The kinds are the estimators' one name (``analytic/method_names.py``); the older
+A prior is named by its estimator's one name (``analytic/method_names.py``; the model files'
+``kind`` key holds it, hence ``AnalyticPrior.kind``); the older
 spellings ``rnea-basewrench``, ``basewrench`` and ``momentum`` are accepted with a
 warning. Model files (from format 3) and cache file names write the canonical names;
 the cache keys and training fingerprints keep hashing the older spellings
@@ -59,17 +61,17 @@ from ..analytic.method_names import estimator_name
 from ..analytic.methods import REGISTRY, add_listener
 from ..analytic.tare import tare_samples, tared_base_wrench
 from ..analytic.tip_force import base_wrench_force_core, contact_joint_torques, tip_force_from_base_wrench
-from .presets import prior_fingerprint_spelling
+from .presets import TORQUE_PRIORS, prior_fingerprint_spelling
 
 # The fields each prior reads: the two torque models here, every tip-force method registered as a prior
 # from its one definition (analytic/methods.py; base-momentum reads qdd only for the tare).
 PRIOR_FIELDS = {"rnea": ("q", "qd", "qdd"), "rnea-bw": ("q", "qd", "qdd", "base_wrench")}
 STATEFUL_PRIORS: list = []  # the filters among them (the registry's stateful methods)
-FRICTION_PRIORS = ("rnea", "rnea-bw")  # predict the motor torque: rigid body + friction
+FRICTION_PRIORS = TORQUE_PRIORS  # predict the motor torque: rigid body + friction
 
 
 def _on_register(method) -> None:
-    if method.prior:
+    if method.residual_prior:
         PRIOR_FIELDS[method.name] = method.fields
         if method.stateful:
             STATEFUL_PRIORS.append(method.name)
@@ -89,9 +91,10 @@ add_listener(_on_register, _on_unregister)
 class AnalyticPrior:
     """One analytic model, evaluated on instances or on a single sample.
 
-    kind: a key of :data:`PRIOR_FIELDS` (or an older spelling of one). robot: the nominal :class:`Robot`.
+    kind: the prior's estimator, a key of :data:`PRIOR_FIELDS` (or an older spelling of one). robot: the
+    nominal :class:`Robot`.
     record_hz: the dataset's sample rate (the momentum observer's dt is 1/record_hz).
-    observer_gain: the momentum observer's bandwidth K [1/s].
+    observer_gain: the prior method's bandwidth, in its parameter's unit (a momentum observer's K [1/s]).
     tare_seconds: base-wrench priors only: the contact-free start of each
     instance used to tare the base sensor [s]; 0 = no tare.
     friction: the joint friction added to the torque priors (``rnea``,

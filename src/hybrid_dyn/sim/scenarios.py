@@ -73,6 +73,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..analytic.robot import Robot, SensorMount, load_robot
+from ..description.sensor_noise import NoiseConfig  # the sensors' noise, below sim/ and analytic/
 from .sensors import ClockModel, EncoderModel, ForceTorqueModel, HardwareSensors
 
 # Bump when the generator's algorithm changes what a config produces.
@@ -85,32 +86,6 @@ QDD_SOURCES = ("filter", "exact")
 
 class ConfigError(HybridDynError, ValueError):
     """A generator configuration is inconsistent or names an unknown scenario or size."""
-
-
-@dataclass(frozen=True)
-class NoiseConfig:
-    """Sensor noise: white, zero-mean Gaussian standard deviations, plus a
-    per-instance base-sensor bias drawn uniformly in [-bias, bias] per axis.
-
-    Noise on q and qd is drawn at the simulation rate (the controller sees it
-    too); the others at the recording rate. Levels are those of a Panda's
-    encoders and joint torque sensors and of a mid-range 6-axis F/T sensor.
-    The controller's gains turn q/qd noise into command jitter (Kp sigma_q +
-    Kd sigma_qd, ~0.17 rad/s^2 here, ~0.2 Nm on joints 1-4): ten times these
-    levels would bury the joint-torque task in it.
-    """
-
-    q: float = 2e-5             # rad
-    qd: float = 5e-4            # rad/s
-    tau_J: float = 0.05         # Nm, link-side joint torque sensors
-    force: float = 0.2          # N, base sensor forces
-    torque: float = 0.01        # Nm, base sensor moments
-    force_bias: float = 2.0     # N, per-instance offset bound
-    torque_bias: float = 0.1    # Nm, per-instance offset bound
-
-    @classmethod
-    def off(cls) -> "NoiseConfig":
-        return cls(**{f.name: 0.0 for f in dataclasses.fields(cls)})
 
 
 @dataclass(frozen=True)
