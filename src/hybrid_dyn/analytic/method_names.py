@@ -22,7 +22,7 @@ each tip-force method by its own declaration (``analytic/methods.register``). :d
 Older spellings (``ESTIMATOR_NAMES.alias``: ``basewrench`` and ``base_wrench``, ``torques``,
 ``momentum``, ``base_momentum``, ``kalman_fusion``, ``rnea-basewrench``; :data:`ALIASES` reads them)
 mean the same estimator, and are accepted with a warning (``deprecation.DeprecatedNameWarning``)
-that names the canonical one. Model files write the canonical names since format 3 (issue 30); an older
+that names the canonical one. Model files write the canonical names since format 3; an older
 file's spellings are read by ``learn.trained_model.load_model``, which warns once per file instead.
 """
 from __future__ import annotations
@@ -56,8 +56,8 @@ def _update_estimators(_changed=None) -> None:
 ESTIMATOR_NAMES.listen(_update_estimators, _update_estimators)
 ESTIMATOR_NAMES.register(EstimatorName("rnea", "joint_torque", residual_prior=True))
 ESTIMATOR_NAMES.register(EstimatorName("rnea-bw", "joint_torque", residual_prior=True))
-ESTIMATOR_NAMES.alias("basewrench", "base-wrench", "the residual priors' spelling until issue 15")
-ESTIMATOR_NAMES.alias("base_wrench", "base-wrench", "TipForceEstimator's spelling until issue 15")
+ESTIMATOR_NAMES.alias("basewrench", "base-wrench", "the residual priors' old spelling")
+ESTIMATOR_NAMES.alias("base_wrench", "base-wrench", "TipForceEstimator's old spelling")
 ESTIMATOR_NAMES.alias("torques", "torques-pinv")
 ESTIMATOR_NAMES.alias("momentum", "momentum-observer")
 ESTIMATOR_NAMES.alias("base_momentum", "base-momentum")

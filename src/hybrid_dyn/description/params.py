@@ -58,7 +58,7 @@ def read_param_file(path: Path) -> list[LinkInertial]:
         absorbed = item.mass == 0 and bool(ln.get("absorbed_into"))
         if not ((item.mass > 0 and math.isfinite(item.mass)) or absorbed):
             raise RobotDescriptionError(f"parameter file {path}, link {item.name}: mass must be positive, got {item.mass}")
-        # A negative inertia was accepted before issue 28. A published set may break the triangle inequality
+        # A negative inertia is refused (it was once accepted). A published set may break the triangle inequality
         # and say so on the link ("triangle_inequality": why it is kept), to be used as published.
         bad = inertial_problems(item.mass, item.inertia, triangle=not ln.get("triangle_inequality"))
         if bad:

@@ -400,7 +400,7 @@ def identify(data, method: str = "consistent", robot: Robot | None = None, *, sp
     model = IdentifiedModel(robot, method, pi.reshape(nv, N_BODY_PARAMS), friction, fit)
     model.fit["rmse_per_joint"] = _joint_rmse(data.tau, model.predict_torque(data.q, data.qd, data.qdd)).tolist()
     model.fit["physically_consistent"] = model.physically_consistent
-    # What the data could not determine, and bodies this robot cannot have (issue 39): said, not silent.
+    # What the data could not determine, and bodies this robot cannot have: said, not silent.
     model.fit["range_of_motion_deg"] = np.degrees(np.ptp(data.q, axis=0)).tolist()
     model.fit["warnings"] = fit_warnings(data.q, cond, robot.joint_names)
     model.fit["implausible"] = model.implausible_bodies()

@@ -1,4 +1,4 @@
-"""What identification returns, checked against the robot it claims to describe (issue 39).
+"""What identification returns, checked against the robot it claims to describe.
 
 A fit on data that cannot support it (a dead torque channel, a joint that never moves) still returns
 numbers: OLS gave bodies of -10.3 kg with a centre of mass 10 m away, and the sigmoid-friction fit put

@@ -53,7 +53,7 @@ def _train_options(p) -> None:
     p.add_argument("--max-epochs", type=int, default=None,
                    help="maximum epochs (early stopping ends sooner; default 200)")
     p.add_argument("--epochs", dest="max_epochs", type=int, action=DeprecatedFlag, new="--max-epochs",
-                   help=argparse.SUPPRESS)  # its old name, until issue 30
+                   help=argparse.SUPPRESS)  # its old name
     p.add_argument("--patience", type=int, default=None, help="epochs without validation improvement before stopping")
     p.add_argument("--batch-size", type=int, default=None)
     p.add_argument("--lr", type=float, default=None, help="initial learning rate (default 1e-3)")
@@ -68,7 +68,7 @@ def _train_options(p) -> None:
     p.add_argument("--params", default=None, help="parameter set (a name such as franka_official) or parameter JSON "
                    "of the residual models' analytic part, as bench --params (default: the robot's nominal set)")
     p.add_argument("--analytic-params", dest="params", action=DeprecatedFlag, new="--params",
-                   help=argparse.SUPPRESS)  # its old name, until issue 30
+                   help=argparse.SUPPRESS)  # its old name
     p.add_argument("--device", default="auto", help="auto, cpu or cuda")
     p.add_argument("--threads", type=int, default=None, help="PyTorch CPU threads")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -156,7 +156,7 @@ def _sklearn_kernel(config: GPConfig, d: int, constant=1.0, length_scale=None, n
 def fit_gp_hyperparameters(x: np.ndarray, y: np.ndarray, config: GPConfig | None = None) -> GPHyperparameters:
     """Per column of ``y`` (N, nv), the kernel's hyperparameters by maximum marginal likelihood
     on ``config.hyper_rows`` random rows of ``x`` (N, d), standardized by all of ``x``'s rows: scikit-learn's
-    objective and optimizer, evaluated by ``gp_marginal`` (issue 40: 10x cheaper, one BLAS thread)."""
+    objective and optimizer, evaluated by ``gp_marginal`` (10x cheaper, one BLAS thread)."""
     from .gp_marginal import fit_hyperparameters, one_blas_thread
 
     config = config or GPConfig()
@@ -347,7 +347,7 @@ def load_gp(model_dir, family: str = "gp") -> GPModel:
                          + ("; load it with hybrid_dyn.learn.gp_residual.load_gp_residual (its prior added)"
                             if config.get("family") == "gp-residual" else ""))
     version = config.get("format_version", 0)
-    if isinstance(version, bool) or not isinstance(version, int):  # "1" or null: a traceback before issue 28
+    if isinstance(version, bool) or not isinstance(version, int):  # "1" or null: refused, not a traceback
         raise ModelError(f"{cpath}: GP format_version must be an integer, got {version!r} (edited?)")
     if version > GP_FORMAT_VERSION:
         raise ModelError(f"{cpath}: GP format version {version} is newer than this toolkit's ({GP_FORMAT_VERSION})")

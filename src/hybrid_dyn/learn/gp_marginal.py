@@ -1,4 +1,4 @@
-"""The exact GP's log marginal likelihood and its gradient, for the hyperparameter fit (issue 40).
+"""The exact GP's log marginal likelihood and its gradient, for the hyperparameter fit.
 
 The same objective scikit-learn's ``GaussianProcessRegressor`` maximises for the GP family's kernel
 (``gp.py``: c * RBF(l) + WhiteKernel(s), jitter 1e-10 on the diagonal, targets standardized), with the
@@ -17,7 +17,7 @@ tensor (66 MB at n = 600, d = 21) and reduces it.
 
 Why one BLAS thread (:func:`one_blas_thread`): in a process that has imported torch, on a 2-core machine,
 a 600 x 600 Cholesky factor by scipy took 0.1-2 s on the BLAS libraries' own threads against 3-10 ms on
-one (measured while writing issue 40; the threads of two OpenBLAS copies and torch's OpenMP spin against
+one (measured when this module was written; the threads of two OpenBLAS copies and torch's OpenMP spin against
 each other). ``benchmarks/gp_hyper.py`` measures the whole fit before and after on the real Panda.
 """
 from __future__ import annotations

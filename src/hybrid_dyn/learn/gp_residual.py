@@ -1,4 +1,4 @@
-"""The semiparametric GP: an identified model plus a sparse GP on its residual (issue 29).
+"""The semiparametric GP: an identified model plus a sparse GP on its residual.
 
 tau_m(x) = identified(q, qd, qdd) + r(x),  x = [q, qd, qdd]  [Nm]
 

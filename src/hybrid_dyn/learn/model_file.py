@@ -95,7 +95,7 @@ def read_timing(path: Path, digest: str, key: str = "train_seconds") -> float | 
 
 def recorded_train_cpu(model) -> float:
     """The CPU time [s] a saved model's training took (its timing.json), NaN when not recorded
-    (a model without a folder, or trained before issue 40)."""
+    (a model without a folder, or trained before CPU time was recorded)."""
     path = getattr(model, "path", None)
     if path is None:
         return float("nan")

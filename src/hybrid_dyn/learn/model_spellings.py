@@ -1,6 +1,6 @@
 """Estimator spellings of older model files: read once, with one warning that names the upgrade.
 
-Model format 3 (issue 30) writes the analytic prior by its canonical estimator name
+Model format 3 writes the analytic prior by its canonical estimator name
 (``analytic/method_names.py``: ``base-wrench``, ``momentum-observer``, ``rnea-bw``) in the
 preset (``preset.prior``) and in the prior's description (``prior.kind``). Formats 1-2 wrote
 the older spellings (``basewrench``, ``momentum``, ``rnea-basewrench``). An older file still

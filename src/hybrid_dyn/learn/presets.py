@@ -35,7 +35,7 @@ TIP_INPUTS_TAU = TIP_INPUTS + ["tau_J"]
 TORQUE_PRIORS = tuple(e.name for e in ESTIMATOR_NAMES.where(estimates="joint_torque", residual_prior=True))
 PRIORS = (None,) + residual_prior_names()  # at import; residual_prior_names() for a method registered later
 # How training fingerprints (and the keys of the prior caches) spell each prior: the spellings model
-# files wrote until format 3 (issue 30), each an older spelling of the estimator's name
+# files wrote until format 3, each an older spelling of the estimator's name
 # (``ESTIMATOR_NAMES.alias``). Frozen: every trained model and every cached training run is keyed by
 # them, so a run of today finds the models trained before. Files write the canonical names
 # (:meth:`Preset.to_dict`); only these digests keep the old ones. A prior not listed is spelled by its name.
@@ -195,7 +195,7 @@ for _preset in (
     _tip(9, "lstm", True, 16, 5),
     _tip(10, "lstm", False, 16, 10, front=(32, 32)),
     _tip(11, "lstm", True, 8, 10, front=(32, 32)),
-    # Reference row: #11 on the raw base sensor, its per-run offset left in (issue 14).
+    # Reference row: #11 on the raw base sensor, its per-run offset left in.
     _tip(11, "lstm", True, 8, 10, front=(32, 32)).replace(
         name="seed-tip-11-raw", raw_sensor=True,
         description="seed Table 1 #11 on the raw (untared) base sensor: a reference row for the offset's cost"),
@@ -210,7 +210,7 @@ for _preset in (
            description="seed Table 3 #10: optimized LSTM, 2 x 32, FC 2 x 8, tanh"),
     # Not from the seed: for small real-robot sets (a handful of trajectories), width plus dropout
     # generalise to unseen trajectories better than the seed's 2 x 32 (a search on the validation
-    # split of the three real sets, issue 8's closing note; docs/models.md).
+    # split of the three real sets; docs/models.md).
     Preset("tau-mlp-wide", "mlp", tuple(STATE), ("tau_m",), fc_units=128, dropout=0.2,
            family="learned",
            description="regularised MLP for small real-robot sets: FC 2 x 128, dropout 0.2 (not from the seed)"),

@@ -211,7 +211,7 @@ class AnalyticPrior:
     def cache_path(self, cache_dir, dataset_checksum: str) -> Path:
         """The cache file of this prior on a dataset: ``prior-<kind>-<key>.h5``, the key a digest of the
         dataset checksum and :meth:`describe` with the kind in its fingerprint spelling (the keys of every
-        cache written before issue 30). A cache under the older file name (``prior-basewrench-<key>.h5``)
+        cache written before model format 3). A cache under the older file name (``prior-basewrench-<key>.h5``)
         is renamed to this one."""
         ident = {"dataset": dataset_checksum, **self.describe(), "kind": prior_fingerprint_spelling(self.kind)}
         key = hashlib.sha256(json.dumps(ident, sort_keys=True).encode()).hexdigest()[:20]

@@ -18,10 +18,10 @@ Four recipes (:data:`RECIPES`, ``--recipe``):
   validation loss is measured ``budget_evals`` times over the budget and the best
   weights are kept. The cost of a run is known before it starts.
 
-- ``seed-study`` (the seed study's 3.2, exactly; ``seed`` until issue 30): Glorot-uniform initialization, Adam at lr 1e-3,
+- ``seed-study`` (the seed study's 3.2, exactly; formerly ``seed``): Glorot-uniform initialization, Adam at lr 1e-3,
   MSE loss on standardized targets, a constant learning rate, and training
   until the validation loss has not improved for 5 consecutive epochs.
-- ``plateau`` (this toolkit's, ``TrainConfig()``'s; ``default`` until issue 30): the same, plus what an expert adds so that a
+- ``plateau`` (this toolkit's, ``TrainConfig()``'s; formerly ``default``): the same, plus what an expert adds so that a
   net is trained to convergence rather than to its first plateau: the
   learning rate is cut by ``lr_factor`` after ``lr_patience`` epochs without
   improvement (reduce-on-plateau) down to a floor ``min_lr``; early stopping
@@ -236,7 +236,7 @@ RECIPES = {
     # A known cost per row (module docstring): steps by network kind, warm-up, cosine decay to zero.
     "budget": dict(lr_schedule="cosine", batch_size=1024, lr=2e-3),
 }
-# The recipes' names until issue 30 ("default" was also a generator size and a bench profile, "seed"
+# The recipes' former names ("default" was also a generator size and a bench profile, "seed"
 # also the random seed): still accepted, with a warning. A recipe's name is in no fingerprint.
 RECIPE_ALIASES = {"default": "plateau", "seed": "seed-study"}
 

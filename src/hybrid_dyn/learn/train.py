@@ -332,7 +332,7 @@ def _fit(module, opt, preset, config, ds, ws_train, ws_val, out_dir, fingerprint
         best_state = _restore(module, opt, tensors, info, device)
         history, best_val, bad_epochs = info["history"], info["best_val"], info["bad_epochs"]
         start_epoch, seconds = info["epoch"] + 1, info["train_seconds"]
-        # The CPU of the invocations before this one; a checkpoint written before issue 40 has none: not recorded.
+        # The CPU of the invocations before this one; a checkpoint written before CPU time was recorded has none: not recorded.
         cpu_before = info.get("train_cpu_seconds", float("nan"))
         lr_bad_epochs, best_epoch, stopped_by = info["lr_bad_epochs"], info["best_epoch"], info["stopped_by"]
     stopped = stopped_by is not None

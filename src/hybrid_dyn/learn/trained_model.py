@@ -47,7 +47,7 @@ from .priors import AnalyticPrior
 
 MODEL_FORMAT = "hybrid_dyn.model"
 # 2: tensor digest in the metadata, wall-clock figures in timing.json; 3: the analytic prior by its
-# canonical estimator name (issue 30; older spellings are read with a warning, model_spellings.py).
+# canonical estimator name (older spellings are read with a warning, model_spellings.py).
 MODEL_FORMAT_VERSION = 3
 # What training writes into a model folder besides the model's files: checkpoints (``checkpoints.py``).
 _OWN_TEMPORARY = re.compile(r"(model\.safetensors|config\.json|timing\.json|checkpoint\.safetensors|checkpoint\.json)"
@@ -205,7 +205,7 @@ class TrainedModel(SavedModel):
     @property
     def sensor_tare_seconds(self) -> float:
         """The contact-free start [s] of each run on which the net's base-wrench input is tared
-        (0: the raw sensor; models saved before issue 14 read it raw)."""
+        (0: the raw sensor; models saved before that option read it raw)."""
         return float(self.config.get("sensor_tare_seconds", 0.0))
 
     def sensor_view(self, instances) -> list:

@@ -6,7 +6,7 @@
   that ship with them (``real/logs``, 4.7 MB); read by :mod:`hybrid_dyn.data.logs.real_logs`.
 
 They live here rather than at the repository's root so that an installed toolkit (a wheel,
-``pip install .``) carries them: before issue 30 they were found through the source file's
+``pip install .``) carries them: they were once found through the source file's
 ``parents[2]``, which only exists in a checkout.
 """
 from __future__ import annotations

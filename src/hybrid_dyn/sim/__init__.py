@@ -14,5 +14,5 @@ __all__ = [
     "simulate_reference",
 ]
 
-# PROFILES: the generator sizes' name until issue 30, served with a warning.
+# PROFILES: the generator sizes' old name, served with a warning.
 __getattr__ = module_aliases(__name__, {"PROFILES": "SIZES"}, globals(), why="generator sizes, not bench profiles")

@@ -15,7 +15,7 @@ def register(sub) -> None:
     p.add_argument("--size", choices=SIZES, default="quick",
                    help="the dataset's size: quick: under a minute; default: ~0.4 M samples; paper: the seed's "
                         "1000 instances")
-    # Its old name, until issue 30 (a size, not a bench profile).
+    # Its old name (it is a size, not a bench profile).
     p.add_argument("--profile", dest="size", choices=SIZES, action=DeprecatedFlag, new="--size",
                    help=argparse.SUPPRESS)
     p.add_argument("--out", required=True, help="dataset directory or fsspec URL (created in an existing folder; an "

@@ -34,9 +34,9 @@ shorter than the other scenarios' (10x the samples per second).
 
 ``contact-steps-quiet`` is the same contacts under a quieter base sensor: the
 estimators' bandwidth is chosen from the measured noise (``analytic/bandwidth.py``),
-so this is where its answer must change (issue 27).
+so this is where its answer must change.
 
-``contact-steps-hardware`` (issue 38) reads the same kind of run as a real arm's sensors read it
+``contact-steps-hardware`` reads the same kind of run as a real arm's sensors read it
 (``GeneratorConfig.sensors``, :data:`HARDWARE_SENSORS`): q quantized to the robot description's
 encoder resolution, qd the drive's difference of it, the base sensor with a bias drift, the recorded
 stamps ``t`` jittered; a third of its instances are touched inside the tare window. The other
@@ -56,7 +56,7 @@ The controller always uses the nominal model (``load_robot(robot)``), so in
 Sizes: ``quick`` (6 short instances, under a minute on 2 cores), ``default``
 (40 instances, about 0.36 million samples at 100 Hz) and ``paper`` (the seed's
 1000 instances of 5-50 trajectories). A size is not a bench profile (``bench/profiles.py``),
-which names scenarios, rows and training; until issue 30 both were called "profile", and the
+which names scenarios, rows and training; both were once called "profile", and the
 old names (``PROFILES``, the ``profile`` keyword and field) still work with a warning. The
 config's dictionary, and so its hash and every dataset cached by it, keeps the key ``profile``.
 """
@@ -100,7 +100,7 @@ class PulseConfig:
 
 @dataclass(frozen=True)
 class ContactStepConfig:
-    """Step and trapezoid contacts (issue 16): a force that ramps up in ``rise``, holds
+    """Step and trapezoid contacts: a force that ramps up in ``rise``, holds
     ``plateau``, ramps down in ``rise`` again, in a uniformly random direction.
 
     A contact is a step (rise of one control period, 1 ms) with probability
@@ -311,7 +311,7 @@ SEED_SIM_SIZES = {
     "paper": dict(n_instances=1000, trajectories=(5, 50)),
 }
 
-# contact-steps-hardware's sensors (issue 38): the robot description's encoder resolution (the Panda:
+# contact-steps-hardware's sensors: the robot description's encoder resolution (the Panda:
 # 1e-5 rad), qd the drive's difference of it, link-side torques at 0.05 Nm, the base F/T sensor at
 # 0.2 N / 0.01 Nm white noise with a per-stream bias and a drift of 0.025 N/s (0.3 N over 12 s) and
 # 0.00125 Nm/s, stamps jittered by 0.2 ms (sigma, clipped at 0.5 ms).
@@ -451,5 +451,5 @@ def scenario_config(name: str, size: str = "quick", seed: int = 0, **overrides) 
         raise ConfigError(f"bad generator override: {err}") from err
 
 
-# The old name of SIZES (issue 30), served with a warning.
+# The old name of SIZES, served with a warning.
 __getattr__ = module_aliases(__name__, {"PROFILES": "SIZES"}, globals(), why="generator sizes, not bench profiles")

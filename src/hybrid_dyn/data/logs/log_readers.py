@@ -130,7 +130,7 @@ def _read_mat(path: Path) -> dict:
         with h5py.File(path, "r") as f:
             # MATLAB stores column-major: transpose back to rows = samples.
             return {k: np.asarray(f[k][()]).T for k in f if isinstance(f[k], h5py.Dataset)}
-    except (OSError, KeyError, ValueError, TypeError) as err:  # a truncated v7.3 file was a traceback (issue 28)
+    except (OSError, KeyError, ValueError, TypeError) as err:  # a truncated v7.3 file was once a traceback
         raise LogReadError(f"{path}: not a readable MATLAB v7.3 (HDF5) file: {err}") from None
 
 
@@ -234,7 +234,7 @@ def _read_parquet(path: Path) -> LogTable:
 def _parquet_cells(name: str, col: np.ndarray, problems: list) -> np.ndarray:
     """A list column (one row = one vector) or a column of text, as float64; a cell that is null, not a
     number or of another length is NaN and listed by row, so that only a row whose *mapped* cells are bad
-    is dropped (a null list cell or an unmapped text column failed the whole import before issue 28)."""
+    is dropped (a null list cell or an unmapped text column failed the whole import once)."""
     def vector(v):
         try:
             a = np.asarray(v, dtype=np.float64)

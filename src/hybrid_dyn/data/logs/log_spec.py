@@ -219,7 +219,7 @@ class LogSpec:
             problems.append(f"n_blocks must be >= 1, got {self.n_blocks}")
         if self.angle_unit not in ("rad", "deg"):
             problems.append(f"angle_unit must be 'rad' or 'deg', got {self.angle_unit!r}")
-        problems += split_problems(self.split_seed, self.test_frac, self.val_frac)  # issue 28: tracebacks before
+        problems += split_problems(self.split_seed, self.test_frac, self.val_frac)  # types first: a bad value was a traceback
         problems += self.split_spec.problems()
         if not re.fullmatch(r"[A-Za-z0-9_.-]+", self.name or ""):
             problems.append(f"name {self.name!r} must be letters, digits, '_', '.', '-'")

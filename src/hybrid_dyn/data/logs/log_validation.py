@@ -74,7 +74,7 @@ def _trajectories(spec: LogSpec, tables: list[LogTable]) -> list[tuple[str, LogT
         if spec.trajectories == "tables":
             out.append((base, table, rows))
         elif spec.trajectories == "blocks":
-            if spec.n_blocks > len(rows):  # 1e9 blocks hung array_split (issue 28's fuzz)
+            if spec.n_blocks > len(rows):  # 1e9 blocks hung array_split (found by fuzzing)
                 raise LogSpecError(f"n_blocks = {spec.n_blocks} is more than the {len(rows)} rows of "
                                    f"{table.source.name}:{table.name}")
             for k, block in enumerate(np.array_split(rows, spec.n_blocks)):
@@ -151,7 +151,7 @@ def validate_log(spec: LogSpec, report: ImportReport) -> tuple[list, list]:
     return segments, dead + ([warning] if warning else [])
 
 
-# The logged signals whose channels are checked (issue 39): a dead torque channel made the bench headline a
+# The logged signals whose channels are checked: a dead torque channel made the bench headline a
 # row whose nMSE dropped that joint, and identification put 32 kg on a 0.65 kg link.
 CHANNEL_SIGNALS = {"q": "rad", "qd": "rad/s", "tau_m": "Nm", "tau_J": "Nm"}
 TORQUE_SIGNALS = ("tau_m", "tau_J")

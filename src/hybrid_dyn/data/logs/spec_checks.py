@@ -1,5 +1,5 @@
-"""The types of an import spec's fields, checked before any other check compares or uses them (issue 28:
-``n_blocks = nan``, ``sample_rate_hz = "abc"``, ``delimiter = 3`` ended in tracebacks deep in the import).
+"""The types of an import spec's fields, checked before any other check compares or uses them
+(``n_blocks = nan``, ``sample_rate_hz = "abc"``, ``delimiter = 3`` once ended in tracebacks deep in the import).
 
 Each function returns one-line problems; ``LogSpec.__post_init__`` raises them together as a LogSpecError.
 """
