@@ -32,10 +32,9 @@ from ..outputs import json_marker, output_lock, refuse_foreign_files
 from .integrity import is_bench_meta, read_run_json, same_profile, verify_results
 from .profiles import BenchProfile, get_profile
 from .results import read_results
-from .rows import TASK_TARGET, is_physics_family, is_physics_result
+from .rows import TASK_TARGET, derived_names, family_names, is_physics_family, is_physics_result
 
 UNITS = {"tip_force": "N", "joint_torque": "Nm"}
-LEARNED_FAMILIES = ("seed-net", "residual", "delan", "identified")  # families with trained rows
 BASE = "base"  # the variant name of a study's reference point when it changes the profile (Study.base)
 
 
@@ -242,6 +241,16 @@ def get_study(name: str) -> Study:
     return STUDIES[name]
 
 
+def learned_study_families() -> tuple:
+    """The families whose best trained row a study picks (:class:`rows.Family`: learned, in the studies)."""
+    return family_names(learned=True, in_studies=True)
+
+
+# LEARNED_FAMILIES: the tuple kept by hand before the families carried their metadata.
+__getattr__ = derived_names(__name__, {"LEARNED_FAMILIES": ("hybrid_dyn.bench.studies.learned_study_families()",
+                                                               learned_study_families)})
+
+
 def _ok(rows) -> list[dict]:
     return [r for r in rows if r.get("status") == "ok" and r.get("val_loss") not in (None, "")]
 
@@ -257,11 +266,12 @@ def choose_rows(full: list[dict]) -> dict:
     (scenario, task, "physics on <inputs>"), where that row is another."""
     best = {}
     physics = []
+    learned = learned_study_families()
     for r in _ok(full):
         row = get_row(r["model"])
         if row.reference is not None:
             continue
-        if row.trains and row.family in LEARNED_FAMILIES:
+        if row.trains and row.family in learned:
             key = (r["scenario"], r["task"], row.family)
         elif is_physics_result(r):
             key = (r["scenario"], r["task"], "physics")
