@@ -21,7 +21,7 @@ from .integrity import (DIGEST_KEY, REPORT_FILES, read_run_json, remove_report_f
 from .predictions import PREDICTIONS_FILE
 from .profiles import BenchProfile, is_dataset_path
 from .results import CURVES_FILE, write_curves, write_json, write_results
-from .seed_comparison import SEED_COMPARISON_FILE
+from .reference_study import REFERENCE_COMPARISON_FILE
 
 
 def claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[dict]:
@@ -65,7 +65,7 @@ def claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[di
 # What a bench report of any profile holds beside run.json, whatever its run.json records: the bench's files
 # and the report's fixed names (a report written before run.json recorded its files names no figure).
 BENCH_FILES = ("results.csv", CURVES_FILE, PREDICTIONS_FILE, "README.md", "tip_force.md", "tip_force.tex",
-               "joint_torque.md", "joint_torque.tex", SEED_COMPARISON_FILE)
+               "joint_torque.md", "joint_torque.tex", REFERENCE_COMPARISON_FILE)
 
 
 def take_over(out_dir: Path, old: dict, claim: dict) -> None:
