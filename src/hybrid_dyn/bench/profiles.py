@@ -8,6 +8,7 @@ real     the joint-torque models that need no URDF on the three real-robot logs
          (KUKA and Baxter split by trajectory; SARCOS, one test file of 4,449
          rows, split by contiguous blocks: see src/hybrid_dyn/resources/real/sarcos.toml)
 
+The profiles are declared in ``hybrid_dyn/resources/bench/profiles.toml`` (read into :data:`PROFILES`).
 A profile is data: it names datasets (``scenarios``) and rows. A scenario is a
 name (a simulated scenario of ``sim/scenarios.py``, generated and cached, or a
 real set of ``data/logs/real_logs.py``, imported and cached) or the path of any dataset
@@ -19,12 +20,15 @@ from __future__ import annotations
 
 import json
 import os
+import tomllib
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 from ..data import DatasetError, load_dataset
 from ..deprecation import renamed_field
 from ..errors import UsageError
+from ..registry import Registry
+from ..resources import resource_dir
 from .catalog import select_rows
 from .rows import Row, derived_names, study_families
 
@@ -223,128 +227,42 @@ def profile_for_data(paths, robot: str | None = None, params: str | None = None,
     return BenchProfile(name=name, scenarios=paths, robot=robot, params=params, tool=tool, recipe=recipe, **fields)
 
 
-# The method note of every profile under the budgeted recipe (one text, so that it names the recipes
-# as learn/recipes.py does; run.json's identity leaves notes out, integrity.same_profile).
-BUDGET_RECIPE_NOTE = (
-    "Training: the budgeted recipe (learn/recipes.py, docs/models.md): a fixed number of Adam steps per network "
-    "kind, batch 1024, lr 2e-3 with a 5 % linear warm-up and a cosine decay to zero, the best of 40 validation "
-    "rounds kept; the cost of a row does not grow with the data. The epoch recipe with patience is "
-    "`--recipe plateau`, the seed's (constant rate, patience 5) `--recipe seed-study`.")
+def as_tuples(value):
+    """A declaration read from TOML with its arrays as tuples (as the dataclasses hold them), dicts kept."""
+    if isinstance(value, list):
+        return tuple(as_tuples(v) for v in value)
+    if isinstance(value, dict):
+        return {k: as_tuples(v) for k, v in value.items()}
+    return value
 
 
-PROFILES = {
-    # make demo: one net of each architecture and family, trained long enough to learn (within
-    # about 5 minutes on 2 cores), on a quick mismatch-ext of 30 instances of 5 trajectories. The
-    # torque nets are data-limited (reports/studies/data-control): at 12 instances they learned nothing.
-    "quick": BenchProfile(
-        name="quick", scenarios=("mismatch-ext",), generator_size="quick",
-        # The identified rows without their residual nets (those train after the others, one at a time).
-        families=("analytic",),
-        rows=("seed-tip-2", "seed-tip-5", "seed-tip-8", "residual-basewrench", "residual-base-momentum",
-              "seed-tau-mlp", "seed-tau-lstm", "residual-rnea", "delan-friction",
-              "identified-ols", "identified-consistent", "identified-sigmoid-friction", "rnea+identified-friction",
-              "base-wrench-identified", "base-wrench-identified-tared", "identified-bw-tared"),
-        # A demo's budget: 600 steps of 1024 (about 10 passes over its training set), 20 validation rounds.
-        train=dict(budget_steps=600, budget_evals=20),
-        scenario_overrides={"mismatch-ext": dict(n_instances=30)},
-        notes=("A demo: one seed net of each architecture (MLP #2, conv #5, LSTM #8, and the torque MLP and LSTM), "
-               "the residual nets and DeLaN with friction, on a small mismatch-ext (30 instances of 5 trajectories); "
-               "the budgeted recipe at 600 steps of batch 1024 per net. The black-box "
-               "torque nets are data-limited at this size (reports/studies/data-control). The comparisons are in "
-               "reports/default and reports/seed-sim.",),
-    ),
-    # Every row on three simulated scenarios (issue 14) under the budgeted recipe (issue 31): a row
-    # costs its step budget whatever the data, so the data grew 3x over the epoch-recipe bench's 40
-    # instances of 5-10 trajectories (74.2 min from empty caches), whose learned rows were
-    # data-limited (reports/studies/data-control: their RMSE ratios fell with every instance added).
-    "default": BenchProfile(
-        name="default", scenarios=("paper-noext", "paper-ext", "mismatch-ext", "contact-steps", "contact-steps-quiet",
-                                   "contact-steps-hardware"),
-        generator_size="default",
-        # tau-mlp-wide (2 x 128, dropout 0.2): the larger-capacity control of the seed torque nets.
-        rows=("tau-mlp-wide",),
-        scenario_overrides={s: dict(n_instances=120, trajectories=(5, 10))
-                            for s in ("paper-noext", "paper-ext", "mismatch-ext")},
-        # contact-steps (1 kHz) tests the physics estimators on steps; the nets' windows are
-        # counted in samples and were sized for 100 Hz, so they are not trained on it.
-        scenario_families={"contact-steps": ("analytic",), "contact-steps-quiet": ("analytic",),
-                           "contact-steps-hardware": ("analytic",)},
-        notes=(BUDGET_RECIPE_NOTE,
-               "Data: paper-noext, paper-ext and mismatch-ext hold 120 instances of 5-10 trajectories each (split "
-               "by instance 77/19/24), 3x the epoch-recipe bench's 40: under the budget a row's training cost does "
-               "not grow with the data.",
-               "Sequence models are scored on every sample: the first L-1 windows of each instance are edge-padded "
-               "with its first sample, as a streaming estimator starts up; all rows see the same test samples.",
-               "paper-noext has no external force: its tip-force rows are not run.",
-               "contact-steps: step and trapezoid contacts (rise 1-20 ms, plateaus 0.3-1.5 s, 3-25 N) recorded at "
-               "1 kHz, the rate of a control loop; only the analytic rows run on it (the nets' windows are counted "
-               "in samples and sized for 100 Hz). contact-steps-quiet: the same with the base sensor at 0.05 N "
-               "(0.0025 Nm) noise, where the estimators' automatic bandwidth must change. contact-steps-hardware: the "
-               "same contacts read by hardware sensors (q quantized to 1e-5 rad, qd its difference, 0.2 ms stamp "
-               "jitter, a 0.025 N/s base-sensor drift, a touch inside the first 0.5 s in a third of the instances; "
-               "issue 38), analytic rows only, with the error bar's coverage (sigma_coverage)."),
-    ),
-    # Real logs carry no base wrench or tip force and no URDF ships for these arms:
-    # only the joint-torque models that need neither (PROTOCOL 2, issue 8).
-    "real": BenchProfile(
-        name="real", scenarios=("real-panda", "real-kuka", "real-baxter", "real-sarcos"), generator_size="real",
-        # Physics where a URDF is (the real Panda, bare flange: analytic, identified on the log, residuals
-        # on the nominal and the identified model); the black-box rows and the GP everywhere.
-        families=("analytic", "identified"),
-        rows=("residual-rnea", "seed-tau-mlp", "seed-tau-conv", "seed-tau-lstm", "seed-tau-lstm-opt", "tau-mlp-wide",
-              "delan", "delan-friction", "gp"),
-        # The budgeted recipe, as every other profile (issues 26, 29). The epoch recipe this profile had
-        # (patience 25 at a constant rate, up to 300 epochs) stopped 4 rows by the epoch cap: the
-        # validation trajectories lie partly outside the training range, so the validation loss first
-        # rises and falls only after tens to hundreds of epochs (KUKA's tau-mlp-wide: 236 epochs). A
-        # budget runs every row to its full step count (hundreds of passes over these small sets) and
-        # keeps the best of 40 validation rounds, which needs no patience to ride out that rise.
-        notes=("Panda (Gaz et al. 2019's exciting trajectory, ../shared/data/real or $HYBRID_DYN_REAL_LOGS; the arm "
-               "carried no hand, so the analytic model is panda[tool=none]): the log cut into 10 contiguous time "
-               "blocks, split in time order: the first 6 train, the next 2 validate, the last 2 test (60/20/20 of "
-               "its 21 s; src/hybrid_dyn/resources/real/panda.toml): every row is scored on the log's last 4.1 s, after all it "
-               "was fitted on; identified rows fit on its train and val blocks.",
-               "KUKA and Baxter: one instance per logged trajectory (10 each), split by trajectory 6/2/2; "
-               "SARCOS: its 4,449-row test file is not one continuous trajectory, so it is cut into 10 contiguous "
-               "blocks, split 6/2/2 (src/hybrid_dyn/resources/real/*.toml).",
-               "Accelerations: KUKA and Baxter by a zero-phase 5 Hz Butterworth derivative of the logged velocity; "
-               "SARCOS: logged. Target: the logged joint torque.",
-               "nMSE = per-joint test MSE / per-joint test-target variance, averaged over joints.",
-               "Training: the budgeted recipe (a fixed number of Adam steps per network kind, batch 1024, a cosine "
-               "decay, the best of 40 validation rounds kept): validation trajectories lie partly outside the "
-               "training range, and the validation loss first rises and falls only after tens to hundreds of "
-               "passes, which the best-of-rounds rule rides out without a patience. `tau-mlp-wide` (2 x 128, "
-               "dropout 0.2) is not a seed model: it was chosen on the validation split for these small sets.",
-               "gp: one exact Gaussian process per joint (ARD RBF + white noise, hyperparameters by marginal "
-               "likelihood on 600 training rows, conditioned on at most 8000), learn/gp.py. gp-residual-identified "
-               "(the Panda): a sparse GP per joint (2000 inducing inputs) on the residual of identified-consistent, "
-               "its hyperparameters by marginal likelihood on train and chosen on val, learn/gp_residual.py.",
-               "Hybrid rows keep their physics prior where their correction does not beat it on validation; the "
-               "section 'Hybrid rows against their physics prior' says where they did."),
-    ),
-    # The seed's own data conditions (its 3.1): 20 Hz, exact states, no sensor noise or bias.
-    "seed-sim": BenchProfile(
-        # The seed's size (issue 31): 1000 instances of 5-50 trajectories, split 640/160/200 by instance.
-        name="seed-sim", scenarios=("seed-sim",), generator_size="paper",
-        notes=("seed-sim reproduces the seed's data conditions (its section 3.1): recorded every 50 ms (20 Hz), "
-               "q, qd, qdd exact from the simulator, no sensor noise and no bias, the same bell pulses and "
-               "trajectory rules, 5-50 trajectories per instance, at the seed's size: 1000 instances split by "
-               "instance 640 train, 160 validation, 200 test (the seed: 3,919,800 samples).",
-               BUDGET_RECIPE_NOTE,
-               "Sequence models are scored on every sample: the first L-1 windows of each instance are edge-padded "
-               "with its first sample, as a streaming estimator starts up; all rows see the same test samples."),
-    ),
-    "paper": BenchProfile(
-        name="paper", scenarios=("paper-noext", "paper-ext", "mismatch-ext"), generator_size="paper",
-        recipe="plateau", train=dict(max_epochs=200, batch_size=256, patience=5),
-    ),
-}
+def read_profiles(path: Path) -> list[BenchProfile]:
+    """The profiles a TOML file declares (``[profiles.NAME]`` tables of :class:`BenchProfile` fields; a note
+    ``{shared = "KEY"}`` stands for ``[notes].KEY``), each checked as it is made."""
+    doc = tomllib.loads(Path(path).read_text())
+    shared = doc.get("notes", {})
+    profiles = []
+    for name, declared in doc.get("profiles", {}).items():
+        declared = as_tuples(declared)
+        notes = tuple(shared[n["shared"]] if isinstance(n, dict) else n for n in declared.pop("notes", ()))
+        try:
+            profiles.append(BenchProfile(name=name, notes=notes, **declared))
+        except TypeError as err:  # a field BenchProfile does not have
+            raise UsageError(f"{path}: profile {name!r}: {err}") from None
+    return profiles
+
+
+PROFILES_FILE = resource_dir("bench") / "profiles.toml"  # quick, default, real, seed-sim, paper
+PROFILES = Registry("bench profile", UsageError)
+for _profile in read_profiles(PROFILES_FILE):
+    PROFILES.register(_profile)
+# The method note of every profile under the budgeted recipe (one text, naming the recipes as learn/recipes.py does).
+BUDGET_RECIPE_NOTE = tomllib.loads(PROFILES_FILE.read_text())["notes"]["budget-recipe"]
 
 
 def get_profile(name: str) -> BenchProfile:
-    if name not in PROFILES:
-        raise UsageError(f"unknown bench profile {name!r}; known: {', '.join(PROFILES)}")
-    return PROFILES[name]
+    """The profile declared as ``name``, or the error naming the known ones."""
+    return PROFILES.lookup(name)
 
 
 # STUDY_FAMILIES: the tuple kept by hand before the families carried their metadata.
