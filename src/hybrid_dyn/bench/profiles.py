@@ -21,16 +21,19 @@ from __future__ import annotations
 import json
 import os
 import tomllib
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from ..data import DatasetError, load_dataset
-from ..deprecation import renamed_field
+from ..deprecation import renamed_field, warn_renamed
 from ..errors import UsageError
 from ..registry import Registry
 from ..resources import resource_dir
-from .catalog import select_rows
-from .rows import Row, derived_names, study_families
+from .plan import BenchPlan, is_dataset_path, scenario_label  # noqa: F401  (served here as before)
+from .rows import derived_names, study_families
+
+# The methods BenchProfile had before the planner took them (still served, with a warning).
+_PLANNED = ("preset", "train_config", "selected_rows", "applies", "skip_reason", "resolve_robot", "robot_ref",
+            "dataset", "dataset_path", "generator_config", "scenario_config")
 
 
 
@@ -69,120 +72,14 @@ class BenchProfile:
     preset_overrides: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        self.selected_rows()  # an unknown row or family is refused now, not after the data are made
-        self.train_config()  # so is an unknown recipe or a bad training field
-        if self.robot is not None:
-            self.resolve_robot(self.robot)  # a name the toolkit cannot serve is refused now, with the accepted ones
-        if self.preset_overrides:  # an unknown Preset field is refused now
-            from ..learn.presets import Preset
+        BenchPlan(self).check()  # an unknown row, family, recipe, robot or field is refused now, not after the data
 
-            known = {f.name for f in fields(Preset)} - {"name"}
-            bad = sorted(set(self.preset_overrides) - known)
-            if bad:
-                raise UsageError(f"profile {self.name!r}: preset_overrides {bad} are not Preset fields")
-        if self.params is not None and str(self.params).endswith(".json"):
-            from ..description import read_param_file
-
-            read_param_file(self.params)  # missing, malformed or no rigid body: refused before any work
-
-    def preset(self, name: str):
-        """The preset a preset row ``name`` trains: its own, or with :attr:`preset_overrides` (a new
-        :class:`~hybrid_dyn.learn.presets.Preset`; the name stays, the fields and so the fingerprint change)."""
-        if not self.preset_overrides:
-            return name
-        from ..learn.presets import get_preset
-
-        return get_preset(name).replace(**self.preset_overrides)
-
-    def train_config(self):
-        from ..learn import TrainConfig
-
-        # --params is the nominal model: the residual rows' priors sit on it too (identified rows replace it).
-        nominal = {"analytic_params": self.params} if self.params is not None else {}
-        return TrainConfig.recipe(self.recipe, **{"seed": self.seed, **nominal, **self.train})
-
-    def selected_rows(self) -> list[Row]:
-        """The rows this profile runs (where they apply), in declaration order."""
-        return select_rows(names=self.rows, families=self.families)
-
-    def applies(self, row: Row, ds) -> bool:
-        """Whether a row can run on a dataset (:meth:`skip_reason` is None)."""
-        return self.skip_reason(row, ds) is None
-
-    def skip_reason(self, row: Row, ds) -> str | None:
-        """Why ``row`` does not run on ``ds`` (e.g. "needs base_wrench", "needs a URDF for robot 'x'"),
-        or None when it runs: the fields it declares exist, and a URDF where it needs one."""
-        only = self.scenario_families.get(ds.meta.get("scenario"))
-        if only is not None and row.family not in only:
-            return f"this profile runs only the {', '.join(only)} rows on {ds.meta.get('scenario')}"
-        config = ds.meta.get("config", {})
-        if row.task == "tip_force" and "pulses" in config and config["pulses"] is None \
-                and config.get("contact_steps") is None:
-            return "no external force in this scenario: nothing to estimate at the tip"
-        needs = tuple(row.needs) + tuple(row.more_needs(ds) if row.more_needs else ())
-        missing = [f for f in dict.fromkeys(needs) if f not in ds.fields]
-        if missing:
-            return f"needs {', '.join(missing)}"
-        if row.needs_urdf and not self.robot_ref(ds).described:
-            return f"needs a URDF for robot {self.robot_ref(ds).name!r} (known for data only)"
-        return None
-
-    def resolve_robot(self, name: str):
-        """``description.resolve_robot`` of ``name`` with this profile's tool (replacing the name's own tool)."""
-        from ..description import parse_robot_name, resolve_robot
-
-        if self.tool is None:
-            return resolve_robot(name)
-        base, _, payload = parse_robot_name(name)
-        return resolve_robot(base, tool=self.tool, payload=payload)
-
-    def robot_ref(self, ds):
-        """What the analytic model of ``ds`` is: this profile's ``robot``, else the dataset's own, with ``tool``."""
-        name = self.robot or ds.meta.get("robot")
-        if not name:
-            raise DatasetError(f"dataset {ds.path} does not name its robot (manifest key 'robot'); give one (--robot)")
-        return self.resolve_robot(name)
-
-    def dataset(self, scenario: str, data_root: Path, log=print, executor=None):
-        """The scenario's dataset: a dataset path is read as it is; a simulated scenario is generated once
-        and cached by its config hash (real-robot logs: imported once, cached by spec and file checksums)."""
-        if is_dataset_path(scenario):
-            return load_dataset(scenario)
-        if scenario.startswith("real-"):
-            from ..data.logs.real_logs import real_dataset
-
-            spec = self.scenario_overrides.get(scenario, {})  # e.g. another split of the same log
-            return load_dataset(real_dataset(scenario, Path(data_root), log=log, **spec))
-        from ..sim.generator import generate_dataset
-
-        cfg = self.scenario_config(scenario)
-        path = self.dataset_path(scenario, data_root)
-        try:
-            return load_dataset(path)
-        except DatasetError:
-            log(f"[bench] generating {scenario} ({self.generator_size}) into {path}")
-            generate_dataset(cfg, path, workers=self.workers, executor=executor)
-            return load_dataset(path)
-
-    def dataset_path(self, scenario: str, data_root: Path) -> Path:
-        """Where a simulated scenario's dataset is cached: one folder per generator size and config hash."""
-        return Path(data_root) / f"{scenario}-{self.generator_size}-{self.scenario_config(scenario).config_hash()}"
-
-    def generator_config(self, scenario: str, ds):
-        """The generator config that simulated ``ds``: a named scenario's (:meth:`scenario_config`), or for a
-        dataset path the config its manifest records (the plant an identification run is recorded on)."""
-        if is_dataset_path(scenario):
-            from ..sim.scenarios import GeneratorConfig
-
-            return GeneratorConfig.from_dict(ds.meta["config"])
-        return self.scenario_config(scenario)
-
-    def scenario_config(self, scenario: str):
-        """The generator config of one of this profile's simulated scenarios."""
-        from ..sim.scenarios import scenario_config
-
-        return scenario_config(scenario, self.generator_size, seed=self.seed,
-                               **{**self.generator_overrides, **self.scenario_overrides.get(scenario, {})})
+    def __getattr__(self, name):
+        # What a run does with a profile was its methods once; they are the planner's now (plan.BenchPlan).
+        if name in _PLANNED:
+            warn_renamed("BenchProfile method", name, f"hybrid_dyn.bench.plan.BenchPlan(profile).{name}", stacklevel=2)
+            return getattr(BenchPlan(self), name)
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     def to_dict(self) -> dict:
         """The profile as run.json records it (JSON types: lists for tuples), so that a profile and a
@@ -194,23 +91,6 @@ class BenchProfile:
         if not d["preset_overrides"]:
             del d["preset_overrides"]
         return d
-
-
-def is_dataset_path(scenario: str) -> bool:
-    """Whether a profile's scenario entry is a dataset path (anything but a simulated scenario's or a
-    real set's name)."""
-    from ..data.logs.real_logs import REAL_SETS
-    from ..sim.scenarios import SCENARIOS
-
-    return str(scenario) not in SCENARIOS and str(scenario) not in REAL_SETS
-
-
-def scenario_label(scenario: str, ds) -> str:
-    """The scenario's name in results.csv and the tables: a named scenario's name; for a dataset path,
-    its manifest's ``scenario``, or the folder's name."""
-    if not is_dataset_path(scenario):
-        return scenario
-    return str(ds.meta.get("scenario") or Path(os.path.abspath(scenario)).name)
 
 
 def profile_for_data(paths, robot: str | None = None, params: str | None = None, tool: str | None = None,

@@ -17,8 +17,7 @@ what a row reads: a row declared without its fields is refused here.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
@@ -213,18 +212,3 @@ def prior_kept_text(kept) -> str:
 def declare(row: Row) -> Row:
     """Add ``row`` to :data:`ROWS` (results list rows in declaration order); a name is declared once."""
     return ROWS.register(row)
-
-
-@dataclass
-class BenchContext:
-    """What a row's build sees of its scenario (one per scenario of a run)."""
-
-    profile: object  # profiles.BenchProfile
-    scenario: str
-    dataset: object  # data.Dataset
-    robot: object | None  # the nominal analytic.Robot every analytic part uses (None: no URDF for this arm)
-    work_dir: Path
-    data_root: Path = Path("data")
-    log: Callable[[str], None] = print
-    cache: dict = field(default_factory=dict)
-    source: str = ""  # the profile's scenario entry (a name, or a dataset path); ``scenario`` is its label

@@ -34,6 +34,7 @@ from ..registry import Registry
 from ..resources import resource_dir
 from .catalog import get_row, select_rows
 from .integrity import is_bench_meta, read_run_json, same_profile, verify_results
+from .plan import BenchPlan
 from .profiles import BenchProfile, as_tuples, get_profile
 from .results import read_results
 from .rows import TASK_TARGET, derived_names, family_names, is_physics_family, is_physics_result
@@ -359,7 +360,7 @@ def _run_variant(study: Study, variant: str, rows: tuple, where: Path, reference
     results, dirs = [], []
     for row in only:  # each row's own budget, scaled: one bench per row
         profile = study.variant_profile(variant, (row,))
-        budget = profile.train_config().for_preset(_preset(profile, row)).budget_steps
+        budget = BenchPlan(profile).train_config().for_preset(_preset(profile, row)).budget_steps
         if budget is None:
             raise UsageError(f"study {study.name}: budget_factor needs the budgeted recipe (profile {study.profile!r}"
                              f" trains {row} under {profile.recipe!r})")
@@ -380,7 +381,7 @@ def _preset(profile: BenchProfile, row: str):
     name = RESIDUAL_ROWS.get(row, row)
     if name not in PRESET_ROWS:
         raise UsageError(f"row {row!r} trains no network preset: it has no step budget to scale (budget_factor)")
-    return get_preset(profile.preset(name))
+    return get_preset(BenchPlan(profile).preset(name))
 
 
 def train_instances_of(report: Path, scenarios: tuple = ()) -> int:
