@@ -26,7 +26,7 @@ from hybrid_dyn.bench.catalog import get_row
 from hybrid_dyn.bench.integrity import read_run_json
 from hybrid_dyn.bench.report import _ok, best_row
 from hybrid_dyn.bench.results import read_results
-from hybrid_dyn.bench.rows import PHYSICS_INFORMED
+from hybrid_dyn.bench.rows import family_names
 
 NEW_ANALYTIC = ("base-momentum", "kalman-fusion")  # issue 16's estimators that need no joint acceleration
 
@@ -54,7 +54,7 @@ def floor_checks(rows) -> list[tuple[str, bool | str | None, str]]:
     # Not a floor: the stronger baseline a user who tares the sensor has.
     _ratio_check(out, "(no floor) tip force, mismatch-ext: best residual vs the tared base-wrench method", None,
                  hyb, bwt, unit=" N")
-    phys = best_row(rows, "joint_torque", "paper-ext", lambda r: r["family"] in PHYSICS_INFORMED)
+    phys = best_row(rows, "joint_torque", "paper-ext", lambda r: r["family"] in family_names(physics_informed=True))
     seedt = best_row(rows, "joint_torque", "paper-ext", lambda r: r["family"] == "seed-net")
     _ratio_check(out, "issue 5: joint torque, paper-ext: best physics-informed <= 0.5 x best seed net", 0.5,
                  phys, seedt, unit=" Nm")

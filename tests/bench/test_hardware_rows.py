@@ -6,6 +6,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from hybrid_dyn.bench.plan import BenchPlan
 from hybrid_dyn.analytic.methods import run_batch
 from hybrid_dyn.analytic.tare import TARE_SECONDS, tare_samples
 from hybrid_dyn.bench import analytic_rows
@@ -39,10 +40,10 @@ def test_the_default_profile_runs_the_analytic_rows_on_the_hardware_scenario(har
     prof = get_profile("default")
     assert "contact-steps-hardware" in prof.scenarios
     ds = SimpleNamespace(fields=list(hardware_ds.fields), meta=hardware_ds.meta)
-    applied = {s.family for s in prof.selected_rows() if prof.applies(s, ds)}
+    applied = {s.family for s in BenchPlan(prof).selected_rows() if BenchPlan(prof).applies(s, ds)}
     assert applied == {"analytic"}
-    assert {"base-wrench", "base-momentum", "kalman-fusion"} <= {s.name for s in prof.selected_rows()
-                                                                 if prof.applies(s, ds)}
+    assert {"base-wrench", "base-momentum", "kalman-fusion"} <= {s.name for s in BenchPlan(prof).selected_rows()
+                                                                 if BenchPlan(prof).applies(s, ds)}
 
 
 def test_the_rows_read_the_datasets_encoder_resolution(hardware_ds, panda):

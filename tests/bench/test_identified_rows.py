@@ -7,6 +7,7 @@ import json
 import numpy as np
 import pytest
 
+from hybrid_dyn.bench.plan import BenchPlan
 import hybrid_dyn as hd
 from hybrid_dyn.data import load_dataset
 from hybrid_dyn.data.synthetic import make_synthetic_dataset
@@ -25,9 +26,9 @@ def test_bench_identifies_an_imported_log_on_train_and_val_and_scores_on_test(pa
     specs = {s.name: s for s in select_rows(families=("identified",))}
     for name in ("identified-consistent", "base-wrench-identified", "residual-rnea-identified",
                  "residual-rnea-bw-identified"):
-        assert profile.applies(specs[name], ds), name
+        assert BenchPlan(profile).applies(specs[name], ds), name
     no_tau = type("D", (), {"fields": [f for f in ds.fields if f != "tau_m"], "meta": ds.meta})()
-    assert not profile.applies(specs["base-wrench-identified"], no_tau)  # the fit needs the logged torques
+    assert not BenchPlan(profile).applies(specs["base-wrench-identified"], no_tau)  # the fit needs the logged torques
     ctx = BenchContext(profile, "log", ds, panda, tmp_path / "work", tmp_path / "data", log=lambda *a: None)
     norm = train_split_stats(ds)
 

@@ -7,6 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from hybrid_dyn.bench.plan import BenchPlan
 from hybrid_dyn.bench.catalog import ROWS, select_rows
 from hybrid_dyn.bench.profiles import PROFILES, BenchProfile
 from hybrid_dyn.bench.rows import Predictor, Row, declare
@@ -70,9 +71,9 @@ def test_profiles_name_declared_rows_and_families_only():
     # The reference row comes with its family; the real profile's rows by name.
     assert "seed-tip-11-raw" in [r.name for r in select_rows(families=("seed-net",))]
     real = PROFILES["real"]
-    selected = [r.name for r in real.selected_rows()]
+    selected = [r.name for r in BenchPlan(real).selected_rows()]
     assert set(real.rows) <= set(selected) and "gp" in selected
-    assert {r.family for r in real.selected_rows() if r.name not in real.rows} == {"analytic", "identified"}
+    assert {r.family for r in BenchPlan(real).selected_rows() if r.name not in real.rows} == {"analytic", "identified"}
 
 
 def _data(fields, robot="panda"):
@@ -95,11 +96,11 @@ def test_every_preset_is_a_bench_row_that_runs_where_its_fields_are():
     for p in PRESETS.values():
         row = ROWS[p.name]  # under the preset's own name, a trained row of its task
         assert row.trains and ("tip_force" if "tip_force" in p.targets else "joint_torque") == row.task, p.name
-        assert profile.skip_reason(row, _data((*p.inputs, *p.targets))) is None, p.name  # they suffice
+        assert BenchPlan(profile).skip_reason(row, _data((*p.inputs, *p.targets))) is None, p.name  # they suffice
         for field in dict.fromkeys((*p.inputs, *p.targets)):
-            reason = profile.skip_reason(row, _data(f for f in every_field if f != field))
+            reason = BenchPlan(profile).skip_reason(row, _data(f for f in every_field if f != field))
             assert reason is not None and field in reason, (p.name, field, reason)
-        reason = profile.skip_reason(row, _data(every_field, robot=data_only))
+        reason = BenchPlan(profile).skip_reason(row, _data(every_field, robot=data_only))
         if p.prior is None:
             assert reason is None, (p.name, reason)  # a black box runs on any arm
         else:

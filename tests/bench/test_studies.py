@@ -4,6 +4,7 @@ import json
 
 import pytest
 
+from hybrid_dyn.bench.plan import BenchPlan
 from hybrid_dyn.bench import profiles as profiles_mod
 from hybrid_dyn.bench.profiles import get_profile
 from hybrid_dyn.bench.runner import run_bench
@@ -72,8 +73,8 @@ def test_preset_overrides_are_recorded_only_when_set():
     assert "preset_overrides" not in plain.to_dict()  # reports written before the field compare equal
     wide = dataclasses.replace(plain, preset_overrides={"fc_units": 256})
     assert wide.to_dict()["preset_overrides"] == {"fc_units": 256}
-    assert plain.preset("seed-tau-mlp") == "seed-tau-mlp"
-    p = wide.preset("seed-tau-mlp")
+    assert BenchPlan(plain).preset("seed-tau-mlp") == "seed-tau-mlp"
+    p = BenchPlan(wide).preset("seed-tau-mlp")
     assert p.name == "seed-tau-mlp" and p.fc_units == 256
 
 
@@ -164,10 +165,10 @@ def test_a_real_sets_scenario_overrides_reach_its_import(monkeypatch, tmp_path):
     study = STUDIES["interpolation-control"]
     profile = study.variant_profile("chunks", ("gp",))
     with pytest.raises(real_mod.RealLogMissingError):
-        profile.dataset("real-kuka", tmp_path)
+        BenchPlan(profile).dataset("real-kuka", tmp_path)
     assert seen["real-kuka"] == {"name": "real-kuka-chunks", "trajectories": "blocks", "n_blocks": 4}
     with pytest.raises(real_mod.RealLogMissingError):
-        study.base_profile().dataset("real-kuka", tmp_path)
+        BenchPlan(study.base_profile()).dataset("real-kuka", tmp_path)
     assert seen["real-kuka"] == {}  # the profile itself imports the log as its spec says
 
 

@@ -3,6 +3,7 @@ import json
 
 import h5py
 import numpy as np
+from hybrid_dyn.bench.plan import BenchPlan
 from hybrid_dyn.data import load_dataset
 from hybrid_dyn.sim.generator import generate_dataset
 from hybrid_dyn.sim.pulses import ContactSteps, sample_contact_steps
@@ -70,7 +71,7 @@ def test_default_profile_runs_only_the_analytic_rows_on_contact_steps():
     ds = SimpleNamespace(fields=["t", "q", "qd", "qdd", "tau_m", "tau_J", "base_wrench", "tip_force"],
                          meta={"scenario": "contact-steps", "robot": "panda", "config": cfg.to_dict(),
                                "generator_version": 1})
-    applied = {s.family for s in prof.selected_rows() if prof.applies(s, ds)}
+    applied = {s.family for s in BenchPlan(prof).selected_rows() if BenchPlan(prof).applies(s, ds)}
     assert applied == {"analytic"}
-    tip_rows = {s.name for s in prof.selected_rows() if prof.applies(s, ds) and s.task == "tip_force"}
+    tip_rows = {s.name for s in BenchPlan(prof).selected_rows() if BenchPlan(prof).applies(s, ds) and s.task == "tip_force"}
     assert "base-wrench-tared" in tip_rows  # the force exists: tip rows run although there are no bell pulses

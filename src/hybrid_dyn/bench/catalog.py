@@ -13,11 +13,8 @@ __all__ = ["FAMILIES", "ROWS", "get_row", "reference_label", "select_rows"]
 
 
 def get_row(name: str) -> Row:
-    from ..errors import UsageError
-
-    if name not in ROWS:
-        raise UsageError(f"unknown bench row {name!r}; known: {', '.join(ROWS)}")
-    return ROWS[name]
+    """The row declared as ``name`` (or under an alias of it), or the error naming the known ones."""
+    return ROWS.lookup(name)
 
 
 def select_rows(names=(), families=()) -> list[Row]:

@@ -2,6 +2,25 @@
 from __future__ import annotations
 
 
+# The bench's text options that change or narrow its profile (each None when not given), in --help's order.
+_PROFILE_CHANGES = (
+    ("--robot", "the analytic model's robot for every dataset, instead of each dataset's own "
+                "(e.g. panda[tool=none]; see hybrid_dyn.description.ROBOT_NAME_HELP)"),
+    ("--params", "nominal parameter set of the analytic rows and residual priors (a name such as franka_official, "
+                 "or a parameter JSON path)"),
+    ("--tool", "the robot's tool: none (the bare flange) or a tool .urdf path"),
+    ("--recipe", "training recipe of the learned rows: budget, plateau, long or seed-study "
+                 "(hybrid_dyn.learn.train.RECIPES; default: the profile's, budget for all but real and paper)"),
+    ("--families", "comma-separated row families to run instead of the profile's (e.g. analytic,identified; "
+                   "see hybrid_dyn.bench.rows.FAMILIES)"),
+    ("--rows", "comma-separated row names to run instead of the profile's (with --families: both; "
+               "see hybrid_dyn.bench.rows.ROWS)"),
+    ("--scenarios", "comma-separated scenarios of the profile to run, instead of all of them "
+                    "(e.g. --profile real --scenarios real-panda)"),
+    ("--out", "report folder (default: reports/<profile>)"),
+)
+
+
 def register(sub) -> None:
     p = sub.add_parser("bench", help="every model family on the same data; writes results.csv, tables, figures")
     p.add_argument("--profile", default=None, help="quick | default | seed-sim | paper | real (default: quick, "
@@ -9,21 +28,8 @@ def register(sub) -> None:
     p.add_argument("--data", action="append", default=None, metavar="DIR",
                    help="a dataset in the toolkit's format, simulated or imported (repeat for more): every row that "
                    "applies runs on it, the rest are skipped with their reason")
-    p.add_argument("--robot", default=None, help="the analytic model's robot for every dataset, instead of each "
-                   "dataset's own (e.g. panda[tool=none]; see hybrid_dyn.description.ROBOT_NAME_HELP)")
-    p.add_argument("--params", default=None, help="nominal parameter set of the analytic rows and residual priors "
-                   "(a name such as franka_official, or a parameter JSON path)")
-    p.add_argument("--tool", default=None, help="the robot's tool: none (the bare flange) or a tool .urdf path")
-    p.add_argument("--recipe", default=None, help="training recipe of the learned rows: budget, "
-                   "plateau, long or seed-study (hybrid_dyn.learn.train.RECIPES; default: the profile's, budget for "
-                   "all but real and paper)")
-    p.add_argument("--families", default=None, help="comma-separated row families to run instead of the profile's "
-                   "(e.g. analytic,identified; see hybrid_dyn.bench.rows.FAMILIES)")
-    p.add_argument("--rows", default=None, help="comma-separated row names to run instead of the profile's "
-                   "(with --families: both; see hybrid_dyn.bench.rows.ROWS)")
-    p.add_argument("--scenarios", default=None, help="comma-separated scenarios of the profile to run, instead of "
-                   "all of them (e.g. --profile real --scenarios real-panda)")
-    p.add_argument("--out", default=None, help="report folder (default: reports/<profile>)")
+    for flag, text in _PROFILE_CHANGES:
+        p.add_argument(flag, default=None, help=text)
     _where_options(p)
     p.add_argument("--device", default=None, help="training device: cpu, cuda or cuda:N (default: the profile's, "
                    "auto: CUDA where present)")

@@ -148,7 +148,7 @@ def _excitation_dataset(ctx):
         tmp = unique_temp(traj_file)
         tmp.write_text(json.dumps(traj.to_dict()))
         tmp.replace(traj_file)
-    cfg = prof.generator_config(ctx.source or ctx.scenario, ctx.dataset)  # a --data dataset: its manifest's
+    cfg = ctx.plan.generator_config(ctx.source or ctx.scenario, ctx.dataset)  # a --data dataset: its manifest's
     ident_dir = root / f"{ctx.scenario}-identification-{cfg.config_hash()}-{traj_file.stem}"
     try:
         ident = load_dataset(ident_dir)
@@ -257,10 +257,10 @@ def _residual_row(name: str, preset: str) -> Row:
     def build(ds, ctx):
         from ..learn import train_model
 
-        config, out = residual_training(ctx, name, ctx.profile.train_config())
+        config, out = residual_training(ctx, name, ctx.plan.train_config())
         t0 = time.perf_counter()
         # the profile's preset_overrides (a study's capacity control) apply here as to every trained preset row
-        model = train_model(ds, ctx.profile.preset(preset), out, config=config, wait=True)  # shared runs/: wait
+        model = train_model(ds, ctx.plan.preset(preset), out, config=config, wait=True)  # shared runs/: wait
         train_seconds = getattr(model, "train_seconds", None) or (time.perf_counter() - t0)
         # A learned row: its curve is reported, its single call is the user's (learned_rows.py).
         pred = learned_predictor(model, train_seconds, inputs=", ".join(model.config.get("inputs", []))

@@ -14,14 +14,16 @@ import threading
 import time
 from pathlib import Path
 
+from ..data.logs.real_logs import REAL_SETS
 from ..outputs import refuse_foreign
 from ..timing import cpu_seconds
 from .integrity import (DIGEST_KEY, REPORT_FILES, read_run_json, remove_report_files, results_digest, run_digest,
                         same_profile)
 from .predictions import PREDICTIONS_FILE
-from .profiles import BenchProfile, is_dataset_path
+from .plan import BenchPlan, is_dataset_path
+from .profiles import BenchProfile
 from .results import CURVES_FILE, write_curves, write_json, write_results
-from .seed_comparison import SEED_COMPARISON_FILE
+from .reference_study import REFERENCE_COMPARISON_FILE
 
 
 def claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[dict]:
@@ -65,7 +67,7 @@ def claim_report_dir(out_dir: Path, profile: BenchProfile, log=print) -> list[di
 # What a bench report of any profile holds beside run.json, whatever its run.json records: the bench's files
 # and the report's fixed names (a report written before run.json recorded its files names no figure).
 BENCH_FILES = ("results.csv", CURVES_FILE, PREDICTIONS_FILE, "README.md", "tip_force.md", "tip_force.tex",
-               "joint_torque.md", "joint_torque.tex", SEED_COMPARISON_FILE)
+               "joint_torque.md", "joint_torque.tex", REFERENCE_COMPARISON_FILE)
 
 
 def take_over(out_dir: Path, old: dict, claim: dict) -> None:
@@ -167,5 +169,6 @@ def caches_empty(profile: BenchProfile, data_root: Path, work_root: Path) -> boo
     real logs' imports are cheap and not counted; a dataset path given by the user is not the bench's)."""
     if (Path(work_root) / profile.name).exists():
         return False
-    return not any(profile.dataset_path(s, data_root).exists() for s in profile.scenarios
-                   if not is_dataset_path(s) and not s.startswith("real-"))
+    plan = BenchPlan(profile)
+    return not any(plan.dataset_path(s, data_root).exists() for s in profile.scenarios
+                   if not is_dataset_path(s) and s not in REAL_SETS)

@@ -142,8 +142,8 @@ def _build(preset: str):
 
         t0 = time.perf_counter()
         # the profile's preset_overrides (a study's capacity control) change the preset, not the row's name
-        model = train_model(ds, ctx.profile.preset(preset), ctx.work_dir / "models" / preset,
-                            config=ctx.profile.train_config(), wait=True)  # another bench sharing runs/: wait, reuse
+        model = train_model(ds, ctx.plan.preset(preset), ctx.work_dir / "models" / preset,
+                            config=ctx.plan.train_config(), wait=True)  # another bench sharing runs/: wait, reuse
         return learned_predictor(model, getattr(model, "train_seconds", None) or (time.perf_counter() - t0))
 
     return build

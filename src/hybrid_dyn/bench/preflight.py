@@ -34,13 +34,13 @@ def check_dataset(profile, label: str, ds, ref) -> None:
                          "give the robot the log was recorded on (--robot)")
 
 
-def check_rows_apply(profile, datasets: list) -> None:
+def check_rows_apply(plan, datasets: list) -> None:
     """Refuse a run in which no selected row applies to any of ``datasets`` (all read from paths):
     the bench would write an empty report and exit 0. The message lists each row's reason."""
     reasons = []
     for label, ds in datasets:
-        for row in profile.selected_rows():
-            reason = profile.skip_reason(row, ds)
+        for row in plan.selected_rows():
+            reason = plan.skip_reason(row, ds)
             if reason is None:
                 return
             reasons.append(f"{row.name} on {label}: {reason}")

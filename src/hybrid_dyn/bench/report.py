@@ -1,4 +1,4 @@
-"""The benchmark report: tables laid out like the seed's, LaTeX, figures, README.
+"""The benchmark report: tables laid out like the reference study's (Kruzic et al. 2021), LaTeX, figures, README.
 
 Everything here is drawn from the bench's files in the report folder, never from
 a live run: results.csv (``results.py``), curves.json, run.json and predictions.h5
@@ -28,7 +28,7 @@ from .results import SCORED_STATUSES
 from .row_checks import IMPLAUSIBLE
 from .report_tables import best_row  # noqa: F401  (re-exported: imported from here, e.g. checks/acceptance.py)
 from .results import CURVES_FILE, read_curves
-from .seed_comparison import SEED_COMPARISON_FILE, seed_comparison_text
+from .reference_study import REFERENCE_COMPARISON_FILE, reference_comparison_text
 
 
 # ------------------------------------------------------------------- findings
@@ -167,15 +167,15 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
                       "(see the learning curves)."]
     lines += hybrid_lines(rows)
     lines += convergence_lines(rows, curve_figures)
-    seed_text = seed_comparison_text(rows, read_curves(out_dir / CURVES_FILE))
-    if seed_text is not None:  # the seed's nets are in this report: its tables beside ours
-        (out_dir / SEED_COMPARISON_FILE).write_text(seed_text)
-        written.append(SEED_COMPARISON_FILE)
-        lines += ["", "## The seed's tables", "", f"`{SEED_COMPARISON_FILE}`: the seed's Tables 2 and 3 (Kruzic "
+    reference_text = reference_comparison_text(rows, read_curves(out_dir / CURVES_FILE))
+    if reference_text is not None:  # the reference study's nets are in this report: its tables beside ours
+        (out_dir / REFERENCE_COMPARISON_FILE).write_text(reference_text)
+        written.append(REFERENCE_COMPARISON_FILE)
+        lines += ["", "## The seed's tables", "", f"`{REFERENCE_COMPARISON_FILE}`: the seed's Tables 2 and 3 (Kruzic "
                   "et al. 2021, another simulator) row by row beside this report's seed nets, the architecture "
                   "ordering in both, and each net's training and validation loss at the kept round."]
     lines += _left_out_lines(meta, notes_out, failed)
-    lines += _files_lines(out_dir, preds, seed_text, curve_figures, figures)
+    lines += _files_lines(out_dir, preds, reference_text, curve_figures, figures)
     (out_dir / "README.md").write_text("\n".join(lines))
     # What an earlier report recorded and this one no longer draws (a figure of another dataset) is removed;
     # nothing else is: a user's file named like a figure was never recorded (issue 39).
@@ -276,14 +276,14 @@ def _left_out_lines(meta: dict, notes_out: list[str], failed: list[dict]) -> lis
     return lines
 
 
-def _files_lines(out_dir: Path, preds, seed_text, curve_figures: list[str], figures: list[str]) -> list[str]:
+def _files_lines(out_dir: Path, preds, reference_text, curve_figures: list[str], figures: list[str]) -> list[str]:
     """The README's "Files" section: what the report folder holds."""
     return ["", "## Files", "", "- `results.csv`: one row per (task, scenario, model), stable columns",
             *([f"- `{PREDICTIONS_FILE}` ({_megabytes(out_dir / PREDICTIONS_FILE)}): every row's test predictions "
                "and their targets (the figures are drawn from it; `hybrid-dyn report DIR` redraws the report from "
                "these files)"] if preds is not None else []),
             "- `tip_force.md`, `joint_torque.md` (+ `.tex`): tables in the seed's layout",
-            *([f"- `{SEED_COMPARISON_FILE}`: the seed's Tables 2 and 3 beside this report's"] if seed_text else []),
+            *([f"- `{REFERENCE_COMPARISON_FILE}`: the seed's Tables 2 and 3 beside this report's"] if reference_text else []),
             *([f"- `{CURVES_FILE}`: each learned row's loss per epoch, how it stopped and the epoch kept "
                "(the learning-curve figures are drawn from it)"] if curve_figures else []),
             *[f"- `{f}`" for f in figures], ""]

@@ -1,5 +1,5 @@
-"""The report's tables: one per task, laid out like the seed's Tables 2 and 3, in Markdown and LaTeX,
-and the choice of the rows a report compares (every scored row but the reference rows).
+"""The report's tables: one per task, laid out like the reference study's (Kruzic et al. 2021) Tables 2
+and 3, in Markdown and LaTeX, and the choice of the rows a report compares (every scored row but the reference rows).
 
 Apart from the README (``report.py``) and the figures (``report_figures.py``) because a table is
 drawn from results.csv alone, cell by cell, and the acceptance check (``checks/acceptance.py``) and
@@ -12,7 +12,8 @@ import numpy as np
 from .catalog import reference_label
 from .results import SCORED_STATUSES
 from .row_checks import IMPLAUSIBLE, row_notes
-from .seed_reference import GAZ2019_VALIDATION_RMSE, SEED_TABLE1, SEED_TABLE2, SEED_TABLE3, seed_dataset_label
+from .reference_study import (GAZ2019_VALIDATION_RMSE, REFERENCE_TABLE1, REFERENCE_TABLE2, REFERENCE_TABLE3,
+                              reference_dataset_label)
 
 
 def _f(x, nd=4) -> str:
@@ -69,7 +70,7 @@ TIP_HEADER = ["model", "family", "inputs", "val loss", "test loss", "RMSE [N]", 
 TAU_HEADER = ["model", "family", "inputs", "val loss", "test loss", "RMSE [Nm]", "RMSE per joint [Nm]",
               "contact", "free", "max err", "train s", "us/sample", "us/call", "params", "epochs (stop)",
               "seed val loss*", "seed test loss*", "seed RMSE* [Nm]"]
-N_SEED_COLUMNS = 3  # the headers' last columns: the seed's published figures
+N_REFERENCE_COLUMNS = 3  # the headers' last columns: the reference study's published figures
 CAP_MARK = "†"  # a learned row stopped by the epoch cap while still improving (footnoted in each table)
 IMPLAUSIBLE_MARK = "‡"  # an identified row whose parameters are outside the robot's bounds (row_checks.py)
 CAP_FOOTNOTE = (f"{CAP_MARK} Stopped by the epoch cap (`max_epochs`) while its validation loss was still improving: "
@@ -132,9 +133,9 @@ def _row_cells(r, task, scenario):
     n = 3 if task == "tip_force" else 7
     per = "/".join(_f(r.get(f"rmse_{j + 1}"), 3) for j in range(n))
     if task == "tip_force":
-        seed = SEED_TABLE2.get(r["model"])
+        published = REFERENCE_TABLE2.get(r["model"])
     else:
-        seed = SEED_TABLE3.get((r["model"], seed_dataset_label(scenario)))
+        published = REFERENCE_TABLE3.get((r["model"], reference_dataset_label(scenario)))
     header = TIP_HEADER if task == "tip_force" else TAU_HEADER
     if r.get("status") not in SCORED_STATUSES:
         return [_model_cell(r), r.get("family", ""), r.get("inputs", ""), "FAILED: " + str(r.get("error", ""))[:80]] + \
@@ -145,7 +146,7 @@ def _row_cells(r, task, scenario):
             *over_noise, per,
             _f(r.get("rmse_contact")), _f(r.get("rmse_free")), _f(r.get("max_error"), 2), _f(r.get("train_seconds"), 1),
             _f(r.get("infer_us_per_sample"), 2), _f(r.get("infer_us_per_call"), 1), r.get("n_params", "") or "0",
-            _stop_cell(r), *(_f(s) for s in (seed or ("", "", "")))]
+            _stop_cell(r), *(_f(s) for s in (published or ("", "", "")))]
 
 
 def _ratio(a, b) -> float:
@@ -165,12 +166,12 @@ def task_tables(rows, task: str) -> tuple[str, str]:
         header = header[:stop_col] + header[stop_col + 1:]
     unit = "N" if task == "tip_force" else "Nm"
     title = "Tip-force estimation" if task == "tip_force" else "Joint-torque estimation"
-    seed_tab = "Table 2" if task == "tip_force" else "Table 3"
+    reference_table = "Table 2" if task == "tip_force" else "Table 3"
     md = [f"# {title}", "",
-          f"Laid out like the seed's {seed_tab}. Losses: MSE on targets standardised with the train split's "
+          f"Laid out like the seed's {reference_table}. Losses: MSE on targets standardised with the train split's "
           f"statistics (the seed's losses also hold a regularisation term). RMSE over all test samples and "
           f"components [{unit}], then per component; 'contact' / 'free': samples with |F_tip| above / below 1 N.",
-          "", f"\\* Columns marked * are the seed's published figures (Kruzic et al. 2021, {seed_tab}): "
+          "", f"\\* Columns marked * are the seed's published figures (Kruzic et al. 2021, {reference_table}): "
           "**figures from another simulator** (CoppeliaSim, 50 ms steps) and another data set, shown for "
           "orientation only, not measured here. Beside the `real-*` scenarios they are the seed's *real Panda* "
           "rows: **another robot** (the toolkit's real logs are of a KUKA LWR, a Baxter and a SARCOS arm).", "",
@@ -197,10 +198,10 @@ def task_tables(rows, task: str) -> tuple[str, str]:
             md += [CAP_FOOTNOTE.replace("<scenario>", scenario) + f" Here: {', '.join(f'`{m}`' for m in capped)}.", ""]
             caption += f"; {CAP_MARK} stopped by the epoch cap while still improving: may not have converged"
         keep = 6  # model, family, inputs, losses, RMSE; then epochs (stop) and the seed's figures
-        tail = N_SEED_COLUMNS + (1 if with_stop else 0)
+        tail = N_REFERENCE_COLUMNS + (1 if with_stop else 0)
         tex.append(_latex(header[:keep] + header[-tail:], [b[:keep] + b[-tail:] for b in body], caption))
     if task == "tip_force":
-        md += ["Seed Table 1 architectures: " + "; ".join(f"`{k}` {v}" for k, v in SEED_TABLE1.items()), ""]
+        md += ["Seed Table 1 architectures: " + "; ".join(f"`{k}` {v}" for k, v in REFERENCE_TABLE1.items()), ""]
     else:
         md += ["Gaz et al. 2019 identified model on the real Panda (another setting, not measured here), "
                "validation torque RMSE per joint [Nm]: " + ", ".join(f"{v:.2f}" for v in GAZ2019_VALIDATION_RMSE), ""]

@@ -17,29 +17,92 @@ what a row reads: a row declared without its fields is refused here.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 
 from ..data.dataset import FIELD_UNITS
+from ..deprecation import warn_renamed
 from ..errors import UsageError
+from ..registry import Registry
 
 # task -> the logged field its rows are scored against (PROTOCOL 4: the commanded motor torque).
 TASK_TARGET = {"tip_force": "tip_force", "joint_torque": "tau_m"}
 
+@dataclass(frozen=True)
+class Family:
+    """A family of bench rows, declared once in :data:`FAMILIES`; every list of families is derived from it.
+
+    learned: its rows are fitted to data (networks, or parameters identified from data); physics_informed:
+    a learned family with physics inside (the report's torque floor); identifies_parameters: its rows fit
+    the robot's physical parameters (``compare`` leaves them out: their ratio to physics is no network's
+    data limit); in_studies: a profile runs it unless it names its families, and a study picks its best
+    trained row; figures: the report's figures that draw its best row ("traces", "error-vs-force").
+    """
+
+    name: str
+    description: str
+    learned: bool
+    physics_informed: bool = False
+    identifies_parameters: bool = False
+    in_studies: bool = False
+    figures: tuple = ()
+
+
 # The families, in the order the report's figures list them; a row belongs to exactly one.
-FAMILIES = {
-    "analytic": "physics on the nominal model, nothing trained",
-    "seed-net": "the seed's networks (Kruzic et al. 2021, Tables 1 and 3)",
-    "residual": "a network that corrects an analytic part (physics-informed)",
-    "delan": "Deep Lagrangian networks (physics-informed)",
-    "identified": "physics on parameters identified from data, and the residual nets on them",
-    "learned": "other black-box networks",
-    "gp": "Gaussian-process regression (scikit-learn fit, numpy predictions; not PyTorch)",
-}
-PHYSICS_INFORMED = ("residual", "delan")  # learned families with physics inside (the report's torque floor)
+FAMILIES = Registry("bench family", UsageError)
+for _family in (
+    Family("analytic", "physics on the nominal model, nothing trained", learned=False, in_studies=True,
+           figures=("traces", "error-vs-force")),
+    Family("seed-net", "the seed's networks (Kruzic et al. 2021, Tables 1 and 3)", learned=True, in_studies=True,
+           figures=("traces", "error-vs-force")),
+    Family("residual", "a network that corrects an analytic part (physics-informed)", learned=True,
+           physics_informed=True, in_studies=True, figures=("traces", "error-vs-force")),
+    Family("delan", "Deep Lagrangian networks (physics-informed)", learned=True, physics_informed=True,
+           in_studies=True, figures=("traces",)),
+    Family("identified", "physics on parameters identified from data, and the residual nets on them", learned=True,
+           identifies_parameters=True, in_studies=True, figures=("traces",)),
+    Family("learned", "other black-box networks", learned=True),
+    Family("gp", "Gaussian-process regression (scikit-learn fit, numpy predictions; not PyTorch)", learned=True),
+):
+    FAMILIES.register(_family)
+
+
+def family_names(**fields) -> tuple:
+    """The names of the families whose metadata has every ``field=value`` given, in declaration order
+    (``family_names(physics_informed=True)``); read when needed, so that a family declared later counts."""
+    return tuple(f.name for f in FAMILIES.where(**fields))
+
+
+def study_families() -> tuple:
+    """The families a profile runs unless it names its own, and whose best trained rows a study picks."""
+    return family_names(in_studies=True)
+
+
+def figure_families(figure: str) -> tuple:
+    """The families whose best row the report's ``figure`` ("traces", "error-vs-force") draws."""
+    return tuple(f.name for f in FAMILIES.values() if figure in f.figures)
+
+
+def derived_names(module_name: str, derived: dict):
+    """A module ``__getattr__`` serving old constants now derived from the declarations: ``{old: (what to
+    write instead, in full; a function deriving the value)}``; each read warns and derives the value afresh."""
+
+    def __getattr__(name):
+        if name in derived:
+            new, derive = derived[name]
+            warn_renamed("name", f"{module_name}.{name}", new,
+                         stacklevel=2, why="derived from the family declarations")
+            return derive()
+        raise AttributeError(f"module {module_name!r} has no attribute {name!r}")
+
+    return __getattr__
+
+
+# The tuple kept by hand before the families carried their metadata.
+__getattr__ = derived_names(__name__, {"PHYSICS_INFORMED": ("hybrid_dyn.bench.rows.family_names(physics_informed=True)",
+                                                             lambda: family_names(physics_informed=True))})
 
 
 @dataclass
@@ -116,14 +179,17 @@ class Row:
         object.__setattr__(self, "needs", tuple(self.needs))
 
 
-ROWS: dict[str, Row] = {}
+ROWS = Registry("bench row", UsageError)  # results list rows in declaration order
 
 
 def is_physics_result(result: dict) -> bool:
     """Whether a results.csv row is physics alone: an analytic or identified row with no trained part and no
     fitted weights (``n_params`` 0; the residual GP on the identified model has them), never a reference."""
     row = ROWS.get(result["model"])
-    return row is not None and row.family in ("analytic", "identified") and not row.trains \
+    if row is None:
+        return False
+    family = FAMILIES[row.family]  # physics: nothing learned, or parameters identified from data
+    return (not family.learned or family.identifies_parameters) and not row.trains \
         and row.reference is None and not float(result.get("n_params") or 0)
 
 
@@ -145,22 +211,4 @@ def prior_kept_text(kept) -> str:
 
 def declare(row: Row) -> Row:
     """Add ``row`` to :data:`ROWS` (results list rows in declaration order); a name is declared once."""
-    if row.name in ROWS:
-        raise UsageError(f"bench row {row.name!r} is declared twice")
-    ROWS[row.name] = row
-    return row
-
-
-@dataclass
-class BenchContext:
-    """What a row's build sees of its scenario (one per scenario of a run)."""
-
-    profile: object  # profiles.BenchProfile
-    scenario: str
-    dataset: object  # data.Dataset
-    robot: object | None  # the nominal analytic.Robot every analytic part uses (None: no URDF for this arm)
-    work_dir: Path
-    data_root: Path = Path("data")
-    log: Callable[[str], None] = print
-    cache: dict = field(default_factory=dict)
-    source: str = ""  # the profile's scenario entry (a name, or a dataset path); ``scenario`` is its label
+    return ROWS.register(row)

@@ -53,12 +53,13 @@ from .invocations import InvocationClock, caches_empty, claim_report_dir
 from .learned_rows import PRESET_ROWS
 from .metrics import ErrorReport, base_force_noise_rms, standardized_mse
 from .predictions import PREDICTIONS_FILE, PredictionWriter
-from .profiles import BenchProfile, is_dataset_path, scenario_label
+from .plan import BenchContext, BenchPlan, is_dataset_path, scenario_label
+from .profiles import BenchProfile
 from .report import machine_info, write_report
 from .results import (COLUMNS, CURVES_FILE, SCORED_STATUSES, read_curves, write_json,  # noqa: F401  (re-exported)
                       read_results, write_curves, write_results)
 from .row_checks import NOTE_SEPARATOR, review_row
-from .rows import TASK_TARGET, BenchContext, Predictor, Row  # noqa: F401  (re-exported for callers)
+from .rows import TASK_TARGET, Predictor, Row  # noqa: F401  (re-exported for callers)
 
 # ---------------------------------------------------------------------- scoring
 def _median_call_us(fn, inst, warmup_calls: int = 1, n_calls: int = 200) -> float:
@@ -247,21 +248,22 @@ def run_bench(profile: BenchProfile, out_dir, data_root=None, work_root=None, da
     # one thread, 118 ms on two with the cores oversubscribed). The bench owns its
     # process, so it pins torch to ``profile.torch_threads``.
     _set_torch_threads(profile.torch_threads)
+    plan = BenchPlan(profile)  # what this run does with the profile: datasets, robots, rows, training
     out_dir = Path(out_dir)
     data_root = Path(data_root or os.environ.get("HYBRID_DYN_DATA", "data"))
     work_root = default_work_root(work_root)
-    provider = dataset_provider or (lambda scenario, prof: prof.dataset(scenario, data_root, log=log,
-                                                                         executor=executor))
+    provider = dataset_provider or (lambda scenario, prof: BenchPlan(prof).dataset(scenario, data_root, log=log,
+                                                                                    executor=executor))
     # A missing or corrupt dataset, an unknown robot: refused before the report folder is touched.
-    opened = _open_datasets(profile, provider, log)
+    opened = _open_datasets(plan, provider, log)
     with output_lock(out_dir, "report folder"):  # one bench per report folder at a time
         cold = caches_empty(profile, data_root, work_root)
         previous = claim_report_dir(out_dir, profile, log)
         requested = [row_key({"scenario": label, "task": r.task, "model": r.name})
-                     for _, label, _, _ in opened for r in profile.selected_rows()]
+                     for _, label, _, _ in opened for r in plan.selected_rows()]
         clock = InvocationClock(previous, cold_start=cold, requested=requested)
         clock.record(out_dir, [], rows_written=False)  # on record before any work: a kill -9 leaves it unfinished
-        return _run_bench_locked(profile, out_dir, clock, data_root, work_root, provider, opened, log,
+        return _run_bench_locked(plan, out_dir, clock, data_root, work_root, provider, opened, log,
                                  train_executor, device)
 
 
@@ -286,10 +288,11 @@ def recorded_path(path) -> str:
         return str(path)
 
 
-def work_dir(profile: BenchProfile, scenario: str, ds: Dataset, work_root: Path) -> Path:
+def work_dir(plan: BenchPlan, scenario: str, ds: Dataset, work_root: Path) -> Path:
     """Where a profile's models of one scenario are cached: one folder per dataset and training
     recipe, so a run with another recipe never meets these models."""
-    recipe = hashlib.sha256(json.dumps(profile.train_config().fingerprint_fields(), sort_keys=True).encode())
+    profile = plan.profile
+    recipe = hashlib.sha256(json.dumps(plan.train_config().fingerprint_fields(), sort_keys=True).encode())
     name = f"{ds.checksum[:12]}-train-{recipe.hexdigest()[:8]}"
     if profile.robot is not None or profile.tool is not None:  # another analytic model: never its models
         robot = hashlib.sha256(str(ds.meta.get("robot")).encode()).hexdigest()[:8]
@@ -297,20 +300,20 @@ def work_dir(profile: BenchProfile, scenario: str, ds: Dataset, work_root: Path)
     return Path(work_root) / profile.name / scenario / name
 
 
-def _open_datasets(profile, provider, log) -> list:
+def _open_datasets(plan: BenchPlan, provider, log) -> list:
     """The profile's datasets as (entry, label, dataset or None, robot ref or skip reason), before any work
     where that is cheap: a dataset path is read and its robot resolved now (an unknown robot, a duplicate
     label fail here); a named scenario is made when its turn comes (None here)."""
     from .preflight import check_dataset, check_rows_apply
 
     out, seen = [], {}
-    for entry in profile.scenarios:
+    for entry in plan.profile.scenarios:
         ds = label = ref = None
         if is_dataset_path(entry):
-            ds = provider(entry, profile)
+            ds = provider(entry, plan.profile)
             label = scenario_label(entry, ds)
-            ref = profile.robot_ref(ds)  # description.resolve_robot: the one check of a robot name
-            check_dataset(profile, label, ds, ref)  # splits, joint count, parameter set
+            ref = plan.robot_ref(ds)  # description.resolve_robot: the one check of a robot name
+            check_dataset(plan.profile, label, ds, ref)  # splits, joint count, parameter set
         else:
             label = entry
         if label in seen:
@@ -319,12 +322,13 @@ def _open_datasets(profile, provider, log) -> list:
         seen[label] = entry
         out.append((entry, label, ds, ref))
     if all(ds is not None for _, _, ds, _ in out):  # every dataset known now: some row must apply
-        check_rows_apply(profile, [(label, ds) for _, label, ds, _ in out])
+        check_rows_apply(plan, [(label, ds) for _, label, ds, _ in out])
     return out
 
 
-def _run_bench_locked(profile, out_dir, clock: InvocationClock, data_root, work_root, provider, opened, log,
+def _run_bench_locked(plan: BenchPlan, out_dir, clock: InvocationClock, data_root, work_root, provider, opened, log,
                       executor=None, device=None) -> list[dict]:
+    profile = plan.profile
     rows: list[dict] = []
     skipped = clock.skipped  # on record in run.json as it grows
     datasets = {}
@@ -342,7 +346,7 @@ def _run_bench_locked(profile, out_dir, clock: InvocationClock, data_root, work_
                     log(f"[bench] skipping scenario {scenario}: {err}")
                     skipped.append({"scenario": scenario, "task": "", "model": "", "reason": str(err)})
                     continue
-                ref = profile.robot_ref(ds)
+                ref = plan.robot_ref(ds)
             labels[scenario] = entry
             # Making (or finding) the dataset in this invocation: a generation that ran here is part of the wall time.
             dataset_seconds[scenario] = time.perf_counter() - t_data
@@ -354,9 +358,9 @@ def _run_bench_locked(profile, out_dir, clock: InvocationClock, data_root, work_
             ds.meta["robot"] = ref.name
             robot = load_robot(ref.name, params=profile.params) if ref.described else None
             datasets[scenario] = ds
-            ctx = BenchContext(profile, scenario, ds, robot, work_dir(profile, scenario, ds, work_root),
+            ctx = BenchContext(profile, scenario, ds, robot, work_dir(plan, scenario, ds, work_root),
                                data_root, log=log, source=entry)
-            _bench_scenario(profile, out_dir, ctx, ref, predictions, rows, skipped, log, clock, executor, device)
+            _bench_scenario(plan, out_dir, ctx, ref, predictions, rows, skipped, log, clock, executor, device)
     meta = _run_meta(profile, clock, rows, labels, skipped, datasets, dataset_seconds)
     # The files an earlier report drew here stay on record: this one removes those it no longer draws.
     meta[REPORT_FILES] = read_run_json(out_dir).get(REPORT_FILES) or []
@@ -368,23 +372,23 @@ def _run_bench_locked(profile, out_dir, clock: InvocationClock, data_root, work_
     return rows
 
 
-def _bench_scenario(profile, out_dir, ctx: BenchContext, ref, predictions, rows, skipped, log,
+def _bench_scenario(plan: BenchPlan, out_dir, ctx: BenchContext, ref, predictions, rows, skipped, log,
                     clock: InvocationClock, executor=None, device=None) -> None:
     """One scenario's rows: those that apply are trained (the learned ones, in parallel) and scored, each
     written to results.csv, predictions.h5 and curves.json as it finishes; ``rows`` and ``skipped`` grow."""
-    scenario, ds = ctx.scenario, ctx.dataset
+    profile, scenario, ds = plan.profile, ctx.scenario, ctx.dataset
     norm = train_split_stats(ds)
-    specs = _applicable_rows(profile, scenario, ds, skipped, log)
+    specs = _applicable_rows(plan, scenario, ds, skipped, log)
     test = ds.split("test")
     predictions.test_data(scenario, test, [t for t in dict.fromkeys(TASK_TARGET.values()) if t in ds.fields])
     # Parallel workers train quietly (one progress bar over the models, not one per process).
-    tcfg = profile.train_config()
+    tcfg = plan.train_config()
     if profile.workers > 1 or executor is not None:
         tcfg = dataclasses.replace(tcfg, progress=False)
     if device is not None:
         tcfg = dataclasses.replace(tcfg, device=device)
     # The presets' rows train in parallel first (the identified residuals need their fit first).
-    jobs = [(str(ds.path), ref.name, profile.preset(s.name), str(ctx.work_dir / "models" / s.name), tcfg,
+    jobs = [(str(ds.path), ref.name, plan.preset(s.name), str(ctx.work_dir / "models" / s.name), tcfg,
              profile.torch_threads) for s in specs if s.name in PRESET_ROWS]
     log(f"[bench] {scenario}: training {len(jobs)} learned models on {profile.workers} workers")
     pretrain(jobs, profile.workers, log=log, executor=executor)
@@ -411,7 +415,7 @@ def _background_training(ctx: BenchContext, specs: list, tcfg, robot: str, execu
     try:
         for name in names:
             config, out = residual_training(ctx, name, tcfg)
-            jobs[name] = (str(ctx.dataset.path), robot, ctx.profile.preset(RESIDUAL_ROWS[name]), str(out), config,
+            jobs[name] = (str(ctx.dataset.path), robot, ctx.plan.preset(RESIDUAL_ROWS[name]), str(out), config,
                           ctx.profile.torch_threads)
     except Exception as err:  # the identification failed: each row that needs it fails with it, named, when scored
         ctx.log(f"[bench] {ctx.scenario}: the residual nets on the identified model train when scored ({err})")
@@ -460,11 +464,11 @@ def _score_rows(out_dir, ctx, specs, norm, test, predictions, rows, log, clock, 
             f"[bench] {scenario} {spec.name} failed")
 
 
-def _applicable_rows(profile: BenchProfile, scenario: str, ds: Dataset, skipped: list, log) -> list:
+def _applicable_rows(plan: BenchPlan, scenario: str, ds: Dataset, skipped: list, log) -> list:
     """The profile's rows that apply to ``ds``; each that does not is logged and added to ``skipped``."""
     specs = []
-    for r in profile.selected_rows():
-        reason = profile.skip_reason(r, ds)
+    for r in plan.selected_rows():
+        reason = plan.skip_reason(r, ds)
         if reason is None:
             specs.append(r)
         else:

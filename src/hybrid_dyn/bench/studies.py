@@ -16,6 +16,7 @@ on the full report's *validation* loss, never its test figures), and the kind of
 the profile's own report (``hybrid-dyn bench --profile P`` first), or, when the study changes the
 profile under every variant (``base``), that changed profile, run as the variant ``base``.
 
+The studies are declared in ``hybrid_dyn/resources/bench/studies.toml`` (read into :data:`STUDIES`).
 ``hybrid-dyn study NAME`` runs one of :data:`STUDIES` (variants' bench reports under
 ``runs/studies/NAME/``, or beside the summary for a study that keeps them; the summary in
 ``reports/studies/NAME/``). ``reports/README.md`` lists what each committed study folder holds.
@@ -23,19 +24,22 @@ profile under every variant (``base``), that changed profile, run as the variant
 from __future__ import annotations
 
 import dataclasses
+import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import UsageError
-from .catalog import get_row, select_rows
 from ..outputs import json_marker, output_lock, refuse_foreign_files
+from ..registry import Registry
+from ..resources import resource_dir
+from .catalog import get_row, select_rows
 from .integrity import is_bench_meta, read_run_json, same_profile, verify_results
-from .profiles import BenchProfile, get_profile
+from .plan import BenchPlan
+from .profiles import BenchProfile, as_tuples, get_profile
 from .results import read_results
-from .rows import TASK_TARGET, is_physics_family, is_physics_result
+from .rows import TASK_TARGET, derived_names, family_names, is_physics_family, is_physics_result
 
 UNITS = {"tip_force": "N", "joint_torque": "Nm"}
-LEARNED_FAMILIES = ("seed-net", "residual", "delan", "identified")  # families with trained rows
 BASE = "base"  # the variant name of a study's reference point when it changes the profile (Study.base)
 
 
@@ -161,85 +165,41 @@ class Study:
                                                    f"profile `{base.name}`: {over.describe()}."))
 
 
-def _study(name, profile, description, **fields) -> Study:
-    return Study(name=name, profile=profile, description=description, **fields)
+def read_studies(path: Path) -> list[Study]:
+    """The studies a TOML file declares (``[studies.NAME]`` tables of :class:`Study` fields, their ``variants``
+    and ``base`` tables of :class:`Overrides` fields), each checked as it is made."""
+    doc = tomllib.loads(Path(path).read_text())
+    studies = []
+    for name, declared in doc.get("studies", {}).items():
+        declared = as_tuples(declared)
+        try:
+            variants = {v: Overrides(**o) for v, o in declared.pop("variants", {}).items()}
+            base = Overrides(**declared.pop("base", {}))
+            studies.append(Study(name=name, variants=variants, base=base, **declared))
+        except TypeError as err:  # a field Study or Overrides does not have
+            raise UsageError(f"{path}: study {name!r}: {err}") from None
+    return studies
 
 
-# The default profile's torque rows on paper-noext, the scenario of its floors (issue 14's controls).
-DEFAULT_TORQUE_ROWS = ("seed-tau-mlp", "seed-tau-conv", "seed-tau-lstm", "seed-tau-lstm-opt", "tau-mlp-wide",
-                       "residual-rnea-bw", "delan-friction")
-# The budget and batch-size studies' data: seed-sim at 80 instances of 5-20 trajectories (issue 26).
-SEED_SIM_80 = Overrides(data={"n_instances": 80, "trajectories": (5, 20)})
-ONE_PER_FAMILY = ("seed-tau-mlp", "seed-tip-4", "seed-tau-lstm-opt", "residual-rnea", "delan-friction")
-CONVERGED = 0.03  # a doubled budget that gains less than this on validation: converged (issue 26)
-
-
-def _controls(name, profile, rows, half, description, **fields) -> Study:
-    """What limits the learned rows: regularisation, capacity, data or the recipe (issue 14's controls)."""
-    return _study(name, profile, description, rows=rows, variants={
-        "weight-decay-0.1": Overrides(train={"weight_decay": 0.1}),
-        "weight-decay-1": Overrides(train={"weight_decay": 1.0}),
-        "fc-256": Overrides(preset={"fc_units": 256}, rows=tuple(r for r in rows if not r.startswith("delan"))),
-        "data-half": Overrides(train={"train_instances": half}),
-        "budget-x2": Overrides(budget_factor=2),
-        "recipe-long": Overrides(recipe="long")}, **fields)
-
-
-STUDIES = {s.name: s for s in (
-    _study("data-scaling", "seed-sim", "test error against the number of training instances (val in proportion), "
-           "the best learned row of each family and task at the same step budget, and the best physics rows",
-           train_instances=(10, 40, 160), out="reports/seed-sim/data-scaling"),
-    _study("convergence-seed-sim", "seed-sim", "does more training still pay? The best learned row of each "
-           "family and task retrained at twice its step budget; converged when validation gains < 3 %",
-           variants={"budget-x2": Overrides(budget_factor=2)}, tolerance=CONVERGED),
-    _study("convergence-default", "default", "the convergence check of the default profile's best learned rows "
-           "(twice the step budget; converged when validation gains < 3 %)",
-           variants={"budget-x2": Overrides(budget_factor=2)}, tolerance=CONVERGED),
-    _study("capacity-seed-sim", "seed-sim", "is it capacity? The two seed nets furthest from the seed's figures "
-           "(seed-tip-10 and seed-tau-lstm-opt, LSTM fronts 2 x 32) retrained with fronts of 2 x 64 (about 3.5x the "
-           "parameters) at the same step budget", rows=("seed-tip-10", "seed-tau-lstm-opt"),
-           variants={"front-2x64": Overrides(preset={"front_units": (64, 64)})}),
-    _controls("controls-seed-sim", "seed-sim", ("seed-tip-10", "seed-tip-4", "seed-tau-mlp", "delan-friction"), 320,
-              "what limits the learned rows on seed-sim: weight decay, capacity (FC 256), half the training "
-              "instances, or the epoch recipe `long` instead of the budget"),
-    _controls("controls-default", "default", DEFAULT_TORQUE_ROWS, 38,
-              "what limits the default profile's torque rows on paper-noext: weight decay, capacity, half the "
-              "training instances, or the epoch recipe `long`", scenarios=("paper-noext",)),
-    _study("data-trade", "default", "what shrinking the default bench's data would cost its torque rows on "
-           "paper-noext: the first half of the training instances against all of them",
-           rows=("seed-tau-mlp", "seed-tau-lstm", "seed-tau-lstm-opt", "residual-rnea-bw", "delan-friction"),
-           scenarios=("paper-noext",), variants={"data-half": Overrides(train={"train_instances": 38})}),
-    _study("data-control", "default", "does the data or the architecture limit the learned rows? The default "
-           "profile on 18 instances of 5-6 trajectories against its own report, each learned row divided by "
-           "its report's best analytic row", summary="compare", keep_variant_reports=True,
-           rows=("tau-mlp-wide",), families=("analytic", "seed-net", "residual", "delan"),
-           scenarios=("paper-noext", "paper-ext", "mismatch-ext"),
-           variants={"small": Overrides(scenario_data={s: {"n_instances": 18, "trajectories": (5, 6)}
-                                                       for s in ("paper-noext", "paper-ext", "mismatch-ext")})}),
-    _study("interpolation-control", "real", "how much of the real logs' error is unseen trajectories? gp and "
-           "tau-mlp-wide again on the same logs cut into short chunks split at random (test states among "
-           "training states: optimistic by design, not the benchmark's protocol)", rows=("gp", "tau-mlp-wide"),
-           variants={"chunks": Overrides(scenario_data={
-               "real-kuka": {"name": "real-kuka-chunks", "trajectories": "blocks", "n_blocks": 4},
-               "real-baxter": {"name": "real-baxter-chunks", "trajectories": "blocks", "n_blocks": 4},
-               "real-sarcos": {"name": "real-sarcos-chunks", "trajectories": "blocks", "n_blocks": 40},
-               "real-panda": {"name": "real-panda-chunks", "trajectories": "blocks", "n_blocks": 40,
-                              "split_by": "random"}})}),
-    _study("budget", "seed-sim", "the budgeted recipe's step counts: one row per family at 0.5x, 2x and 4x its "
-           "step budget on seed-sim at 80 instances", base=SEED_SIM_80, rows=ONE_PER_FAMILY,
-           variants={f"budget-x{f:g}": Overrides(budget_factor=f) for f in (0.5, 2, 4)}),
-    _study("batch-size", "seed-sim", "batch size at equal samples seen: 256 (4x the steps, lr 1e-3) and 4096 "
-           "(a quarter, lr 4e-3) against the recipe's 1024 (lr 2e-3), on seed-sim at 80 instances",
-           base=SEED_SIM_80, rows=("seed-tau-mlp", "delan-friction"),
-           variants={"batch-256": Overrides(train={"batch_size": 256, "lr": 1e-3}, budget_factor=4),
-                     "batch-4096": Overrides(train={"batch_size": 4096, "lr": 4e-3}, budget_factor=0.25)}),
-)}
+STUDIES_FILE = resource_dir("bench") / "studies.toml"
+STUDIES = Registry("study", UsageError)
+for _study in read_studies(STUDIES_FILE):
+    STUDIES.register(_study)
 
 
 def get_study(name: str) -> Study:
-    if name not in STUDIES:
-        raise UsageError(f"unknown study {name!r}; known: {', '.join(STUDIES)}")
-    return STUDIES[name]
+    """The study declared as ``name``, or the error naming the known ones."""
+    return STUDIES.lookup(name)
+
+
+def learned_study_families() -> tuple:
+    """The families whose best trained row a study picks (:class:`rows.Family`: learned, in the studies)."""
+    return family_names(learned=True, in_studies=True)
+
+
+# LEARNED_FAMILIES: the tuple kept by hand before the families carried their metadata.
+__getattr__ = derived_names(__name__, {"LEARNED_FAMILIES": ("hybrid_dyn.bench.studies.learned_study_families()",
+                                                               learned_study_families)})
 
 
 def _ok(rows) -> list[dict]:
@@ -257,11 +217,12 @@ def choose_rows(full: list[dict]) -> dict:
     (scenario, task, "physics on <inputs>"), where that row is another."""
     best = {}
     physics = []
+    learned = learned_study_families()
     for r in _ok(full):
         row = get_row(r["model"])
         if row.reference is not None:
             continue
-        if row.trains and row.family in LEARNED_FAMILIES:
+        if row.trains and row.family in learned:
             key = (r["scenario"], r["task"], row.family)
         elif is_physics_result(r):
             key = (r["scenario"], r["task"], "physics")
@@ -399,7 +360,7 @@ def _run_variant(study: Study, variant: str, rows: tuple, where: Path, reference
     results, dirs = [], []
     for row in only:  # each row's own budget, scaled: one bench per row
         profile = study.variant_profile(variant, (row,))
-        budget = profile.train_config().for_preset(_preset(profile, row)).budget_steps
+        budget = BenchPlan(profile).train_config().for_preset(_preset(profile, row)).budget_steps
         if budget is None:
             raise UsageError(f"study {study.name}: budget_factor needs the budgeted recipe (profile {study.profile!r}"
                              f" trains {row} under {profile.recipe!r})")
@@ -420,7 +381,7 @@ def _preset(profile: BenchProfile, row: str):
     name = RESIDUAL_ROWS.get(row, row)
     if name not in PRESET_ROWS:
         raise UsageError(f"row {row!r} trains no network preset: it has no step budget to scale (budget_factor)")
-    return get_preset(profile.preset(name))
+    return get_preset(BenchPlan(profile).preset(name))
 
 
 def train_instances_of(report: Path, scenarios: tuple = ()) -> int:

@@ -16,27 +16,51 @@ skips such a scenario with it).
 from __future__ import annotations
 
 import os
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 
+from ...deprecation import warn_renamed
+from ...registry import Registry
 from ...resources import resource_dir
 from ..dataset import DatasetError, load_dataset
 from .importer import import_log, read_spec, spec_checksum
 
-REAL_SETS = {"real-kuka": "kuka.toml", "real-baxter": "baxter.toml", "real-sarcos": "sarcos.toml",
-             "real-panda": "panda.toml"}
-
-# Where each set's log comes from, for the message when it is absent.
 _SHIPPED = "they ship with the package, in hybrid_dyn/resources/real/logs"
-REAL_LOG_SOURCES = {
-    "real-kuka": _SHIPPED, "real-baxter": _SHIPPED, "real-sarcos": _SHIPPED,
-    "real-panda": ("it does not ship with the repository (its source is GPL-3.0): it is the project's shared data "
-                   "file ../shared/data/real/panda_gaz_exciting_traj1.csv beside a checkout of the repository, or build it from "
-                   "https://github.com/marcocognetti/FrankaEmikaPandaDynModel, folder "
-                   "matlab/data/Exciting_Traj/Trajectory_1/rbt_log/ (its four text files side by side as columns "
-                   "t, q1..q7, qd1..qd7, tau1..tau7 with that header; ../shared/data/real/README.md)"),
-}
+
+
+@dataclass(frozen=True)
+class RealSet:
+    """A real-robot log set, declared once in :data:`REAL_SETS`: its name (a bench scenario), its import
+    spec's file in :func:`real_specs_dir`, and where its log comes from (said when the log is absent)."""
+
+    name: str
+    spec: str
+    source: str = _SHIPPED
+
+
+# A new set: its spec file in resources/real, and one declaration here.
+REAL_SETS = Registry("real dataset", DatasetError)
+for _set in (
+    RealSet("real-kuka", "kuka.toml"),
+    RealSet("real-baxter", "baxter.toml"),
+    RealSet("real-sarcos", "sarcos.toml"),
+    RealSet("real-panda", "panda.toml", source=(
+        "it does not ship with the repository (its source is GPL-3.0): it is the project's shared data "
+        "file ../shared/data/real/panda_gaz_exciting_traj1.csv beside a checkout of the repository, or build it from "
+        "https://github.com/marcocognetti/FrankaEmikaPandaDynModel, folder "
+        "matlab/data/Exciting_Traj/Trajectory_1/rbt_log/ (its four text files side by side as columns "
+        "t, q1..q7, qd1..qd7, tau1..tau7 with that header; ../shared/data/real/README.md)")),
+):
+    REAL_SETS.register(_set)
+
+
+def __getattr__(name):
+    # REAL_LOG_SOURCES: the hand-kept table before each set declared its source.
+    if name == "REAL_LOG_SOURCES":
+        warn_renamed("name", f"{__name__}.REAL_LOG_SOURCES", f"{__name__}.REAL_SETS[name].source", stacklevel=2)
+        return {s.name: s.source for s in REAL_SETS.values()}
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 class RealLogMissingError(DatasetError):
@@ -44,7 +68,7 @@ class RealLogMissingError(DatasetError):
 
     def __init__(self, name: str, missing: list):
         self.scenario, self.missing = name, list(missing)
-        super().__init__(f"{name}: log file(s) {self.missing} not found; {REAL_LOG_SOURCES.get(name, _SHIPPED)}; "
+        super().__init__(f"{name}: log file(s) {self.missing} not found; {REAL_SETS[name].source if name in REAL_SETS else _SHIPPED}; "
                          f"or set HYBRID_DYN_REAL_LOGS to the folder that holds them")
 
 
@@ -58,10 +82,10 @@ def real_specs_dir() -> Path:
 def real_spec_path(name: str) -> Path:
     if name not in REAL_SETS:
         raise DatasetError(f"unknown real dataset {name!r}; known: {sorted(REAL_SETS)}")
-    path = real_specs_dir() / REAL_SETS[name]
+    path = real_specs_dir() / REAL_SETS[name].spec
     if not path.is_file():
         raise DatasetError(f"import spec for {name} not found at {path}; set HYBRID_DYN_REAL_SPECS to the folder "
-                           f"holding {REAL_SETS[name]}")
+                           f"holding {REAL_SETS[name].spec}")
     return path
 
 

@@ -1,0 +1,37 @@
+"""The reference study's (the seed paper's) Tables 2 and 3 as a report section: our figure, its, and their ratio,
+row by row."""
+import pytest
+
+from hybrid_dyn.bench.reference_study import REFERENCE_TABLE2, REFERENCE_TABLE3, reference_comparison_text
+from hybrid_dyn.deprecation import DeprecatedNameWarning
+
+
+def _row(model, task, rmse, family="seed-net"):
+    return dict(scenario="seed-sim", task=task, model=model, family=family, status="ok", rmse=str(rmse),
+                epochs="40", stopped_by="budget")
+
+
+def test_no_seed_net_no_section():
+    assert reference_comparison_text([_row("rnea", "joint_torque", 0.9, family="analytic")]) is None
+
+
+def test_each_seed_net_beside_the_seeds_figure_with_the_ratio():
+    tip_seed = REFERENCE_TABLE2["seed-tip-4"][2]
+    tau_seed = REFERENCE_TABLE3[("seed-tau-mlp", "sim-ext")][2]
+    rows = [_row("seed-tip-4", "tip_force", 2 * tip_seed), _row("seed-tau-mlp", "joint_torque", 3 * tau_seed),
+            _row("rnea", "joint_torque", 0.5, family="analytic")]
+    text = reference_comparison_text(rows)
+    tip_line = next(line for line in text.splitlines() if line.startswith("| 4 |"))
+    assert f"{2 * tip_seed:.4f}" in tip_line and f"{tip_seed:.4f}" in tip_line and "| 2.00 |" in tip_line
+    tau_line = next(line for line in text.splitlines() if line.startswith("| seed-tau-mlp |"))
+    assert "| 3.00 |" in tau_line
+    assert "`rnea` 0.5000 Nm" in text  # the physics bar on the same test split
+
+
+def test_the_old_module_names_still_import_with_a_warning():
+    from hybrid_dyn.bench import seed_comparison, seed_reference
+
+    with pytest.warns(DeprecatedNameWarning, match="reference_study.REFERENCE_TABLE2"):
+        assert seed_reference.SEED_TABLE2 is REFERENCE_TABLE2
+    with pytest.warns(DeprecatedNameWarning, match="reference_study.reference_comparison_text"):
+        assert seed_comparison.seed_comparison_text is reference_comparison_text
