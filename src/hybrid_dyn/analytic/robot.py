@@ -13,7 +13,6 @@ Conventions (PROTOCOL 1):
 """
 from __future__ import annotations
 
-from ..errors import HybridDynError
 import math
 import os
 import sys
@@ -24,6 +23,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..description import Payload, RobotDescriptionError, RobotSpec, RobotVariant, build_urdf, resolve_robot
+from ..errors import HybridDynError
 
 
 class InputError(HybridDynError, ValueError):

@@ -208,7 +208,7 @@ _analytic("base-wrench-tared", "tip_force", ("q", "qd", "qdd", "base_wrench", "t
           f"q, qd, qdd, base_wrench {TARED}",
           lambda r, i, ctx: tip_force_from_base_wrench(r, i.q, i.qd, i.qdd, _tared(r, i, ctx)),
           lambda r, i, k, ctx: tip_force_from_base_wrench(r, i.q[k], i.qd[k], i.qdd[k], _tared(r, i, ctx)[k]))
-# The registry's methods (issue 16: Newton's law for the whole robot, and both force sensors fused).
+# The registry's methods (Newton's law for the whole robot, and both force sensors fused).
 for _method in REGISTRY.values():
     declare_method_rows(_method)
 _analytic("rnea", "joint_torque", ("q", "qd", "qdd", "tau_m"), "q, qd, qdd",

@@ -1,4 +1,4 @@
-"""The report's lines on hybrid rows: each correction set against its own physics prior (issue 29).
+"""The report's lines on hybrid rows: each correction set against its own physics prior.
 
 A hybrid row (``Row.prior``: the row that computes its prior exactly, e.g. residual-rnea on rnea)
 keeps its prior when its correction does not beat the prior on validation (``prior_kept`` in

@@ -1,4 +1,4 @@
-"""Identified-model rows of the benchmark (issues 7 and 15): the strongest analytic
+"""Identified-model rows of the benchmark: the strongest analytic
 baseline, and the residual nets on it.
 
 Where the parameters are identified from, per scenario:

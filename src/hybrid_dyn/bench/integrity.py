@@ -1,4 +1,4 @@
-"""Whose report folder, and whose numbers (issue 28).
+"""Whose report folder, and whose numbers.
 
 - **The marker.** A folder is a bench report only if its ``run.json`` carries ``"bench_report": 1`` and
   a profile the bench recorded (a mapping): the bench writes that before anything else. A user's
@@ -12,7 +12,7 @@
   row of results.csv against the digest (the figures predictions.h5 cannot give: losses, timings), and
   run.json's fields against theirs (the datasets, profile and times the README quotes).
   A row that differs is an error naming the row and the column (:func:`verify_results`); a report
-  without a digest (written before issue 28) is refused, never printed unverified.
+  without a digest (written before reports carried one) is refused, never printed unverified.
 """
 from __future__ import annotations
 
@@ -54,7 +54,7 @@ def is_bench_meta(doc) -> bool:
 
 def recorded_profile(prof: dict) -> dict:
     """A run.json's ``profile`` in today's names, to compare with ``BenchProfile.to_dict()``: a training
-    recipe recorded under its name before issue 30 (``default``, ``seed``) is the same recipe renamed
+    recipe recorded under its former name (``default``, ``seed``) is the same recipe renamed
     (``learn.recipes.RECIPE_ALIASES``), so that a rerun still recognises its own report."""
     from ..learn.recipes import RECIPE_ALIASES
 
@@ -176,7 +176,7 @@ def verify_results(rows: list[dict], meta: dict, preds, where) -> None:
     digest = meta.get(DIGEST_KEY)
     if not isinstance(digest, dict) or not isinstance(digest.get("rows"), dict):
         raise ReportIntegrityError(f"{where}/run.json records no digest of results.csv (a report written before "
-                                   "issue 28, or run.json replaced): its numbers cannot be checked; rerun the bench "
+                                   "reports carried one, or run.json replaced): its numbers cannot be checked; rerun the bench "
                                    "(cached datasets and models are reused)")
     recorded = digest["rows"]
     for r in rows:

@@ -37,7 +37,7 @@ def nmse(pred: np.ndarray, target: np.ndarray) -> float:
     The figure SARCOS results are usually quoted in; 1.0 is predicting the mean. Undefined (NaN) when a
     component's target has zero variance (:func:`zero_variance_components`: a dead channel, a joint held
     still): averaged over the other components alone it ranked a row on a log whose joint 4 torque was 0
-    throughout as the best (issue 39); the bench writes the reason beside the row.
+    throughout as the best; the bench writes the reason beside the row.
     """
     target = np.asarray(target, float)
     e = np.asarray(pred, float) - target
@@ -52,7 +52,7 @@ def standardized_mse(pred: np.ndarray, target: np.ndarray, mean: np.ndarray, std
 
     Comparable across analytic and learned rows (the seed's losses add a
     regularisation term; ours are the plain data term). Undefined (NaN) when a component's training std
-    is 0 (a constant training target: divided by a floor it gave losses of 5e13, issue 39).
+    is 0 (a constant training target: divided by a floor it gave losses of 5e13).
     """
     std = np.asarray(std, float)
     if not np.all(std > 0):

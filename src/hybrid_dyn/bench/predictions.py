@@ -10,7 +10,7 @@ Layout (HDF5, float64 arrays, one per test instance, in physical units)::
 
 Each group's ``order`` attribute (JSON) lists its members in the order the bench scored them (HDF5
 lists names alphabetically); a reader reads only what ``order`` lists. A run's first write starts the
-file anew (a new file renamed into place); every later row is written in place (issue 40: copying the
+file anew (a new file renamed into place); every later row is written in place (copying the
 whole file per row cost a copy of up to 1.6 GB per row), atomically per row: its arrays go into a group
 under a temporary name, the file is flushed, then the group is renamed to the row's name and listed in
 ``order``, and the file flushed again. A kill before the rename leaves the temporary group unlisted (a

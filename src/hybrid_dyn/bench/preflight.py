@@ -1,4 +1,4 @@
-"""The bench's checks of its datasets before the report folder is touched (issue 28).
+"""The bench's checks of its datasets before the report folder is touched.
 
 Each was a failure found only after run.json existed: an empty split (every row failed with the same
 numpy message, or ``train_split_stats`` crashed), a robot of another joint count than the log (every

@@ -69,7 +69,7 @@ def findings(rows) -> list[str]:
 
 def _headline_notes(rows, ranked, scenario, task) -> list[str]:
     """Under a headline: the notes of its rows (what their numbers cannot show) and the rows left out of it
-    because their identified parameters are implausible (issue 39: both headlined in silence before)."""
+    because their identified parameters are implausible (both were once headlined in silence)."""
     lines = [f"  - note: {n} — " + ", ".join(f"`{r['model']}`" for r in rs)
              for n, rs in notes_by_text(ranked).items()]
     out = [r["model"] for r in rows
@@ -178,7 +178,7 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
     lines += _files_lines(out_dir, preds, reference_text, curve_figures, figures)
     (out_dir / "README.md").write_text("\n".join(lines))
     # What an earlier report recorded and this one no longer draws (a figure of another dataset) is removed;
-    # nothing else is: a user's file named like a figure was never recorded (issue 39).
+    # nothing else is: a user's file named like a figure was never recorded, so it is never removed.
     written += figures
     remove_report_files(out_dir, [f for f in meta.get(REPORT_FILES) or [] if f not in written])
     record_report_files(out_dir, meta, written)

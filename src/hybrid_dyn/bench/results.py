@@ -22,7 +22,7 @@ COLUMNS = [
     "sigma_coverage",  # estimator rows: share of test samples with an error bar within 2 sigma on every axis
     "error",
     "notes",  # what the row's numbers cannot show, " | "-separated (row_checks.py): undefined nMSE, untested motion
-    # CPU time [s] (issue 40): training (the model file's record, or the fit in the bench's process) and
+    # CPU time [s]: training (the model file's record, or the fit in the bench's process) and
     # scoring (predicting val and test, the metrics, the timed single calls). Last: a report written
     # before them lacks them, read as "not recorded".
     "train_cpu_seconds", "score_cpu_seconds",

@@ -1,4 +1,4 @@
-"""What a row's numbers cannot show, written beside the row (issue 39).
+"""What a row's numbers cannot show, written beside the row.
 
 A bench on a log that cannot identify or test what its rows claim still prints numbers: a dead torque
 channel made ``identified-consistent`` the headline (its nMSE averaged over the joints that had variance)

@@ -116,7 +116,7 @@ class Predictor:
     single_call: Callable[[object, int], np.ndarray] | None = None
     train_seconds: float = 0.0
     # CPU time [s] of training as the model's file recorded it (NaN: not recorded, a model trained before
-    # issue 40); None: the row was fitted in the bench's process by ``build``, whose CPU time is the figure.
+    # CPU time was recorded); None: the row was fitted in the bench's process by ``build``, whose CPU time is the figure.
     train_cpu_seconds: float | None = None
     n_params: int = 0
     inputs: str = ""
@@ -128,7 +128,7 @@ class Predictor:
     # Called after the row's predictions: (problems, notes) of what it was fitted to. Problems (identified
     # parameters outside the robot's bounds) mark the row implausible; notes go beside it (row_checks.py).
     review: Callable[[], tuple] | None = None
-    # An estimator row's error-bar coverage (issue 38): called once the row is scored, -> the share of the
+    # An estimator row's error-bar coverage: called once the row is scored, -> the share of the
     # test samples with an error bar (after the window) whose error is within 2 sigma on every axis.
     sigma_coverage: Callable[[], float] | None = None
 

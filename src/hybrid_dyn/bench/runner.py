@@ -268,7 +268,7 @@ def run_bench(profile: BenchProfile, out_dir, data_root=None, work_root=None, da
 
 
 def _import_warnings(ds) -> list[str]:
-    """The warnings an import recorded in the dataset's manifest (issue 28: they never reached the report,
+    """The warnings an import recorded in the dataset's manifest (they once never reached the report,
     which then showed RNEA off by 0.55 Nm on a log whose time unit the import had said did not fit)."""
     imp = ds.meta.get("import")
     warnings = imp.get("warnings") if isinstance(imp, dict) else None

@@ -100,7 +100,7 @@ class Study:
     "controls"). tolerance: "controls" only; a variant whose validation loss is lower than the
     reference's by less than this share counts as no gain (the convergence check). keep_variant_reports:
     the variants' bench reports go beside the summary (committed) instead of under ``runs/studies``.
-    out: where the summary goes by default: ``reports/studies/<name>``, or (data-scaling, issue 31) a
+    out: where the summary goes by default: ``reports/studies/<name>``, or (data-scaling) a
     folder inside its profile's report, ``reports/<profile>/<name>``, beside the report it extends.
     """
 

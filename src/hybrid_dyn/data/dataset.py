@@ -20,8 +20,6 @@ base_wrench [N, N, N, Nm, Nm, Nm]; tip_force [N].
 """
 from __future__ import annotations
 
-from ..errors import HybridDynError, UsageError
-from ..outputs import unique_temp
 import hashlib
 import json
 import os
@@ -30,6 +28,9 @@ from pathlib import Path, PurePosixPath
 
 import h5py
 import numpy as np
+
+from ..errors import HybridDynError, UsageError
+from ..outputs import unique_temp
 
 
 def is_url(location) -> bool:

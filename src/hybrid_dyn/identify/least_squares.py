@@ -15,12 +15,12 @@ returns arrays; :mod:`.model` wraps them into an :class:`IdentifiedModel`.
 """
 from __future__ import annotations
 
-from ..errors import HybridDynError
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..analytic.robot import Robot
+from ..errors import HybridDynError
 from .parameters import N_BODY_PARAMS, dynamic_to_log_cholesky, log_cholesky_to_pseudo, pseudo_to_dynamic
 
 # Typical sizes used to make parameter deviations comparable in the regularizer:

@@ -62,9 +62,6 @@ config's dictionary, and so its hash and every dataset cached by it, keeps the k
 """
 from __future__ import annotations
 
-from ..deprecation import module_aliases, renamed_field, renamed_keyword
-from ..errors import HybridDynError
-from ..registry import Registry
 import dataclasses
 import hashlib
 import json
@@ -73,7 +70,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..analytic.robot import Robot, SensorMount, load_robot
+from ..deprecation import module_aliases, renamed_field, renamed_keyword
 from ..description.sensor_noise import NoiseConfig  # the sensors' noise, below sim/ and analytic/
+from ..errors import HybridDynError
+from ..registry import Registry
 from .sensors import ClockModel, EncoderModel, ForceTorqueModel, HardwareSensors
 
 # Bump when the generator's algorithm changes what a config produces.

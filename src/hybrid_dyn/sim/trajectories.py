@@ -22,11 +22,12 @@ a per-trajectory speed factor (like MoveIt's velocity/acceleration scaling).
 """
 from __future__ import annotations
 
-from ..errors import HybridDynError
 from dataclasses import dataclass
 
 import numpy as np
 import ruckig
+
+from ..errors import HybridDynError
 
 _TRAPPED, _ADVANCED, _REACHED = 0, 1, 2
 
