@@ -115,7 +115,7 @@ def test_the_estimator_honours_a_new_bandwidth_parameter(toy, panda):
 
 def _bench_ctx(panda, tmp_path):
     from hybrid_dyn.bench.profiles import BenchProfile
-    from hybrid_dyn.bench.rows import BenchContext
+    from hybrid_dyn.bench.runner import BenchContext
     from hybrid_dyn.data import load_dataset
     from hybrid_dyn.data.synthetic import make_synthetic_dataset
 
