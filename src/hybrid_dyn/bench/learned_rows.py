@@ -3,7 +3,7 @@
 A preset already says what a row reads (its inputs and targets), whether it
 needs a URDF (an analytic prior) and, by ``raw_sensor``, whether it is a
 reference row; its family is declared with it (``Preset.family``, ``learn.presets.register_preset``;
-:data:`PRESET_FAMILIES` is read from the declarations). The family is the preset's, not its network
+:func:`preset_families` is read from the declarations). The family is the preset's, not its network
 kind's (an MLP is ``seed-net`` or ``learned``, an LSTM ``seed-net`` or ``residual``). A preset declared
 later gets its row too (this module listens to ``PRESETS``).
 
@@ -27,15 +27,23 @@ from ..errors import UsageError
 from ..learn.trained_model import recorded_train_cpu
 from ..learn.presets import PRESETS
 from .analytic_rows import PRIOR_ROWS  # noqa: F401  (re-exported: read from here before)
-from .rows import ROWS, Predictor, Row, declare, prior_kept_text
+from .rows import ROWS, Predictor, Row, declare, derived_names, prior_kept_text
 
-# The presets of each family, read from their declarations (``Preset.family``); the family is declared
-# with the preset (``learn.presets.register_preset``).
-PRESET_FAMILIES = {family: tuple(p.name for p in PRESETS.values() if p.family == family)
-                   for family in dict.fromkeys(p.family for p in PRESETS.values())}
 RAW_SENSOR_LABEL = "raw sensor, untared: reference"  # a preset with raw_sensor=True (what the offset costs)
 TASK_OF_TARGETS = {("tip_force",): "tip_force", ("tau_m",): "joint_torque"}
 PRESET_ROWS: set = set()  # the rows declared here, one per preset (the runner trains them in parallel first)
+
+
+def preset_families() -> dict:
+    """family -> the names of its presets, read from their declarations (``Preset.family``) when asked, so a
+    preset declared later (``learn.presets.register_preset``) is in it and an unregistered one is not."""
+    return {family: tuple(p.name for p in PRESETS.values() if p.family == family)
+            for family in dict.fromkeys(p.family for p in PRESETS.values())}
+
+
+# PRESET_FAMILIES: the dict computed once at import before, blind to a preset declared later; still served.
+__getattr__ = derived_names(__name__, {"PRESET_FAMILIES": ("hybrid_dyn.bench.learned_rows.preset_families()",
+                                                           preset_families)})
 
 
 def preset_family(name: str) -> str:
