@@ -1,6 +1,6 @@
 """Old names that still work, and say so: one warning class and the helpers that raise it.
 
-Issue 30 gave each concept one name (a generator *size* vs a bench *profile*, distinct training
+Each concept has one name (a generator *size* vs a bench *profile*, distinct training
 recipes, one ``--params`` flag, the estimators' canonical spellings). Every older name keeps
 working as an alias, never silently: it raises a :class:`DeprecatedNameWarning` that names what
 to write instead.
