@@ -14,7 +14,7 @@ name (a simulated scenario of ``sim/scenarios.py``, generated and cached, or a
 real set of ``data/logs/real_logs.py``, imported and cached) or the path of any dataset
 in the toolkit's format, which is read as it is (:func:`profile_for_data`:
 ``hybrid-dyn bench --data DIR``). Each row runs where it applies; every other
-row is skipped with its reason (:meth:`BenchProfile.skip_reason`).
+row is skipped with its reason (:meth:`plan.BenchPlan.skip_reason`).
 """
 from __future__ import annotations
 
@@ -44,7 +44,7 @@ class BenchProfile:
 
     Rows are named by family (``families``, keys of ``rows.FAMILIES``) and by name
     (``rows``, rows declared in ``rows.ROWS``); they run in declaration order, each
-    where it applies (:meth:`applies`).
+    where it applies (:meth:`plan.BenchPlan.applies`: what a run does with a profile is its plan's).
     """
 
     name: str
@@ -55,7 +55,7 @@ class BenchProfile:
     recipe: str = "budget"  # learn.recipes.RECIPES: the budgeted recipe unless a profile says otherwise
     train: dict = field(default_factory=dict)  # TrainConfig fields on top of the recipe
     generator_overrides: dict = field(default_factory=dict)  # GeneratorConfig fields, every scenario
-    # scenario -> GeneratorConfig fields, that one only (a real set: fields of its import spec, data.real.real_dataset)
+    # scenario -> GeneratorConfig fields, that one only (a real set: fields of its import spec, data.logs.real_logs.real_dataset)
     scenario_overrides: dict = field(default_factory=dict)
     workers: int = 2
     torch_threads: int = 1  # see runner.run_bench: one thread is fastest for these nets

@@ -15,7 +15,7 @@ exactly as a streaming estimator starts up.
 
 The rows are those of the registry (``rows.py``; declared in ``analytic_rows.py``,
 ``learned_rows.py``, ``identified_rows.py``) that the profile names and that
-apply to the dataset (``BenchProfile.skip_reason``); each row that does not is
+apply to the dataset (``BenchPlan.skip_reason``); each row that does not is
 logged and listed in run.json and the README with its reason. A scenario is a
 simulated or real set's name, or any dataset's path (``hybrid-dyn bench --data``).
 
