@@ -18,6 +18,7 @@ from torch import nn
 from hybrid_dyn.analytic.bandwidth import BANDWIDTHS, BandwidthParameter
 from hybrid_dyn.analytic.method_names import ESTIMATORS
 from hybrid_dyn.analytic.methods import REGISTRY, Method, MethodStream, register, unregister
+from hybrid_dyn.estimator import estimator_methods
 from hybrid_dyn.bench import learned_rows
 from hybrid_dyn.bench import report as report_mod
 from hybrid_dyn.bench.compare import compare_reports, compared_families
@@ -117,6 +118,7 @@ def _assert_nothing_left():
     """Nothing the toys declared, nor anything derived from them, is left in a registry or a derived list."""
     m, fam = TOYS["method"], TOYS["family"]
     assert TOYS["parameter"] not in BANDWIDTHS and m not in REGISTRY and m not in ESTIMATORS
+    assert m not in estimator_methods()
     assert TOYS["kind"] not in kinds.KINDS and TOYS["preset"] not in PRESETS
     for row in (m, f"{m}-val", TOYS["preset"], TOYS["row"]):
         assert row not in ROWS, row
@@ -134,6 +136,7 @@ def test_toys_declared_once_reach_estimator_bench_report_and_compare(toys, panda
     from hybrid_dyn.bench.runner import run_bench
     from hybrid_dyn.data import load_dataset
     from hybrid_dyn.data.synthetic import make_synthetic_dataset
+    import hybrid_dyn.estimator as estimator
     from hybrid_dyn.estimator import TipForceEstimator
 
     m, fam, preset = toys["method"], toys["family"], toys["preset"]
@@ -144,6 +147,7 @@ def test_toys_declared_once_reach_estimator_bench_report_and_compare(toys, panda
     with pytest.warns(DeprecatedNameWarning, match="preset_families"):  # the old constant, derived afresh
         assert learned_rows.PRESET_FAMILIES[fam] == (preset,)
     assert fam in study_families() and fam in compared_families() and fam in figure_families("traces")
+    assert m in estimator.METHODS  # the estimator's list of its methods (a CLI's choices) is read afresh
 
     ds = load_dataset(make_synthetic_dataset(tmp_path / "d", panda, n_instances=6, n_samples=150, record_hz=HZ,
                                              seed=3, noise=0.01, contact_free_s=0.6))

@@ -8,7 +8,7 @@ Control engineers call :class:`TipForceEstimator` once per tick of a 1 kHz loop:
 
 By concept:
 
-- ``streaming.py``: :class:`TipForceEstimator`, what one call does (its module
+- ``tip_force_estimator.py``: :class:`TipForceEstimator`, what one call does (its module
   docstring: the input rules, the noise window, the bandwidth, the statuses);
 - ``config.py``: :class:`EstimatorConfig` (rate, bandwidths, bounds) and
   :class:`EstimatorStatus`;
@@ -24,8 +24,18 @@ from ..analytic.acceleration import (  # noqa: F401  (re-exported: the estimator
 from .batch import estimate_tip_force
 from .config import EstimatorConfig, EstimatorStatus
 from .input import EstimatorInputError, InputGate, RateCheck
-from .tip_force_estimator import METHOD_ALIASES, METHODS, TipForceEstimator
+from .tip_force_estimator import TipForceEstimator, estimator_methods, method_aliases
+
+
+def __getattr__(name):
+    # METHODS and METHOD_ALIASES: read from the registry at each access, so a method registered late is in them.
+    if name == "METHODS":
+        return estimator_methods()
+    if name == "METHOD_ALIASES":
+        return method_aliases()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = ["DEFAULT_QDD_CUTOFF_HZ", "METHODS", "METHOD_ALIASES", "CausalAccelerationFilter", "EstimatorConfig",
            "EstimatorInputError", "EstimatorStatus", "InputGate", "RateCheck", "TipForceEstimator", "auto_qdd_cutoff",
-           "cutoff_grid", "estimate_tip_force", "qdd_noise_gain", "white_noise_rms"]
+           "cutoff_grid", "estimate_tip_force", "estimator_methods", "method_aliases", "qdd_noise_gain", "white_noise_rms"]

@@ -119,11 +119,27 @@ from .config import EstimatorConfig, EstimatorStatus, checked_payload
 from .input import EstimatorInputError, InputGate, RateCheck
 from .noise_window import NoiseWindow
 
-# The analytic methods, by the estimators' one name (analytic/methods.py registers them; the older
-# spellings base_wrench, torques, momentum, base_momentum, kalman_fusion are accepted). Read at import:
-# a method registered later is served all the same (the estimator reads REGISTRY at each construction).
-METHODS = tuple(REGISTRY)
-METHOD_ALIASES = {a: c for a, c in ALIASES.items() if c in METHODS}
+
+
+def estimator_methods() -> tuple[str, ...]:
+    """The analytic methods, by the estimators' one name, as registered now (analytic/methods.py
+    registers them; a method registered later is among them)."""
+    return tuple(REGISTRY)
+
+
+def method_aliases() -> dict[str, str]:
+    """The older spellings of the methods (base_wrench, torques, momentum, base_momentum, kalman_fusion)
+    -> the one name, as registered now."""
+    return {a: c for a, c in ALIASES.items() if c in REGISTRY}
+
+
+def __getattr__(name):
+    # METHODS and METHOD_ALIASES are derived afresh at each read, so that a late registration counts.
+    if name == "METHODS":
+        return estimator_methods()
+    if name == "METHOD_ALIASES":
+        return method_aliases()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 # The statuses as plain names for the per-call path: an Enum member looked up on its class costs ~0.3 us.
