@@ -288,9 +288,10 @@ def recorded_path(path) -> str:
         return str(path)
 
 
-def work_dir(plan: BenchPlan, scenario: str, ds: Dataset, work_root: Path) -> Path:
+def work_dir(plan: BenchPlan | BenchProfile, scenario: str, ds: Dataset, work_root: Path) -> Path:
     """Where a profile's models of one scenario are cached: one folder per dataset and training
-    recipe, so a run with another recipe never meets these models."""
+    recipe, so a run with another recipe never meets these models. Takes the plan, or the profile it plans."""
+    plan = plan if isinstance(plan, BenchPlan) else BenchPlan(plan)
     profile = plan.profile
     recipe = hashlib.sha256(json.dumps(plan.train_config().fingerprint_fields(), sort_keys=True).encode())
     name = f"{ds.checksum[:12]}-train-{recipe.hexdigest()[:8]}"
