@@ -24,15 +24,14 @@ from ..analytic.acceleration import (  # noqa: F401  (re-exported: the estimator
 from .batch import estimate_tip_force
 from .config import EstimatorConfig, EstimatorStatus
 from .input import EstimatorInputError, InputGate, RateCheck
+from . import tip_force_estimator
 from .tip_force_estimator import TipForceEstimator, estimator_methods, method_aliases
 
 
 def __getattr__(name):
-    # METHODS and METHOD_ALIASES: read from the registry at each access, so a method registered late is in them.
-    if name == "METHODS":
-        return estimator_methods()
-    if name == "METHOD_ALIASES":
-        return method_aliases()
+    # METHODS and METHOD_ALIASES are the module's, derived afresh at each read (a late registration counts).
+    if name in ("METHODS", "METHOD_ALIASES"):
+        return getattr(tip_force_estimator, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
