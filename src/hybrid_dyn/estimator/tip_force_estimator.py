@@ -120,26 +120,21 @@ from .input import EstimatorInputError, InputGate, RateCheck
 from .noise_window import NoiseWindow
 
 
-
 def estimator_methods() -> tuple[str, ...]:
-    """The analytic methods, by the estimators' one name, as registered now (analytic/methods.py
-    registers them; a method registered later is among them)."""
+    """The analytic methods by their one name, as registered now (a method registered late is among them)."""
     return tuple(REGISTRY)
 
 
 def method_aliases() -> dict[str, str]:
-    """The older spellings of the methods (base_wrench, torques, momentum, base_momentum, kalman_fusion)
-    -> the one name, as registered now."""
+    """The methods' older spellings (base_wrench, torques, momentum, ...) -> the one name, as registered now."""
     return {a: c for a, c in ALIASES.items() if c in REGISTRY}
 
 
 def __getattr__(name):
-    # METHODS and METHOD_ALIASES are derived afresh at each read, so that a late registration counts.
-    if name == "METHODS":
-        return estimator_methods()
-    if name == "METHOD_ALIASES":
-        return method_aliases()
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    derived = {"METHODS": estimator_methods, "METHOD_ALIASES": method_aliases}.get(name)  # afresh at each access
+    if derived is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return derived()
 
 
 # The statuses as plain names for the per-call path: an Enum member looked up on its class costs ~0.3 us.
