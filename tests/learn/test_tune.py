@@ -51,10 +51,12 @@ def test_two_workers_share_one_storage(tune_set, tmp_path):
 def test_a_killed_worker_leaves_the_study_consistent(tune_set, tmp_path):
     storage = f"sqlite:///{tmp_path / 'study.db'}"
     # A worker on a long training run, killed (SIGKILL: no chance to clean up) in the middle of its trial.
+    # A constant rate: on a fast machine the plateau schedule reached its floor and ended the run by itself
+    # ("lr-floor") before the kill, and the trial read COMPLETE.
     code = ("import sys; from hybrid_dyn.cli import main; sys.exit(main(sys.argv[1:]))")
     args = ["tune", "--data", str(tune_set.path), "--preset", "seed-tau-mlp", "--trials", "1", "--out",
             str(tmp_path / "t"), "--storage", storage, "--study", "s", "--heartbeat", "1", "--max-epochs", "100000",
-            "--patience", "100000", "--batch-size", "8", "--quiet", "--threads", "1"]
+            "--patience", "100000", "--lr-schedule", "none", "--batch-size", "8", "--quiet", "--threads", "1"]
     proc = subprocess.Popen([sys.executable, "-c", code, *args], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 120
