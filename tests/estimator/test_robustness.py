@@ -14,8 +14,9 @@ from hybrid_dyn.estimator import EstimatorInputError, EstimatorStatus, TipForceE
 from helpers.motion import CONTACT_AT, HZ, contact_stream, sine_motion
 
 BOUND = 500.0  # EstimatorConfig.max_tip_force's default [N]
-NEEDS = {"base_wrench": ("q", "qd", "base_wrench"), "torques": ("q", "qd", "tau_J"), "momentum": ("q", "qd", "tau_J"),
-         "base_momentum": ("q", "qd", "base_wrench"), "kalman_fusion": ("q", "qd", "base_wrench", "tau_J")}
+NEEDS = {"base-wrench": ("q", "qd", "base_wrench"), "torques-pinv": ("q", "qd", "tau_J"),
+         "momentum-observer": ("q", "qd", "tau_J"), "base-momentum": ("q", "qd", "base_wrench"),
+         "kalman-fusion": ("q", "qd", "base_wrench", "tau_J")}
 
 
 def stream(robot, n, hz=HZ, seed=0):
@@ -136,9 +137,9 @@ def test_floor_no_ok_garbage_and_rejected_samples_leave_no_trace(panda):
         def make(mode):
             return TipForceEstimator.analytic(panda, method, call_hz=HZ, on_bad_input=mode, encoder_resolution=0.0)
         n, clean_status = check_floor(make, panda, NEEDS[method], good, rng, 1.0 / HZ,
-                                      optional=("base_wrench", "tau_J") if method == "kalman_fusion" else ())
+                                      optional=("base_wrench", "tau_J") if method == "kalman-fusion" else ())
         calls += n
-        if method == "base_wrench":  # the loads above are base-wrench inputs
+        if method == "base-wrench":  # the loads above are base-wrench inputs
             assert [clean_status[k] for k in (700, 701, 1100)] == [EstimatorStatus.FORCE_OUT_OF_RANGE] * 3
     assert calls >= 10_000
 
@@ -167,13 +168,13 @@ def test_floor_learned_model(tmp_path, panda):
 def test_a_recording_at_another_rate_is_refused(panda):
     """The README's estimator (call_hz=1000) fed a 100 Hz recording with its true t erred 10 N, 'ok'."""
     good = stream(panda, 5, hz=100.0)
-    est = TipForceEstimator.analytic(panda, "base_wrench", call_hz=1000.0, encoder_resolution=0.0)
+    est = TipForceEstimator.analytic(panda, "base-wrench", call_hz=1000.0, encoder_resolution=0.0)
     est.estimate_tip_force(**{k: good[0][k] for k in ("q", "qd", "base_wrench", "t")})
     with pytest.raises(EstimatorInputError, match=r"steps 0\.01 s .* call_hz=1000 expects 0\.001 s"):
         est.estimate_tip_force(**{k: good[1][k] for k in ("q", "qd", "base_wrench", "t")})
     # Stamps jittering by up to 0.5 ms about the robot's clock (EstimatorConfig.stamp_jitter) pass, steps
     # of 0.1-2 ms included; a stamp a whole period off that clock (a lost tick) does not.
-    est = TipForceEstimator.analytic(panda, "torques", call_hz=1000.0, encoder_resolution=0.0)
+    est = TipForceEstimator.analytic(panda, "torques-pinv", call_hz=1000.0, encoder_resolution=0.0)
     s = {k: good[0][k] for k in ("q", "qd", "tau_J")}
     for k, e in enumerate((0.0, 4e-4, -4e-4, 4.5e-4, -3e-4)):
         est.estimate_tip_force(**s, t=k * 1e-3 + e)
@@ -185,7 +186,7 @@ def test_one_absurd_velocity_leaves_the_observer_untouched(panda):
     """qd = 1e150 once left the momentum observer wrong for seconds; now it is rejected before it."""
     good = stream(panda, 400)
     def estimates(bad_at=None):
-        est = TipForceEstimator.analytic(panda, "momentum", call_hz=HZ, on_bad_input="hold", encoder_resolution=0.0)
+        est = TipForceEstimator.analytic(panda, "momentum-observer", call_hz=HZ, on_bad_input="hold", encoder_resolution=0.0)
         out = []
         for k, s in enumerate(good):
             if k == bad_at:
@@ -199,7 +200,7 @@ def test_one_absurd_velocity_leaves_the_observer_untouched(panda):
 def test_time_cannot_be_bypassed_by_a_missing_t(panda):
     """t = 10, then None, then 5 was accepted: the None skipped the ordering check."""
     s = {k: v for k, v in stream(panda, 1)[0].items() if k != "t"}
-    est = TipForceEstimator.analytic(panda, "torques", call_hz=HZ, encoder_resolution=0.0)
+    est = TipForceEstimator.analytic(panda, "torques-pinv", call_hz=HZ, encoder_resolution=0.0)
     est.estimate_tip_force(**s, t=10.0)
     with pytest.raises(EstimatorInputError, match="t is missing"):
         est.estimate_tip_force(**s)
@@ -219,7 +220,7 @@ def test_the_stated_margins(panda):
              ("tau_J", 0, -1.5 * panda.model.effortLimit[0])]
     for name, j, edge in cases:
         for value, ok in ((edge - 1e-9 * np.sign(edge), True), (edge + 1e-6 * np.sign(edge), False)):
-            est = TipForceEstimator.analytic(panda, "torques", call_hz=HZ, on_bad_input="hold", encoder_resolution=0.0)
+            est = TipForceEstimator.analytic(panda, "torques-pinv", call_hz=HZ, on_bad_input="hold", encoder_resolution=0.0)
             x = s[name].copy()
             x[j] = value
             est.estimate_tip_force(**dict(s, **{name: x}))
@@ -228,7 +229,7 @@ def test_the_stated_margins(panda):
 
 def test_a_force_beyond_the_bound_is_out_of_range_and_not_held(panda):
     good = stream(panda, 60)
-    est = TipForceEstimator.analytic(panda, "base_wrench", call_hz=HZ, tare_seconds=0.0, on_bad_input="hold", encoder_resolution=0.0)
+    est = TipForceEstimator.analytic(panda, "base-wrench", call_hz=HZ, tare_seconds=0.0, on_bad_input="hold", encoder_resolution=0.0)
     for s in good[:-2]:  # past the qdd filter's settling
         f1 = est.estimate_tip_force(**s)
     assert est.last_status is EstimatorStatus.OK
@@ -251,12 +252,12 @@ def test_any_numeric_layout_gives_what_float64_arrays_give(panda):
         return [list(x), ro, np.repeat(x, 2)[::2], x.astype(">f8")]
 
     good = stream(panda, 6)
-    for method in ("base_wrench", "kalman_fusion"):
+    for method in ("base-wrench", "kalman-fusion"):
         for v in range(4):
             plain = TipForceEstimator.analytic(panda, method, call_hz=HZ, tare_seconds=0.0, encoder_resolution=0.0)
             other = TipForceEstimator.analytic(panda, method, call_hz=HZ, tare_seconds=0.0, encoder_resolution=0.0)
             for k, s in enumerate(good):
-                if method == "kalman_fusion" and k == 3:
+                if method == "kalman-fusion" and k == 3:
                     s = dict(s, tau_J=None)
                 odd = {n: (variants(x)[v] if isinstance(x, np.ndarray) else x) for n, x in s.items()}
                 np.testing.assert_array_equal(other.estimate_tip_force(**odd), plain.estimate_tip_force(**s))

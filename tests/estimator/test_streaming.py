@@ -53,7 +53,7 @@ def test_one_filter_serves_the_generator_and_the_stream(rate, cutoff):
 def test_streaming_base_wrench_equals_batch(recorded):
     # This set has no sensor offset and may push from t = 0: trust the sensor's zero (no tare, no noise
     # window), at the generator's 20 Hz cutoff.
-    est = TipForceEstimator.analytic("panda", "base_wrench", call_hz=RATE, tare_seconds=0.0, qdd_cutoff_hz=20.0, encoder_resolution=0.0)
+    est = TipForceEstimator.analytic("panda", "base-wrench", call_hz=RATE, tare_seconds=0.0, qdd_cutoff_hz=20.0, encoder_resolution=0.0)
     stream = np.stack([est.estimate_tip_force(recorded.q[k], recorded.qd[k], base_wrench=recorded.base_wrench[k],
                                               t=recorded.t[k]) for k in range(len(recorded))])
     qdd = causal_acceleration(recorded.qd, 1.0 / RATE, 20.0)
@@ -67,7 +67,7 @@ def test_streaming_base_wrench_equals_batch(recorded):
 
 
 def test_streaming_torques_method_equals_batch(recorded, panda):
-    est = TipForceEstimator.analytic(panda, "torques", call_hz=RATE, qdd_cutoff_hz=20.0, encoder_resolution=0.0)
+    est = TipForceEstimator.analytic(panda, "torques-pinv", call_hz=RATE, qdd_cutoff_hz=20.0, encoder_resolution=0.0)
     stream = np.stack([est.estimate_tip_force(recorded.q[k], recorded.qd[k], tau_J=recorded.tau_J[k])
                        for k in range(len(recorded))])
     qdd = causal_acceleration(recorded.qd, 1.0 / RATE, 20.0)
@@ -76,7 +76,7 @@ def test_streaming_torques_method_equals_batch(recorded, panda):
 
 
 def test_warming_up_until_history_suffices(recorded):
-    est = TipForceEstimator.analytic("panda", "momentum", call_hz=RATE, momentum_gain=50.0, encoder_resolution=0.0,
+    est = TipForceEstimator.analytic("panda", "momentum-observer", call_hz=RATE, momentum_gain=50.0, encoder_resolution=0.0,
                                      max_sigma=1e3)  # max_sigma: these statuses are the warm-up's, not the error bar's (test_error_bar.py)
     statuses = [est.estimate_tip_force(recorded.q[k], recorded.qd[k], tau_J=recorded.tau_J[k]) is not None
                 and est.last_status for k in range(15)]
@@ -111,7 +111,7 @@ BAD_CASES = [
 
 @pytest.mark.parametrize("label, change, message", BAD_CASES, ids=[c[0] for c in BAD_CASES])
 def test_bad_input_raises_a_value_error(recorded, label, change, message):
-    est = TipForceEstimator.analytic("panda", "base_wrench", call_hz=RATE, encoder_resolution=0.0)
+    est = TipForceEstimator.analytic("panda", "base-wrench", call_hz=RATE, encoder_resolution=0.0)
     k = 5
     for i in range(k):
         est.estimate_tip_force(recorded.q[i], recorded.qd[i], base_wrench=recorded.base_wrench[i], t=recorded.t[i])
@@ -125,7 +125,7 @@ def test_bad_input_raises_a_value_error(recorded, label, change, message):
 @pytest.mark.parametrize("label, change, message", BAD_CASES, ids=[c[0] for c in BAD_CASES])
 def test_bad_input_holds_and_leaves_history_untouched(recorded, label, change, message):
     def run(bad_at=None):
-        est = TipForceEstimator.analytic("panda", "base_wrench", call_hz=RATE, on_bad_input="hold", encoder_resolution=0.0)
+        est = TipForceEstimator.analytic("panda", "base-wrench", call_hz=RATE, on_bad_input="hold", encoder_resolution=0.0)
         out, statuses = [], []
         for i in range(12):
             if i == bad_at:
@@ -172,7 +172,7 @@ def test_unknown_method():
 def test_auto_cutoff_replays_the_noise_window_then_equals_the_batch_filter(recorded, panda):
     """With qdd_cutoff_hz="auto" the cutoff is chosen at the end of the noise window, and the
     filter behaves as if it had run at that cutoff from the start (the generator's offline filter)."""
-    est = TipForceEstimator.analytic(panda, "torques", call_hz=RATE, tare_seconds=0.5, encoder_resolution=0.0)
+    est = TipForceEstimator.analytic(panda, "torques-pinv", call_hz=RATE, tare_seconds=0.5, encoder_resolution=0.0)
     stream = np.stack([est.estimate_tip_force(recorded.q[k], recorded.qd[k], tau_J=recorded.tau_J[k])
                        for k in range(len(recorded))])
     fc = est.qdd_cutoff_hz
@@ -225,7 +225,7 @@ def _window_tared(panda, inst, n):
 def test_streaming_base_momentum_equals_the_batch_observer_after_the_tare(recorded, panda):
     from hybrid_dyn.analytic.base_momentum import BaseMomentumObserver
 
-    est = TipForceEstimator.analytic(panda, "base_momentum", call_hz=RATE, tare_seconds=0.5, momentum_gain=20.0,
+    est = TipForceEstimator.analytic(panda, "base-momentum", call_hz=RATE, tare_seconds=0.5, momentum_gain=20.0,
                                      encoder_resolution=0.0, max_sigma=1e3)  # statuses of the warm-up, not of the error bar
     stream, statuses = [], []
     for k in range(len(recorded)):
@@ -247,7 +247,7 @@ def test_streaming_kalman_fusion_equals_the_batch_filter(recorded, panda, with_t
     from hybrid_dyn.analytic.bandwidth import measure_window
     from hybrid_dyn.analytic.kalman import KalmanTipForce, increment_stats, window_fusion_noise
 
-    est = TipForceEstimator.analytic(panda, "kalman_fusion", call_hz=RATE, tare_seconds=0.5, encoder_resolution=0.0)
+    est = TipForceEstimator.analytic(panda, "kalman-fusion", call_hz=RATE, tare_seconds=0.5, encoder_resolution=0.0)
     tau = recorded.tau_J if with_torques else [None] * len(recorded)
     stream = np.stack([est.estimate_tip_force(recorded.q[k], recorded.qd[k], base_wrench=recorded.base_wrench[k],
                                               tau_J=tau[k], t=recorded.t[k]) for k in range(len(recorded))])
@@ -269,14 +269,14 @@ def test_streaming_kalman_fusion_equals_the_batch_filter(recorded, panda, with_t
 
 
 def test_kalman_fusion_needs_one_sensor_at_least(panda):
-    est = TipForceEstimator.analytic(panda, "kalman_fusion", call_hz=RATE, encoder_resolution=0.0)
+    est = TipForceEstimator.analytic(panda, "kalman-fusion", call_hz=RATE, encoder_resolution=0.0)
     with pytest.raises(EstimatorInputError, match="needs base_wrench .* tau_J .* or both"):
         est.estimate_tip_force(panda.spec.home, np.zeros(7))
 
 
 def test_a_gap_in_a_timed_stream_costs_one_sample_and_a_warm_up(recorded):
     """A sample late by a lost tick is refused; the stream resumes one period after it and warms up anew."""
-    est = TipForceEstimator.analytic("panda", "momentum", call_hz=RATE, momentum_gain=50.0, on_bad_input="hold",
+    est = TipForceEstimator.analytic("panda", "momentum-observer", call_hz=RATE, momentum_gain=50.0, on_bad_input="hold",
                                      encoder_resolution=0.0, max_sigma=1e3)  # statuses of the warm-up, not of the error bar
     tau = recorded.tau_J
     for k in range(40):
@@ -286,7 +286,7 @@ def test_a_gap_in_a_timed_stream_costs_one_sample_and_a_warm_up(recorded):
     assert est.last_status is EstimatorStatus.INPUT_REJECTED
     est.estimate_tip_force(recorded.q[43], recorded.qd[43], tau_J=tau[43], t=recorded.t[43])
     assert est.last_status is EstimatorStatus.WARMING_UP
-    fresh = TipForceEstimator.analytic("panda", "momentum", call_hz=RATE, momentum_gain=50.0, encoder_resolution=0.0,
+    fresh = TipForceEstimator.analytic("panda", "momentum-observer", call_hz=RATE, momentum_gain=50.0, encoder_resolution=0.0,
                                        max_sigma=1e3)
     for k in range(43, 80):  # the resumed stream equals a new one started at tick 43
         a = est.estimate_tip_force(recorded.q[k], recorded.qd[k], tau_J=tau[k], t=recorded.t[k]) if k > 43 else None
@@ -295,7 +295,7 @@ def test_a_gap_in_a_timed_stream_costs_one_sample_and_a_warm_up(recorded):
             np.testing.assert_array_equal(a, b)
             assert est.last_status == fresh.last_status
     # A wrong rate never resumes: every step of a 2x slower stream is refused.
-    slow = TipForceEstimator.analytic("panda", "momentum", call_hz=RATE, on_bad_input="hold", encoder_resolution=0.0)
+    slow = TipForceEstimator.analytic("panda", "momentum-observer", call_hz=RATE, on_bad_input="hold", encoder_resolution=0.0)
     for k in range(0, 40, 2):
         slow.estimate_tip_force(recorded.q[k], recorded.qd[k], tau_J=tau[k], t=recorded.t[k])
     assert slow.last_status is EstimatorStatus.INPUT_REJECTED
