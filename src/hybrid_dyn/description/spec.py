@@ -50,6 +50,11 @@ class RobotSpec:
     # The tool mounted instead of the URDF's own (a variant): None keeps the URDF's,
     # "none" is the bare flange, a Path a tool URDF (see ``with_tool``).
     tool: str | Path | None = None
+    # Joints with a gravity-assist spring the URDF lacks (TOML ``[identification] springs``): the
+    # identified model gives each a torque k q_j [Nm] with k identified (Baxter's shoulder s1).
+    springs: tuple = ()
+    # The arm's rated payload [kg] (TOML ``rated_payload_kg``); None where the description states none.
+    rated_payload_kg: float | None = None
 
     def friction(self, name: str = "gaz2019") -> GazFriction | None:
         """The named friction law, or None when this robot ships none."""
@@ -120,4 +125,6 @@ def load_spec(name_or_path: str | os.PathLike) -> RobotSpec:
         source=toml_path,
         flange=doc.get("flange"),
         default_tool=str(doc.get("tool", "none")),
+        springs=tuple(doc.get("identification", {}).get("springs", ())),
+        rated_payload_kg=float(doc["rated_payload_kg"]) if "rated_payload_kg" in doc else None,
     )

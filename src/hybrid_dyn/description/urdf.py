@@ -3,6 +3,7 @@ locked joints, a tool and a payload applied."""
 from __future__ import annotations
 
 import os
+import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -90,7 +91,11 @@ def _lock_joint(joint_el, value: float) -> None:
         xyz = xyz + R.apply(axis * value)
     elif jtype in ("revolute", "continuous"):
         R = R * Rotation.from_rotvec(axis / np.linalg.norm(axis) * value)
-        rpy = R.as_euler("xyz")
+        with warnings.catch_warnings():
+            # At pitch +-90 deg (Baxter's wrist joints) roll and yaw are one angle: scipy warns, and
+            # returns angles that still give the same rotation (a test loads Baxter and checks its chain).
+            warnings.simplefilter("ignore", UserWarning)
+            rpy = R.as_euler("xyz")
     else:
         raise RobotDescriptionError(f"cannot lock joint {joint_el.get('name')!r} of type {jtype!r}")
     for el in joint_el.findall("origin") + joint_el.findall("axis") + joint_el.findall("limit") + joint_el.findall("mimic"):

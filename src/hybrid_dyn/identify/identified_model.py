@@ -32,6 +32,7 @@ from ..description import GazFriction, RobotDescriptionError
 from ..errors import UsageError
 from ..outputs import unique_temp
 from . import least_squares as est
+from .extra_terms import spring_joints, spring_regressor
 from .parameters import N_BODY_PARAMS, check_consistency, to_urdf_form
 from .plausibility import fit_warnings
 from .regressor import (DEFAULT_COULOMB_EPS, BaseParameters, base_parameters, friction_regressor,
@@ -183,6 +184,8 @@ class IdentifiedModel:
     body_params: np.ndarray
     friction: LinearFriction | GazFriction
     fit: dict = field(default_factory=dict)
+    # The declared springs' stiffness [Nm/rad] by joint name (``extra_terms``): tau_j += k_j q_j.
+    springs: dict = field(default_factory=dict)
 
     # ------------------------------------------------------------- predictions
     def rigid_body_torque(self, q, qd, qdd) -> np.ndarray:
@@ -195,7 +198,11 @@ class IdentifiedModel:
         tau = self.rigid_body_torque(q, qd, qdd)
         qd_b, single = as_batch(qd, "qd", self.robot.nv)
         f = self.friction(qd_b)
-        return tau + (f[0] if single else f)
+        return tau + (f[0] if single else f) + self.spring_torque(q)
+
+    def spring_torque(self, q) -> np.ndarray | float:
+        """The declared springs' torques [Nm] ((nv,) or (N, nv)); 0.0 where the robot declares none."""
+        return spring_torque(self.springs, self.robot.joint_names, q)
 
     def consistency(self) -> list:
         """Per-body :class:`~.parameters.ConsistencyReport` (COM box check included)."""
@@ -230,6 +237,8 @@ class IdentifiedModel:
             "links": links,
             "body_parameters": {n: [float(x) for x in p] for n, p in zip(self.robot.joint_names, self.body_params)},
             "friction": fr,
+            **({"springs": {"law": "tau_j = k_j * q_j [Nm], k_j [Nm/rad]", "stiffness": dict(self.springs)}}
+               if self.springs else {}),
             "fit": _jsonable(self.fit),
         }
 
@@ -266,7 +275,8 @@ class IdentifiedModel:
         params = np.array([[float(x) for x in bp[n]] for n in robot.joint_names])
         if params.shape != (robot.nv, N_BODY_PARAMS) or not np.isfinite(params).all():
             raise RobotDescriptionError(f"{path}: body_parameters must hold {N_BODY_PARAMS} finite numbers per joint")
-        return cls(robot, doc["method"], params, friction_from_dict(doc["friction"], str(path)), doc.get("fit", {}))
+        return cls(robot, doc["method"], params, friction_from_dict(doc["friction"], str(path)), doc.get("fit", {}),
+                   springs=springs_from_dict(doc, robot.joint_names, str(path)))
 
     def to_robot(self, **kwargs) -> Robot:
         """A :class:`Robot` on the identified parameters (kwargs go to load_robot, e.g. sensor_mount)."""
@@ -281,6 +291,28 @@ class IdentifiedModel:
         with tempfile.TemporaryDirectory() as tmp:
             path = self.save(Path(tmp) / "identified.json")
             return load_robot(self.robot.spec.source or self.robot.name, params=path, **kwargs)
+
+
+def spring_torque(springs: dict, joint_names, q) -> np.ndarray | float:
+    """tau_j = k_j q_j [Nm] for the joints in ``springs`` (name -> k [Nm/rad]); 0.0 when it is empty."""
+    if not springs:
+        return 0.0
+    q = np.asarray(q, float)
+    k = np.array([float(springs.get(n, 0.0)) for n in joint_names])
+    return k * q
+
+
+def springs_from_dict(doc: dict, joint_names, where: str) -> dict:
+    """The ``springs`` section of an identified file (name -> k [Nm/rad]); {} when there is none."""
+    section = doc.get("springs")
+    if not section:
+        return {}
+    stiffness = section.get("stiffness", {}) if isinstance(section, dict) else None
+    if not isinstance(stiffness, dict) or any(n not in joint_names for n in stiffness) or not all(
+            isinstance(v, (int, float)) and np.isfinite(v) for v in stiffness.values()):
+        raise RobotDescriptionError(f"{where}: the springs section must map the robot's joints to finite "
+                                    f"stiffnesses [Nm/rad], got {section!r}")
+    return {n: float(v) for n, v in stiffness.items()}
 
 
 def _jsonable(x):
@@ -362,16 +394,21 @@ def identify(data, method: str = "consistent", robot: Robot | None = None, *, sp
     Y = inertial_regressor(robot, data.q, data.qd, data.qdd)
     F = friction_regressor(data.qd, eps)
     W = np.concatenate([Y, F], axis=-1)
-    Wb = base.reduce(W)
-    if len(data) * nv < 2 * base.n_base:
+    # The description's declared springs: one column each, identified with everything else.
+    springs = spring_joints(robot.spec, robot.joint_names)
+    S = spring_regressor(springs, data.q, nv)
+    Wb = np.concatenate([base.reduce(W), S], axis=-1)
+    n_cols = Wb.shape[-1]
+    if len(data) * nv < 2 * n_cols:
         raise est.IdentificationError(
-            f"{len(data)} samples give {len(data) * nv} equations for {base.n_base} base parameters; record more")
-    cond = float(np.linalg.cond(Wb.reshape(-1, base.n_base)))
+            f"{len(data)} samples give {len(data) * nv} equations for {n_cols} base parameters; record more")
+    cond = float(np.linalg.cond(Wb.reshape(-1, n_cols)))
     pi_nom = nominal_body_parameters(robot)
 
     beta, sigma = est.fit_wls(Wb, data.tau) if method != "ols" else (est.fit_ols(Wb, data.tau), None)
     if sigma is None:
         sigma = est.joint_residual_std(Wb, data.tau, beta)
+    beta, k_lin = beta[:base.n_base], beta[base.n_base:]
     # Full parameters that reproduce beta exactly, closest to the nominal ones in the scaled metric.
     x_nom = np.concatenate([pi_nom, np.zeros(3 * nv)])
     scale = np.concatenate([np.tile(est.PARAM_SCALE, nv), np.ones(3 * nv)])
@@ -381,23 +418,32 @@ def identify(data, method: str = "consistent", robot: Robot | None = None, *, sp
     fit = {"n_samples": len(data), "condition_number": cond, "n_base": base.n_base, "coulomb_eps": eps,
            "residual_std_ols": sigma.tolist()}
 
+    k = k_lin
     if method in ("ols", "wls"):
         pi, friction = pi_lin, LinearFriction(phi_lin[:, 0], phi_lin[:, 1], phi_lin[:, 2], eps)
         fit["base_parameters"] = {"names": base.base_names(), "values": beta.tolist()}
     elif method == "consistent":
-        pi, phi, stats = est.fit_consistent(robot, Y, F, data.tau, sigma, pi_nom, phi_lin.reshape(-1), config)
-        phi = phi.reshape(nv, 3)
+        # The springs' columns ride with the friction's: linear, unbounded, fitted jointly.
+        pi, phi, stats = est.fit_consistent(robot, Y, np.concatenate([F, S], axis=-1), data.tau, sigma, pi_nom,
+                                            np.concatenate([phi_lin.reshape(-1), k_lin]), config)
+        phi, k = phi[:3 * nv].reshape(nv, 3), phi[3 * nv:]
         friction = LinearFriction(phi[:, 0], phi[:, 1], phi[:, 2], eps)
         fit.update(ipopt_status=stats["return_status"], iterations=stats["iter_count"], com_margin=config.com_margin,
                    regularization=config.regularization)
     else:
         # Start the sigmoid from the linear fit: it spans 2*phi1 between its plateaus.
         phi0 = np.stack([np.clip(2 * np.abs(phi_lin[:, 1]), 0.05, None), np.full(nv, 10.0), np.zeros(nv)], 1)
-        pi, phi, stats = est.fit_sigmoid_friction(robot, Y, data.qd, data.tau, sigma, pi_nom, phi0, config)
+        # The sigmoid's objective has no linear block: the springs keep the weighted linear fit's
+        # stiffness, taken out of the target first (a two-stage fit, said in the fit record).
+        tau_nospring = data.tau - (S @ k_lin if len(springs) else 0.0)
+        pi, phi, stats = est.fit_sigmoid_friction(robot, Y, data.qd, tau_nospring, sigma, pi_nom, phi0, config)
+        if len(springs):
+            fit["springs_fit"] = "stiffness from the weighted linear fit, held fixed in the sigmoid fit"
         friction = GazFriction(phi[:, 0], phi[:, 1], phi[:, 2])
         fit.update(ipopt_status=stats["return_status"], iterations=stats["iter_count"], com_margin=config.com_margin,
                    regularization=config.regularization)
-    model = IdentifiedModel(robot, method, pi.reshape(nv, N_BODY_PARAMS), friction, fit)
+    model = IdentifiedModel(robot, method, pi.reshape(nv, N_BODY_PARAMS), friction, fit,
+                            springs={robot.joint_names[j]: float(kj) for j, kj in zip(springs, k)})
     model.fit["rmse_per_joint"] = _joint_rmse(data.tau, model.predict_torque(data.q, data.qd, data.qdd)).tolist()
     model.fit["physically_consistent"] = model.physically_consistent
     # What the data could not determine, and bodies this robot cannot have: said, not silent.

@@ -167,11 +167,11 @@ def fit_consistent(robot: Robot, Y: np.ndarray, F: np.ndarray, tau: np.ndarray, 
     # The data term through its normal equations: a (p x p) Gram instead of N rows.
     G, gvec, bb = A.T @ A / n_rows, A.T @ b / n_rows, b @ b / n_rows
     theta, pi, g, theta0, lbt, reg = _inertial_block(robot, _clip_into_boxes(pi_nominal, boxes), boxes, pi_nominal, cfg)
-    phi = ca.SX.sym("phi", 3 * nv)
+    phi = ca.SX.sym("phi", F.shape[-1])
     x = ca.vertcat(pi, phi)
     f = ca.bilin(ca.DM(G), x, x) - 2 * ca.dot(ca.DM(gvec), x) + bb + reg
-    # fv >= 0, fc >= 0; the offset is free.
-    lb_phi = np.tile([0.0, 0.0, -np.inf], nv)
+    # fv >= 0, fc >= 0; the offset is free, and so are any declared terms' columns after them.
+    lb_phi = np.concatenate([np.tile([0.0, 0.0, -np.inf], nv), np.full(F.shape[-1] - 3 * nv, -np.inf)])
     phi0 = np.maximum(phi_start, lb_phi)
     sol, stats = _solve({"x": ca.vertcat(theta, phi), "f": f, "g": g},
                         np.concatenate([theta0, phi0]), np.concatenate([lbt, lb_phi]),

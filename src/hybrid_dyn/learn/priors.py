@@ -117,7 +117,7 @@ class AnalyticPrior:
         self.observer_gain = float(observer_gain)
         self.fields = PRIOR_FIELDS[kind]
         self._single = None
-        from ..identify.identified_model import friction_from_dict, read_identified_file
+        from ..identify.identified_model import friction_from_dict, read_identified_file, springs_from_dict
 
         identified = None if str(robot.params_name) in robot.spec.param_sets else read_identified_file(robot.params_name)
         # The identified file's digest: its inertials are in the prior's values, and the path alone
@@ -132,6 +132,9 @@ class AnalyticPrior:
                              f"got {friction!r}")
         self.friction = friction
         self._friction = friction_from_dict(friction, f"the {kind} prior's friction") if friction else None
+        # The identified file's declared springs (Baxter's shoulder), joint-local like its friction.
+        self.springs = springs_from_dict(identified[0], robot.joint_names, str(robot.params_name)) \
+            if identified and kind in FRICTION_PRIORS else {}
 
     def describe(self) -> dict:
         """What identifies this prior's values (the model config; the cache key hashes it with the kind's
@@ -142,11 +145,19 @@ class AnalyticPrior:
                 "tare_seconds": self.tare_seconds,
                 # Only where present, so that no cache key or config of a nominal prior moves.
                 **({"params_sha256": self.params_sha256} if self.params_sha256 else {}),
-                **({"friction": self.friction} if self.friction else {})}
+                **({"friction": self.friction} if self.friction else {}),
+                **({"springs": self.springs} if self.springs else {})}
 
     def friction_torque(self, qd) -> np.ndarray | float:
         """The prior's joint friction [Nm] at qd [rad/s] ((nv,) or (N, nv)); 0.0 without one."""
         return 0.0 if self._friction is None else self._friction(np.asarray(qd, float))
+
+    def joint_terms(self, q, qd) -> np.ndarray | float:
+        """Everything joint-local the prior adds to the rigid body [Nm]: friction at qd and the declared
+        springs at q (``identify/extra_terms.py``); 0.0 without either."""
+        from ..identify.identified_model import spring_torque
+
+        return self.friction_torque(qd) + spring_torque(self.springs, self.robot.joint_names, q)
 
     # ------------------------------------------------------------ evaluation
     def compute(self, fields: dict) -> np.ndarray:
@@ -155,7 +166,7 @@ class AnalyticPrior:
         q, qd = fields["q"], fields["qd"]
         qdd = fields.get("qdd")
         if self.kind == "rnea":
-            return np.atleast_2d(r.inverse_dynamics(q, qd, qdd) + self.friction_torque(qd))
+            return np.atleast_2d(r.inverse_dynamics(q, qd, qdd) + self.joint_terms(q, qd))
         w = fields.get("base_wrench")
         n_tare = tare_samples(self.record_hz, self.tare_seconds) if self.tare_seconds > 0 else 0
         if n_tare:
@@ -163,7 +174,7 @@ class AnalyticPrior:
         if self.kind in REGISTRY:
             return self._method_run(REGISTRY[self.kind], fields, w, n_tare)
         f_bw = np.atleast_2d(tip_force_from_base_wrench(r, q, qd, qdd, w))
-        return np.atleast_2d(r.inverse_dynamics(q, qd, qdd) + self.friction_torque(qd)) \
+        return np.atleast_2d(r.inverse_dynamics(q, qd, qdd) + self.joint_terms(q, qd)) \
             - contact_joint_torques(r, np.atleast_2d(q), f_bw)
 
     def _method_stream(self, method):
@@ -200,13 +211,13 @@ class AnalyticPrior:
         s = self._single
         q, qd, qdd = (np.asarray(sample[k], float) for k in ("q", "qd", "qdd"))
         if self.kind == "rnea":
-            return pin.rnea(s.model, s.data, q, qd, qdd) + self.friction_torque(qd)
+            return pin.rnea(s.model, s.data, q, qd, qdd) + self.joint_terms(q, qd)
         if self.kind in REGISTRY:
             get = lambda k: None if sample.get(k) is None else np.asarray(sample[k], float)  # noqa: E731
             return s.stream.step(q, qd, qdd, get("base_wrench"), get("tau_J"))
         f_bw = s.basewrench_force(q, qd, qdd, np.asarray(sample["base_wrench"], float))
         jv = pin.computeFrameJacobian(s.model, s.data, q, s.tool, pin.LOCAL_WORLD_ALIGNED)[:3]
-        return pin.rnea(s.model, s.data, q, qd, qdd) + self.friction_torque(qd) - jv.T @ f_bw
+        return pin.rnea(s.model, s.data, q, qd, qdd) + self.joint_terms(q, qd) - jv.T @ f_bw
 
     def cache_path(self, cache_dir, dataset_checksum: str) -> Path:
         """The cache file of this prior on a dataset: ``prior-<kind>-<key>.h5``, the key a digest of the

@@ -1,0 +1,68 @@
+"""A declared joint spring (robots/baxter.toml: the shoulder's gravity-assist spring), identified.
+
+The torques are built here from the nominal model plus a spring and friction of known values, so the
+fit has an exact answer to recover.
+"""
+import json
+
+import numpy as np
+import pytest
+
+import hybrid_dyn as hd
+from hybrid_dyn.description import RobotDescriptionError
+from hybrid_dyn.identify import IdentifiedModel, identify
+
+from helpers.states import random_states
+
+K_S1 = -12.0  # Nm/rad: the spring's stiffness to recover
+FV, FO = 0.8, 0.3  # viscous [Nm s/rad] and offset [Nm] friction on every joint
+NOISE = 0.05  # Nm: a torque sensor's noise (exact torques leave the consistent fit's weights degenerate)
+
+
+@pytest.fixture(scope="module")
+def baxter_data():
+    robot = hd.load_robot("baxter")
+    q, qd, qdd = random_states(robot, 600, seed=7)
+    spring = np.zeros_like(q)
+    spring[:, 1] = K_S1 * q[:, 1]  # s1 is the second joint of the chain
+    tau = robot.inverse_dynamics(q, qd, qdd) + FV * qd + FO + spring
+    tau += np.random.default_rng(1).normal(0.0, NOISE, tau.shape)
+    return robot, (q, qd, qdd, tau)
+
+
+@pytest.mark.parametrize("method", ["ols", "consistent"])
+def test_the_spring_is_recovered_and_predicts(baxter_data, method):
+    robot, (q, qd, qdd, tau) = baxter_data
+    model = identify((q, qd, qdd, tau), method, robot)
+    assert set(model.springs) == {"left_s1"}
+    assert model.springs["left_s1"] == pytest.approx(K_S1, abs=0.05)
+    qt, qdt, qddt = random_states(robot, 100, seed=8)
+    truth = robot.inverse_dynamics(qt, qdt, qddt) + FV * qdt + FO
+    truth[:, 1] += K_S1 * qt[:, 1]
+    np.testing.assert_allclose(model.predict_torque(qt, qdt, qddt), truth, atol=4 * NOISE)
+
+
+def test_without_the_declared_term_the_shoulder_misses(baxter_data, tmp_path):
+    """The same data on a Baxter that declares no spring: s1 is left with the spring's torque."""
+    robot, (q, qd, qdd, tau) = baxter_data
+    text = robot.spec.source.read_text().replace('springs = ["left_s1"]', "springs = []")
+    (tmp_path / "baxter.toml").write_text(text)
+    bare = hd.load_robot(str(tmp_path / "baxter.toml"))
+    model = identify((q, qd, qdd, tau), "ols", bare)
+    err = np.sqrt(np.mean((model.predict_torque(q, qd, qdd) - tau) ** 2, axis=0))
+    assert model.springs == {} and err[1] > 1.0 and np.delete(err, 1).max() < 0.5
+
+
+def test_the_springs_survive_the_file_and_a_bad_section_is_named(baxter_data, tmp_path):
+    robot, data = baxter_data
+    model = identify(data, "ols", robot)
+    path = model.save(tmp_path / "baxter.json")
+    back = IdentifiedModel.load(path, robot)
+    assert back.springs == model.springs
+    q, qd, qdd, _ = data
+    np.testing.assert_allclose(back.predict_torque(q[:5], qd[:5], qdd[:5]), model.predict_torque(q[:5], qd[:5], qdd[:5]))
+    doc = json.loads(path.read_text())
+    doc["springs"]["stiffness"] = {"left_elbow": 3.0}
+    path.write_text(json.dumps(doc))
+    with pytest.raises(RobotDescriptionError, match="springs section"):
+        IdentifiedModel.load(path, robot)
