@@ -3,7 +3,9 @@
 Floors (this project's targets, so they live here and not in the report):
 - the invocations recorded in run.json sum to <= 90 min, the first of them a cold start;
 - every row of the earlier report is present, and its test RMSE is <= 1.02 x the earlier value
-  (a lower one is welcome); rows the earlier report did not have are listed, without a floor.
+  (a lower one is welcome) where its scenario's data are the same (the same config hash in both run.json);
+  a row on other data (a changed sensor model) is listed beside its earlier figure without a floor, as
+  are the rows the earlier report did not have.
 
 The earlier report is read from git (``--before REV``, default 4f1012e, the report the issue measured).
 Run (after the bench):
@@ -46,6 +48,15 @@ def _rmse(row: dict | None) -> float:
         return math.nan
 
 
+def _hashes_at(rev: str, report: Path) -> dict:
+    """scenario -> config hash of the datasets the report at ``rev`` was computed on (its run.json)."""
+    import json
+
+    text = subprocess.run(["git", "show", f"{rev}:{report.as_posix()}/run.json"], capture_output=True, text=True,
+                          check=True).stdout
+    return {s: d.get("config_hash") for s, d in (json.loads(text).get("datasets") or {}).items()}
+
+
 def check(report: Path, before: str) -> tuple[list[str], bool]:
     """The check's markdown lines and whether every floor is met."""
     run = read_run_json(report, replacing=False)
@@ -64,6 +75,8 @@ def check(report: Path, before: str) -> tuple[list[str], bool]:
              + (f"; CPU of the last invocation {cpu / 60:.1f} min" if isinstance(cpu, (int, float)) else ""), ""]
     new = {_key(r): r for r in read_results(report / "results.csv")}
     old = {_key(r): r for r in _rows_at(before, report)}
+    hashes_now = {s: d.get("config_hash") for s, d in (run.get("datasets") or {}).items()}
+    hashes_before = _hashes_at(before, report)
     lines += ["| task | scenario | row | RMSE before | RMSE now | ratio | floor <= 1.02 |", "|---|---|---|---|---|---|---|"]
     failed = []
     for key, o in old.items():
@@ -72,6 +85,8 @@ def check(report: Path, before: str) -> tuple[list[str], bool]:
             verdict, ratio = "**NOT met** (missing)", math.nan
         elif math.isnan(a):
             verdict, ratio = "no floor (no RMSE before)", math.nan
+        elif hashes_now.get(key[1]) != hashes_before.get(key[1]):
+            verdict, ratio = f"no floor (other data: config hash {hashes_before.get(key[1])} now {hashes_now.get(key[1])})", b / a
         else:
             ratio = b / a
             verdict = "met" if ratio <= RMSE_FLOOR_RATIO else "**NOT met**"

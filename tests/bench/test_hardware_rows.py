@@ -10,6 +10,7 @@ from hybrid_dyn.bench.plan import BenchPlan
 from hybrid_dyn.analytic.methods import run_batch
 from hybrid_dyn.analytic.tare import TARE_SECONDS, tare_samples
 from hybrid_dyn.bench import analytic_rows
+from hybrid_dyn.bench.analytic_rows import refusals_as_nan
 from hybrid_dyn.bench.catalog import ROWS
 from hybrid_dyn.bench.profiles import BenchProfile, get_profile
 from hybrid_dyn.bench.results import read_results, results_columns, write_results
@@ -18,6 +19,7 @@ from hybrid_dyn.data import load_dataset
 from hybrid_dyn.sim.executors import SerialExecutor
 from hybrid_dyn.sim.generator import generate_dataset
 from hybrid_dyn.sim.scenarios import scenario_config
+from helpers.legacy_sensors import legacy
 
 SIGMA = 0.5  # N per axis, the fake error bar
 
@@ -49,7 +51,7 @@ def test_the_default_profile_runs_the_analytic_rows_on_the_hardware_scenario(har
 def test_the_rows_read_the_datasets_encoder_resolution(hardware_ds, panda):
     ctx = lambda meta: SimpleNamespace(dataset=SimpleNamespace(meta=meta), robot=panda)  # noqa: E731
     assert analytic_rows._encoder_resolution(ctx(hardware_ds.meta)) == 1e-5  # the Panda's description
-    legacy = scenario_config("contact-steps", "default").to_dict()
+    legacy = scenario_config("paper-ext-ideal", "default").to_dict()
     assert analytic_rows._encoder_resolution(ctx({"config": legacy})) == 0.0  # today's rows unchanged
     assert analytic_rows._encoder_resolution(ctx({})) == 0.0  # an imported log: q as recorded
 
@@ -57,16 +59,25 @@ def test_the_rows_read_the_datasets_encoder_resolution(hardware_ds, panda):
 def test_a_legacy_datasets_rows_read_q_and_qd_as_recorded(panda, tmp_path):
     """contact-steps (the legacy white-noise sensors): the row's RMSE is run_batch's with exact encoders
     (encoder_resolution=0, today's rows), not the joint-state filter's the estimator defaults to."""
-    cfg = scenario_config("contact-steps", "quick", seed=2, n_instances=3, trajectories=(1, 1), standstill=0.6)
+    cfg = scenario_config("contact-steps", "quick", seed=2, n_instances=3, trajectories=(1, 1), standstill=0.6,
+                          **legacy("contact-steps"))
     ds = load_dataset(generate_dataset(cfg, tmp_path / "cs", executor=SerialExecutor(), progress=False))
     row = score_row(ROWS["base-momentum"], _ctx(ds, panda, tmp_path, []), train_split_stats(ds))
     rmse = {}
     for res in (0.0, "auto"):
-        err = np.concatenate([run_batch("base-momentum", panda, 1000.0, i.q, i.qd, i.base_wrench,
-                                        encoder_resolution=res)[0] - i.truth["tip_force"] for i in ds.split("test")])
-        rmse[res] = float(np.sqrt(np.mean(err ** 2)))
+        # Over the answered samples: the window's (and the observer's first) zeros are refusals.
+        err = np.concatenate([refusals_as_nan(run_batch("base-momentum", panda, 1000.0, i.q, i.qd, i.base_wrench,
+                                                        encoder_resolution=res)[0]) - i.truth["tip_force"]
+                              for i in ds.split("test")])
+        rmse[res] = float(np.sqrt(np.nanmean(err ** 2)))
     assert abs(rmse[0.0] - rmse["auto"]) > 1e-3  # the two readings differ: the test can tell them apart
     assert row["rmse"] == pytest.approx(rmse[0.0], rel=1e-9)
+    # Each test run refuses at least its window and the observer's first (zero) output; the share counts them.
+    refused = np.concatenate([np.isnan(refusals_as_nan(run_batch("base-momentum", panda, 1000.0, i.q, i.qd,
+                                                                 i.base_wrench, encoder_resolution=0.0)[0])).all(1)
+                              for i in ds.split("test")])
+    assert refused.sum() >= len(ds.split("test")) * (tare_samples(1000.0, TARE_SECONDS) + 1)
+    assert row["answered_share"] == pytest.approx(1 - refused.mean(), rel=1e-12)
 
 
 def test_the_coverage_column_is_the_share_within_two_sigma(hardware_ds, panda, tmp_path, monkeypatch):

@@ -35,9 +35,34 @@ def test_contact_and_free_split_at_one_newton():
     assert rep.max_error == pytest.approx(2.0)
 
 
-def test_non_finite_predictions_are_an_error_not_a_number():
-    with pytest.raises(ValueError, match="NaN or inf"):
-        ErrorReport.compute(np.array([[np.nan]]), np.array([[0.0]]))
+def test_partly_nan_or_infinite_predictions_are_an_error_not_a_refusal():
+    with pytest.raises(ValueError, match="NaN on some components only"):
+        ErrorReport.compute(np.array([[np.nan, 1.0]]), np.array([[0.0, 0.0]]))
+    with pytest.raises(ValueError, match="1 are inf"):
+        ErrorReport.compute(np.array([[np.inf, 1.0]]), np.array([[0.0, 0.0]]))
+
+
+def test_refused_samples_are_scored_apart_from_the_answered_ones():
+    # Five samples of two components; the first two refused (NaN on every component).
+    pred = np.array([[np.nan, np.nan], [np.nan, np.nan], [1.0, 2.0], [0.0, -1.0], [3.0, 3.0]])
+    target = np.array([[4.0, 0.0], [0.0, 2.0], [0.0, 2.0], [0.0, 0.0], [1.0, 3.0]])
+    rep = ErrorReport.compute(pred, target)
+    # By hand: answered errors (1, 0), (0, -1), (2, 0): squares 1 + 1 + 4 = 6 over 6 entries.
+    assert rep.answered_share == pytest.approx(3 / 5) and rep.n_samples == 5
+    assert rep.rmse == pytest.approx(1.0)
+    np.testing.assert_allclose(rep.per_component, [np.sqrt(5 / 3), np.sqrt(1 / 3)])
+    assert rep.max_error == pytest.approx(2.0)
+    # Refused as zero: the two refusals add 16 + 4 to the 6, over 10 entries.
+    assert rep.rmse_refused_as_zero == pytest.approx(np.sqrt(26 / 10))
+    # The contact split counts the answered samples alone (truth |F| > 1 N on samples 0, 2 and 4).
+    truth = np.array([[5.0, 0, 0], [0, 0, 0], [2.0, 0, 0], [0, 0, 0], [0, 3.0, 0]])
+    rep = ErrorReport.compute(pred, target, truth)
+    assert rep.rmse_contact == pytest.approx(np.sqrt((1 + 4) / 4)) and rep.rmse_free == pytest.approx(np.sqrt(1 / 2))
+    # Nothing refused: the two figures agree; everything refused: no error figure, nothing answered.
+    full = ErrorReport.compute(target + 1.0, target)
+    assert full.answered_share == 1.0 and full.rmse == full.rmse_refused_as_zero == pytest.approx(1.0)
+    none = ErrorReport.compute(np.full_like(target, np.nan), target)
+    assert none.answered_share == 0.0 and np.isnan(none.rmse)
 
 
 def test_results_csv_has_the_stable_columns(tmp_path):

@@ -13,7 +13,7 @@ from hybrid_dyn.analytic.robot import InputError
 from hybrid_dyn.sim.collision import collision_checker
 from hybrid_dyn.sim.generator import Simulator, simulate_instance, simulate_reference
 from hybrid_dyn.sim.pulses import sample_pulses
-from hybrid_dyn.sim.scenarios import ConfigError, GeneratorConfig, NoiseConfig, PulseConfig, scenario_config
+from hybrid_dyn.sim.scenarios import ConfigError, GeneratorConfig, NoiseConfig, PulseConfig, noise_free, scenario_config
 from hybrid_dyn.sim.sensors import causal_acceleration
 from hybrid_dyn.sim.trajectories import motion_valid, random_reference, rrt_connect, time_segment
 
@@ -24,7 +24,7 @@ SMALL = dict(trajectories=(2, 2), standstill=0.3, speed_scale=(0.4, 0.6),
 
 @pytest.fixture(scope="module", params=["paper-ext", "mismatch-ext"])
 def noiseless_run(request):
-    cfg = scenario_config(request.param, "quick", seed=3, noise=NoiseConfig.off(), **SMALL)
+    cfg = scenario_config(request.param, "quick", seed=3, **noise_free(request.param), **SMALL)
     sim = Simulator(cfg)
     run, info = simulate_instance(sim, 0)
     return sim, run, info
@@ -68,7 +68,7 @@ def test_applied_friction_is_the_gaz_law_at_the_logged_velocity(noiseless_run):
 
 def test_truth_follows_dart_semi_implicit_euler():
     """Recording every step: qd[k+1] = qd[k] + dt qdd[k], q[k+1] = q[k] + dt qd[k+1]."""
-    cfg = scenario_config("paper-ext", "quick", record_hz=1000.0, noise=NoiseConfig.off(), **SMALL)
+    cfg = scenario_config("paper-ext", "quick", record_hz=1000.0, **noise_free("paper-ext"), **SMALL)
     run, _ = simulate_instance(Simulator(cfg), 1)
     tr, dt = run.truth, cfg.dt
     np.testing.assert_allclose(tr["qd"][1:], tr["qd"][:-1] + dt * tr["qdd"][:-1], atol=1e-12, rtol=0)
@@ -77,7 +77,7 @@ def test_truth_follows_dart_semi_implicit_euler():
 
 def test_sensor_noise_and_bias_match_the_configuration():
     noise = NoiseConfig(q=1e-3, qd=5e-3, tau_J=0.1, force=0.5, torque=0.02, force_bias=2.0, torque_bias=0.1)
-    cfg = scenario_config("paper-ext", "quick", noise=noise, **SMALL)
+    cfg = scenario_config("paper-ext-ideal", "quick", noise=noise, **SMALL)  # the legacy sensor model
     run, _ = simulate_instance(Simulator(cfg), 0)
     f, tr = run.fields, run.truth
     for key, std in (("q", noise.q), ("qd", noise.qd), ("tau_J", noise.tau_J)):
@@ -105,7 +105,7 @@ def test_acceleration_estimate_is_causal_and_tracks_the_truth():
 
 
 def test_estimated_qdd_is_not_the_simulator_acceleration():
-    cfg = scenario_config("paper-ext", "quick", noise=NoiseConfig.off(), **SMALL)
+    cfg = scenario_config("paper-ext", "quick", **noise_free("paper-ext"), **SMALL)
     run, _ = simulate_instance(Simulator(cfg), 0)
     diff = np.abs(run.fields["qdd"] - run.truth["qdd"])
     assert diff.max() > 1e-3  # a filtered estimate, lagging the truth
@@ -203,7 +203,7 @@ def test_rrt_connect_goes_around_an_obstacle():
 
 
 def test_simulate_reference_holds_a_pose_and_rejects_bad_input(panda):
-    cfg = scenario_config("paper-noext", "quick", noise=NoiseConfig.off())
+    cfg = scenario_config("paper-noext", "quick", **noise_free("paper-noext"))
     T = 500
     t = np.arange(T) * cfg.dt
     q = np.tile(panda.spec.home, (T, 1))
@@ -244,7 +244,7 @@ def test_config_hash_round_trip_and_errors():
 def test_dart_own_joint_friction_option(option):
     """DART's damping is implicit, d (qd + dt qdd); its Coulomb friction never exceeds its bound."""
     extra = {"dart_viscous": (0.5,) * 7} if option == "viscous" else {"dart_coulomb": (0.3,) * 7}
-    cfg = scenario_config("paper-ext", "quick", noise=NoiseConfig.off(), friction=None, record_hz=1000.0,
+    cfg = scenario_config("paper-ext", "quick", **noise_free("paper-ext"), friction=None, record_hz=1000.0,
                           **SMALL, **extra)
     run, _ = simulate_instance(Simulator(cfg), 0)
     tr = run.truth

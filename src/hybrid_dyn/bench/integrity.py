@@ -234,6 +234,8 @@ def _recompute(row: dict, preds) -> dict | None:
     out = {"rmse": rep.rmse, "nmse": rep.nmse, "rmse_contact": rep.rmse_contact, "rmse_free": rep.rmse_free,
            "max_error": rep.max_error, "n_test_samples": float(rep.n_samples)}
     out.update({f"rmse_{j + 1}": float(v) for j, v in enumerate(rep.per_component)})
+    if "answered_share" in row:  # a report written before the column lacks it
+        out.update(answered_share=rep.answered_share, rmse_refused_as_zero=rep.rmse_refused_as_zero)
     return out
 
 

@@ -3,6 +3,13 @@
 All take predictions and targets of shape (N, C) in physical units over the
 same test samples. "All samples and components" is the seed's RMSE:
 sqrt(mean over N and C of e^2).
+
+A refused sample is a prediction row of NaN on every component (an estimator that declines to answer, e.g.
+before its start-up check passed): :class:`ErrorReport` scores the answered rows and reports the answered
+share of the test samples beside them, so a method that declines is not scored as one that errs; the
+refused-as-zero figure (each refusal read as a zero prediction, what the bench scored before) stays as a
+labelled second figure. A row that answers under :data:`ANSWERED_FLOOR` is marked in the report's tables
+and never headlined as a family's best.
 """
 from __future__ import annotations
 
@@ -11,6 +18,21 @@ from dataclasses import dataclass
 import numpy as np
 
 CONTACT_THRESHOLD_N = 1.0  # |F_tip| above this is "in contact" (PROTOCOL 4)
+ANSWERED_FLOOR = 0.95  # a row answering fewer of the test samples is marked and never a family's best
+
+
+def answered(pred: np.ndarray) -> np.ndarray:
+    """(N,) bool: the prediction rows that answer (every component finite); a row of NaN on every component
+    is a refusal. A partial NaN row or an infinity is an error of the model, refused by name."""
+    pred = np.asarray(pred, float)
+    rows = pred.reshape(len(pred), -1)
+    nan = np.isnan(rows)
+    refused = nan.all(axis=1)
+    partial = nan.any(axis=1) & ~refused
+    if partial.any() or np.isinf(rows).any():
+        raise ValueError(f"{int(partial.sum())} predictions are NaN on some components only and "
+                         f"{int(np.isinf(rows).sum())} are inf: a refusal is NaN on every component")
+    return ~refused
 
 
 def rmse(pred: np.ndarray, target: np.ndarray) -> float:
@@ -22,7 +44,7 @@ def rmse(pred: np.ndarray, target: np.ndarray) -> float:
 def rmse_per_component(pred: np.ndarray, target: np.ndarray) -> np.ndarray:
     """RMSE per axis / per joint, shape (C,)."""
     e = np.asarray(pred, float) - np.asarray(target, float)
-    return np.sqrt(np.mean(e**2, axis=0))
+    return np.sqrt(np.mean(e**2, axis=0)) if len(e) else np.full(e.shape[1:], np.nan)
 
 
 def zero_variance_components(target: np.ndarray) -> list[int]:
@@ -40,9 +62,11 @@ def nmse(pred: np.ndarray, target: np.ndarray) -> float:
     throughout as the best; the bench writes the reason beside the row.
     """
     target = np.asarray(target, float)
+    if not len(target):
+        return float("nan")
     e = np.asarray(pred, float) - target
     var = target.var(axis=0)
-    if not len(target) or not np.all(var > 0):
+    if not np.all(var > 0):
         return float("nan")
     return float(np.mean(np.mean(e**2, axis=0) / var))
 
@@ -64,9 +88,9 @@ def base_force_noise_rms(instances) -> float:
     """The base sensor's white-noise RMS per force axis [N]: the floor under every base-sensor estimate.
 
     Measured, not taken from the generator's config: the recorded base force
-    minus its noise-free truth, each instance's mean removed (the per-run bias
-    a tare takes out), pooled over samples and the three axes. NaN when the
-    data carry no truth (real logs).
+    minus its noise-free truth, each instance's straight line in time removed (the per-run bias a tare
+    takes out, and a hardware sensor's linear bias drift, ``sim/sensors.py``), pooled over samples and the
+    three axes. NaN when the data carry no truth (real logs).
     """
     sq, n = 0.0, 0
     for inst in instances:
@@ -74,7 +98,9 @@ def base_force_noise_rms(instances) -> float:
         if truth is None:
             return float("nan")
         e = inst["base_wrench"][:, :3] - truth[:, :3]
-        e = e - e.mean(axis=0)
+        s = np.arange(len(e), dtype=float)  # sample index: the drift is linear in time, the stamps jittered
+        line = np.stack([np.ones_like(s), s], axis=1)
+        e = e - line @ np.linalg.lstsq(line, e, rcond=None)[0]
         sq += float(np.sum(e**2))
         n += e.size
     return float(np.sqrt(sq / n)) if n else float("nan")
@@ -90,19 +116,24 @@ class ErrorReport:
     rmse_contact: float
     rmse_free: float
     max_error: float
-    n_samples: int
+    n_samples: int  # every test sample, answered or refused
+    answered_share: float = 1.0  # of the n_samples, those the model answered (NaN: none to answer)
+    rmse_refused_as_zero: float = float("nan")  # every refusal scored as a zero prediction
 
     @classmethod
     def compute(cls, pred: np.ndarray, target: np.ndarray, tip_force_truth: np.ndarray | None = None) -> "ErrorReport":
-        """``tip_force_truth`` (N, 3) splits samples into contact (|F| > 1 N) and free motion."""
+        """The figures over the answered samples (:func:`answered`); ``tip_force_truth`` (N, 3) splits them
+        into contact (|F| > 1 N) and free motion."""
         pred = np.asarray(pred, float)
         target = np.asarray(target, float)
         if pred.shape != target.shape:
             raise ValueError(f"prediction shape {pred.shape} != target shape {target.shape}")
-        if not np.isfinite(pred).all():
-            raise ValueError(f"{int((~np.isfinite(pred)).sum())} predictions are NaN or inf")
+        ok = answered(pred)
+        as_zero = rmse(np.where(ok[:, None], pred, 0.0), target) if pred.ndim == 2 else float("nan")
+        n = len(pred)
+        pred, target = pred[ok], target[ok]
         if tip_force_truth is not None:
-            contact = np.linalg.norm(tip_force_truth, axis=1) > CONTACT_THRESHOLD_N
+            contact = np.linalg.norm(np.asarray(tip_force_truth, float)[ok], axis=1) > CONTACT_THRESHOLD_N
             rc, rf = rmse(pred[contact], target[contact]), rmse(pred[~contact], target[~contact])
         else:
             rc = rf = float("nan")
@@ -113,5 +144,7 @@ class ErrorReport:
             rmse_contact=rc,
             rmse_free=rf,
             max_error=float(np.abs(pred - target).max()) if pred.size else float("nan"),
-            n_samples=len(pred),
+            n_samples=n,
+            answered_share=float(ok.mean()) if n else float("nan"),
+            rmse_refused_as_zero=as_zero,
         )

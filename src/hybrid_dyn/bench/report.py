@@ -21,9 +21,10 @@ from ..data import package_versions
 from .catalog import reference_label
 from .predictions import PREDICTIONS_FILE, Predictions, PredictionsError
 from .hybrids import hybrid_lines
+from .sensor_control import sensor_control_lines
 from .report_figures import _figures, learning_curve_figures
-from .report_tables import (CAP_MARK, IMPLAUSIBLE_MARK, _cap_mark, _contenders, _is_capped, _ok, notes_by_text,
-                            task_tables)
+from .report_tables import (CAP_MARK, IMPLAUSIBLE_MARK, LOW_ANSWER_MARK, _cap_mark, _contenders, _is_capped, _ok,
+                            answered_share, low_answer, notes_by_text, task_tables)
 from .results import SCORED_STATUSES
 from .row_checks import IMPLAUSIBLE
 from .report_tables import best_row  # noqa: F401  (re-exported: imported from here, e.g. checks/acceptance.py)
@@ -77,6 +78,12 @@ def _headline_notes(rows, ranked, scenario, task) -> list[str]:
     if out:
         lines.append(f"  - not a family's best: {', '.join(f'`{m}` {IMPLAUSIBLE_MARK}' for m in out)}, identified "
                      f"parameters outside the robot's bounds (the bodies are named under `{task}.md`)")
+    few = [r for r in rows if r["scenario"] == scenario and r["task"] == task and low_answer(r)]
+    if few:
+        lines.append("  - not a family's best: " + ", ".join(
+            f"`{r['model']}` {LOW_ANSWER_MARK} (answered {100 * answered_share(r):.1f} % of the test samples, "
+            f"RMSE {float(r['rmse']):.3f} over those)" for r in few)
+            + ": refused the rest (its table lists them)")
     return lines
 
 
@@ -166,6 +173,7 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
         lines += ["", f"{CAP_MARK}: stopped by the epoch cap while still improving; it may not have converged "
                       "(see the learning curves)."]
     lines += hybrid_lines(rows)
+    lines += sensor_control_lines(rows)
     lines += convergence_lines(rows, curve_figures)
     reference_text = reference_comparison_text(rows, read_curves(out_dir / CURVES_FILE))
     if reference_text is not None:  # the reference study's nets are in this report: its tables beside ours

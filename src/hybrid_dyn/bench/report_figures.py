@@ -121,7 +121,9 @@ def _error_vs_force(out_dir: Path, ok, preds: Predictions, scenario: str, test) 
         if fam_preds is None:
             continue
         err = np.linalg.norm(np.concatenate(fam_preds) - np.concatenate([i["tip_force"] for i in test]), axis=1)
-        vals = [np.sqrt(np.mean(err[which == i] ** 2)) if (which == i).any() else np.nan for i in range(len(bins) - 1)]
+        err = np.where(np.isnan(err), np.inf, err)  # a refused sample (NaN) is left out of its bin below
+        vals = [np.sqrt(np.mean(e[np.isfinite(e)] ** 2)) if np.isfinite(e).any() else np.nan
+                for e in (err[which == i] for i in range(len(bins) - 1))]
         ax.plot(range(len(vals)), vals, "o-", label=f"{fam}: {b['model']}")
     ax.set_xticks(range(len(bins) - 1), ["0-1", "1-5", "5-10", "10-15", "15-20", ">20"])
     ax.set_xlabel("|F_tip| true [N]")

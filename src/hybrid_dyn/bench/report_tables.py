@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from .catalog import reference_label
+from .metrics import ANSWERED_FLOOR
 from .results import SCORED_STATUSES
 from .row_checks import IMPLAUSIBLE, row_notes
 from .reference_study import (GAZ2019_VALIDATION_RMSE, REFERENCE_TABLE1, REFERENCE_TABLE2, REFERENCE_TABLE3,
@@ -32,8 +33,24 @@ def _ok(rows):
 # bias cannot be learned from a window), not a contender: labelled in the tables, never a family's best.
 # Which rows they are, and their labels, is declared with the row (``rows.Row.reference``).
 def _contenders(rows):
-    """The scored rows that may be a family's best: every ok row but the reference rows."""
-    return [r for r in _ok(rows) if reference_label(r["model"]) is None]
+    """The scored rows that may be a family's best: every ok row but the reference rows and the rows that
+    answered under ANSWERED_FLOOR of the test samples (``low_answer``)."""
+    return [r for r in _ok(rows) if reference_label(r["model"]) is None and not low_answer(r)]
+
+
+def answered_share(r) -> float:
+    """The row's answered share of the test samples (results.csv ``answered_share``); 1 for a report written
+    before the column (every row then answered every sample: refusals were scored as zero forces)."""
+    v = r.get("answered_share")
+    try:
+        return 1.0 if v in (None, "") else float(v)
+    except (TypeError, ValueError):
+        return float("nan")
+
+
+def low_answer(r) -> bool:
+    """Whether a scored row answered under ANSWERED_FLOOR of the test samples (marked, never a family's best)."""
+    return r.get("status") in SCORED_STATUSES and not answered_share(r) >= ANSWERED_FLOOR
 
 
 def _best(rows, task, scenario, pred) -> dict | None:
@@ -54,7 +71,8 @@ def _table(header: list, body: list) -> str:
 def _latex(header: list, body: list, caption: str) -> str:
     def esc(s):
         return (str(s).replace("_", r"\_").replace("%", r"\%").replace("#", r"\#").replace("&", r"\&")
-                .replace(CAP_MARK, r"$^\dagger$").replace(IMPLAUSIBLE_MARK, r"$^\ddagger$"))
+                .replace(CAP_MARK, r"$^\dagger$").replace(IMPLAUSIBLE_MARK, r"$^\ddagger$")
+                .replace(LOW_ANSWER_MARK, r"\S{}"))
 
     cols = "l" * 2 + "r" * (len(header) - 2)
     out = [r"\begin{table}[ht]", r"\centering", rf"\caption{{{esc(caption)}}}", rf"\begin{{tabular}}{{{cols}}}",
@@ -64,15 +82,19 @@ def _latex(header: list, body: list, caption: str) -> str:
     return "\n".join(out) + "\n"
 
 
-TIP_HEADER = ["model", "family", "inputs", "val loss", "test loss", "RMSE [N]", "RMSE / noise", "RMSE x/y/z [N]",
+TIP_HEADER = ["model", "family", "inputs", "val loss", "test loss", "RMSE [N]", "answered", "RMSE / noise", "RMSE x/y/z [N]",
               "contact", "free", "max err", "train s", "us/sample", "us/call", "params", "epochs (stop)",
               "seed val loss*", "seed test loss*", "seed RMSE* [N]"]
-TAU_HEADER = ["model", "family", "inputs", "val loss", "test loss", "RMSE [Nm]", "RMSE per joint [Nm]",
+TAU_HEADER = ["model", "family", "inputs", "val loss", "test loss", "RMSE [Nm]", "answered", "RMSE per joint [Nm]",
               "contact", "free", "max err", "train s", "us/sample", "us/call", "params", "epochs (stop)",
               "seed val loss*", "seed test loss*", "seed RMSE* [Nm]"]
 N_REFERENCE_COLUMNS = 3  # the headers' last columns: the reference study's published figures
 CAP_MARK = "†"  # a learned row stopped by the epoch cap while still improving (footnoted in each table)
 IMPLAUSIBLE_MARK = "‡"  # an identified row whose parameters are outside the robot's bounds (row_checks.py)
+LOW_ANSWER_MARK = "§"  # a row that answered under ANSWERED_FLOOR of the test samples (metrics.py)
+ANSWERED_NOTE = (f"'answered': the share of the test samples a row answered; a refusal (an estimator declining to "
+                 f"answer, e.g. before its start-up check passed) is not an error, so every error figure is over the "
+                 f"answered samples. {LOW_ANSWER_MARK}: answered under {ANSWERED_FLOOR:.0%}: never a family's best.")
 CAP_FOOTNOTE = (f"{CAP_MARK} Stopped by the epoch cap (`max_epochs`) while its validation loss was still improving: "
                 "this row may not have converged, so its error may overstate what the model can do. Its train and "
                 "validation loss per epoch are in `learning_curves_<scenario>.png`.")
@@ -102,7 +124,13 @@ def _stop_cell(r) -> str:
 
 def _model_cell(r) -> str:
     label = reference_label(r["model"])
-    return (f"{r['model']} ({label})" if label else r["model"]) + implausible_mark(r)
+    return (f"{r['model']} ({label})" if label else r["model"]) + implausible_mark(r) \
+        + (f" {LOW_ANSWER_MARK}" if low_answer(r) else "")
+
+
+def _answered_cell(r) -> str:
+    share = answered_share(r)
+    return "-" if share != share else f"{100 * share:.1f} %"
 
 
 def implausible_mark(r) -> str:
@@ -143,10 +171,22 @@ def _row_cells(r, task, scenario):
     # Tip force: the RMSE as a multiple of the base sensor's per-axis noise RMS (the limit of a base-sensor method).
     over_noise = [_f(_ratio(r.get("rmse"), r.get("noise_rms")), 2)] if task == "tip_force" else []
     return [_model_cell(r), r["family"], r.get("inputs", ""), _f(r["val_loss"]), _f(r["test_loss"]), _f(r["rmse"]),
-            *over_noise, per,
+            _answered_cell(r), *over_noise, per,
             _f(r.get("rmse_contact")), _f(r.get("rmse_free")), _f(r.get("max_error"), 2), _f(r.get("train_seconds"), 1),
             _f(r.get("infer_us_per_sample"), 2), _f(r.get("infer_us_per_call"), 1), r.get("n_params", "") or "0",
             _stop_cell(r), *(_f(s) for s in (published or ("", "", "")))]
+
+
+def refusal_lines(rows, unit: str) -> list[str]:
+    """Under a table: the rows that refused samples, with the refused-as-zero RMSE (each refusal scored as a
+    zero prediction, the figure the bench gave before refusals were told apart) beside their own."""
+    refusing = [r for r in rows if r.get("status") in SCORED_STATUSES and answered_share(r) < 1.0]
+    if not refusing:
+        return []
+    return [ANSWERED_NOTE + f" Rows that refused samples (RMSE over the answered ones; with every refusal scored "
+            f"as a zero, results.csv `rmse_refused_as_zero`) [{unit}]: "
+            + "; ".join(f"`{r['model']}` {_answered_cell(r)} answered, {_f(r['rmse'])} (as zero: "
+                        f"{_f(r.get('rmse_refused_as_zero'))})" for r in refusing) + ".", ""]
 
 
 def _ratio(a, b) -> float:
@@ -192,12 +232,13 @@ def task_tables(rows, task: str) -> tuple[str, str]:
             md += [f"Base sensor noise RMS per force axis: {noise[0]:.4f} N (recorded minus noise-free force on the "
                    "test split, each run's bias removed); 'RMSE / noise' is each row's RMSE in that unit.", ""]
         md += [_table(header, body), ""]
+        md += refusal_lines(here, unit)
         md += notes_lines(here)
         caption = f"{title}, {scenario}"
         if capped:
             md += [CAP_FOOTNOTE.replace("<scenario>", scenario) + f" Here: {', '.join(f'`{m}`' for m in capped)}.", ""]
             caption += f"; {CAP_MARK} stopped by the epoch cap while still improving: may not have converged"
-        keep = 6  # model, family, inputs, losses, RMSE; then epochs (stop) and the seed's figures
+        keep = 7  # model, family, inputs, losses, RMSE, answered; then epochs (stop) and the seed's figures
         tail = N_REFERENCE_COLUMNS + (1 if with_stop else 0)
         tex.append(_latex(header[:keep] + header[-tail:], [b[:keep] + b[-tail:] for b in body], caption))
     if task == "tip_force":

@@ -26,6 +26,10 @@ COLUMNS = [
     # scoring (predicting val and test, the metrics, the timed single calls). Last: a report written
     # before them lacks them, read as "not recorded".
     "train_cpu_seconds", "score_cpu_seconds",
+    # The share of the test samples the row answered (a refusal: NaN predictions, metrics.answered); every
+    # error figure above is over the answered ones. rmse_refused_as_zero: the RMSE with each refusal scored as
+    # a zero prediction (what the bench scored before). Last, as above: older reports lack them.
+    "answered_share", "rmse_refused_as_zero",
 ]
 # The statuses of a scored row (numbers, stored predictions): "implausible" is an identified row whose parameters
 # are outside the robot's bounds (row_checks.py): in the tables with its note, never a family's best.

@@ -51,7 +51,7 @@ from .catalog import ROWS, get_row  # noqa: F401  (ROWS: every declared row)
 from .integrity import DIGEST_KEY, REPORT_FILES, read_run_json, results_digest, row_key
 from .invocations import InvocationClock, caches_empty, claim_report_dir
 from .learned_rows import PRESET_ROWS
-from .metrics import ErrorReport, base_force_noise_rms, standardized_mse
+from .metrics import ErrorReport, answered, base_force_noise_rms, standardized_mse
 from .predictions import PREDICTIONS_FILE, PredictionWriter
 from .plan import BenchContext, BenchPlan, is_dataset_path, scenario_label
 from .profiles import BenchProfile
@@ -102,7 +102,8 @@ def score_row(spec: Row, ctx: BenchContext, norm: dict) -> dict:
         preds = pred_obj.predict(insts)
         elapsed = time.perf_counter() - t0
         pred = np.concatenate(preds)
-        losses[split] = standardized_mse(pred, tgt, mean, std)
+        ok = answered(pred)  # a refused sample (NaN) is no error: the answered share says how many there were
+        losses[split] = standardized_mse(pred[ok], tgt[ok], mean, std)
         if split == "test":
             f_truth = (np.concatenate([i.truth.get("tip_force", i["tip_force"]) for i in insts])
                        if "tip_force" in ds.fields else None)
@@ -116,7 +117,8 @@ def score_row(spec: Row, ctx: BenchContext, norm: dict) -> dict:
             test_target = tgt
     row.update(val_loss=losses["val"], test_loss=losses["test"], rmse=report.rmse, nmse=report.nmse,
                rmse_contact=report.rmse_contact, rmse_free=report.rmse_free, max_error=report.max_error,
-               n_test_samples=report.n_samples)
+               n_test_samples=report.n_samples, answered_share=report.answered_share,
+               rmse_refused_as_zero=report.rmse_refused_as_zero)
     for j, v in enumerate(report.per_component):
         row[f"rmse_{j + 1}"] = float(v)
     if pred_obj.sigma_coverage is not None:

@@ -14,6 +14,8 @@ name            plant                                                    externa
 =============== ======================================================== ==============
 ``paper-noext`` URDF inertials (Gaz 2019) + Gaz sigmoid friction         none
 ``paper-ext``   same                                                     bell pulses
+``paper-ext-ideal`` as paper-ext, read by the legacy ideal sensors       as paper-ext
+                (:class:`NoiseConfig`): the control
 ``mismatch-ext``the robot's alternative inertials (the Panda: the        bell pulses
                 manufacturer's) + 0.5 kg tool + Gaz friction, base
                 sensor mounted 1 mm / 1 deg off its nominal pose
@@ -21,12 +23,22 @@ name            plant                                                    externa
                                                                          contacts
 ``contact-steps-quiet`` as contact-steps, base sensor noise 0.05 N      as contact-steps
                 (0.0025 Nm) instead of 0.2 N (0.01 Nm)
-``contact-steps-hardware`` as contact-steps, read by hardware sensors    as contact-steps,
-                (``sim/sensors.py``: quantized encoders, qd their        a touch in the
-                difference, F/T drift, stamp jitter)                      first 0.5 s in 1/3
+``contact-steps-hardware`` as contact-steps                              as contact-steps,
+                                                                         a touch in the
+                                                                         first 0.5 s in 1/3
 ``seed-sim``    as paper-ext, recorded as the seed's 3.1: every 50 ms,   bell pulses
                 exact simulator states (qdd too), no noise or bias
 =============== ======================================================== ==============
+
+Sensors: every scenario but ``paper-ext-ideal`` and ``seed-sim`` is read as a real arm's sensors read
+it (``GeneratorConfig.sensors``, :data:`HARDWARE_SENSORS`, ``sim/sensors.py``): the plant runs at 1 kHz
+and the drive reads its encoders there, q quantized to the robot's encoder resolution (recorded in the
+config: the Panda's 1e-5 rad) and qd the difference of it; the log keeps every n-th reading (a sample,
+not an average); the base F/T sensor has white noise, a per-run bias and a bias drift, the link-side
+torques white noise, the recorded stamps ``t`` a jitter. The controller reads the true state.
+``paper-ext-ideal`` is ``paper-ext`` (the same trajectories and pulses: they depend on the seed alone)
+read by the legacy :class:`NoiseConfig` (independent white noise on q and qd, a constant bias), the
+sensors every scenario had before: the report's row-by-row control of what the hardware read costs.
 
 ``contact-steps`` is recorded at the control rate (1 kHz), because a 10 ms sample
 step hides what a force step does to an estimator; its instances are fewer and
@@ -36,11 +48,8 @@ shorter than the other scenarios' (10x the samples per second).
 estimators' bandwidth is chosen from the measured noise (``analytic/bandwidth.py``),
 so this is where its answer must change.
 
-``contact-steps-hardware`` reads the same kind of run as a real arm's sensors read it
-(``GeneratorConfig.sensors``, :data:`HARDWARE_SENSORS`): q quantized to the robot description's
-encoder resolution, qd the drive's difference of it, the base sensor with a bias drift, the recorded
-stamps ``t`` jittered; a third of its instances are touched inside the tare window. The other
-scenarios keep the legacy :class:`NoiseConfig` and so their hashes and cached datasets.
+``contact-steps-hardware`` adds to ``contact-steps`` a touch inside the tare window in a third of its
+instances.
 
 ``seed-sim`` reproduces the seed's own data conditions (its section 3.1), so its
 Tables 2 and 3 can be met on like data: the plant, controller, pulses and
@@ -197,6 +206,10 @@ class GeneratorConfig:
         if self.sensors is not None and self.noise != NoiseConfig.off():
             raise ConfigError("sensors=HardwareSensors(...) reads the run; noise must then be NoiseConfig.off() "
                               "(one sensor model per dataset)")
+        if self.sensors is not None and self.sensors.encoder.resolution is None:
+            # The robot's own resolution, written into the config: its dict, hash and manifest name the number.
+            enc = dataclasses.replace(self.sensors.encoder, resolution=_robot_encoder_resolution(self.robot))
+            object.__setattr__(self, "sensors", dataclasses.replace(self.sensors, encoder=enc))
 
     @property
     def decimation(self) -> int:
@@ -233,15 +246,8 @@ class GeneratorConfig:
     @property
     def encoder_resolution(self) -> float:
         """The recorded q's resolution [rad]: 0 for the legacy sensor model (q with white noise, not
-        quantized), else the hardware encoder's (its own, or the robot description's)."""
-        if self.sensors is None:
-            return 0.0
-        res = self.sensors.encoder.resolution
-        if res is None:
-            from ..description import load_spec, parse_robot_name
-
-            res = load_spec(parse_robot_name(self.robot)[0]).encoder_resolution
-        return float(res)
+        quantized), else the hardware encoder's (its own, or the robot description's, resolved when made)."""
+        return 0.0 if self.sensors is None else float(self.sensors.encoder.resolution)
 
     @property
     def has_external_force(self) -> bool:
@@ -278,6 +284,17 @@ class GeneratorConfig:
         return hashlib.sha256(doc.encode()).hexdigest()[:16]
 
 
+def _robot_encoder_resolution(robot: str) -> float:
+    """The encoder resolution [rad] the description of ``robot`` states (the hardware sensors' default)."""
+    from ..description import RobotDescriptionError, load_spec, parse_robot_name
+
+    try:
+        return float(load_spec(parse_robot_name(robot)[0]).encoder_resolution)
+    except RobotDescriptionError as err:
+        raise ConfigError(f"hardware sensors without an encoder resolution take the robot description's: {err}; "
+                          "give EncoderModel(resolution=...)") from err
+
+
 def _jsonable(x):
     if isinstance(x, dict):
         return {k: _jsonable(v) for k, v in x.items()}
@@ -311,16 +328,20 @@ SEED_SIM_SIZES = {
     "paper": dict(n_instances=1000, trajectories=(5, 50)),
 }
 
-# contact-steps-hardware's sensors: the robot description's encoder resolution (the Panda:
-# 1e-5 rad), qd the drive's difference of it, link-side torques at 0.05 Nm, the base F/T sensor at
-# 0.2 N / 0.01 Nm white noise with a per-stream bias and a drift of 0.025 N/s (0.3 N over 12 s) and
-# 0.00125 Nm/s, stamps jittered by 0.2 ms (sigma, clipped at 0.5 ms).
+# The simulated scenarios' sensors (all but paper-ext-ideal and seed-sim): the robot description's encoder
+# resolution (the Panda: 1e-5 rad; GeneratorConfig writes the number into its config), qd the drive's
+# difference of it, link-side torques at 0.05 Nm, the base F/T sensor at 0.2 N / 0.01 Nm white noise with a
+# per-stream bias and a drift of 0.025 N/s (0.3 N over 12 s) and 0.00125 Nm/s, stamps jittered by 0.2 ms (sigma, clipped at 0.5 ms).
 HARDWARE_SENSORS = HardwareSensors(
     encoder=EncoderModel(resolution=None, velocity="difference"),
     base=ForceTorqueModel(force_noise=0.2, torque_noise=0.01, force_bias=2.0, torque_bias=0.1,
                           force_drift=0.025, torque_drift=0.00125),
     clock=ClockModel(jitter=2e-4, max_jitter=5e-4),
     tau_J_noise=0.05)
+# contact-steps-quiet's: the same with the quieter base sensor.
+QUIET_HARDWARE_SENSORS = dataclasses.replace(HARDWARE_SENSORS, base=dataclasses.replace(
+    HARDWARE_SENSORS.base, force_noise=QUIET_BASE_NOISE["force"], torque_noise=QUIET_BASE_NOISE["torque"]))
+HARDWARE = dict(noise=NoiseConfig.off(), sensors=HARDWARE_SENSORS)  # a scenario's overrides: read as hardware
 
 # mismatch-ext: the unmodelled tool and the misaligned sensor.
 MISMATCH_PAYLOAD = (0.5, (0.01, 0.0, -0.04))  # kg; m from panda_hand_tcp, between the fingers and the flange
@@ -393,27 +414,30 @@ def alternative_params(robot: str) -> str:
 
 
 for _scenario in (
-    Scenario("paper-noext", "URDF inertials (Gaz 2019) + Gaz sigmoid friction; no external force",
-             overrides=dict(pulses=None), seed_dataset="sim-noext"),
-    Scenario("paper-ext", "as paper-noext, with the seed's bell pulses at the tool", seed_dataset="sim-ext"),
+    Scenario("paper-noext", "URDF inertials (Gaz 2019) + Gaz sigmoid friction; no external force; hardware sensors",
+             overrides=dict(pulses=None, **HARDWARE), seed_dataset="sim-noext"),
+    Scenario("paper-ext", "as paper-noext, with the seed's bell pulses at the tool", overrides=dict(HARDWARE),
+             seed_dataset="sim-ext"),
+    Scenario("paper-ext-ideal", "as paper-ext (the same runs), read by the legacy ideal sensors: white noise on q "
+             "and qd, a constant base-sensor bias (the control of the hardware read)"),
     Scenario("mismatch-ext", "the robot's alternative inertials + a 0.5 kg tool + Gaz friction, the base sensor "
-             "1 mm / 1 deg off its nominal pose; bell pulses",
+             "1 mm / 1 deg off its nominal pose; bell pulses; hardware sensors",
              overrides=dict(payload=MISMATCH_PAYLOAD, sensor_translation=MISMATCH_SENSOR_TRANSLATION,
-                            sensor_rotation=MISMATCH_SENSOR_ROTATION),
+                            sensor_rotation=MISMATCH_SENSOR_ROTATION, **HARDWARE),
              seed_dataset="sim-ext", alternative_plant=True),
     Scenario("contact-steps", "as paper-ext, recorded at 1 kHz; step and trapezoid contacts instead of pulses",
-             overrides=dict(pulses=None, contact_steps=ContactStepConfig(), record_hz=1000.0),
+             overrides=dict(pulses=None, contact_steps=ContactStepConfig(), record_hz=1000.0, **HARDWARE),
              sizes=CONTACT_STEPS_SIZES),
     Scenario("contact-steps-quiet", "as contact-steps, the base sensor's noise 0.05 N (0.0025 Nm) instead of "
              "0.2 N (0.01 Nm)",
              overrides=dict(pulses=None, contact_steps=ContactStepConfig(), record_hz=1000.0,
-                            noise=NoiseConfig(**QUIET_BASE_NOISE)),
+                            noise=NoiseConfig.off(), sensors=QUIET_HARDWARE_SENSORS),
              sizes=CONTACT_STEPS_SIZES),
-    Scenario("contact-steps-hardware", "as contact-steps, read by hardware sensors: quantized encoders (the "
-             "robot's resolution) with qd their difference, F/T noise 0.2 N with a 0.025 N/s bias drift, 0.2 ms "
-             "stamp jitter, tau_J 0.05 Nm; a touch inside the first 0.5 s in a third of the instances",
+    Scenario("contact-steps-hardware", "as contact-steps, a touch inside the first 0.5 s in a third of the "
+             "instances; hardware sensors (quantized encoders at the robot's resolution with qd their "
+             "difference, F/T noise 0.2 N with a 0.025 N/s bias drift, 0.2 ms stamp jitter, tau_J 0.05 Nm)",
              overrides=dict(pulses=None, contact_steps=ContactStepConfig(), record_hz=1000.0,
-                            noise=NoiseConfig.off(), sensors=HARDWARE_SENSORS, start_touch=StartTouchConfig()),
+                            start_touch=StartTouchConfig(), **HARDWARE),
              sizes=CONTACT_STEPS_SIZES),
     # The seed's 3.1: a 50 ms step, the simulator's exact states, noise-free sensors.
     Scenario("seed-sim", "as paper-ext, recorded as the seed's 3.1: every 50 ms, exact simulator states "

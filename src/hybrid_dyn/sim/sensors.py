@@ -11,13 +11,15 @@ Two families live here, each defined once:
   difference through a stated first-order filter), link-side joint torque sensors with white noise,
   a 6-axis base F/T sensor with white noise, a per-stream bias, a linear bias drift and a delay, and
   the timestamps a control PC puts on the samples (jitter). One closed-loop stream simulator
-  (``sim/stream.py``) reads a stream through them (``read_sensors``), as does the generator for its
-  ``contact-steps-hardware`` scenario (``GeneratorConfig.sensors``); the stream serves the tests,
+  (``sim/stream.py``) reads a stream through them (``read_sensors``), as does the generator for every
+  simulated scenario of the bench but two (``GeneratorConfig.sensors``): the drive reads the encoders
+  at the control rate (1 kHz) and the log keeps every n-th reading; the stream serves the tests,
   ``benchmarks/``, ``checks/`` and ``examples/``.
 
-The older :class:`~hybrid_dyn.sim.scenarios.NoiseConfig` (independent white noise on q and qd) stays
-the sensor model of the scenarios whose datasets are cached; a real qd is made from q, so new
-scenarios use :class:`HardwareSensors`.
+The older :class:`~hybrid_dyn.sim.scenarios.NoiseConfig` (independent white noise on q and qd, a constant
+base-sensor bias: sensors no robot has) is kept for the ideal-sensor control ``paper-ext-ideal`` and the
+seed's conditions ``seed-sim``; a real qd is made from q, so every other scenario uses
+:class:`HardwareSensors`.
 """
 from __future__ import annotations
 
@@ -61,7 +63,7 @@ class ForceTorqueModel:
     """The base 6-axis F/T sensor. force_noise [N] / torque_noise [Nm]: white, per axis. force_bias [N] /
     torque_bias [Nm]: a per-stream offset drawn uniformly in [-bias, bias] per axis. force_drift [N/s] /
     torque_drift [Nm/s]: a linear bias drift at that rate along a random direction. delay [s]: the
-    sample reaches the controller this late (a whole number of periods)."""
+    sample reaches the controller this late (a whole number of logged periods)."""
 
     force_noise: float = 0.2
     torque_noise: float = 0.01
@@ -130,30 +132,40 @@ def encoder_resolution(robot, encoder: EncoderModel) -> float:
 
 
 def read_sensors(robot, sensors: HardwareSensors, dt: float, q, qd, tau_J, base_wrench,
-                 rng: np.random.Generator) -> SensorReadings:
-    """What ``sensors`` report of a true run sampled every ``dt`` [s]: q, qd (n, nv), link-side joint
-    torques tau_J (n, nv) and the base wrench (n, 6), all true. The draws come from ``rng`` in a fixed
-    order (bias, drift direction, F/T noise, torque noise, jitter, then encoder noise where stated), so a
-    seed fixes the stream."""
+                 rng: np.random.Generator, every: int = 1) -> SensorReadings:
+    """What ``sensors`` report of a true run: q, qd (n, nv) sampled every ``dt`` [s] (the control rate, where
+    the drive reads its encoders and differences them), and a log that keeps every ``every``-th sample (a
+    logger samples, it does not average): link-side joint torques tau_J (m, nv) and the base wrench (m, 6),
+    all true, given at those m = ceil(n / every) logged samples. Returns the m logged readings, stamped on
+    the logged period ``dt * every``. The draws come from ``rng`` in a fixed order (bias, drift direction,
+    F/T noise, torque noise, jitter, then encoder noise where stated), so a seed fixes the stream (with
+    ``every=1``, the order and draws of a stream read sample by sample)."""
     q, qd = np.asarray(q, float), np.asarray(qd, float)
-    n = len(q)
+    every = int(every)
+    if every < 1:
+        raise ValueError(f"read_sensors: every must be a whole number of samples >= 1, got {every!r}")
+    m = -(-len(q) // every)
+    if len(tau_J) != m or len(base_wrench) != m:
+        raise ValueError(f"read_sensors: tau_J and base_wrench need the {m} logged samples of {len(q)} read every "
+                         f"{every}, got {len(tau_J)} and {len(base_wrench)}")
+    period = dt * every
     b = sensors.base
     scale = np.r_[np.full(3, b.force_bias), np.full(3, b.torque_bias)]
     bias = rng.uniform(-1, 1, 6) * scale
     direction = rng.normal(size=(2, 3))
     direction /= np.linalg.norm(direction, axis=1, keepdims=True)
-    t_true = np.arange(n) * dt
+    t_true = np.arange(m) * period
     drift = np.concatenate([b.force_drift * direction[0], b.torque_drift * direction[1]])
-    noise = rng.normal(size=(n, 6)) * np.r_[np.full(3, b.force_noise), np.full(3, b.torque_noise)]
+    noise = rng.normal(size=(m, 6)) * np.r_[np.full(3, b.force_noise), np.full(3, b.torque_noise)]
     w = np.asarray(base_wrench, float) + bias + t_true[:, None] * drift + noise
-    lag = int(round(b.delay / dt))
+    lag = int(round(b.delay / period))
     if lag:
         w = np.concatenate([np.repeat(w[:1], lag, axis=0), w[:-lag]])
-    tau = np.asarray(tau_J, float) + rng.normal(size=(n, q.shape[1])) * sensors.tau_J_noise
+    tau = np.asarray(tau_J, float) + rng.normal(size=(m, q.shape[1])) * sensors.tau_J_noise
     c = sensors.clock
-    jitter = np.clip(rng.normal(size=n) * c.jitter, -c.max_jitter, c.max_jitter) if c.jitter > 0 else np.zeros(n)
+    jitter = np.clip(rng.normal(size=m) * c.jitter, -c.max_jitter, c.max_jitter) if c.jitter > 0 else np.zeros(m)
     q_read, qd_read = _read_encoders(robot, sensors.encoder, dt, q, qd, rng)
-    return SensorReadings(t_true + jitter, q_read, qd_read, tau, w, bias, drift)
+    return SensorReadings(t_true + jitter, q_read[::every], qd_read[::every], tau, w, bias, drift)
 
 
 def _read_encoders(robot, enc: EncoderModel, dt: float, q, qd, rng) -> tuple:

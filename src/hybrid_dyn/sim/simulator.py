@@ -177,7 +177,7 @@ class Simulator:
             "tau_J": tau_J, "base_wrench": W_rec, "tip_force": f_tip,
         }
         if cfg.sensors is not None:
-            return self._hardware_sensors(truth, q_ref, Q, rng)
+            return self._hardware_sensors(truth, q_ref, Q, QD, rng)
         qd_meas_fast = QD + n_qd
         if cfg.qdd_source == "exact":
             qdd = QDD_rec  # the seed's simulated data: the simulator's acceleration at the recorded step
@@ -198,15 +198,17 @@ class Simulator:
         attrs = {**_tracking(q_ref, Q), "base_wrench_bias": bias, "duration_s": float(len(Q) * cfg.dt)}
         return SimulatedRun(fields, truth, attrs)
 
-    def _hardware_sensors(self, truth, q_ref, Q, rng) -> SimulatedRun:
-        """The recorded truth read by ``config.sensors`` (``sim/sensors.read_sensors``, the one sensor model
-        of the stream simulator too) at the recording period: quantized q, the drive's qd, noisy tau_J, the
-        base sensor with bias, drift and delay, jittered stamps ``t``; qdd the causal estimate from that
-        qd (as on a real arm, or DART's with ``qdd_source="exact"``)."""
+    def _hardware_sensors(self, truth, q_ref, Q, QD, rng) -> SimulatedRun:
+        """The run read by ``config.sensors`` (``sim/sensors.read_sensors``, the one sensor model of the
+        stream simulator too): the drive reads the encoders at the control rate, ``dt`` (quantized q of the
+        true Q, QD at every step; qd the drive's difference of it), and the log keeps every ``decimation``-th
+        reading, a sample, not an average; at the logged samples noisy tau_J, the base sensor with bias,
+        drift and delay, jittered stamps ``t``. qdd is the causal estimate from the logged qd at the logged
+        period (what an estimator reading the log computes), or DART's with ``qdd_source="exact"``."""
         cfg = self.config
         period = cfg.dt * cfg.decimation
-        r = read_sensors(self.nominal, cfg.sensors, period, truth["q"], truth["qd"], truth["tau_J"],
-                         truth["base_wrench"], rng)
+        r = read_sensors(self.nominal, cfg.sensors, cfg.dt, Q, QD, truth["tau_J"], truth["base_wrench"], rng,
+                         every=cfg.decimation)
         qdd = truth["qdd"] if cfg.qdd_source == "exact" else causal_acceleration(r.qd, period, cfg.qdd_cutoff_hz)
         fields = {"t": truth["t"] + (r.t - np.arange(len(r.t)) * period), "q": r.q, "qd": r.qd, "qdd": qdd,
                   "tau_m": truth["tau_m"], "tau_J": r.tau_J, "base_wrench": r.base_wrench,
@@ -238,7 +240,8 @@ def simulate_reference(config: GeneratorConfig, t, q_ref, qd_ref, qdd_ref, seed:
     optional, in the base frame at the tool point. The arm starts on the
     reference at rest. Returns fields at ``config.record_hz``:
 
-    - ``q``, ``qd``: true state plus white noise (``config.noise``);
+    - ``q``, ``qd``: true state plus white noise (``config.noise``), or as ``config.sensors`` read them
+      (quantized q, the drive's difference of it at the control rate, logged every n-th step);
     - ``qdd``: causal estimate from the measured qd (``sensors.py``), never DART's,
       unless ``config.qdd_source == "exact"`` (``seed-sim``): then DART's acceleration;
     - ``tau_m``: the commanded motor torque (friction included, noise-free: it is
