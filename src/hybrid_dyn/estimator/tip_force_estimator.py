@@ -315,8 +315,8 @@ class TipForceEstimator:
             self.last_status = EstimatorStatus.INPUT_REJECTED
             self.last_rejection = str(err)
             return self._last_good.copy()
-        if resumed:
-            self._restart_dynamics(t - self._gate.last_t)
+        if resumed:  # the samples lost, counted on the stream's clock (not by the stamps' own jitter)
+            self._restart_dynamics((self._gate.lost_ticks + 1) / self.config.call_hz)
         wrong_rate = False
         if t is not None:
             self._gate.last_t = t
