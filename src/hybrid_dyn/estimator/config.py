@@ -127,7 +127,7 @@ class EstimatorConfig:
     retare_seconds: float = 2.0
     max_tare_offset: float = 20.0
     frozen_calls: int = 20
-    off_tool_moment: float = 0.5
+    off_tool_moment: float = 1.0
     off_tool_torque: float = 1.0
     off_tool_seconds: float = 0.05
     # The registered bandwidth parameters without a field of their own (a method registered later): name -> value.
