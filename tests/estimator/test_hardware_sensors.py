@@ -143,8 +143,9 @@ def test_jittered_stamps_are_used_not_refused_and_change_nothing(panda):
 
 
 def test_a_drifting_base_sensor_is_followed_at_standstill(panda):
-    """The arm holds still, nothing touches it, the base sensor's bias drifts by 0.05 N/s for 40 s: the tare
-    follows it (the error stays under 0.5 N); with the follower's time constant beyond the run it reaches 2 N."""
+    """The arm holds still, nothing touches it, the base sensor's bias drifts by 0.05 N/s for 40 s, the rate the
+    sensor is declared with (base_drift_rate): the tare follows it (the error stays under 0.5 N); with the
+    follower's time constant beyond the run it reaches 2 N."""
     rng = np.random.default_rng(7)
     n = 40000
     q = np.tile(panda.spec.home, (n, 1))
@@ -153,11 +154,33 @@ def test_a_drifting_base_sensor_is_followed_at_standstill(panda):
     w = w0 + 1.0 + drift + rng.normal(0, 0.2, (n, 6)) * np.r_[1, 1, 1, 0.05, 0.05, 0.05]
     last = {}
     for label, tau in (("followed", 2.0), ("not followed", float("inf"))):
-        est = TipForceEstimator.analytic(panda, "base-momentum", call_hz=HZ, retare_seconds=tau)
+        est = TipForceEstimator.analytic(panda, "base-momentum", call_hz=HZ, retare_seconds=tau, base_drift_rate=0.05)
         for k in range(n):
             f = est.estimate_tip_force(q[k], np.zeros(7), base_wrench=w[k], t=k / HZ)
         last[label] = np.linalg.norm(f)
     assert last["followed"] < 0.5 and last["not followed"] > 1.5, last
+
+
+def test_a_contact_building_slowly_at_standstill_is_not_tared_away(panda):
+    """A force ramping at 0.3 N/s to 3 N at a standstill, held, released: the follower moves no faster than the
+    sensor's stated drift (0.025 N/s), so the held force reads within 0.5 N and after the release no ok call
+    reads more than 0.5 N (the ground truth: the model's own base wrench with the tip force)."""
+    rng = np.random.default_rng(8)
+    n = 18000
+    t = np.arange(n) / HZ
+    q = np.tile(panda.spec.home, (n, 1))
+    mag = np.interp(t, [0, 1.0, 11.0, 14.0, 14.001, 18.0], [0, 0, 3.0, 3.0, 0, 0])
+    f_true = mag[:, None] * np.array([0.6, 0.0, -0.8])
+    w = panda.base_wrench(q, np.zeros_like(q), np.zeros_like(q), tip_force=f_true) + 1.0
+    w = w + rng.normal(0, 0.2, (n, 6)) * np.r_[1, 1, 1, 0.05, 0.05, 0.05]
+    est = TipForceEstimator.analytic(panda, "base-momentum", call_hz=HZ)
+    err, ok = np.empty(n), np.empty(n, bool)
+    for k in range(n):
+        f = est.estimate_tip_force(q[k], np.zeros(7), base_wrench=w[k], t=t[k])
+        err[k], ok[k] = np.linalg.norm(f - f_true[k]), est.last_status is EstimatorStatus.OK
+    held, after = (t > 12.0) & (t < 14.0), t > 14.2
+    assert err[held].max() < 0.5 and ok[held].mean() > 0.9, (err[held].max(), ok[held].mean())
+    assert err[after & ok].max() < 0.5 and ok[after].mean() > 0.9
 
 
 def test_a_declared_payload_is_removed_by_the_joint_torque_methods(panda):

@@ -15,7 +15,9 @@ A tip-force estimate errs for four reasons, each with a term (per axis, added in
   method grows by 0.1-0.15 N per axis per rad/s^2 of joint acceleration. Without the filter (exact
   encoders, a learned model) the term is 0: nothing lags the arm's accelerations but what the lag
   term sees;
-- **drift**: a base sensor's bias moves after its tare: ``drift_rate`` [N/s] times the time since it.
+- **drift**: a base sensor's bias moves after its tare: ``drift_rate`` [N/s] (the sensor's stated rate,
+  ``description.sensor_noise.SENSOR_DRIFT``) times the time since the tare was last verified (set, or
+  followed at a standstill with no contact).
 
 Calibration: NOISE_GAIN = 1.3, LAG_NOISE_SIGMAS = 1 and motion_gain = 0.1 were chosen on streams of
 ``benchmarks/tip_force_stream.py`` that its table does not use (seeds 200-201 of ``hardware``, 202
@@ -33,13 +35,15 @@ import math
 import numpy as np
 from numba import njit
 
+from ..description.sensor_noise import SENSOR_DRIFT
+
 FAST_SECONDS = 0.02  # the running mean the lag and noise terms are taken against [s]
 SLOW_SECONDS = 1.0   # the noise term's averaging time [s]
 LAG_NOISE_SIGMAS = 1.0  # a deviation within this many noise sigmas is noise, not lag
 NOISE_GAIN = 1.3  # the noise term's factor over the measured deviation variance
 NOISE_FLOOR = 0.05   # [N]: the noise term's least step, so that it can grow from a noise-free start
 MOTION_GAIN = 0.1    # [N per rad/s^2]: the motion term's default (EstimatorConfig.motion_sigma_gain)
-DRIFT_RATE = 0.005   # [N/s]: the drift term's default (EstimatorConfig.base_drift_rate)
+DRIFT_RATE = SENSOR_DRIFT.base_force  # [N/s]: the drift term's default (EstimatorConfig.base_drift_rate)
 
 
 class ErrorBar:

@@ -106,6 +106,10 @@ class JointStateFilter:
         self._started = True
         return self.x[0], self.x[1], self.x[2]
 
+    def settle_calls(self) -> int:
+        """Calls from a start (at rest) until a motion's qd and qdd have converged: 8 / omega [s]."""
+        return int(math.ceil(8.0 / self.design.omega * self.design.rate_hz))
+
     def coast(self, steps: int, max_steps: int = 50) -> None:
         """``steps`` samples lost: predict across them, or start over when more than ``max_steps`` were
         (beyond ~50 ms a constant acceleration is no prediction of an arm's motion)."""

@@ -340,7 +340,7 @@ register(Method("kalman-fusion", "both sensors fused by a Kalman filter (a call 
 def run_batch(method: str | Method, robot: Robot, rate_hz: float, q, qd, base_wrench=None, tau_J=None,
               tare_seconds: float = 0.5, value=None, stream: MethodStream | None = None,
               encoder_resolution="auto", joint_filter_bandwidth="auto", with_sigma: bool = False,
-              tare_contact_force: float = 1.0, error_bar=None):
+              tare_contact_force: float = 1.0, error_bar=None, _qdd_joint=None, _joint=None):
     """What ``TipForceEstimator`` gives over one run (N, ...) with every sample present, as a batch:
     (forces (N, 3) [N], the bandwidth used), and with ``with_sigma`` the error bar (N, 3) [N] too (inf
     where the estimator has no settled estimate; ``error_bar``: an ``error_bar.ErrorBar`` to
@@ -366,6 +366,16 @@ def run_batch(method: str | Method, robot: Robot, rate_hz: float, q, qd, base_wr
         q, qd, qdd_joint = joint.run(q)
     w = None if base_wrench is None else np.asarray(base_wrench, float)
     tau = None if tau_J is None else np.asarray(tau_J, float)
+    # The estimator's window waits for the joint-state filter to converge (a tare in motion): as it does.
+    wait = joint.settle_calls() if joint is not None and m.tares and tare_seconds > 0 else 0
+    if wait:
+        head = run_batch(m, robot, rate_hz, q[wait:], qd[wait:], None if w is None else w[wait:],
+                         None if tau is None else tau[wait:], tare_seconds, value, stream, 0.0,
+                         joint_filter_bandwidth, with_sigma, tare_contact_force, error_bar, _qdd_joint=qdd_joint[wait:], _joint=joint)
+        pad = lambda x, fill: np.concatenate([np.full((wait, 3), fill), x])  # noqa: E731
+        return (pad(head[0], 0.0), head[1]) + ((pad(head[2], np.inf),) if with_sigma else ())
+    qdd_joint = _qdd_joint if qdd_joint is None else qdd_joint
+    joint = _joint if joint is None else joint  # (the recursion above: its noise, not its filtering)
     n, dt = tare_samples(rate_hz, tare_seconds), 1.0 / rate_hz
     out = np.zeros((len(q), 3))
     if n >= len(q) or n < 8:

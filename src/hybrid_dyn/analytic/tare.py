@@ -67,6 +67,7 @@ class StreamingTare:
         self.robot = robot
         self.n_calls = int(n_calls)
         self.residuals = np.zeros((self.n_calls, 3))  # per window call: measured - model force [N]
+        self.moments = np.zeros((self.n_calls, 3))  # and moment [Nm]
         self.reset()
 
     def reset(self) -> None:
@@ -83,22 +84,33 @@ class StreamingTare:
         if not self.done:  # only during the tare window: after it, one subtraction per call
             residual = base_wrench - self.robot.base_wrench_single(q, qd, qdd)
             self.residuals[self.count] = residual[:3]
+            self.moments[self.count] = residual[3:]
             self.count += 1
             self.offset += (residual - self.offset) / self.count
         return base_wrench - self.offset
 
-    def follow(self, q, base_wrench, rate: float) -> None:
+    def follow(self, q, base_wrench, rate: float, max_step: np.ndarray) -> None:
         """At a standstill with no contact: move the offset toward this sample's residual (measured minus
-        the model's gravity wrench at q) by the fraction ``rate`` (dt / tau): a slow re-tare that tracks
-        the sensor's bias drift. The caller decides that the arm stands still and nothing touches it."""
+        the model's gravity wrench at q) by the fraction ``rate`` (dt / tau), but by no more than
+        ``max_step`` (6,) [N, Nm] per axis: the sensor's stated drift in one call. A slow re-tare that tracks
+        the bias drift and cannot absorb a contact that builds faster than the sensor drifts. The caller
+        decides that the arm stands still and that nothing is seen touching it."""
         zero = np.zeros_like(q)
-        self.offset += rate * (base_wrench - self.robot.base_wrench_single(q, zero, zero) - self.offset)
+        step = rate * (base_wrench - self.robot.base_wrench_single(q, zero, zero) - self.offset)
+        self.offset += np.clip(step, -max_step, max_step)
 
     def residual_change(self, threshold: float, segments: int = 5) -> float | None:
         """``residual_change`` on this window's residuals, once it is full (None before)."""
         if not self.done:
             return None
         return residual_change(self.residuals, threshold, segments)
+
+    def moment_change(self, threshold: float, segments: int = 5) -> float | None:
+        """``residual_change`` of the window's moment residuals [Nm]: a force held at the tool through the
+        window while the tool moved (its moment p x F changes with p, its force does not)."""
+        if not self.done:
+            return None
+        return residual_change(self.moments, threshold, segments)
 
     def set_offset(self, offset) -> None:
         """Use a known offset (e.g. from a tare done elsewhere) and skip the tare window."""

@@ -35,3 +35,18 @@ class NoiseConfig:
     @classmethod
     def off(cls) -> "NoiseConfig":
         return cls(**{f.name: 0.0 for f in dataclasses.fields(cls)})
+
+
+@dataclass(frozen=True)
+class SensorDrift:
+    """Each sensor's stated bias drift after its zero (tare): what the estimator's error bar and its drift
+    follower assume. base_force [N/s], base_torque [Nm/s]: the base F/T sensor (the toolkit's hardware
+    sensor model, ``benchmarks/tip_force_stream.py``'s ``hardware`` stream, drifts 0.3 N over 12 s);
+    tau_J [Nm/s]: the link-side joint torque sensors (zeroed by the arm's firmware: none stated)."""
+
+    base_force: float = 0.025
+    base_torque: float = 0.0
+    tau_J: float = 0.0
+
+
+SENSOR_DRIFT = SensorDrift()

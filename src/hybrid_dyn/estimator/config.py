@@ -32,6 +32,10 @@ class EstimatorStatus(str, Enum):
     NO_SENSOR = "no usable sensor"       # this call brings nothing the method can estimate from
     UNCERTAIN = "uncertain"              # the predicted error (last_sigma) exceeds EstimatorConfig.max_sigma
     CONTACT_AT_START = "contact at start-up"  # the noise window saw a contact: a new window is under way
+    # Consistency: the sensors contradict the model (``estimator/consistency.py``); no estimate to trust.
+    IMPLAUSIBLE_TARE = "tare offset implausible"  # the base sensor's offset beyond its plausible bias (a flipped sign)
+    FROZEN_SENSOR = "frozen sensor"      # a sensor repeats its reading exactly, call after call
+    OFF_TOOL = "contact off the tool"    # the sensors see a load no force at the tool explains
 
 
 def _auto_or_positive(name: str, value, unit: str) -> None:
@@ -76,7 +80,15 @@ class EstimatorConfig:
     standstill_speed [rad/s], standstill_seconds [s], retare_seconds [s]: after the window, while every
     joint is slower than standstill_speed for standstill_seconds and the estimate is below
     tare_contact_force, the base sensor's tare follows its drift with time constant retare_seconds
-    (math.inf: it does not).
+    (math.inf: it does not), never faster than base_drift_rate: a contact that builds faster than the
+    sensor drifts is not tared away. Such a call verifies the tare (the drift term starts again from 0).
+
+    max_tare_offset [N]: the largest base-sensor offset (force norm) a tare may find; beyond it the sensor
+    is not what the model says (a flipped sign, a wrong frame): status "tare offset implausible".
+    frozen_calls: a sensor whose reading repeats exactly this many calls in a row is "frozen sensor".
+    off_tool_moment [Nm], off_tool_torque [Nm]: the part of the base moment (base-sensor methods) or of
+    the joint torques (joint-torque methods) that no force at the tool explains, above which (held for
+    off_tool_seconds [s]) the status is "contact off the tool" (``estimator/consistency.py``).
 
     Plausibility bounds (see the module docstring):
     q_margin: how far q may lie outside the URDF position limits [rad]; encoders
@@ -113,6 +125,11 @@ class EstimatorConfig:
     standstill_speed: float = 5e-3
     standstill_seconds: float = 0.2
     retare_seconds: float = 2.0
+    max_tare_offset: float = 20.0
+    frozen_calls: int = 20
+    off_tool_moment: float = 1.0
+    off_tool_torque: float = 1.0
+    off_tool_seconds: float = 0.05
     # The registered bandwidth parameters without a field of their own (a method registered later): name -> value.
     bandwidths: Mapping[str, float | str] = field(default_factory=dict, hash=False)
 
@@ -152,6 +169,9 @@ class EstimatorConfig:
             if not (isinstance(getattr(self, name), (int, float)) and getattr(self, name) > 0):
                 raise UsageError(f"{name} must be > 0 [N], got {getattr(self, name)!r}")
         for name in ("standstill_speed", "standstill_seconds", "retare_seconds"):
+            if not (isinstance(getattr(self, name), (int, float)) and getattr(self, name) > 0):
+                raise UsageError(f"{name} must be > 0, got {getattr(self, name)!r}")
+        for name in ("max_tare_offset", "frozen_calls", "off_tool_moment", "off_tool_torque", "off_tool_seconds"):
             if not (isinstance(getattr(self, name), (int, float)) and getattr(self, name) > 0):
                 raise UsageError(f"{name} must be > 0, got {getattr(self, name)!r}")
         for name in ("motion_sigma_gain", "base_drift_rate"):

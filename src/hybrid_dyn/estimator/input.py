@@ -65,8 +65,11 @@ class InputGate:
     def reset(self) -> None:
         """A new stream: untimed until its first call with t."""
         self.last_t = None  # set by the first call with t: from then on the stream is timed
-        self._gap_t = None  # t of a sample refused for its step: the stream may resume from it
-        self._grid = None  # the robot's sample clock as the stamps show it: where the next stamp belongs [s]
+        self._gap_tick = None  # the tick of a sample refused for a gap: the stream resumes at the next one
+        self._t0 = None  # the robot's sample clock as the stamps show it: the stamp of tick 0 [s]
+        self._tick = 0  # the tick of the last accepted sample
+        self._stamps = 0  # accepted stamps that estimate the clock
+        self.lost_ticks = 0  # ticks lost before the latest resumed sample
 
     def _build(self) -> None:
         """Precompute the plausibility box [lo, hi] of every value a call brings (module docstring).
@@ -124,7 +127,7 @@ class InputGate:
         self._period = 1.0 / c.call_hz
         # Stamps jitter about the robot's clock (the PC's); a lost tick (one period off) is never jitter.
         self._period_tol = min(max(c.rate_tolerance * self._period, 1.5 * c.stamp_jitter), 0.9 * self._period)
-        self._resume_tol = c.rate_tolerance * self._period  # a resumption is judged on the tight tolerance
+        self._jitter = c.stamp_jitter
         self._max_force_sq = c.max_tip_force ** 2
 
     def accept(self, q, qd, base_wrench, tau_J, t):
@@ -166,34 +169,56 @@ class InputGate:
                 raise EstimatorInputError(f"t must be a number [s], got a {type(t).__name__}: {t!r:.60}") from None
             if not math.isfinite(t):
                 raise EstimatorInputError(f"t must be finite, got {t}")
-            grid = t
-            if self.last_t is not None:
-                dt = t - self.last_t
-                if dt <= 0:
-                    raise EstimatorInputError(f"time must increase: t={t} after t={self.last_t}")
-                # The robot samples on its own clock; the stamps jitter about it. A stamp off that clock
-                # by more than the jitter is a lost tick or another rate.
-                off = t - (self._grid + self._period)
-                if abs(off) > self._period_tol:
-                    # One period after a sample refused for its step, the stream has resumed on
-                    # rate after a gap: accept it and warm up anew. A wrong rate never gets here.
-                    if self._gap_t is not None and abs(t - self._gap_t - self._period) <= self._resume_tol:
-                        resumed = True
-                    else:
-                        self._gap_t = t
-                        raise EstimatorInputError(
-                            f"t={t} s lies {off:+.3g} s off the stream's clock (it steps {dt:.6g} s from the last "
-                            f"accepted sample, and call_hz={self.config.call_hz:g} expects {self._period:.6g} s, "
-                            f"stamps within +-{self._period_tol:.3g} s): a wrong call_hz, or a gap in the stream "
-                            "(it resumes one period after this sample)")
-                else:
-                    grid = self._grid + self._period + 0.01 * off  # follows a slow drift of the two clocks
-            self._grid = grid
-        self._gap_t = None
+            resumed = self._on_clock(t)
         q, qd, views_w, views_tau = self._views
         if self._optional:  # an absent sensor stays None
             return q, qd, None if base_wrench is None else views_w, None if tau_J is None else views_tau, t, resumed
         return q, qd, views_w, views_tau, t, resumed
+
+    def _on_clock(self, t: float) -> bool:
+        """Place stamp t on the robot's sample clock; returns whether it resumes the stream after a gap.
+
+        The clock (the stamp of tick 0) is the clipped mean of the accepted stamps' offsets from their ticks,
+        so that no one stamp anchors it: each moves it by at most ``_period_tol`` / n (1 % once 100 are in,
+        which follows a slow drift between the PC's and the robot's clocks). A stamp belongs to the next tick
+        when it lies within ``_period_tol`` of it, widened by the clock's own uncertainty while few stamps
+        are in (``stamp_jitter`` / sqrt(n)): equal or slightly reversed stamps within the jitter are the next
+        tick. A stamp a whole tick or more ahead is a gap (refused; the next stamp, one tick after it on the
+        clock, resumes: the samples lost are counted by the stamps), and a stream whose every stamp lies
+        ticks apart (a wrong rate) never resumes."""
+        if self.last_t is None:
+            self._t0, self._tick, self._stamps, self._gap_tick = t, 0, 1, None
+            return False
+        T = self._period
+        off = t - (self._t0 + (self._tick + 1) * T)
+        young = self._jitter / math.sqrt(self._stamps)
+        if -min(self._period_tol + young, T) <= off <= min(self._period_tol + young, 0.9 * T):
+            self._advance(1, off)
+            self._gap_tick = None
+            return False
+        if t <= self.last_t - 2.0 * self._jitter or (self._jitter == 0 and t <= self.last_t):
+            raise EstimatorInputError(f"time must increase: t={t} after t={self.last_t}")
+        ahead = round(off / T)  # the whole ticks beyond the next one
+        near = abs(off - ahead * T) <= self._period_tol
+        tick = self._tick + 1 + ahead
+        if near and ahead >= 1 and self._gap_tick is not None and tick == self._gap_tick + 1:
+            self.lost_ticks = tick - self._tick - 1
+            self._advance(tick - self._tick, off - ahead * T)
+            self._gap_tick = None
+            return True
+        self._gap_tick = tick if near and ahead >= 1 else None
+        raise EstimatorInputError(
+            f"t={t} s lies {off:+.3g} s off the stream's clock (it steps {t - self.last_t:.6g} s from the last "
+            f"accepted sample, and call_hz={self.config.call_hz:g} expects {T:.6g} s, "
+            f"stamps within +-{self._period_tol:.3g} s): a wrong call_hz, or a gap in the stream "
+            "(it resumes one period after this sample)")
+
+    def _advance(self, ticks: int, off: float) -> None:
+        """Accept a stamp ``ticks`` after the last one, ``off`` [s] from its tick: the clock moves toward it."""
+        self._tick += ticks
+        self._stamps += 1
+        gain = max(1.0 / self._stamps, 0.01)
+        self._t0 += gain * min(max(off, -self._period_tol), self._period_tol)
 
     def _converted(self, q, qd, base_wrench, tau_J) -> list:
         """_accept's slow path: each input this estimator reads as a fresh float64 array of its shape

@@ -44,7 +44,7 @@ class NoiseWindow:
             if self.check_torques:
                 self.force[k] = tip_force_from_torques(self.robot, q, qd, qdd, tau)
 
-    def contact(self, tare, limit: float) -> str | None:
+    def contact(self, tare, limit: float, moment_limit: float = np.inf) -> str | None:
         """Why this window must not be trusted (a contact in it), or None. The base sensor's residual must
         not change between the window's parts (a contact that began or ended in it, a trend:
         ``StreamingTare.residual_change``); the joint torques, where kept, must see no force above ``limit``
@@ -54,11 +54,16 @@ class NoiseWindow:
             step = tare.residual_change(limit)
             if step is not None:
                 return f"the base sensor's residual changed by {step:.2f} N inside the noise window (limit {limit:g} N)"
+            step = tare.moment_change(moment_limit)
+            if step is not None:
+                return (f"the base sensor's moment residual changed by {step:.2f} Nm inside the noise window (limit "
+                        f"{moment_limit:g} Nm): a force held at the tool while it moved")
         has = self.has[:, 1]
         seen = window_force(self.force[has], limit) if self.check_torques and has.sum() >= 8 else None
         if seen is not None:
             return (f"the joint torques saw {seen:.2f} N at the tool during the noise window "
-                    f"(limit {limit:g} N): a contact, or a load the model lacks (payload=)")
+                    f"(limit {limit:g} N): a contact, or a tool load other than the model's (payload= missing, "
+                    "or declared but not carried)")
         return None
 
     def measure(self, joint):

@@ -116,6 +116,7 @@ from ..analytic.robot import Robot, load_robot, with_payload
 from ..analytic.tare import StreamingTare, tare_samples
 from ..errors import UsageError
 from .config import EstimatorConfig, EstimatorStatus, checked_payload
+from .consistency import Consistency
 from .input import EstimatorInputError, InputGate, RateCheck
 from .noise_window import NoiseWindow
 
@@ -141,6 +142,8 @@ def __getattr__(name):
 _OK, _WARMING_UP, _OUT_OF_RANGE, _FORCE_OUT_OF_RANGE, _WRONG_RATE, _NO_SENSOR, _UNCERTAIN, _CONTACT_AT_START = (
     EstimatorStatus.OK, EstimatorStatus.WARMING_UP, EstimatorStatus.OUT_OF_RANGE, EstimatorStatus.FORCE_OUT_OF_RANGE,
     EstimatorStatus.WRONG_RATE, EstimatorStatus.NO_SENSOR, EstimatorStatus.UNCERTAIN, EstimatorStatus.CONTACT_AT_START)
+_IMPLAUSIBLE_TARE, _FROZEN_SENSOR, _OFF_TOOL = (
+    EstimatorStatus.IMPLAUSIBLE_TARE, EstimatorStatus.FROZEN_SENSOR, EstimatorStatus.OFF_TOOL)
 _NO_SIGMA = np.full(3, np.inf)  # no estimate yet (the noise window): an unbounded error bar
 
 
@@ -194,6 +197,10 @@ class TipForceEstimator:
         # The noise window's samples, preallocated (a row per call; presence per optional sensor).
         check_torques = self.spec is not None and self.spec.tares and "tau_J" in self.spec.reads
         self._window = NoiseWindow(robot, n_window, check_torques)
+        self._check = None if self.spec is None else Consistency(
+            robot, c, self._stream, method, "base_wrench" in sensors, "tau_J" in sensors)
+        drift = c.base_drift_rate / c.call_hz  # the follower's largest step per call [N], and [Nm] at 0.2 m
+        self._follow_step = np.r_[np.full(3, drift), np.full(3, 0.2 * drift)]
         self.reset()
 
     # ------------------------------------------------------------ factories
@@ -252,12 +259,18 @@ class TipForceEstimator:
         self._rate.reset()
         if self._joint is not None:
             self._joint.reset()
+        # The joint-state filter starts at rest: in motion its qd and qdd need ~8 / omega to converge, and
+        # a tare (or a window check) on them before that absorbs the transient. The window waits for it.
+        self._joint_wait = 0 if self._joint is None or self._tare is None else self._joint.settle_calls()
         self._error_bar.reset()
         self.last_sigma = _NO_SIGMA.copy()
         self._motion = 0.0  # this call's joint-acceleration norm [rad/s^2], for the error bar
         self._tared_at = None  # the call at which the base sensor's offset was last set
         self.window_problem = None  # why the last noise window was not trusted (a contact), until one is
         self._still_calls = 0  # consecutive calls at a standstill (the drift-following tare)
+        self._fault = None  # the consistency status of this call (``estimator/consistency.py``), or None
+        if self._check is not None:
+            self._check.reset()
         if self._tare is not None:
             self._tare.reset()
         if self.model is not None:
@@ -315,8 +328,8 @@ class TipForceEstimator:
             self.last_status = EstimatorStatus.INPUT_REJECTED
             self.last_rejection = str(err)
             return self._last_good.copy()
-        if resumed:
-            self._restart_dynamics(t - self._gate.last_t)
+        if resumed:  # the samples lost, counted on the stream's clock (not by the stamps' own jitter)
+            self._restart_dynamics((self._gate.lost_ticks + 1) / self.config.call_hz)
         wrong_rate = False
         if t is not None:
             self._gate.last_t = t
@@ -325,6 +338,9 @@ class TipForceEstimator:
         if self._joint is not None:
             q, qd, qdd_joint = self._joint.step(q)
             self._motion = qdd_norm(qdd_joint)
+            if self._joint_wait:
+                self._joint_wait -= 1
+                return self._finish(self._last_good, True, wrong_rate, True, estimated=False)
         k = self._calls
         in_window = k < self._window_calls
         tare = self._tare
@@ -341,7 +357,7 @@ class TipForceEstimator:
             self._window.record(k, q, qd, qdd, base_wrench, tau_J)
             self._stream.window_step(q, qd, qdd, base_wrench, tau_J)
             if self._calls == self._window_calls:  # the window's last call checks it and measures its noise...
-                problem = self._window.contact(self._tare, self.config.tare_contact_force)
+                problem = self._window.contact(self._tare, self.config.tare_contact_force, self.config.off_tool_moment)
                 if problem is not None:
                     self._restart_window(problem)
                 else:
@@ -364,7 +380,22 @@ class TipForceEstimator:
         f = self._stream.step(q, qd, qdd, w_in, tau_J)
         if w_in is not None:
             self._follow_drift(q, qd, base_wrench, f)
+        self._judge(q, qd, qdd, w_in, base_wrench, tau_J)
         return self._finish(f, True, wrong_rate, usable)
+
+    def _judge(self, q, qd, qdd, w_in, base_wrench, tau_J) -> None:
+        """This call's consistency status (``estimator/consistency.py``), first match: an implausible tare,
+        a frozen sensor, a contact off the tool."""
+        check, fault = self._check, None
+        if w_in is not None and self._tare is not None:
+            o = self._tare.offset
+            if o[0] * o[0] + o[1] * o[1] + o[2] * o[2] > self.config.max_tare_offset ** 2:
+                fault = _IMPLAUSIBLE_TARE
+        if check.frozen(base_wrench, tau_J) and fault is None:
+            fault = _FROZEN_SENSOR
+        if check.check_off_tool(q, qd, qdd, w_in, tau_J) and fault is None:
+            fault = _OFF_TOOL
+        self._fault = fault
 
     def _follow_drift(self, q, qd, base_wrench, f) -> None:
         """A base sensor's bias drifts after its tare. While the arm stands still (every joint slower than
@@ -379,7 +410,7 @@ class TipForceEstimator:
         else:
             self._still_calls = 0
         if self._still_calls >= c.standstill_seconds * c.call_hz and f.dot(f) < c.tare_contact_force ** 2:
-            self._tare.follow(q, base_wrench, 1.0 / (c.retare_seconds * c.call_hz))
+            self._tare.follow(q, base_wrench, 1.0 / (c.retare_seconds * c.call_hz), self._follow_step)
             self._tared_at = self._calls
 
     def _finish(self, f, in_range, wrong_rate, usable, estimated=True) -> np.ndarray:
@@ -400,6 +431,8 @@ class TipForceEstimator:
             status = _UNCERTAIN
         if self._calls < self._warmup_calls:
             status = _WARMING_UP if self.window_problem is None else _CONTACT_AT_START
+        if self._fault is not None and estimated:
+            status = self._fault
         if not usable:
             status = _NO_SENSOR
         if wrong_rate:
