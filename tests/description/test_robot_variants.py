@@ -151,10 +151,10 @@ def test_the_variant_is_part_of_the_name_and_given_once():
 
 
 def test_data_only_names_resolve_without_a_model():
-    for name in ("kuka-lwr", "unknown"):
+    for name in ("sarcos", "unknown"):
         assert not resolve_robot(name).described
     with pytest.raises(RobotDescriptionError, match="known for data only"):
-        hd.load_robot("kuka-lwr")
+        hd.load_robot("sarcos")
 
 
 def test_an_unknown_name_is_refused_before_any_data_is_read(tmp_path):

@@ -362,6 +362,37 @@ def _joint_rmse(tau, tau_hat) -> np.ndarray:
     return np.sqrt(np.mean((tau - tau_hat) ** 2, axis=0))
 
 
+def _fit_by_method(method, robot, columns, data, sigma, pi_nom, pi_lin, phi_lin, k_lin, beta, base, eps, config, fit):
+    """The method's own fit from the linear one: (pi (10 nv,), friction law, spring stiffnesses)."""
+    Y, F, S, springs = columns
+    nv = robot.nv
+    k = k_lin
+    if method in ("ols", "wls"):
+        pi, friction = pi_lin, LinearFriction(phi_lin[:, 0], phi_lin[:, 1], phi_lin[:, 2], eps)
+        fit["base_parameters"] = {"names": base.base_names(), "values": beta.tolist()}
+    elif method == "consistent":
+        # The springs' columns ride with the friction's: linear, unbounded, fitted jointly.
+        pi, phi, stats = est.fit_consistent(robot, Y, np.concatenate([F, S], axis=-1), data.tau, sigma, pi_nom,
+                                            np.concatenate([phi_lin.reshape(-1), k_lin]), config)
+        phi, k = phi[:3 * nv].reshape(nv, 3), phi[3 * nv:]
+        friction = LinearFriction(phi[:, 0], phi[:, 1], phi[:, 2], eps)
+        fit.update(ipopt_status=stats["return_status"], iterations=stats["iter_count"], com_margin=config.com_margin,
+                   regularization=config.regularization)
+    else:
+        # Start the sigmoid from the linear fit: it spans 2*phi1 between its plateaus.
+        phi0 = np.stack([np.clip(2 * np.abs(phi_lin[:, 1]), 0.05, None), np.full(nv, 10.0), np.zeros(nv)], 1)
+        # The sigmoid's objective has no linear block: the springs keep the weighted linear fit's
+        # stiffness, taken out of the target first (a two-stage fit, said in the fit record).
+        tau_nospring = data.tau - (S @ k_lin if len(springs) else 0.0)
+        pi, phi, stats = est.fit_sigmoid_friction(robot, Y, data.qd, tau_nospring, sigma, pi_nom, phi0, config)
+        if len(springs):
+            fit["springs_fit"] = "stiffness from the weighted linear fit, held fixed in the sigmoid fit"
+        friction = GazFriction(phi[:, 0], phi[:, 1], phi[:, 2])
+        fit.update(ipopt_status=stats["return_status"], iterations=stats["iter_count"], com_margin=config.com_margin,
+                   regularization=config.regularization)
+    return pi, friction, k
+
+
 def identify(data, method: str = "consistent", robot: Robot | None = None, *, splits=("train", "val"),
              target: str = "tau_m", acceleration: str = "measured", eps: float = DEFAULT_COULOMB_EPS,
              base: BaseParameters | None = None,
@@ -418,30 +449,8 @@ def identify(data, method: str = "consistent", robot: Robot | None = None, *, sp
     fit = {"n_samples": len(data), "condition_number": cond, "n_base": base.n_base, "coulomb_eps": eps,
            "residual_std_ols": sigma.tolist()}
 
-    k = k_lin
-    if method in ("ols", "wls"):
-        pi, friction = pi_lin, LinearFriction(phi_lin[:, 0], phi_lin[:, 1], phi_lin[:, 2], eps)
-        fit["base_parameters"] = {"names": base.base_names(), "values": beta.tolist()}
-    elif method == "consistent":
-        # The springs' columns ride with the friction's: linear, unbounded, fitted jointly.
-        pi, phi, stats = est.fit_consistent(robot, Y, np.concatenate([F, S], axis=-1), data.tau, sigma, pi_nom,
-                                            np.concatenate([phi_lin.reshape(-1), k_lin]), config)
-        phi, k = phi[:3 * nv].reshape(nv, 3), phi[3 * nv:]
-        friction = LinearFriction(phi[:, 0], phi[:, 1], phi[:, 2], eps)
-        fit.update(ipopt_status=stats["return_status"], iterations=stats["iter_count"], com_margin=config.com_margin,
-                   regularization=config.regularization)
-    else:
-        # Start the sigmoid from the linear fit: it spans 2*phi1 between its plateaus.
-        phi0 = np.stack([np.clip(2 * np.abs(phi_lin[:, 1]), 0.05, None), np.full(nv, 10.0), np.zeros(nv)], 1)
-        # The sigmoid's objective has no linear block: the springs keep the weighted linear fit's
-        # stiffness, taken out of the target first (a two-stage fit, said in the fit record).
-        tau_nospring = data.tau - (S @ k_lin if len(springs) else 0.0)
-        pi, phi, stats = est.fit_sigmoid_friction(robot, Y, data.qd, tau_nospring, sigma, pi_nom, phi0, config)
-        if len(springs):
-            fit["springs_fit"] = "stiffness from the weighted linear fit, held fixed in the sigmoid fit"
-        friction = GazFriction(phi[:, 0], phi[:, 1], phi[:, 2])
-        fit.update(ipopt_status=stats["return_status"], iterations=stats["iter_count"], com_margin=config.com_margin,
-                   regularization=config.regularization)
+    pi, friction, k = _fit_by_method(method, robot, (Y, F, S, springs), data, sigma, pi_nom, pi_lin, phi_lin, k_lin,
+                                     beta, base, eps, config, fit)
     model = IdentifiedModel(robot, method, pi.reshape(nv, N_BODY_PARAMS), friction, fit,
                             springs={robot.joint_names[j]: float(kj) for j, kj in zip(springs, k)})
     model.fit["rmse_per_joint"] = _joint_rmse(data.tau, model.predict_torque(data.q, data.qd, data.qdd)).tolist()
