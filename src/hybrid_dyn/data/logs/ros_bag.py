@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .bag_stream import CHUNK_ROWS, BagDamage, BagStats, bag_chunks, open_reader
+from .bag_stream import CHUNK_ROWS, BagChunk, BagDamage, BagStats, bag_chunks, open_reader
 from .log_spec import RESAMPLE_RULES, WRENCH_TOPICS, LogImportError, RosTopics  # noqa: F401 (re-exported)
 from .log_readers import LogReadError, LogTable
 
@@ -154,30 +154,38 @@ def _read_bag(path: Path, ros: RosTopics, joints: list, frames: set, jump_factor
               keep_partial: bool) -> RosTable:
     stats = BagStats()
     chunks = list(read_chunks(path, ros, joints, frames, jump_factor, stats, keep_partial))
+    if not chunks:  # damage before the first row of the robot (--keep-partial)
+        raise LogReadError(f"{path}: damaged before any row could be read: {damage_text(stats.damage)}")
     cat = lambda key: np.concatenate([getattr(c, key) for c in chunks])  # noqa: E731
-    stamps, time_ns = cat("stamps_ns"), cat("time_ns")
-    cols = {"q": cat("q"), "qd": cat("qd"), "effort": cat("effort")}
-    problems = [p for c in chunks for p in c.problems]
-    notes += bag_notes(path, ros, stats, len(stamps))
-    t0 = int(stamps[0])
-    data, names = [(time_ns * 1e-9)[:, None]], ["t"]  # seconds from the first stamp
-    absent = []
-    torque = [] if stats.no_effort == len(stamps) else ros.torque_fields()
-    absent += [] if torque else ros.torque_fields()
-    with_qd = stats.no_velocity < len(stamps)
-    absent += [] if with_qd else ["qd"]
-    for key, src in [("q", "q")] + ([("qd", "qd")] if with_qd else []) + [(f, "effort") for f in torque]:
-        data.append(cols[src])
+    whole = BagChunk(0, cat("stamps_ns"), cat("time_ns"), cat("q"), cat("qd"), cat("effort"),
+                     {k: np.concatenate([c.wrenches[k] for c in chunks]) for k in chunks[0].wrenches},
+                     [p for c in chunks for p in c.problems])
+    chunks.clear()  # the chunks' memory goes before the table's is taken
+    rows = len(whole)
+    notes += bag_notes(path, ros, stats, rows)
+    return chunk_table(path, whole, ros, joints, with_qd=stats.no_velocity < rows, torque=stats.no_effort < rows)
+
+
+def chunk_table(path: Path, chunk: BagChunk, ros: RosTopics, joints: list, with_qd: bool, torque: bool) -> RosTable:
+    """Rows of a bag as a log table: ``t`` [s] from the bag's first stamp, q, qd (``with_qd``; NaN rows
+    where the velocity is empty, listed in ``qd_missing``), the torque fields (``torque``), the wrenches."""
+    data, names = [(chunk.time_ns * 1e-9)[:, None]], ["t"]
+    fields = ros.torque_fields() if torque else []
+    for key, src in [("q", chunk.q)] + ([("qd", chunk.qd)] if with_qd else []) + [(f, chunk.effort) for f in fields]:
+        data.append(src)
         names += [f"{key}[{j + 1}]" for j in range(len(joints))]
     for key in WRENCH_TOPICS:
         if getattr(ros, key):
             fld = WRENCH_TOPICS[key]
             width = 6 if fld == "base_wrench" else 3
-            data.append(np.concatenate([c.wrenches[key] for c in chunks])[:, :width])
+            data.append(chunk.wrenches[key][:, :width])
             names += [f"{fld}[{j + 1}]" for j in range(width)]
-    qd_missing = ~np.isfinite(cols["qd"]).any(axis=1) if with_qd else None
+    absent = ([] if with_qd else ["qd"]) + ([] if torque else ros.torque_fields())
+    qd_missing = ~np.isfinite(chunk.qd).any(axis=1) if with_qd else None
+    t0 = int(chunk.stamps_ns[0] - round(chunk.time_ns[0])) if len(chunk) else 0
     return RosTable(path.stem if path.is_file() else path.name, path, np.concatenate(data, axis=1), names,
-                    sorted(problems), None, stamps_ns=stamps, t0_ns=t0, absent=absent, qd_missing=qd_missing)
+                    sorted(chunk.problems), None, stamps_ns=chunk.stamps_ns, t0_ns=t0, absent=absent,
+                    qd_missing=qd_missing)
 
 
 def bag_notes(path: Path, ros: RosTopics, stats: BagStats, rows: int) -> list[str]:
