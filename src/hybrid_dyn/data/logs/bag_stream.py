@@ -134,12 +134,25 @@ class _JointRows:
         self.joints, self.stats, self.nv = joints, stats, len(joints)
         self.order_of = {}
 
-    def chunk(self, msgs, size: int, first_row: int, stop_ns):
+    def chunk(self, msgs, size: int, first_row: int, keep_partial: bool):
+        """At most about ``size`` rows; with ``keep_partial``, damage ends the rows (``stats.damage``)."""
+        out = ([], [], [], [], [])
+        try:
+            out = self._chunk(msgs, size, first_row)
+        except BagDamage as dmg:
+            if not keep_partial:
+                raise
+            self.stats.damage = self.stats.damage or dmg
+            out = self.partial
+        return out
+
+    def _chunk(self, msgs, size: int, first_row: int):
         nv, stats = self.nv, self.stats
         cap = size + _SLACK
         stamps = np.zeros(cap, np.int64)
         q, qd, eff = (np.full((cap, nv), np.nan) for _ in range(3))
         problems, k, ref = [], 0, None
+        self.partial = (stamps[:0], q[:0], qd[:0], eff[:0], problems)
         for stamp, m in msgs:
             stats.messages += 1
             names = tuple(m.name)
@@ -169,6 +182,7 @@ class _JointRows:
                 else:
                     problems.append((row, f"{fld} has {len(arr)} values for {len(names)} joint names"))
             k += 1
+            self.partial = (stamps[:k], q[:k], qd[:k], eff[:k], problems)
             # A chunk ends on a stamp that advances, so that a run of jittered stamps is re-timed whole.
             if k >= size and (ref is None or stamp > ref or k == cap):
                 break
@@ -298,16 +312,10 @@ def bag_chunks(path: Path, ros, joints: list, jump_factor: float, stats: BagStat
 def _chunks(rows, retime, msgs, windows, ros, jump_factor, stats, keep_partial, size):
     first_row, stopped = 0, False
     while not stopped:
-        try:
-            stamps, q, qd, eff, problems = rows.chunk(msgs, size, first_row, None)
-        except BagDamage as dmg:
-            if not keep_partial:
-                raise
-            stats.damage = stats.damage or dmg
-            return
+        stamps, q, qd, eff, problems = rows.chunk(msgs, size, first_row, keep_partial)
         if not len(stamps):
             return
-        stopped = len(stamps) < size
+        stopped = len(stamps) < size or stats.damage is not None
         wrenches = {}
         for key, win in windows.items():
             values, bad = win.at(stamps, ros.resample, jump_factor)

@@ -123,6 +123,8 @@ def read_chunks(path: Path, ros: RosTopics, joints: list, frames: set, jump_fact
                            "it") from None
     _check_frames(path, stats, frames)
     if stats.messages == stats.skipped:
+        if stats.damage is not None:  # --keep-partial, and nothing of the robot before the damage
+            raise LogReadError(f"{path}: damaged before any row could be read: {damage_text(stats.damage)}")
         if not stats.messages:
             raise RosBagError(f"{path.name}: topic {ros.joint_states} has no messages")
         n, missing, names = stats.first_lacking
