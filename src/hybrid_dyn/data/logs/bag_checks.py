@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from ..data_checks import angle_unit_problems
-from .bag_stream import CHUNK_ROWS, BagStats
+from . import bag_stream
+from .bag_stream import BagStats
 from .import_report import ImportReport
 from .log_spec import LogSpecError
 from .log_validation import _extract, _robot_limits, _RowChecks
@@ -36,8 +37,10 @@ class CheckedRows:
     starts: np.ndarray
 
 
-def checked_chunks(spec, report: ImportReport, keep_partial: bool = False, size: int = CHUNK_ROWS):
-    """:class:`CheckedRows` of every chunk of every bag of ``spec``, in order (module docstring)."""
+def checked_chunks(spec, report: ImportReport, keep_partial: bool = False, size: int | None = None):
+    """:class:`CheckedRows` of every chunk of every bag of ``spec``, in order (module docstring); ``size``:
+    rows per chunk (default ``bag_stream.CHUNK_ROWS``)."""
+    size = size or bag_stream.CHUNK_ROWS
     joints, frames = bag_names(spec)
     limits, q_peak = _robot_limits(spec, len(joints)), 0.0
     for f in spec.files:

@@ -276,8 +276,6 @@ class _WrenchWindow:
                 self.max_step = float(np.median(np.diff(self.ns[:10_001])))
 
     def at(self, dst_ns: np.ndarray, rule: str, jump_factor: float):
-        from .ros_bag import resample
-
         if not len(dst_ns):
             return np.zeros((0, 6)), []
         self.pull(int(dst_ns.max()))
@@ -331,3 +329,39 @@ def _chunks(rows, retime, msgs, windows, ros, jump_factor, stats, keep_partial, 
             stopped = stopped or n < len(keep)
         yield BagChunk(first_row, stamps, retime(stamps), q, qd, eff, wrenches, sorted(problems))
         first_row += len(stamps)
+
+
+def resample(src_ns: np.ndarray, src_x: np.ndarray, dst_ns: np.ndarray, rule: str, jump_factor: float,
+             max_step: float | None = None, topic_span: tuple | None = None):
+    """``src_x`` (stamps ``src_ns``, increasing [ns]) at the stamps ``dst_ns``: (values with NaN rows,
+    [(row, why) for each NaN row]). A stamp outside the source's span or inside one of its gaps (a step
+    over ``jump_factor`` median steps, or over ``max_step`` [ns] where given) is not extrapolated.
+    ``topic_span``: the topic's (first, last) stamps [ns] when ``src_ns`` is a window of it (last None: not
+    yet known), for the report."""
+    values = np.full((len(dst_ns), src_x.shape[1]), np.nan)
+    k = np.searchsorted(src_ns, dst_ns, side="left")  # src[k-1] < dst <= src[k]
+    exact = (k < len(src_ns)) & (src_ns[np.minimum(k, len(src_ns) - 1)] == dst_ns)
+    values[exact] = src_x[k[exact]]
+    inside = ~exact & (k > 0) & (k < len(src_ns))
+    lo, hi = k[inside] - 1, k[inside]
+    span = (src_ns[hi] - src_ns[lo]).astype(np.float64)
+    if max_step is None:
+        max_step = jump_factor * float(np.median(np.diff(src_ns))) if len(src_ns) > 1 else 0.0
+    gap = span > max_step
+    w = (dst_ns[inside] - src_ns[lo]) / span
+    if rule == "nearest":
+        w = (w > 0.5).astype(np.float64)  # a tie goes to the earlier sample
+    filled = src_x[lo] + w[:, None] * (src_x[hi] - src_x[lo])
+    filled[gap] = np.nan
+    values[inside] = filled
+    bad = []
+    first, last = topic_span if topic_span is not None else (int(src_ns[0]), int(src_ns[-1]))
+    shown = f"[{first * 1e-9:.6f}, {last * 1e-9:.6f}] s" if last is not None else f"from {first * 1e-9:.6f} s"
+    for r in np.flatnonzero(~exact & ~inside):
+        side = "before" if k[r] == 0 else "after"
+        bad.append((r, f"stamp {dst_ns[r] * 1e-9:.6f} s is {side} the topic's span {shown} (not extrapolated)"))
+    rows = np.flatnonzero(inside)[gap]
+    for r, s in zip(rows, span[gap]):
+        bad.append((r, f"stamp {dst_ns[r] * 1e-9:.6f} s lies in a gap of {s * 1e-9:.4g} s of the topic "
+                       f"(over {jump_factor:g} median steps: not interpolated)"))
+    return values, bad

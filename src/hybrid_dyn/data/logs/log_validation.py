@@ -138,7 +138,8 @@ def validate_log(spec: LogSpec, report: ImportReport, keep_partial: bool = False
         q_peak = max(q_peak, float(np.abs(data["q"][np.isfinite(data["q"])]).max(initial=0.0)))  # units check
         report.rows_read += len(rows)
         checks = _RowChecks(table, rows, report)
-        checks.cells(data, t, getattr(table, "qd_missing", None))
+        qd_missing = getattr(table, "qd_missing", None)
+        checks.cells(data, t, None if qd_missing is None else qd_missing[rows])
         checks.ranges(data, limits, spec.checks.qd_abs_max)
         checks.time(t, spec.checks.jump_factor)
         checks.next_samples(data, spec.checks.next_tol)
@@ -243,12 +244,12 @@ class _RowChecks:
             self.split[i] = True
 
     def cells(self, data: dict, t: np.ndarray, qd_missing: np.ndarray | None = None) -> None:
-        """Unreadable, empty or NaN cells in a mapped column or the time; ``qd_missing``: the table's rows
-        whose velocity is missing (derived from q later), which are no bad cells."""
+        """Unreadable, empty or NaN cells in a mapped column or the time; ``qd_missing``: which of the
+        checked rows have no velocity (derived from q later), which are no bad cells."""
         signals = {s: v for s, v in data.items() if s not in ("q_next", "qd_next")}
         if qd_missing is not None and "qd" in signals:
             qd = signals["qd"].copy()
-            qd[qd_missing[self.rows]] = 0.0
+            qd[qd_missing] = 0.0
             signals["qd"] = qd
         finite = np.isfinite(np.concatenate(list(signals.values()) + [t[:, None]], axis=1)).all(axis=1)
         messages = {}
