@@ -14,6 +14,7 @@ import numpy as np
 
 T0_NS = 1_764_000_000_000_000_000  # an epoch stamp [ns]: 2025-11-24, as a real bag has
 PANDA_JOINTS = [f"panda_joint{j}" for j in range(1, 8)]
+FINGERS = ["panda_finger_joint1", "panda_finger_joint2"]
 
 
 def panda_signals(robot, n=3000, hz=1000.0, seed=0, force=None, base_noise=0.1, tau_noise=0.0):
@@ -51,13 +52,16 @@ def _header(store, kind, stamp, frame, seq):
 
 
 def write_bag(path, sig, kind="mcap", joint_order=None, extra_joints=(), js_stamps=None, wrench_stamps=None,
-              base_frame="panda_link0", tip=True, base=True, receive_ns=None, joints=PANDA_JOINTS):
+              base_frame="panda_link0", tip=True, base=True, receive_ns=None, joints=PANDA_JOINTS, gripper=False,
+              empty=None):
     """Write ``sig`` (``panda_signals``) as a bag at ``path`` (a folder for ROS 2, a ``.bag`` for ROS 1).
 
     ``joint_order(k)``: the joint order of message k (a permutation of 0..6; default the robot's);
     ``extra_joints``: names of another arm's joints in the same messages (values 9.9: never the robot's);
     ``js_stamps`` / ``wrench_stamps``: header stamps [ns] (default ``sig["stamps"]``; 0 = unset);
     ``receive_ns``: the bag's receive times [ns] (default ``sig["stamps"]``: the recorder's clock).
+    ``gripper``: after each message, one naming only the gripper's fingers (franka_ros's layout: values
+    9.9, never the robot's); ``empty(k)``: the fields ("velocity", "effort") message k leaves empty.
     Returns the path a spec names: the folder, the ``.mcap`` file in it, or the ``.bag``."""
     from rosbags.rosbag1 import Writer as Writer1
     from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
@@ -82,9 +86,15 @@ def write_bag(path, sig, kind="mcap", joint_order=None, extra_joints=(), js_stam
             order = np.arange(len(joints)) if joint_order is None else np.asarray(joint_order(k))
             names = [joints[j] for j in order] + list(extra_joints)
             vals = lambda x: np.r_[x[k][order], extra]  # noqa: E731
+            gone = empty(k) if empty is not None else ()
             msg = JointState(header=_header(store, kind, js_stamps[k], "", k), name=names, position=vals(sig["q"]),
-                             velocity=vals(sig["qd"]), effort=vals(sig["tau"]))
+                             velocity=np.zeros(0) if "velocity" in gone else vals(sig["qd"]),
+                             effort=np.zeros(0) if "effort" in gone else vals(sig["tau"]))
             writer.write(js, int(receive_ns[k]), ser(msg, JointState.__msgtype__))
+            if gripper:
+                fingers = JointState(header=_header(store, kind, js_stamps[k], "", k), name=FINGERS,
+                                     position=np.full(2, 9.9), velocity=np.zeros(2), effort=np.zeros(2))
+                writer.write(js, int(receive_ns[k]), ser(fingers, JointState.__msgtype__))
             for conn, x, frame in ((ft, sig["base_wrench"][k], base_frame),
                                    (tool, np.r_[sig["tip_force"][k], np.zeros(3)], base_frame)):
                 if conn is None:

@@ -1,8 +1,11 @@
 """A recorded log replayed through the streaming estimator: ``hybrid-dyn estimate`` (``docs/from_a_ros_bag.md``).
 
-:func:`replay_log` reads a log exactly as ``hybrid-dyn import`` would (the same spec, the same checks:
-``importer.checked_segments``) and calls :class:`TipForceEstimator` once per kept sample at the log's own
-times, as a control loop would have; :func:`write_estimate` writes what came out:
+:func:`estimate_to` reads a log as ``hybrid-dyn import`` would (the same spec, the same row checks; a ROS
+bag chunk by chunk, ``data/logs/bag_checks.py``, anything else through ``importer.checked_segments``) and
+calls :class:`TipForceEstimator` once per kept sample at the log's own times, as a control loop would have,
+writing what comes out as it comes (``replay_sinks.py``): memory is bounded by a chunk, not by the log.
+Where a bag's velocity is missing, qd is derived from q (``_fill_qd``). :func:`replay_log` keeps the
+replay in memory instead (:class:`Replay`, :func:`write_estimate`). What it writes:
 
 - ``OUT.mcap``: a ROS 2 bag in one MCAP file with ``/tip_force`` (``geometry_msgs/msg/WrenchStamped``: the
   estimate [N] in the robot's base-sensor frame, zero torque, each header stamp the input sample's stamp)
@@ -17,7 +20,9 @@ if its name is still free.
 """
 from __future__ import annotations
 
+import copy
 import os
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,6 +30,7 @@ import numpy as np
 
 from ..errors import OutputPathError, UsageError
 from ..outputs import unique_temp
+from .replay_sinks import CsvSink, McapSink, Summary, write_figure
 
 OUT_SUFFIXES = (".mcap", ".csv")
 
@@ -58,54 +64,216 @@ class Replay:
         return float(np.sqrt(np.mean(np.sum(err**2, axis=1)))), int(ok.sum())
 
 
-def replay_log(spec, method: str = "base-momentum", model=None, encoder_resolution="auto") -> tuple[Replay, object]:
+def replay_log(spec, method: str = "base-momentum", model=None, encoder_resolution="auto",
+               keep_partial: bool = False) -> tuple[Replay, object]:
     """Replay the log of ``spec`` (a ``LogSpec``) through a ``TipForceEstimator`` (the analytic ``method``,
-    or the trained model in folder ``model``); returns the :class:`Replay` and the import report.
-    encoder_resolution [rad]: the log's encoders ("auto": the robot description's; 0: exact q and qd)."""
+    or the trained model in folder ``model``); returns the :class:`Replay` in memory and the import report.
+    encoder_resolution [rad]: the log's encoders ("auto": the robot description's; 0: exact q and qd).
+    A long log is better replayed by :func:`estimate_to`, which writes as it goes."""
+    keep = _Collect()
+    summary, report, info = _replay(spec, [keep], method, model, encoder_resolution, keep_partial)
+    return keep.replay(summary, info), report
+
+
+def estimate_to(spec, out, method: str = "base-momentum", model=None, encoder_resolution="auto",
+                keep_partial: bool = False, progress: bool = True):
+    """Replay the log of ``spec`` and write the estimate to ``out`` (.mcap or .csv) as it is made, and the
+    figure ``out`` .png where the log has a tip sensor: memory is bounded by a chunk of the log (a bag's
+    rows, ``data/logs/bag_checks.py``), not by its length. Returns (:class:`Summary`, the import report,
+    the files written, {"method", "call_hz", "frame"})."""
+    out, figure = check_outputs(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = unique_temp(out, ".bag" if out.suffix == ".mcap" else "")
+    sink = None
+    try:
+        info_frame = _frame(spec)
+        sink = McapSink(tmp, info_frame) if out.suffix == ".mcap" else CsvSink(tmp)
+        summary, report, info = _replay(spec, [sink], method, model, encoder_resolution, keep_partial, progress)
+        sink.close()
+        sink = None
+        _link_new(tmp / f"{tmp.name}.mcap" if out.suffix == ".mcap" else tmp, out)
+        written = [out]
+        rows = summary.figure_rows()
+        if rows is not None:
+            written.append(_write_new(figure, lambda p: write_figure(rows, info["frame"], info["method"],
+                                                                     summary.rms(), p)))
+        return summary, report, written, info
+    finally:
+        if sink is not None:
+            try:
+                sink.close()
+            except Exception:  # the run failed already: its error is the one to see
+                pass
+        shutil.rmtree(tmp, ignore_errors=True) if tmp.is_dir() else tmp.unlink(missing_ok=True)
+
+
+def _frame(spec) -> str:
+    """The name the output gives the base-sensor frame: the bag's own where the spec names it."""
+    from ..description import resolve_robot
+
+    ros = getattr(spec, "ros", None)
+    if ros is not None and ros.frame:
+        return ros.frame
+    ref = resolve_robot(spec.robot)
+    return ref.spec.base_sensor_frame if ref.described else "base"
+
+
+def _replay(spec, sinks, method, model, encoder_resolution, keep_partial, progress=False):
+    """Every kept row of the log through one estimator, block by block, into ``sinks``."""
     from ..analytic.robot import load_robot
-    from ..data.logs.importer import checked_segments
+    from ..data.logs.import_report import ImportReport
     from .tip_force_estimator import TipForceEstimator
 
-    segments, report = checked_segments(spec)
+    spec = copy.copy(spec)  # a bag without efforts leaves its torque columns: the caller's spec stays
+    report = ImportReport(spec.name)
+    blocks = _bag_blocks(spec, report, keep_partial) if spec.ros is not None else _segment_blocks(spec, report)
+    est, source, carry, summary = None, None, None, Summary()
+    bar = _progress(spec, progress)
+    try:
+        for src, stamps, f, starts, hz in blocks:
+            if est is None:
+                robot = load_robot(spec.robot)
+                # A bad sample is named in its status, never a stop.
+                opts = dict(call_hz=hz, on_bad_input="hold", encoder_resolution=encoder_resolution)
+                est = (TipForceEstimator.load(model, robot=spec.robot, **opts) if model is not None
+                       else TipForceEstimator.analytic(robot, method, **opts))
+                _check_sensors(est, f, spec.name)
+                info = {"method": est.method if model is None else f"learned model {Path(model).name}",
+                        "call_hz": hz, "frame": _frame(spec)}
+            if src != source:  # another recording: another stream
+                source, carry = src, None
+                est.reset()
+            carry = _fill_qd(f, starts, carry)
+            force, status, sigma = _run(est, f)
+            for sink in sinks:
+                sink.write(stamps, f["t"], force, status, sigma, f.get("tip_force"))
+            summary.add(f["t"], force, status, f.get("tip_force"))
+            bar.update(len(stamps))
+    finally:
+        bar.close()
+    if spec.ros is not None:
+        _refuse_as_an_import(spec, report)
+    return summary, report, info
+
+
+def _progress(spec, show: bool):
+    """A progress bar over a bag's joint-state messages, on long bags only."""
+    from tqdm import tqdm
+
+    total = 0
+    if show and spec.ros is not None:
+        from ..data.logs.bag_stream import open_reader
+
+        for f in spec.files:
+            reader = open_reader(Path(f))
+            try:
+                info = reader.topics.get(spec.ros.joint_states)
+                total += info.msgcount if info is not None else 0
+            finally:
+                reader.close()
+    return tqdm(total=total, unit="msg", desc="estimate", disable=total < 200_000, mininterval=2.0)
+
+
+def _bag_blocks(spec, report, keep_partial):
+    from ..data.logs.bag_checks import checked_chunks
+
+    hz = None
+    for rows in checked_chunks(spec, report, keep_partial):
+        if hz is None:  # the estimator runs at the log's own rate: the median step of its first chunk
+            steps = np.diff(rows.fields["t"])
+            hz = 1.0 / float(np.median(steps)) if len(steps) else 1.0
+        yield rows.source, rows.stamps_ns, rows.fields, rows.starts, hz
+
+
+def _segment_blocks(spec, report):
+    """A log that is no bag: read whole by the importer, then one block per kept segment."""
+    from ..data.logs.importer import checked_segments
+
+    segments, checked = checked_segments(spec, derivatives=False)
+    report.__dict__.update(checked.__dict__)
     report.instances = len(segments)  # what an import would write: the report's line reads the same
-    if any("qd" not in s.fields for s in segments):
-        raise UsageError(f"{spec.name}: the log has no joint velocities; the estimator reads them as logged")
     steps = np.concatenate([np.diff(s.fields["t"]) for s in segments])
-    hz = 1.0 / float(np.median(steps))  # the estimator runs at the log's own rate
-    robot = load_robot(spec.robot)
-    # A bad sample is named in its status, never a stop.
-    opts = dict(call_hz=hz, on_bad_input="hold", encoder_resolution=encoder_resolution)
-    est = (TipForceEstimator.load(model, robot=spec.robot, **opts) if model is not None
-           else TipForceEstimator.analytic(robot, method, **opts))
-    _check_sensors(est, segments[0].fields, spec.name)
-    rows, table = {k: [] for k in ("stamps", "t", "force", "status", "sigma", "truth")}, None
+    hz = 1.0 / float(np.median(steps))
     for seg in sorted(segments, key=lambda s: (str(s.table.source), s.table.name, s.rows[0])):
-        if seg.table is not table:  # another recording: another stream
-            table = seg.table
-            est.reset()
-        f = seg.fields
-        stamps = getattr(table, "stamps_ns", None)
-        rows["stamps"].append(stamps[seg.rows] if stamps is not None else np.round(f["t"] * 1e9).astype(np.int64))
-        for k in range(len(f["t"])):
-            force = est.estimate_tip_force(f["q"][k], f["qd"][k], base_wrench=_row(f, "base_wrench", k),
-                                           tau_J=_row(f, "tau_J" if "tau_J" in f else "tau_m", k), t=f["t"][k])
-            status = est.last_status.value
-            if est.last_rejection and status == "input rejected":
-                status += f": {est.last_rejection}"
-            rows["force"].append(force)
-            rows["status"].append(status)
-            sigma = getattr(est, "last_sigma", None)  # an error bar, where the estimator gives one
-            rows["sigma"].append(None if sigma is None else np.atleast_1d(np.asarray(sigma, float)).ravel())
-        rows["t"].append(f["t"])
-        rows["truth"].append(f.get("tip_force"))
-    sig = rows["sigma"]
-    sigma = np.array(sig) if sig and all(s is not None and len(s) == len(sig[0]) for s in sig) else None
-    truth = np.concatenate(rows["truth"]) if all(x is not None for x in rows["truth"]) else None
-    ros = getattr(spec, "ros", None)
-    frame = ros.frame if ros is not None and ros.frame else robot.spec.base_sensor_frame  # the bag's name for it
-    name = est.method if model is None else f"learned model {Path(model).name}"
-    return Replay(np.concatenate(rows["stamps"]), np.concatenate(rows["t"]), np.array(rows["force"]), rows["status"],
-                  sigma, truth, frame, name, hz), report
+        stamps = getattr(seg.table, "stamps_ns", None)
+        stamps = stamps[seg.rows] if stamps is not None else np.round(seg.fields["t"] * 1e9).astype(np.int64)
+        starts = np.zeros(len(seg.rows), bool)
+        starts[0] = True
+        yield (str(seg.table.source), seg.table.name), stamps, dict(seg.fields), starts, hz
+
+
+def _refuse_as_an_import(spec, report) -> None:
+    """The refusals of ``importer.checked_segments``, after a streamed read: too many rows dropped, none kept."""
+    from ..data.logs.importer import LogImportError, TooManyRowsDroppedError
+
+    frac = report.rows_dropped / max(report.rows_read, 1)
+    if frac > spec.checks.max_drop_fraction:
+        raise TooManyRowsDroppedError(
+            f"{spec.name}: {report.rows_dropped} of {report.rows_read} rows ({100 * frac:.1f} %) failed validation, "
+            f"more than max_drop_fraction = {spec.checks.max_drop_fraction}.\n{report.text(5)}")
+    if not report.rows_kept:
+        raise LogImportError(f"{spec.name}: no usable rows\n{report.text(5)}")
+
+
+def _fill_qd(f: dict, starts: np.ndarray, carry):
+    """qd from q where the log's velocity is missing: the backward difference (the forward one at a
+    segment's first row; 0 for a segment of one row). ``carry``: the previous block's last (q, t) when
+    its segment goes on here. Returns this block's carry."""
+    q, t = f["q"], f["t"]
+    if "qd" not in f:
+        f["qd"] = np.full_like(q, np.nan)
+    gap = ~np.isfinite(f["qd"]).all(axis=1)
+    if gap.any():
+        nan = np.full((1, q.shape[1]), np.nan)
+        first = carry if carry is not None and not starts[0] else (nan, np.nan)
+        q_prev, t_prev = np.r_[first[0], q[:-1]], np.r_[first[1], t[:-1]]
+        q_prev[starts & (np.arange(len(t)) > 0)] = np.nan
+        with np.errstate(invalid="ignore", divide="ignore"):
+            back = (q - q_prev) / (t - t_prev)[:, None]
+        fwd = np.r_[back[1:], nan]
+        fwd[np.r_[starts[1:], True]] = np.nan  # the next row is in another segment
+        qd = np.where(np.isfinite(back), back, np.where(np.isfinite(fwd), fwd, 0.0))
+        f["qd"] = np.where(gap[:, None], qd, f["qd"])
+    return q[-1:], t[-1]
+
+
+def _run(est, f: dict):
+    """The estimator on every row of a block: (force (n, 3) [N], statuses, sigma (n, k) or None)."""
+    n = len(f["t"])
+    force, status, sig = np.zeros((n, 3)), [], []
+    tau_key = "tau_J" if "tau_J" in f else "tau_m"
+    wrench, tau = f.get("base_wrench"), f.get(tau_key)
+    q, qd, t = f["q"], f["qd"], f["t"]
+    for k in range(n):
+        force[k] = est.estimate_tip_force(q[k], qd[k], base_wrench=None if wrench is None else wrench[k],
+                                          tau_J=None if tau is None else tau[k], t=t[k])
+        s = est.last_status.value
+        if est.last_rejection and s == "input rejected":
+            s += f": {est.last_rejection}"
+        status.append(s)
+        sigma = getattr(est, "last_sigma", None)  # an error bar, where the estimator gives one
+        sig.append(None if sigma is None else np.atleast_1d(np.asarray(sigma, float)).ravel())
+    sigma = np.array(sig) if sig and all(x is not None and len(x) == len(sig[0]) for x in sig) else None
+    return force, status, sigma
+
+
+class _Collect:
+    """A sink that keeps everything: the in-memory :class:`Replay`."""
+
+    def __init__(self):
+        self.parts = {k: [] for k in ("stamps", "t", "force", "status", "sigma", "truth")}
+
+    def write(self, stamps_ns, t, force, status, sigma, truth=None) -> None:
+        for k, v in (("stamps", stamps_ns), ("t", t), ("force", force), ("sigma", sigma), ("truth", truth)):
+            self.parts[k].append(v)
+        self.parts["status"] += status
+
+    def replay(self, summary, info) -> Replay:
+        p = self.parts
+        sigma = np.concatenate(p["sigma"]) if p["sigma"] and all(s is not None for s in p["sigma"]) else None
+        truth = np.concatenate(p["truth"]) if all(x is not None for x in p["truth"]) else None
+        return Replay(np.concatenate(p["stamps"]), np.concatenate(p["t"]), np.concatenate(p["force"]), p["status"],
+                      sigma, truth, info["frame"], info["method"], info["call_hz"])
 
 
 def _check_sensors(est, fields: dict, name: str) -> None:
@@ -119,12 +287,6 @@ def _check_sensors(est, fields: dict, name: str) -> None:
     if missing and (not method.any_of or len(missing) == len(method.reads)):
         raise UsageError(f"{name}: method {est.method} reads {' and '.join(method.reads)}; the log has no "
                          f"{' or '.join(missing)} (a ROS spec: [ros] base_wrench, or the effort)")
-
-
-def _row(fields: dict, key: str, k: int):
-    # The log's tau_J, else its logged joint torque tau_m (a JointState's effort: franka_ros publishes the
-    # Panda's measured tau_J there). A method reads only what it needs; the rest is never looked at.
-    return fields[key][k] if key in fields else None
 
 
 def check_outputs(out) -> list[Path]:
@@ -144,21 +306,32 @@ def write_estimate(replay: Replay, out) -> list[Path]:
     """Write ``replay`` to ``out`` (.mcap or .csv) and, with a tip sensor, the figure ``out`` .png; returns
     the files written."""
     out, figure = check_outputs(out)
-    writers = [(out, _write_mcap if out.suffix == ".mcap" else _write_csv)]
+
+    def data(path):
+        sink = McapSink(path, replay.frame) if out.suffix == ".mcap" else CsvSink(path)
+        sink.write(replay.stamps_ns, replay.t, replay.force, replay.status, replay.sigma)
+        sink.close()
+
+    written = [_write_new(out, data, folder=out.suffix == ".mcap")]
     if replay.truth is not None:
-        writers.append((figure, _write_figure))
-    written = []
-    for path, write in writers:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = unique_temp(path)
-        try:
-            write(replay, tmp)
-            _link_new(tmp, path)
-        finally:
-            if tmp.exists():
-                tmp.unlink()
-        written.append(path)
+        ok = np.array([s == "ok" for s in replay.status])
+        rows = (replay.t, replay.force, replay.truth, ok)
+        written.append(_write_new(figure, lambda p: write_figure(rows, replay.frame, replay.method,
+                                                                 replay.rms_against_truth(), p)))
     return written
+
+
+def _write_new(path: Path, write, folder: bool = False) -> Path:
+    """``write(tmp)`` then ``tmp`` linked to ``path`` if that name is still free (a bag: the .mcap in the
+    folder ``tmp``)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = unique_temp(path, ".bag" if folder else "")
+    try:
+        write(tmp)
+        _link_new(tmp / f"{tmp.name}.mcap" if folder else tmp, path)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True) if tmp.is_dir() else tmp.unlink(missing_ok=True)
+    return path
 
 
 def _link_new(tmp: Path, path: Path) -> None:
@@ -166,66 +339,3 @@ def _link_new(tmp: Path, path: Path) -> None:
         os.link(tmp, path)  # fails if the name was taken meanwhile: nothing of the user's is replaced
     except FileExistsError:
         raise OutputPathError(f"{path} appeared while the estimate was written; it was left as it is") from None
-
-
-def _write_csv(replay: Replay, path: Path) -> None:
-    import csv
-
-    sigma = replay.sigma
-    extra = [] if sigma is None else (["sigma"] if sigma.shape[1] == 1 else [f"sigma{j + 1}" for j in range(sigma.shape[1])])
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["stamp_ns", "t", "fx", "fy", "fz", "status", *extra])
-        for k in range(len(replay.t)):
-            w.writerow([int(replay.stamps_ns[k]), repr(float(replay.t[k])), *map(repr, replay.force[k].tolist()),
-                        replay.status[k], *([] if sigma is None else map(repr, sigma[k].tolist()))])
-
-
-def _write_mcap(replay: Replay, path: Path) -> None:
-    """A ROS 2 bag (MCAP storage) written by rosbags in a temporary folder; its one .mcap file is the output."""
-    import shutil
-
-    from rosbags.rosbag2 import StoragePlugin, Writer
-    from rosbags.typesys import Stores, get_typestore
-
-    store = get_typestore(Stores.ROS2_HUMBLE)
-    T = store.types
-    folder = unique_temp(path, ".bag")
-    try:
-        with Writer(folder, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
-            wrench = writer.add_connection("/tip_force", "geometry_msgs/msg/WrenchStamped", typestore=store)
-            status = writer.add_connection("/tip_force/status", "std_msgs/msg/String", typestore=store)
-            zero = T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
-            for stamp, f, s in zip(replay.stamps_ns.tolist(), replay.force.tolist(), replay.status):
-                header = T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](
-                    sec=stamp // 1_000_000_000, nanosec=stamp % 1_000_000_000), frame_id=replay.frame)
-                msg = T["geometry_msgs/msg/WrenchStamped"](header=header, wrench=T["geometry_msgs/msg/Wrench"](
-                    force=T["geometry_msgs/msg/Vector3"](x=f[0], y=f[1], z=f[2]), torque=zero))
-                writer.write(wrench, stamp, store.serialize_cdr(msg, "geometry_msgs/msg/WrenchStamped"))
-                writer.write(status, stamp, store.serialize_cdr(T["std_msgs/msg/String"](data=s), "std_msgs/msg/String"))
-        os.replace(folder / f"{folder.name}.mcap", path)
-    finally:
-        shutil.rmtree(folder, ignore_errors=True)
-
-
-def _write_figure(replay: Replay, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    ok = np.array([s == "ok" for s in replay.status])
-    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(9, 6.5))
-    for j, ax in enumerate(axes):
-        ax.plot(replay.t, replay.force[:, j], color="C0", lw=0.8, label=f"estimate ({replay.method})")
-        ax.plot(replay.t, replay.truth[:, j], color="k", lw=1.0, ls="--", label="tip sensor")  # on top: both show
-        ax.fill_between(replay.t, 0, 1, where=~ok, transform=ax.get_xaxis_transform(), color="C1", alpha=0.15,
-                        label="status not ok", step="mid")
-        ax.set_ylabel(f"F{'xyz'[j]} [N]")
-    rms = replay.rms_against_truth()
-    axes[0].set_title(f"tip force in {replay.frame}" + (f": {rms[0]:.3f} N RMS over {rms[1]} ok samples" if rms else ""))
-    axes[0].legend(loc="upper right", fontsize=8)
-    axes[-1].set_xlabel("t [s] from the first sample")
-    fig.tight_layout()
-    fig.savefig(path, format="png", dpi=110)
-    plt.close(fig)

@@ -16,27 +16,26 @@ def register(sub) -> None:
                         "Panda); 0 for exact q and qd (a simulation's)")
     p.add_argument("--out", required=True, help="OUT.mcap (a ROS 2 bag: /tip_force, /tip_force/status) or OUT.csv; "
                                                 "never overwritten; OUT.png beside it where the log has a tip sensor")
+    p.add_argument("--keep-partial", action="store_true",
+                   help="a damaged ROS bag: estimate from the rows read before the damage (the report says where "
+                        "it stopped) instead of refusing it")
     p.set_defaults(func=cmd_estimate)
 
 
 def cmd_estimate(args) -> int:
     from ..data.logs.importer import read_spec
-    from .replay import check_outputs, replay_log, write_estimate
+    from .replay import check_outputs, estimate_to
 
     check_outputs(args.out)  # before the log is read: a taken name costs nothing
     resolution = "auto" if args.encoder_resolution is None else args.encoder_resolution
-    replay, report = replay_log(read_spec(args.spec), method=args.method, model=args.model,
-                                encoder_resolution=resolution)
+    summary, report, written, info = estimate_to(read_spec(args.spec), args.out, method=args.method,
+                                                 model=args.model, encoder_resolution=resolution,
+                                                 keep_partial=args.keep_partial)
     print(report.text(max_per_kind=5))
-    statuses = {}
-    for s in replay.status:
-        key = s.split(":")[0]
-        statuses[key] = statuses.get(key, 0) + 1
-    print(f"{replay.method}: {len(replay.t)} samples estimated at {replay.call_hz:.6g} Hz"
-          f"; status {statuses}")
-    rms = replay.rms_against_truth()
+    print(f"{info['method']}: {summary.n} samples estimated at {info['call_hz']:.6g} Hz; status {summary.statuses}")
+    rms = summary.rms()
     if rms is not None:
         print(f"against the tip sensor: {rms[0]:.4f} N RMS over the {rms[1]} samples with status ok")
-    for path in write_estimate(replay, args.out):
+    for path in written:
         print(f"written: {path}")
     return 0

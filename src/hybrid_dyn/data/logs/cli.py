@@ -20,6 +20,9 @@ def register(sub) -> None:
     p.add_argument("--tool", default=None,
                    help="what the arm carried, instead of the spec's: none (the bare flange), a tool .urdf, or the "
                         "URDF's own (hand for the Panda)")
+    p.add_argument("--keep-partial", action="store_true",
+                   help="a damaged ROS bag: keep the rows read before the damage (the report says where it stopped) "
+                        "instead of refusing it")
     p.add_argument("--report", action="store_true", help="print every row problem, not the first few per kind")
     p.add_argument("--json", action="store_true", help="print the report summary as JSON")
     p.set_defaults(func=cmd_import)
@@ -36,7 +39,8 @@ def cmd_import(args) -> int:
     if args.robot is not None or args.tool is not None:  # the options replace the spec's robot or tool
         base, tool, payload = parse_robot_name(args.robot or spec.robot)
         spec.robot = resolve_robot(base, tool=args.tool if args.tool is not None else tool, payload=payload).name
-    report = import_log(spec, args.out, overwrite=args.overwrite, strict=args.strict)
+    report = import_log(spec, args.out, overwrite=args.overwrite, strict=args.strict,
+                        keep_partial=args.keep_partial)
     if args.json:
         print(json.dumps({"path": str(report.path), **report.summary()}, indent=1))
     else:

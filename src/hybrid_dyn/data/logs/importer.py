@@ -32,6 +32,7 @@ qd [rad/s], qdd [rad/s^2], torques [Nm]. ``tau_m`` is the logged joint torque.
 """
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 import re
@@ -49,7 +50,8 @@ from .log_spec import (  # noqa: F401
 from .log_writer import IMPORTER_VERSION, check_replaceable, write_dataset
 
 
-def import_log(source, out, *, overwrite: bool = False, strict: bool = False, **spec_args) -> ImportReport:
+def import_log(source, out, *, overwrite: bool = False, strict: bool = False, keep_partial: bool = False,
+               **spec_args) -> ImportReport:
     """Import a robot log into a dataset at ``out``; returns the :class:`ImportReport`.
 
     ``source``: a TOML spec path (``.toml``), a :class:`LogSpec`, or the log
@@ -65,7 +67,8 @@ def import_log(source, out, *, overwrite: bool = False, strict: bool = False, **
     ``overwrite``, and only when it is a hybrid-dyn dataset holding nothing but its
     own files (anything else is refused, named). One import per ``out`` at a time
     (``outputs.output_lock``). ``strict``: fail on any row issue and on any channel that carries nothing
-    (``log_validation.channel_warnings``: a joint's torque 0 throughout).
+    (``log_validation.channel_warnings``: a joint's torque 0 throughout). ``keep_partial``: a damaged ROS
+    bag keeps the rows read before the damage, the report saying where it stopped (else a one-line error).
     """
     is_spec = isinstance(source, LogSpec) or (isinstance(source, (str, Path)) and Path(source).suffix == ".toml")
     if is_spec and spec_args:
@@ -80,22 +83,25 @@ def import_log(source, out, *, overwrite: bool = False, strict: bool = False, **
         spec = LogSpec(files=files, **spec_args)
     out = Path(out)
     with output_lock(out, "dataset"):
-        return _import_locked(spec, out, overwrite, strict)
+        return _import_locked(spec, out, overwrite, strict, keep_partial)
 
 
-def _import_locked(spec: "LogSpec", out: Path, overwrite: bool, strict: bool) -> "ImportReport":
+def _import_locked(spec: "LogSpec", out: Path, overwrite: bool, strict: bool, keep_partial: bool) -> "ImportReport":
     check_replaceable(out, overwrite)
-    segments, report = checked_segments(spec, strict)
+    spec = copy.copy(spec)  # the columns become what the log holds (a bag without velocities): not the caller's
+    segments, report = checked_segments(spec, strict, keep_partial)
     write_dataset(spec, segments, report, out, overwrite)
     return report
 
 
-def checked_segments(spec: "LogSpec", strict: bool = False) -> tuple[list, "ImportReport"]:
+def checked_segments(spec: "LogSpec", strict: bool = False, keep_partial: bool = False,
+                     derivatives: bool = True) -> tuple[list, "ImportReport"]:
     """The log read and checked (``log_validation.validate_log``) and refused as an import refuses it (strict,
     too many rows dropped, nothing left): its kept segments and the report. ``hybrid-dyn estimate`` replays
-    these, so that it reads exactly what an import of the same spec would write."""
+    these, so that it reads exactly what an import of the same spec would write (``derivatives`` False: but
+    no segment is dropped for a derivative filter it does not run)."""
     report = ImportReport(spec.name)
-    segments, warnings = validate_log(spec, report)
+    segments, warnings = validate_log(spec, report, keep_partial, derivatives)
     report.warnings += warnings
     if strict and (report.issues or report.channel_warnings):
         found = (("row problems", report.issues), ("dead channels", report.channel_warnings))

@@ -110,12 +110,24 @@ def _robot_limits(spec: LogSpec, nv: int):
     return np.maximum(joints.lower, -1e3) - margin, np.minimum(joints.upper, 1e3) + margin
 
 
-def validate_log(spec: LogSpec, report: ImportReport) -> tuple[list, list]:
-    """Read, check and cut the log into segments; every problem goes to ``report``."""
+def validate_log(spec: LogSpec, report: ImportReport, keep_partial: bool = False,
+                 derivatives: bool = True) -> tuple[list, list]:
+    """Read, check and cut the log into segments; every problem goes to ``report``. ``keep_partial``: a
+    damaged bag keeps what was read before the damage. ``derivatives``: the kept segments go through the
+    derivative filter (an import), so a segment shorter than its window is dropped; without (a replay)
+    only a segment too short to difference q where qd is missing is.
+
+    A signal a bag does not carry at all (every velocity or effort empty) leaves ``spec.columns``: the
+    caller's spec is changed to what the log holds."""
     if spec.ros is not None:  # a ROS bag: its topics on one time base, one table per bag (ros_bag.py)
         from .ros_bag import read_bags
 
-        tables = read_bags(spec, report)
+        tables = read_bags(spec, report, keep_partial)
+        absent = set.intersection(*(set(t.absent) for t in tables))
+        spec.columns = {s: c for s, c in spec.columns.items() if s not in absent}
+        if any(t.absent for t in tables) and absent != set.union(*(set(t.absent) for t in tables)):
+            raise LogSpecError(f"{spec.name}: some bags carry {sorted(set.union(*(set(t.absent) for t in tables)))}"
+                               " and some do not; import them apart")
     else:
         tables = [t for f in spec.files for t in read_log(f, spec.format, spec.variables, spec.delimiter)]
     segments, limits, q_peak = [], None, 0.0
@@ -126,7 +138,8 @@ def validate_log(spec: LogSpec, report: ImportReport) -> tuple[list, list]:
         q_peak = max(q_peak, float(np.abs(data["q"][np.isfinite(data["q"])]).max(initial=0.0)))  # units check
         report.rows_read += len(rows)
         checks = _RowChecks(table, rows, report)
-        checks.cells(data, t)
+        qd_missing = getattr(table, "qd_missing", None)
+        checks.cells(data, t, None if qd_missing is None else qd_missing[rows])
         checks.ranges(data, limits, spec.checks.qd_abs_max)
         checks.time(t, spec.checks.jump_factor)
         checks.next_samples(data, spec.checks.next_tol)
@@ -135,8 +148,13 @@ def validate_log(spec: LogSpec, report: ImportReport) -> tuple[list, list]:
         report.trajectories += 1
         kept_t = t[checks.keep]
         dt = 1.0 / spec.sample_rate_hz if spec.sample_rate_hz else float(np.median(np.diff(kept_t))) if len(kept_t) > 1 else 1.0
-        min_len = spec.derivatives.min_samples(dt) if "qdd" not in spec.columns else 1
-        for seg in checks.segments(min_len):
+        qd_missing = getattr(table, "qd_missing", None)
+        derive_qd = "qd" not in spec.columns or (qd_missing is not None and qd_missing[rows].any())
+        if derivatives:
+            min_len, why = (spec.derivatives.min_samples(dt) if "qdd" not in spec.columns else 1), "derivative filter"
+        else:
+            min_len, why = (2 if derive_qd else 1), "difference of q"
+        for seg in checks.segments(min_len, why):
             fields = {s: v[seg] for s, v in data.items() if s not in ("q_next", "qd_next")}
             fields["t"] = t[seg]
             nxt = data["qd_next"][seg[-1]] if "qd_next" in data and np.isfinite(data["qd_next"][seg[-1]]).all() else None
@@ -170,6 +188,7 @@ def channel_warnings(segments: list, spec: LogSpec) -> list[str]:
         if signal not in spec.columns:  # estimated by the import, not logged: nothing of the sensor to check
             continue
         x = np.concatenate([seg.fields[signal] for seg in segments])
+        x = x[np.isfinite(x).all(axis=1)]  # a bag's rows without velocity: qd derived, not logged
         scale = (effort if effort is not None else np.ones(x.shape[1])) if signal in TORQUE_SIGNALS else None
         out += channel_problems(signal, x, unit, scale, spec.checks.channel_scale_factor, names)
     return out
@@ -224,9 +243,14 @@ class _RowChecks:
         else:
             self.split[i] = True
 
-    def cells(self, data: dict, t: np.ndarray) -> None:
-        """Unreadable, empty or NaN cells in a mapped column or the time."""
+    def cells(self, data: dict, t: np.ndarray, qd_missing: np.ndarray | None = None) -> None:
+        """Unreadable, empty or NaN cells in a mapped column or the time; ``qd_missing``: which of the
+        checked rows have no velocity (derived from q later), which are no bad cells."""
         signals = {s: v for s, v in data.items() if s not in ("q_next", "qd_next")}
+        if qd_missing is not None and "qd" in signals:
+            qd = signals["qd"].copy()
+            qd[qd_missing] = 0.0
+            signals["qd"] = qd
         finite = np.isfinite(np.concatenate(list(signals.values()) + [t[:, None]], axis=1)).all(axis=1)
         messages = {}
         for r, msg in self.table.cell_problems:
@@ -283,7 +307,7 @@ class _RowChecks:
                     self.flag(k + 1, "discontinuity", f"{s} differs from the previous row's {s_next} by {e:.3g}: "
                               f"samples missing?", "split")
 
-    def segments(self, min_len: int) -> list[np.ndarray]:
+    def segments(self, min_len: int, why: str = "derivative filter") -> list[np.ndarray]:
         """Runs of kept, consecutive rows without a split; shorter than ``min_len``: dropped and reported."""
         kept = np.flatnonzero(self.keep)
         breaks = np.flatnonzero((np.diff(kept) > 1) | self.split[kept[1:]]) + 1
@@ -293,7 +317,7 @@ class _RowChecks:
                 out.append(seg)
             else:
                 self.flag(seg[0], "short_segment", f"segment of {len(seg)} rows (rows {self.rows[seg[0]] + 1}-"
-                          f"{self.rows[seg[-1]] + 1}) is shorter than the {min_len} the derivative filter needs",
+                          f"{self.rows[seg[-1]] + 1}) is shorter than the {min_len} the {why} needs",
                           "drop", n_rows=len(seg))
         return out
 
@@ -301,14 +325,21 @@ class _RowChecks:
 def _timebase_warning(segments: list, spec: LogSpec) -> str | None:
     """Least-squares ratio of the position increments to qd x dt over all segments: 1 if the
     time base and the units of q and qd agree. Otherwise the warning names the time unit
-    (or sample rate) whose scale makes the increments fit the logged velocities."""
+    (or sample rate) whose scale makes the increments fit the logged velocities.
+
+    dt is each segment's clock (its span over its steps), not each interval: a stream stamped on
+    arrival jitters interval by interval while its samples are evenly spaced, and per-interval steps
+    biased the ratio (a false "no time unit fits")."""
     tol = spec.checks.timebase_tol
     dq, vdt = [], []
     for seg in segments:
         f = seg.fields
         if "qd" in f and len(f["t"]) > 1:
-            dq.append(np.diff(f["q"], axis=0).ravel())
-            vdt.append((0.5 * (f["qd"][1:] + f["qd"][:-1]) * np.diff(f["t"])[:, None]).ravel())
+            step = (f["t"][-1] - f["t"][0]) / (len(f["t"]) - 1)
+            inc, v = np.diff(f["q"], axis=0), 0.5 * (f["qd"][1:] + f["qd"][:-1]) * step
+            ok = np.isfinite(v).all(axis=1)  # rows whose qd is derived, not logged
+            dq.append(inc[ok].ravel())
+            vdt.append(v[ok].ravel())
     if not dq:
         return None
     dq, vdt = np.concatenate(dq), np.concatenate(vdt)

@@ -28,9 +28,15 @@ IMPORTER_VERSION = 1  # bump when the importer's algorithm changes what a spec a
 
 
 def _derive(spec: LogSpec, seg: Segment) -> dict:
-    """A segment's fields with qd (when not logged) and qdd (unless logged) estimated (``data/derivatives.py``)."""
+    """A segment's fields with qd (when not logged, and in a bag's rows whose velocity is empty) and qdd
+    (unless logged) estimated (``data/derivatives.py``)."""
     f = dict(seg.fields)
     flt = spec.derivatives
+    if "qd" in f and not np.isfinite(f["qd"]).all():  # rows without a logged velocity: qd from q there
+        gap = ~np.isfinite(f["qd"]).all(axis=1)
+        qd = f["qd"].copy()
+        qd[gap] = differentiate(f["q"], f["t"], flt, 1)[gap]
+        f["qd"] = qd
     if "qdd" in f:
         if "qd" not in f:
             f["qd"] = differentiate(f["q"], f["t"], flt, 1)
