@@ -170,6 +170,14 @@ def main(argv=None) -> int:
                 rms_g = np.sqrt(np.mean((g - taus[slow]) ** 2, axis=0))
                 print(f"  {vname}: nominal gravity vs logged torque on {slow.sum()} slow samples, RMSE per joint "
                       f"{rms_g} Nm (all {np.sqrt(np.mean((g - taus[slow]) ** 2)):.3f})")
+                # An unknown tool: one point mass at the tool frame, fitted on the slow samples (the sprung
+                # joints left out of the fit: their residual is the spring's).
+                per_kg = np.einsum("nij,i->nj", rob.tip_jacobian(qs[slow])[:, :3], np.array([0.0, 0.0, 9.81]))
+                fit_on = [j for j, n in enumerate(rob.joint_names) if n not in rob.spec.springs]
+                res = taus[slow] - g
+                mass = np.sum(per_kg[:, fit_on] * res[:, fit_on]) / np.sum(per_kg[:, fit_on] ** 2)
+                print(f"    + a load at the tool frame fitted on them: {mass:.2f} kg, RMSE per joint "
+                      f"{np.sqrt(np.mean((res - mass * per_kg) ** 2, axis=0))} Nm")
                 for extra in (False, True):
                     per_joint, total, cond = ols_fit(rob, parts[:8], parts[8:], extra)
                     label = "OLS + declared terms" if extra else "OLS, rigid body + friction"

@@ -1,14 +1,16 @@
 """Declared joint terms a robot's URDF lacks, identified beside its inertials and friction.
 
 A description may name joints that carry a spring (``[identification] springs`` in its TOML:
-Baxter's shoulder s1 has a gravity-assist spring). Each adds one column to the regressor, acting
+Baxter's shoulder s1 has a gravity-assist spring). Each adds three columns to the regressor, acting
 on its own joint only:
 
-    tau_spring,j = k_j q_j        [Nm], k_j [Nm/rad]
+    tau_spring,j = k_lin q_j + k_sin sin(q_j) + k_cos cos(q_j)        [Nm], k_lin [Nm/rad], k_sin, k_cos [Nm]
 
-(the constant part, k_j q_0, is the joint's friction offset column already). A linear law is the
-first term of any smooth spring torque about the arm's working range; the per-joint test errors
-(``benchmarks/real_robot_evidence.py``) say whether it is enough.
+(the constant part is the joint's friction offset column already). A spring stretched between two
+links by a lever arm gives a torque that is a smooth function of the joint angle, neither linear nor
+a pure harmonic; the linear term and the first harmonic are the first terms of it. With the linear term
+alone, Baxter's least-squares fit made up the rest with a body of negative mass (-12.6 kg on e0), which
+the physically consistent fit cannot: its s1 error stayed at 3.0 Nm (``docs/real_robots.md``).
 """
 from __future__ import annotations
 
@@ -26,12 +28,21 @@ def spring_joints(spec, joint_names) -> list[int]:
     return [list(joint_names).index(j) for j in spec.springs]
 
 
+SPRING_TERMS = ("k_lin", "k_sin", "k_cos")  # the columns of one spring, in this order
+
+
+def spring_basis(qj: np.ndarray) -> np.ndarray:
+    """(..., 3): q_j, sin(q_j), cos(q_j) [rad, 1, 1], the spring law's basis."""
+    qj = np.asarray(qj, float)
+    return np.stack([qj, np.sin(qj), np.cos(qj)], axis=-1)
+
+
 def spring_regressor(joints: list[int], q: np.ndarray, nv: int) -> np.ndarray:
-    """S(q) (N, nv, len(joints)): column i is q_j on row j = joints[i], zero elsewhere."""
+    """S(q) (N, nv, 3 len(joints)): spring i's three columns act on row j = joints[i], zero elsewhere."""
     q = np.atleast_2d(np.asarray(q, float))
-    out = np.zeros((len(q), nv, len(joints)))
+    out = np.zeros((len(q), nv, len(SPRING_TERMS) * len(joints)))
     for i, j in enumerate(joints):
-        out[:, j, i] = q[:, j]
+        out[:, j, 3 * i:3 * i + 3] = spring_basis(q[:, j])
     return out
 
 

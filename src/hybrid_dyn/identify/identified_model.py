@@ -32,7 +32,7 @@ from ..description import GazFriction, RobotDescriptionError
 from ..errors import UsageError
 from ..outputs import unique_temp
 from . import least_squares as est
-from .extra_terms import spring_joints, spring_regressor
+from .extra_terms import SPRING_TERMS, spring_basis, spring_joints, spring_regressor
 from .parameters import N_BODY_PARAMS, check_consistency, to_urdf_form
 from .plausibility import fit_warnings
 from .regressor import (DEFAULT_COULOMB_EPS, BaseParameters, base_parameters, friction_regressor,
@@ -184,7 +184,8 @@ class IdentifiedModel:
     body_params: np.ndarray
     friction: LinearFriction | GazFriction
     fit: dict = field(default_factory=dict)
-    # The declared springs' stiffness [Nm/rad] by joint name (``extra_terms``): tau_j += k_j q_j.
+    # The declared springs by joint name (``extra_terms``): [k_lin, k_sin, k_cos],
+    # tau_j += k_lin q_j + k_sin sin(q_j) + k_cos cos(q_j) [Nm].
     springs: dict = field(default_factory=dict)
 
     # ------------------------------------------------------------- predictions
@@ -237,7 +238,8 @@ class IdentifiedModel:
             "links": links,
             "body_parameters": {n: [float(x) for x in p] for n, p in zip(self.robot.joint_names, self.body_params)},
             "friction": fr,
-            **({"springs": {"law": "tau_j = k_j * q_j [Nm], k_j [Nm/rad]", "stiffness": dict(self.springs)}}
+            **({"springs": {"law": "tau_j = k_lin*q_j + k_sin*sin(q_j) + k_cos*cos(q_j) [Nm]",
+                            "terms": list(SPRING_TERMS), "coefficients": dict(self.springs)}}
                if self.springs else {}),
             "fit": _jsonable(self.fit),
         }
@@ -294,25 +296,32 @@ class IdentifiedModel:
 
 
 def spring_torque(springs: dict, joint_names, q) -> np.ndarray | float:
-    """tau_j = k_j q_j [Nm] for the joints in ``springs`` (name -> k [Nm/rad]); 0.0 when it is empty."""
+    """The declared springs' torques [Nm] ((nv,) or (N, nv)) at q [rad]; 0.0 when ``springs`` is empty.
+
+    springs: joint name -> [k_lin, k_sin, k_cos] (``extra_terms``)."""
     if not springs:
         return 0.0
     q = np.asarray(q, float)
-    k = np.array([float(springs.get(n, 0.0)) for n in joint_names])
-    return k * q
+    out = np.zeros_like(q)
+    for name, coef in springs.items():
+        j = list(joint_names).index(name)
+        out[..., j] = spring_basis(q[..., j]) @ np.asarray(coef, float)
+    return out
 
 
 def springs_from_dict(doc: dict, joint_names, where: str) -> dict:
-    """The ``springs`` section of an identified file (name -> k [Nm/rad]); {} when there is none."""
+    """The ``springs`` section of an identified file (name -> [k_lin, k_sin, k_cos]); {} when there is none."""
     section = doc.get("springs")
     if not section:
         return {}
-    stiffness = section.get("stiffness", {}) if isinstance(section, dict) else None
-    if not isinstance(stiffness, dict) or any(n not in joint_names for n in stiffness) or not all(
-            isinstance(v, (int, float)) and np.isfinite(v) for v in stiffness.values()):
-        raise RobotDescriptionError(f"{where}: the springs section must map the robot's joints to finite "
-                                    f"stiffnesses [Nm/rad], got {section!r}")
-    return {n: float(v) for n, v in stiffness.items()}
+    coefs = section.get("coefficients") if isinstance(section, dict) else None
+    ok = isinstance(coefs, dict) and all(
+        n in joint_names and isinstance(c, list) and len(c) == len(SPRING_TERMS)
+        and all(isinstance(v, (int, float)) and np.isfinite(v) for v in c) for n, c in coefs.items())
+    if not ok:
+        raise RobotDescriptionError(f"{where}: the springs section must map the robot's joints to "
+                                    f"{len(SPRING_TERMS)} finite coefficients {list(SPRING_TERMS)}, got {section!r}")
+    return {n: [float(v) for v in c] for n, c in coefs.items()}
 
 
 def _jsonable(x):
@@ -425,7 +434,7 @@ def identify(data, method: str = "consistent", robot: Robot | None = None, *, sp
     Y = inertial_regressor(robot, data.q, data.qd, data.qdd)
     F = friction_regressor(data.qd, eps)
     W = np.concatenate([Y, F], axis=-1)
-    # The description's declared springs: one column each, identified with everything else.
+    # The description's declared springs: three columns each, identified with everything else.
     springs = spring_joints(robot.spec, robot.joint_names)
     S = spring_regressor(springs, data.q, nv)
     Wb = np.concatenate([base.reduce(W), S], axis=-1)
@@ -452,7 +461,8 @@ def identify(data, method: str = "consistent", robot: Robot | None = None, *, sp
     pi, friction, k = _fit_by_method(method, robot, (Y, F, S, springs), data, sigma, pi_nom, pi_lin, phi_lin, k_lin,
                                      beta, base, eps, config, fit)
     model = IdentifiedModel(robot, method, pi.reshape(nv, N_BODY_PARAMS), friction, fit,
-                            springs={robot.joint_names[j]: float(kj) for j, kj in zip(springs, k)})
+                            springs={robot.joint_names[j]: [float(v) for v in k[3 * i:3 * i + 3]]
+                                     for i, j in enumerate(springs)})
     model.fit["rmse_per_joint"] = _joint_rmse(data.tau, model.predict_torque(data.q, data.qd, data.qdd)).tolist()
     model.fit["physically_consistent"] = model.physically_consistent
     # What the data could not determine, and bodies this robot cannot have: said, not silent.
