@@ -90,7 +90,7 @@ lies outside its training range: "input out of training range"), UNCERTAIN
 
 A known base-sensor offset can be given with ``set_tare_offset``; ``reset``
 tares anew. A tool's load: ``payload=`` at construction or ``set_payload`` between
-calls (the model every method subtracts carries it; a new window re-tares).
+calls (the model every method subtracts carries it, changed in place within a tick: the estimator runs on).
 
 Threading: an estimator holds per-stream state (filter, window, observer) and
 preallocated buffers, so one instance must be used by one thread at a time;
@@ -106,7 +106,6 @@ from pathlib import Path
 import numpy as np
 
 from ..analytic.acceleration import CausalAccelerationFilter, cutoff_grid, default_qdd_cutoff
-from ..analytic.bandwidth import QDD_CUTOFF
 from ..analytic.error_bar import ErrorBar, qdd_norm
 from ..analytic.method_names import ALIASES, estimator_name
 from ..analytic.joint_state import joint_filter_for, with_joint_state_noise
@@ -115,10 +114,11 @@ from ..analytic.methods import REGISTRY, spec_noise
 from ..analytic.robot import Robot, load_robot, with_payload
 from ..analytic.tare import StreamingTare, tare_samples
 from ..errors import UsageError
-from .config import EstimatorConfig, EstimatorStatus, checked_payload
+from .config import EstimatorConfig, EstimatorStatus, check_rating, checked_payload, rated_payload
 from .consistency import Consistency
 from .input import EstimatorInputError, InputGate, RateCheck
 from .noise_window import NoiseWindow
+from .stream_starts import StreamStarts
 
 
 def estimator_methods() -> tuple[str, ...]:
@@ -147,12 +147,16 @@ _IMPLAUSIBLE_TARE, _FROZEN_SENSOR, _OFF_TOOL = (
 _NO_SIGMA = np.full(3, np.inf)  # no estimate yet (the noise window): an unbounded error bar
 
 
-class TipForceEstimator:
+class TipForceEstimator(StreamStarts):
     """Streaming tip-force estimator; see the module docstring."""
 
     def __init__(self, robot: Robot, method: str, config: EstimatorConfig | None = None, model=None):
-        self.robot = robot
         self.config = c = config or EstimatorConfig()
+        if model is None:  # its own model: set_payload changes it in place, and no one else's
+            robot = robot.copy()
+            if robot.payload is not None:
+                check_rating(robot.payload.mass, rated_payload(robot.spec, c), robot.base_name)
+        self.robot = robot
         self.model = model
         nv = robot.nv
         if method == "learned":
@@ -215,11 +219,12 @@ class TipForceEstimator:
         libfranka's ``setLoad``): part of the model every method subtracts (``set_payload`` changes it).
         config: ``EstimatorConfig`` settings, a method's bandwidth parameter by its name (``momentum_gain=50.0``)."""
         method = estimator_name(method, REGISTRY, "estimator method")
+        config = EstimatorConfig.from_settings(**config)
         if not isinstance(robot, Robot):
             robot = load_robot(robot, params=params, num_threads=1)
         if payload is not None:
-            robot = with_payload(robot, checked_payload(payload))
-        return cls(robot, method, EstimatorConfig.from_settings(**config))
+            robot = with_payload(robot, checked_payload(payload, rated_payload(robot.spec, config), robot.base_name))
+        return cls(robot, method, config)
 
     @classmethod
     def load(cls, model_dir, robot: str | None = None, runtime: str = "auto", payload=None,
@@ -242,13 +247,19 @@ class TipForceEstimator:
         return cls(model.robot, "learned", EstimatorConfig.from_settings(**config), model=model)
 
     def set_payload(self, mass_kg: float, com_xyz=(0.0, 0.0, 0.0)) -> None:
-        """The tool now carries ``mass_kg`` [kg] with its centre of mass at ``com_xyz`` [m] in the tool frame
-        (0 kg: none). Between calls: the model changes, so the estimator starts over (a new noise window
-        re-tares the base sensor with the new model; nothing may touch the arm for its 0.5 s)."""
+        """The tool carries ``mass_kg`` [kg] from now on, its centre of mass at ``com_xyz`` [m] in the tool frame
+        (0 kg: none); at most the rated payload (``EstimatorConfig.rated_payload_kg``). Between calls, within
+        a tick: the model every method subtracts changes in place (``Robot.set_payload``) and the estimator
+        runs on, with no new window. Declare a load when it is picked up or put down: the base sensor's tare
+        is its bias, which a load does not change (the sensor and the model gain its weight together), so
+        it is kept. A load carried through the tare but declared later is another case: ``reset`` re-tares."""
         if self.model is not None:
             raise UsageError("set_payload is not supported for a learned model yet")
-        payload = checked_payload((mass_kg, com_xyz))
-        self.__init__(with_payload(self.robot, payload if payload[0] > 0 else None), self.method, self.config)
+        mass, com = checked_payload((mass_kg, com_xyz), rated_payload(self.robot.spec, self.config),
+                                    self.robot.base_name)
+        self.robot.set_payload((mass, com) if mass > 0 else None)
+        self._stream.model_changed()  # a weight it computed when it was made
+        self._gate.model_changed()  # the base-wrench bound (3 m g)
 
     # --------------------------------------------------------------- state
     def reset(self) -> None:
@@ -460,73 +471,3 @@ class TipForceEstimator:
             if active:
                 self._warmup_calls = max(self._warmup_calls, self._calls + self._stream.settle_calls(active))
         return bool(active)
-
-    # ------------------------------------------------------- noise window
-    def _restart_window(self, problem: str) -> None:
-        """The window saw a contact: forget it (its tare and noise) and start a new one now."""
-        self.window_problem = problem
-        if self._tare is not None:
-            self._tare.reset()
-        self._stream.reset()
-        self._window.clear()
-        self._calls = 0
-        self._warmup_calls = self._window_calls + 1
-
-    def _close_window(self, noise) -> None:
-        """The first call after the noise window: set the bandwidth by the rule (or the config's) from the
-        window's noise, replay the window through the chosen qdd filter, start the method at this call. No
-        design happens here: the rule picks among designs made when the estimator was built (``cutoff_grid``)."""
-        self._window_noise = None
-        tare = self._tare
-        offset = tare.offset if tare is not None and tare.done else None
-        if offset is None and tare is not None:  # the base sensor did not fill the window: no model error from it
-            self._stream_stats_drop_base()
-        self.bandwidth = self._stream.close_window(noise, offset, self._fixed)
-        self._use_bandwidth(replay=self._window.qd)
-        self._base_tared = tare is None or tare.done
-        if tare is not None and tare.done:
-            self._tared_at = self._calls
-        self._absent, self._active = [-1, -1], ()
-        # A qdd method has no transient (its filter was replayed); an observer settles; kalman-fusion settles
-        # for the sensors it gets (``_track_sensors``).
-        self._warmup_calls = self._calls
-        if not self._optional and not self.spec.needs_qdd:
-            self._warmup_calls += self._stream.settle_calls(self.spec.reads)
-
-    def _stream_stats_drop_base(self) -> None:
-        kalman = getattr(self._stream, "kalman", None)
-        if kalman is not None:
-            kalman.stats[0] = 0.0
-
-    def _use_bandwidth(self, replay=None):
-        """Apply the chosen qdd cutoff (a precomputed design), replaying ``replay`` (n, nv) through it;
-        returns the replay's last qdd (None without one)."""
-        kalman = getattr(self._stream, "kalman", None)
-        self.fusion_noise = None if kalman is None else kalman.noise
-        if self.spec.parameter != QDD_CUTOFF.name:
-            return None
-        grid = cutoff_grid(float(self.config.call_hz))[0]
-        hit = np.flatnonzero(np.isclose(grid, self.bandwidth, rtol=1e-12))
-        self._qdd_filter = (CausalAccelerationFilter.from_design(self.robot.nv, self.config.call_hz, int(hit[0]))
-                            if len(hit) else CausalAccelerationFilter(self.robot.nv, self.config.call_hz, self.bandwidth))
-        self.qdd_cutoff_hz = self.bandwidth
-        return None if replay is None else self._qdd_filter.replay(replay)
-
-    def _restart_dynamics(self, gap_seconds: float) -> None:
-        """After a gap of ``gap_seconds`` in a timed stream: the filter and the method restart (a finished
-        tare and the bandwidth are kept), and it warms up for the method's settling time. The joint-state
-        filter predicts across a short gap (its state stays the arm's) and starts over after a long one."""
-        self._qdd_filter.reset()
-        self._rate.reset()
-        if self._joint is not None:
-            self._joint.coast(int(round(gap_seconds * self.config.call_hz)) - 1)
-        self._error_bar.reset()
-        if self.model is not None:
-            self.model.reset()
-            self._warmup_calls = max(self._warmup_calls, self._calls + self.model.warmup_calls(self.config.call_hz))
-            return
-        if self._calls < self._window_calls:  # a gap inside the window: the window goes on (its noise is measured)
-            return
-        self._stream.reset()
-        self._absent, self._active = [-1, -1], ()
-        self._warmup_calls = max(self._warmup_calls, self._calls + 1 + self._stream.settle_calls(self.spec.reads))
