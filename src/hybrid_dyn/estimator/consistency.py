@@ -17,6 +17,8 @@ things it cannot explain that way, each a status of its own (``EstimatorStatus``
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pinocchio as pin
 from numba import njit
@@ -40,15 +42,16 @@ class Consistency:
 
     def __init__(self, robot, config, stream, method: str, reads_base: bool, reads_tau: bool):
         self.robot, self.config, self._stream, self.method = robot, config, stream, method
-        self._reads = (reads_base, reads_tau)
-        self._prev = (np.full(6, np.nan), np.full(robot.nv, np.nan))
+        self._reads_base, self._reads_tau = reads_base, reads_tau
+        self._prev_w, self._prev_tau = np.full(6, np.nan), np.full(robot.nv, np.nan)
+        self._frozen_calls = config.frozen_calls
         self._data = robot.model.createData()
         self._hold = max(1, int(round(config.off_tool_seconds * config.call_hz / CHECK_EVERY)))
         _repeat(np.zeros(1), np.zeros(1))  # compile now
         self.reset()
 
     def reset(self) -> None:
-        self._repeats = [0, 0]
+        self._repeats_w = self._repeats_tau = 0
         self._over = 0
         self._k = CHECK_EVERY - 1  # the first call checks
         self.off_tool = False
@@ -56,12 +59,13 @@ class Consistency:
 
     def frozen(self, base_wrench, tau_J) -> bool:
         """Count this call's exact repeats per sensor; True while one has repeated ``frozen_calls`` times."""
-        out = False
-        for i, x in enumerate((base_wrench, tau_J)):
-            if x is None or not self._reads[i]:
-                continue
-            self._repeats[i] = self._repeats[i] + 1 if _repeat(self._prev[i], x) else 0
-            out = out or self._repeats[i] >= self.config.frozen_calls
+        out = False  # written out per sensor: this runs every call
+        if base_wrench is not None and self._reads_base:
+            self._repeats_w = self._repeats_w + 1 if _repeat(self._prev_w, base_wrench) else 0
+            out = self._repeats_w >= self._frozen_calls
+        if tau_J is not None and self._reads_tau:
+            self._repeats_tau = self._repeats_tau + 1 if _repeat(self._prev_tau, tau_J) else 0
+            out = out or self._repeats_tau >= self._frozen_calls
         return out
 
     def check_off_tool(self, q, qd, qdd, w_tared, tau) -> bool:
@@ -92,8 +96,11 @@ class Consistency:
             return self._torque_part(q, r.rnea_ff_single(q, qd, qdd)[6:] - tau), c.off_tool_torque
         else:
             return None, None
-        p = r.tip_position_single(q)
-        return float(np.linalg.norm(wrench[3:] - np.cross(p, wrench[:3]))), c.off_tool_moment
+        # m - p x f in Python floats: np.cross and np.linalg.norm cost more than the rest at this size.
+        px, py, pz = r.tip_position_single(q).tolist()
+        fx, fy, fz, mx, my, mz = wrench.tolist()
+        ex, ey, ez = mx - (py * fz - pz * fy), my - (pz * fx - px * fz), mz - (px * fy - py * fx)
+        return math.sqrt(ex * ex + ey * ey + ez * ez), c.off_tool_moment
 
     def _torque_part(self, q, residual) -> float:
         """|r - J_v^T pinv(J_v^T) r| [Nm]: the external joint torques no tool force explains."""

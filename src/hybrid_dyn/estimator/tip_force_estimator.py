@@ -104,6 +104,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 
 from ..analytic.acceleration import CausalAccelerationFilter, cutoff_grid, default_qdd_cutoff
 from ..analytic.error_bar import ErrorBar, qdd_norm
@@ -145,6 +146,18 @@ _OK, _WARMING_UP, _OUT_OF_RANGE, _FORCE_OUT_OF_RANGE, _WRONG_RATE, _NO_SENSOR, _
 _IMPLAUSIBLE_TARE, _FROZEN_SENSOR, _OFF_TOOL = (
     EstimatorStatus.IMPLAUSIBLE_TARE, EstimatorStatus.FROZEN_SENSOR, EstimatorStatus.OFF_TOOL)
 _NO_SIGMA = np.full(3, np.inf)  # no estimate yet (the noise window): an unbounded error bar
+# kalman-fusion's sensors in use, by (base sensor in use, joint torques in use)
+_ACTIVE = {(False, False): (), (True, False): ("base_wrench",), (False, True): ("tau_J",),
+           (True, True): ("base_wrench", "tau_J")}
+
+
+@njit(cache=True)
+def _within(x, bound) -> bool:  # pragma: no cover (compiled)
+    """Whether -bound < x_i < bound for every i (a standstill: two numpy reductions cost ten times this)."""
+    for i in range(x.shape[0]):
+        if not (-bound < x[i] < bound):
+            return False
+    return True
 
 
 class TipForceEstimator(StreamStarts):
@@ -205,6 +218,7 @@ class TipForceEstimator(StreamStarts):
             robot, c, self._stream, method, "base_wrench" in sensors, "tau_J" in sensors)
         drift = c.base_drift_rate / c.call_hz  # the follower's largest step per call [N], and [Nm] at 0.2 m
         self._follow_step = np.r_[np.full(3, drift), np.full(3, 0.2 * drift)]
+        _within(self._follow_step, 1.0)  # compiled (or loaded from numba's cache) now, not in a control cycle
         self.reset()
 
     # ------------------------------------------------------------ factories
@@ -416,7 +430,7 @@ class TipForceEstimator(StreamStarts):
         c = self.config
         if c.retare_seconds == math.inf:  # told not to follow
             return
-        if -c.standstill_speed < qd.min() and qd.max() < c.standstill_speed:
+        if _within(qd, c.standstill_speed):
             self._still_calls += 1
         else:
             self._still_calls = 0
@@ -438,7 +452,9 @@ class TipForceEstimator(StreamStarts):
         else:
             self.last_sigma = _NO_SIGMA.copy()
         status = _OK if in_range else _OUT_OF_RANGE
-        if status is _OK and not self.last_sigma.max() <= self.config.max_sigma:
+        s0, s1, s2 = self.last_sigma.tolist()  # floats: a numpy max costs a microsecond; NaN still fails
+        limit = self.config.max_sigma
+        if status is _OK and not (s0 <= limit and s1 <= limit and s2 <= limit):
             status = _UNCERTAIN
         if self._calls < self._warmup_calls:
             status = _WARMING_UP if self.window_problem is None else _CONTACT_AT_START
@@ -459,13 +475,16 @@ class TipForceEstimator(StreamStarts):
         """kalman-fusion: which sensors the filter estimates from. A sensor back within
         MAX_BRIDGE_CALLS is bridged; one that joins or leaves beyond that restarts the warm-up for the
         new set's settling time. Returns whether any sensor is usable now."""
-        for i, has in enumerate((has_base, has_joint)):
-            if has:
-                self._absent[i] = 0
-            elif self._absent[i] >= 0:
-                self._absent[i] += 1
-        active = tuple(name for i, name in enumerate(("base_wrench", "tau_J"))
-                       if 0 <= self._absent[i] <= MAX_BRIDGE_CALLS)
+        absent = self._absent  # written out per sensor: this runs every call
+        if has_base:
+            absent[0] = 0
+        elif absent[0] >= 0:
+            absent[0] += 1
+        if has_joint:
+            absent[1] = 0
+        elif absent[1] >= 0:
+            absent[1] += 1
+        active = _ACTIVE[0 <= absent[0] <= MAX_BRIDGE_CALLS, 0 <= absent[1] <= MAX_BRIDGE_CALLS]
         if active != self._active:
             self._active = active
             if active:
