@@ -81,6 +81,7 @@ class StreamStarts:
         if self._calls < self._window_calls:  # a gap inside the window: the window goes on (its noise is measured)
             return
         self._stream.reset()
+        self._check.restart_observer()
         self._absent, self._active = [-1, -1], ()
         self._warmup_calls = max(self._warmup_calls, self._calls + 1 + self._stream.settle_calls(self.spec.reads))
 
