@@ -89,6 +89,11 @@ class BaseMomentumObserver:
         _observer_step(self._state.copy(), self._started.copy(), np.zeros(6), np.zeros(3), self._mg,
                        self._R, np.zeros(6), self.gain, self.dt)
 
+    def model_changed(self) -> None:
+        """The robot's model changed in place (``Robot.set_payload``): the weight m g [N] anew; the history stays."""
+        self._mg[:] = self.robot.total_mass * self.robot.model_ff.gravity.linear
+        self._mg_list = self._mg.tolist()
+
     def reset(self) -> None:
         """Forget the history; the next step re-initialises H(0)."""
         self._state[:] = 0.0

@@ -312,6 +312,12 @@ class KalmanTipForce:
             self.step_unchecked(home, zero, w, tau)
         self.reset()
 
+    def model_changed(self) -> None:
+        """The robot's model changed in place (``Robot.set_payload``): the weight m g [N] anew; the filter's
+        state and its tuning (the pose factors, a design choice) stay."""
+        self._mg3[:] = self.robot.total_mass * np.asarray(self.robot.model_ff.gravity.linear, float)
+        self._base.model_changed()
+
     def configure(self, noise: FusionNoise) -> None:
         """Use these noise intensities (arithmetic only: no design) and start afresh (``reset``)."""
         if noise.force_rate is None:

@@ -73,6 +73,10 @@ class MethodStream:
     def reset(self) -> None:
         """Forget the history (a start, a gap)."""
 
+    def model_changed(self) -> None:
+        """The robot's model changed in place (``Robot.set_payload``): refresh what was computed from it when
+        the stream was made (a weight); the history goes on."""
+
     def window_step(self, q, qd, qdd, w_raw, tau) -> None:
         """One sample of the noise window (the raw base wrench): only methods that measure more than the
         window's arrays do anything here."""
@@ -269,6 +273,9 @@ class BaseMomentumMethod(_ObserverMethod):
 
     cls, sensor = BaseMomentumObserver, "w"
 
+    def model_changed(self):
+        self.observer.model_changed()
+
     def choose(self, noise):
         self.value, self.predicted_noise = observer_gain(
             self.rate_hz, noise.base_force, qdd_noise_per_gain(self.robot, noise.q_mean, noise.qd, "base_wrench", self.data))
@@ -301,6 +308,9 @@ class KalmanFusionMethod(MethodStream):
 
     def reset(self):
         self.kalman.reset()
+
+    def model_changed(self):
+        self.kalman.model_changed()
 
     def window_step(self, q, qd, qdd, w_raw, tau):
         self.kalman.step_unchecked(q, qd, w_raw, tau)  # its increment sums measure the model errors

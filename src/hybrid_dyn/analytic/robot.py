@@ -13,6 +13,7 @@ Conventions (PROTOCOL 1):
 """
 from __future__ import annotations
 
+import copy
 import math
 import os
 import sys
@@ -22,7 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from ..description import Payload, RobotDescriptionError, RobotSpec, RobotVariant, build_urdf, resolve_robot
+from ..description import (Payload, RobotDescriptionError, RobotSpec, RobotVariant, as_payload, build_urdf,
+                           resolve_robot, urdf_with_payload)
 from ..errors import HybridDynError
 
 
@@ -97,7 +99,7 @@ class Robot:
         self.name = name or spec.name
         self.base_name = spec.name
         self.variant = RobotVariant(spec.tool, payload)
-        self.urdf_xml = urdf_xml
+        self._urdf_xml = urdf_xml  # None after set_payload until read (``urdf_xml``)
         self.params_name = params_name
         self.payload = payload
         self.sensor_mount = sensor_mount or SensorMount()
@@ -151,6 +153,53 @@ class Robot:
 
     def __repr__(self) -> str:
         return f"Robot({self.name!r}, nv={self.nv}, params={self.params_name!r}, payload={self.payload})"
+
+    @property
+    def urdf_xml(self) -> str:
+        """The model's URDF text, its payload included (rebuilt on the first read after ``set_payload``)."""
+        if self._urdf_xml is None:
+            self._urdf_xml = urdf_with_payload(self._urdf_base, self.spec.tool_frame, self.payload)
+        return self._urdf_xml
+
+    def copy(self) -> "Robot":
+        """An independent copy (its own Pinocchio models, data and buffers): one whose payload its owner
+        may change (``set_payload``) without changing this one."""
+        new = copy.copy(self)
+        new.model, new.model_ff = self.model.copy(), self.model_ff.copy()
+        new.data, new.data_ff = new.model.createData(), new.model_ff.createData()
+        new._pool = new._pool_ff = None
+        new._qff, new._vff, new._aff = self._qff.copy(), self._vff.copy(), self._aff.copy()
+        return new
+
+    def set_payload(self, payload) -> None:
+        """Carry ``payload`` (a :class:`Payload`, ``(mass_kg, (x, y, z))`` [m] in the tool frame, or None) instead
+        of the current one, in place and in microseconds: a point mass changes only the inertia of the body
+        the tool frame is fixed to, in both models; a robot loaded with the payload has the same dynamics to
+        round-off. Whoever holds this Robot sees the change (``copy`` first to keep the original)."""
+        payload = as_payload(payload)
+        if getattr(self, "_bare", None) is None:  # the inertias (and URDF) without a payload, once
+            self._bare = tuple(self._point_mass(m, self.payload, -1.0, m.inertias[self._tool_joint(m)])
+                               for m in (self.model, self.model_ff))
+            self._urdf_base = self._urdf_xml
+        for model, bare in zip((self.model, self.model_ff), self._bare):
+            model.inertias[self._tool_joint(model)] = self._point_mass(model, payload, 1.0, bare)
+        self._urdf_xml = None
+        self.payload = payload
+        self.variant = RobotVariant(self.variant.tool, payload)
+        self.name = self.base_name + self.variant.suffix()
+        self.total_mass = float(sum(inertia.mass for inertia in self.model_ff.inertias))
+
+    def _tool_joint(self, model) -> int:
+        return model.frames[model.getFrameId(self.spec.tool_frame)].parentJoint
+
+    def _point_mass(self, model, payload, sign: float, inertia):
+        """``inertia`` plus (sign 1) or minus (-1) the payload's point mass, in its joint's frame."""
+        if payload is None or payload.mass == 0:
+            return pin.Inertia(inertia)
+        frame = model.frames[model.getFrameId(self.spec.tool_frame)]
+        com = frame.placement.act(np.asarray(payload.offset, float))  # tool frame -> the joint's frame
+        point = pin.Inertia(payload.mass, com, np.zeros((3, 3)))
+        return inertia + point if sign > 0 else inertia - point
 
     # ---------------------------------------------------------------- checks
     def _joints(self, x, name: str) -> tuple[np.ndarray, bool]:

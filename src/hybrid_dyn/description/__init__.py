@@ -28,12 +28,12 @@ from .names import (ROBOT_NAME_HELP, RobotRef, RobotVariant, as_payload, has_des
 from .params import GazFriction, LinkInertial, read_param_file
 from .spec import Payload, RobotSpec, available_robots, data_only_robots, known_robots, load_spec
 from .tools import ToolUrdf, read_tool, with_tool
-from .urdf import build_urdf
+from .urdf import build_urdf, urdf_with_payload
 
 __all__ = [
     "ROBOT_NAME_HELP", "GazFriction", "JointLimits", "LinkInertial", "Payload", "RobotDescriptionError",
     "RobotRef", "RobotSpec", "RobotVariant", "ToolUrdf", "as_payload", "available_robots", "build_urdf",
     "data_only_robots", "describe_urdf", "example_robot_data_arms", "example_robot_data_dir", "has_description",
     "joint_limits", "known_robots", "load_spec", "parse_robot_name", "read_param_file", "read_tool",
-    "resolve_robot", "robots_dir", "with_tool",
+    "resolve_robot", "robots_dir", "urdf_with_payload", "with_tool",
 ]

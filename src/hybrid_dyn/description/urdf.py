@@ -64,12 +64,28 @@ def build_urdf(spec: RobotSpec, params: str | os.PathLike | None = None, payload
     if payload is not None and payload.mass > 0:
         if spec.tool_frame not in links:
             raise RobotDescriptionError(f"tool frame {spec.tool_frame!r} is not a link of the URDF")
-        pl = ET.SubElement(root, "link", name="hd_payload")
-        _set_inertial(pl, LinkInertial("hd_payload", payload.mass, (0.0, 0.0, 0.0), (0.0,) * 6))
-        jt = ET.SubElement(root, "joint", name="hd_payload_joint", type="fixed")
-        ET.SubElement(jt, "parent", link=spec.tool_frame)
-        ET.SubElement(jt, "child", link="hd_payload")
-        ET.SubElement(jt, "origin", xyz=" ".join(repr(float(x)) for x in payload.offset), rpy="0 0 0")
+        _append_payload(root, spec.tool_frame, payload)
+    return ET.tostring(root, encoding="unicode")
+
+
+def _append_payload(root, tool_frame: str, payload: Payload) -> None:
+    """The payload as a massive link ``hd_payload`` fixed to the tool frame at its offset [m]."""
+    pl = ET.SubElement(root, "link", name="hd_payload")
+    _set_inertial(pl, LinkInertial("hd_payload", payload.mass, (0.0, 0.0, 0.0), (0.0,) * 6))
+    jt = ET.SubElement(root, "joint", name="hd_payload_joint", type="fixed")
+    ET.SubElement(jt, "parent", link=tool_frame)
+    ET.SubElement(jt, "child", link="hd_payload")
+    ET.SubElement(jt, "origin", xyz=" ".join(repr(float(x)) for x in payload.offset), rpy="0 0 0")
+
+
+def urdf_with_payload(urdf_xml: str, tool_frame: str, payload: Payload | None) -> str:
+    """A URDF text of ``build_urdf`` carrying ``payload`` (None: none) instead of its own."""
+    root = ET.fromstring(urdf_xml)
+    for tag, name in (("link", "hd_payload"), ("joint", "hd_payload_joint")):
+        for el in root.findall(f"{tag}[@name='{name}']"):
+            root.remove(el)
+    if payload is not None and payload.mass > 0:
+        _append_payload(root, tool_frame, payload)
     return ET.tostring(root, encoding="unicode")
 
 

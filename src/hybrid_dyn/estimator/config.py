@@ -102,6 +102,9 @@ class EstimatorConfig:
     base-wrench bound. Raise it for a stronger arm.
     rate_tolerance: the fraction by which a timed stream's step may differ
     from 1 / call_hz (and an untimed stream's measured rate, ``RateCheck``).
+    rated_payload_kg: the largest payload [kg] the arm may be declared to carry (``payload=``,
+    ``set_payload``); "auto": the robot description's ``rated_payload_kg`` (none stated: no bound beyond
+    50 kg); a number overrides it (a custom arm, a stronger variant), math.inf for none.
     """
 
     call_hz: float = 1000.0
@@ -130,6 +133,7 @@ class EstimatorConfig:
     off_tool_moment: float = 1.0
     off_tool_torque: float = 1.0
     off_tool_seconds: float = 0.05
+    rated_payload_kg: float | str = "auto"
     # The registered bandwidth parameters without a field of their own (a method registered later): name -> value.
     bandwidths: Mapping[str, float | str] = field(default_factory=dict, hash=False)
 
@@ -185,6 +189,7 @@ class EstimatorConfig:
         _auto_or_positive("joint_filter_bandwidth", self.joint_filter_bandwidth, "rad/s")
         if not (isinstance(self.stamp_jitter, (int, float)) and 0 <= self.stamp_jitter < 1.0):
             raise UsageError(f"stamp_jitter must lie in [0, 1) [s], got {self.stamp_jitter!r}")
+        _auto_or_positive("rated_payload_kg", self.rated_payload_kg, "kg")
         if not 0 < self.rate_tolerance < 1:
             raise UsageError(f"rate_tolerance must lie in (0, 1), got {self.rate_tolerance!r}")
 
@@ -193,8 +198,16 @@ _FIELDS = frozenset(EstimatorConfig.__dataclass_fields__) - {"bandwidths"}
 MAX_PAYLOAD_KG = 50.0  # no arm this toolkit models lifts more; a larger figure is a unit slip (g for kg)
 
 
-def checked_payload(payload) -> tuple:
-    """``(mass_kg, (x, y, z))`` as floats, or UsageError naming what is wrong with it."""
+def rated_payload(spec, config: EstimatorConfig) -> float | None:
+    """The largest payload [kg] the arm may carry: the config's ``rated_payload_kg``, or ("auto") the robot
+    description's (None: it states none)."""
+    rated = config.rated_payload_kg
+    return spec.rated_payload_kg if rated == "auto" else float(rated)
+
+
+def checked_payload(payload, rated: float | None = None, robot: str = "the arm") -> tuple:
+    """``(mass_kg, (x, y, z))`` as floats, or UsageError naming what is wrong with it; a mass above ``rated``
+    [kg] (``rated_payload``) is refused."""
     try:
         mass, com = payload
         mass, com = float(mass), tuple(float(x) for x in com)
@@ -204,4 +217,12 @@ def checked_payload(payload) -> tuple:
         raise UsageError(f"payload centre of mass must be 3 finite numbers within 1 m of the tool frame [m], got {com!r}")
     if not 0.0 <= mass <= MAX_PAYLOAD_KG:
         raise UsageError(f"payload mass must lie in [0, {MAX_PAYLOAD_KG:g}] kg, got {mass!r}")
+    check_rating(mass, rated, robot)
     return mass, com
+
+
+def check_rating(mass: float, rated: float | None, robot: str = "the arm") -> None:
+    """UsageError when a payload of ``mass`` [kg] exceeds the arm's ``rated`` payload [kg] (None: no bound)."""
+    if rated is not None and mass > rated:
+        raise UsageError(f"payload {mass:g} kg exceeds the rated payload of {robot} ({rated:g} kg, its description's "
+                         "rated_payload_kg; rated_payload_kg= in the estimator's config overrides it)")

@@ -13,15 +13,22 @@ things it cannot explain that way, each a status of its own (``EstimatorStatus``
   force explains: a push on the elbow, a tare that absorbed a press (once the tool has moved away from
   where it was tared, the press's moment no longer matches), a joint torque sensor with its sign flipped
   (its gravity load is no tip force). Checked every ``CHECK_EVERY`` calls (a Jacobian each time), held
-  for ``off_tool_seconds`` before it is said, and cleared by the first check under the bound.
+  for ``off_tool_seconds`` before it is said, and cleared by the first check under the bound. The base
+  wrench (f, m) is the method's own estimate of the external wrench (base-momentum's observer; base-wrench's
+  measured minus model wrench); kalman-fusion estimates the force alone, so the check runs a base momentum
+  observer of its own (:class:`SampledObserver`) while the base sensor is in use.
 """
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import pinocchio as pin
 from numba import njit
 
+
 CHECK_EVERY = 8  # calls between two off-tool checks (one Jacobian or model wrench each)
+CHECK_GAIN = 100.0  # [1/s] kalman-fusion's observer for the check: base-momentum's rule picks 90-100 on the trust streams
 
 
 @njit(cache=True)
@@ -40,36 +47,58 @@ class Consistency:
 
     def __init__(self, robot, config, stream, method: str, reads_base: bool, reads_tau: bool):
         self.robot, self.config, self._stream, self.method = robot, config, stream, method
-        self._reads = (reads_base, reads_tau)
-        self._prev = (np.full(6, np.nan), np.full(robot.nv, np.nan))
+        self._reads_base, self._reads_tau = reads_base, reads_tau
+        self._prev_w, self._prev_tau = np.full(6, np.nan), np.full(robot.nv, np.nan)
+        self._frozen_calls = config.frozen_calls
         self._data = robot.model.createData()
         self._hold = max(1, int(round(config.off_tool_seconds * config.call_hz / CHECK_EVERY)))
+        self._observer = None
+        if method == "kalman-fusion" and reads_base:
+            # K T <= 0.8 between samples (T = CHECK_EVERY calls): the sampled recursion's pole 1 - K T stays in
+            # (0, 1) at any rate (at 1 kHz, CHECK_GAIN itself; a 20 Hz log, 2 /s).
+            gain = min(CHECK_GAIN, 0.8 * config.call_hz / CHECK_EVERY)
+            self._observer = SampledObserver(robot, gain, 1.0 / config.call_hz)
         _repeat(np.zeros(1), np.zeros(1))  # compile now
         self.reset()
 
     def reset(self) -> None:
-        self._repeats = [0, 0]
+        self._repeats_w = self._repeats_tau = 0
         self._over = 0
         self._k = CHECK_EVERY - 1  # the first call checks
         self.off_tool = False
         self.unexplained = 0.0  # the latest check's unexplained part [Nm]
+        self.restart_observer()
+
+    def restart_observer(self) -> None:
+        """kalman-fusion's observer for the check starts again (a start, a gap, the base sensor absent)."""
+        if self._observer is not None:
+            self._observer.reset()
 
     def frozen(self, base_wrench, tau_J) -> bool:
         """Count this call's exact repeats per sensor; True while one has repeated ``frozen_calls`` times."""
-        out = False
-        for i, x in enumerate((base_wrench, tau_J)):
-            if x is None or not self._reads[i]:
-                continue
-            self._repeats[i] = self._repeats[i] + 1 if _repeat(self._prev[i], x) else 0
-            out = out or self._repeats[i] >= self.config.frozen_calls
+        out = False  # written out per sensor: this runs every call
+        if base_wrench is not None and self._reads_base:
+            self._repeats_w = self._repeats_w + 1 if _repeat(self._prev_w, base_wrench) else 0
+            out = self._repeats_w >= self._frozen_calls
+        if tau_J is not None and self._reads_tau:
+            self._repeats_tau = self._repeats_tau + 1 if _repeat(self._prev_tau, tau_J) else 0
+            out = out or self._repeats_tau >= self._frozen_calls
         return out
 
     def check_off_tool(self, q, qd, qdd, w_tared, tau) -> bool:
         """Every CHECK_EVERY calls, the part of the loads no tool force explains; returns ``off_tool``."""
+        observer = self._observer
+        if observer is not None:  # integrates the sensor every call
+            if w_tared is None:
+                observer.reset()
+            else:
+                observer.add(w_tared)
         self._k += 1
         if self._k < CHECK_EVERY:
             return self.off_tool
         self._k = 0
+        if observer is not None and w_tared is not None:
+            observer.sample(q, qd, w_tared)
         value, bound = self._unexplained(q, qd, qdd, w_tared, tau)
         if value is None:
             return self.off_tool
@@ -90,10 +119,15 @@ class Consistency:
             return self._torque_part(q, self._stream.observer.residual), c.off_tool_torque
         elif m == "torques-pinv" and tau is not None:
             return self._torque_part(q, r.rnea_ff_single(q, qd, qdd)[6:] - tau), c.off_tool_torque
+        elif self._observer is not None and self._observer.settled:
+            wrench = self._observer.wrench
         else:
             return None, None
-        p = r.tip_position_single(q)
-        return float(np.linalg.norm(wrench[3:] - np.cross(p, wrench[:3]))), c.off_tool_moment
+        # m - p x f in Python floats: np.cross and np.linalg.norm cost more than the rest at this size.
+        px, py, pz = r.tip_position_single(q).tolist()
+        fx, fy, fz, mx, my, mz = wrench.tolist()
+        ex, ey, ez = mx - (py * fz - pz * fy), my - (pz * fx - px * fz), mz - (px * fy - py * fx)
+        return math.sqrt(ex * ex + ey * ey + ez * ez), c.off_tool_moment
 
     def _torque_part(self, q, residual) -> float:
         """|r - J_v^T pinv(J_v^T) r| [Nm]: the external joint torques no tool force explains."""
@@ -103,4 +137,91 @@ class Consistency:
         return float(np.linalg.norm(residual - jv.T @ f))
 
 
-__all__ = ["CHECK_EVERY", "Consistency"]
+
+class SampledObserver:
+    """The base momentum observer of ``analytic/base_momentum.py`` (r' = K (W_ext - r) about the root origin,
+    W_ext the external wrench [N, Nm], root axes) for the off-tool check of a method that keeps no moment,
+    sampled at the checks: the momentum H = [h; L_O] and the weight's wrench at the samples, the sensor
+    (called every dt [s]) integrated every call (a running sum C: the trapezoid over an interval is
+    dt (C_b - C_a + (w_a - w_b) / 2)). Per call one in-place sum; the dynamics once per sample."""
+
+    def __init__(self, robot, gain: float, dt: float):
+        self.robot, self.gain, self.dt = robot, float(gain), float(dt)
+        self._data = robot.model_ff.createData()
+        self._qff, self._vff = robot._qff.copy(), np.zeros(robot.model_ff.nv)
+        self._R = np.ascontiguousarray(robot._root_from_sensor)
+        self._C = np.zeros(6)  # the sum of the sensor's wrench over the calls [N, Nm]
+        # rows: H(0), the integral, C and w at the last sample, the weight's wrench there, the estimate r
+        self._state = np.zeros((6, 6))
+        _sample_step(self._state.copy(), np.zeros(6), np.zeros(3), np.zeros(3), self._R, self._C, self._C, 1.0,
+                     1, 1.0, True)  # compiled now, not in a control cycle
+        self.reset()
+
+    def reset(self) -> None:
+        self._samples = 0
+        self._C[:] = 0.0
+        self._calls = 0
+        self._elapsed = 0.0  # time since the first sample [s]
+        self._state[:] = 0.0
+
+    @property
+    def wrench(self) -> np.ndarray:
+        """The external wrench estimate r (6,) [N, Nm] at the last sample, root axes."""
+        return self._state[5]
+
+    @property
+    def settled(self) -> bool:
+        """Past 5 / K since the first sample (the transient below 1 %)."""
+        return self._elapsed * self.gain > 5.0
+
+    def add(self, w) -> None:
+        self._C += w
+        self._calls += 1
+
+    def sample(self, q, qd, w) -> None:
+        """A sample at this call (after ``add`` of its w)."""
+        r = self.robot
+        self._qff[7:] = q
+        self._vff[6:] = qd
+        hg = pin.computeCentroidalMomentum(r.model_ff, self._data, self._qff, self._vff).vector
+        mg = r.total_mass * r.model_ff.gravity.linear  # the weight [N], a payload's included
+        _sample_step(self._state, hg, self._data.com[0], mg, self._R, self._C, w, self.dt, self._calls, self.gain,
+                     self._samples == 0)
+        if self._samples:
+            self._elapsed += self._calls * self.dt
+        self._calls = 0
+        self._samples += 1
+
+
+@njit(cache=True)
+def _sample_step(state, hg, c, mg, R, C, w, dt, calls, gain, first):  # pragma: no cover (compiled)
+    """One sample of :class:`SampledObserver`: H = [h; L_com + c x h], W_grav = [m g; c x m g]; the
+    integral gains R (the sensor's trapezoid) + the weight's trapezoid + the last r over the interval."""
+    H = np.empty(6)
+    grav = np.empty(6)
+    H[0], H[1], H[2] = hg[0], hg[1], hg[2]
+    H[3] = hg[3] + c[1] * hg[2] - c[2] * hg[1]
+    H[4] = hg[4] + c[2] * hg[0] - c[0] * hg[2]
+    H[5] = hg[5] + c[0] * hg[1] - c[1] * hg[0]
+    grav[0], grav[1], grav[2] = mg[0], mg[1], mg[2]
+    grav[3] = c[1] * mg[2] - c[2] * mg[1]
+    grav[4] = c[2] * mg[0] - c[0] * mg[2]
+    grav[5] = c[0] * mg[1] - c[1] * mg[0]
+    if first:
+        state[0, :] = H
+        state[1, :] = 0.0
+        state[5, :] = 0.0
+    else:
+        period = calls * dt
+        for i in range(6):
+            acc = 0.0
+            for k in range(6):
+                acc += R[i, k] * dt * (C[k] - state[2, k] + 0.5 * (state[3, k] - w[k]))
+            state[1, i] += acc + 0.5 * period * (grav[i] + state[4, i]) + period * state[5, i]
+        for i in range(6):
+            state[5, i] = gain * (H[i] - state[0, i] - state[1, i])
+    state[2, :] = C
+    state[3, :] = w
+    state[4, :] = grav
+
+__all__ = ["CHECK_EVERY", "Consistency", "SampledObserver"]

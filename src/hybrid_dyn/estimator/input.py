@@ -71,6 +71,26 @@ class InputGate:
         self._stamps = 0  # accepted stamps that estimate the clock
         self.lost_ticks = 0  # ticks lost before the latest resumed sample
 
+    def model_changed(self) -> None:
+        """The robot's model changed in place (a payload): its weight bounds the base wrench anew (the
+        rows of that box only: a rebuild of the gate costs a tick's share)."""
+        if not self._needs_wrench:
+            return
+        start, n = self._gate_slots[2]
+        w, why = self._wrench_box()
+        self._lo[start:start + n], self._hi[start:start + n] = -w, w
+        self._box_lo[start:start + n], self._box_inv_width[start:start + n] = -w, 0.5 / w
+        self._slots = [slot[:4] + (why,) + slot[5:] if slot[0] == "base_wrench" else slot for slot in self._slots]
+
+    def _wrench_box(self) -> tuple:
+        """The base wrench's bound (6,) [N, Nm] and why: the arm's weight, up to 2 g of inertial load, and the
+        largest believable contact; moments through the arm's reach (the sum of its joint and tool offsets:
+        by the triangle inequality no point of the chain lies farther from the base)."""
+        r, c = self.robot, self.config
+        force = c.max_tip_force + 3.0 * r.total_mass * G
+        w = np.r_[np.full(3, force), np.full(3, force * self._reach)]
+        return w, f"max_tip_force + 3 m g = {force:.0f} N per force axis, x reach {self._reach:.2f} m per moment axis"
+
     def _build(self) -> None:
         """Precompute the plausibility box [lo, hi] of every value a call brings (module docstring).
 
@@ -83,21 +103,16 @@ class InputGate:
         r, c = self.robot, self.config
         v_max = np.asarray(r.spec.max_velocity or r.model.velocityLimit, float)
         tau_max = np.asarray(r.model.effortLimit, float)
-        # Base wrench: the arm's weight, up to 2 g of inertial load, and the largest believable
-        # contact; moments through the arm's reach (the sum of its joint and tool offsets:
-        # by the triangle inequality no point of the chain lies farther from the base).
-        force = c.max_tip_force + 3.0 * r.total_mass * G
         reach = sum(float(np.linalg.norm(r.model.jointPlacements[i].translation)) for i in range(1, r.model.njoints))
         reach += float(np.linalg.norm(r.model.frames[r.tool_frame_id].placement.translation))
-        reach += float(np.linalg.norm(r._root_M_sensor.translation))
+        self._reach = reach + float(np.linalg.norm(r._root_M_sensor.translation))
         boxes = [("q", 0, r.q_lower - c.q_margin, r.q_upper + c.q_margin, "rad",
                   f"the position limits +- {c.q_margin:g} rad"),
                  ("qd", 1, -v_max * (1 + c.qd_margin), v_max * (1 + c.qd_margin), "rad/s",
                   f"the velocity limits + {100 * c.qd_margin:g} %")]
         if self._needs_wrench:
-            w = np.r_[np.full(3, force), np.full(3, force * reach)]
-            boxes.append(("base_wrench", 2, -w, w, "N, Nm",
-                          f"max_tip_force + 3 m g = {force:.0f} N per force axis, x reach {reach:.2f} m per moment axis"))
+            w, why = self._wrench_box()
+            boxes.append(("base_wrench", 2, -w, w, "N, Nm", why))
         if self._needs_tau:
             boxes.append(("tau_J", 3, -tau_max * (1 + c.tau_margin), tau_max * (1 + c.tau_margin), "Nm",
                           f"the effort limits + {100 * c.tau_margin:g} %"))

@@ -90,7 +90,7 @@ lies outside its training range: "input out of training range"), UNCERTAIN
 
 A known base-sensor offset can be given with ``set_tare_offset``; ``reset``
 tares anew. A tool's load: ``payload=`` at construction or ``set_payload`` between
-calls (the model every method subtracts carries it; a new window re-tares).
+calls (the model every method subtracts carries it, changed in place within a tick: the estimator runs on).
 
 Threading: an estimator holds per-stream state (filter, window, observer) and
 preallocated buffers, so one instance must be used by one thread at a time;
@@ -104,9 +104,9 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 
 from ..analytic.acceleration import CausalAccelerationFilter, cutoff_grid, default_qdd_cutoff
-from ..analytic.bandwidth import QDD_CUTOFF
 from ..analytic.error_bar import ErrorBar, qdd_norm
 from ..analytic.method_names import ALIASES, estimator_name
 from ..analytic.joint_state import joint_filter_for, with_joint_state_noise
@@ -115,10 +115,11 @@ from ..analytic.methods import REGISTRY, spec_noise
 from ..analytic.robot import Robot, load_robot, with_payload
 from ..analytic.tare import StreamingTare, tare_samples
 from ..errors import UsageError
-from .config import EstimatorConfig, EstimatorStatus, checked_payload
+from .config import EstimatorConfig, EstimatorStatus, check_rating, checked_payload, rated_payload
 from .consistency import Consistency
 from .input import EstimatorInputError, InputGate, RateCheck
 from .noise_window import NoiseWindow
+from .stream_starts import StreamStarts
 
 
 def estimator_methods() -> tuple[str, ...]:
@@ -145,14 +146,30 @@ _OK, _WARMING_UP, _OUT_OF_RANGE, _FORCE_OUT_OF_RANGE, _WRONG_RATE, _NO_SENSOR, _
 _IMPLAUSIBLE_TARE, _FROZEN_SENSOR, _OFF_TOOL = (
     EstimatorStatus.IMPLAUSIBLE_TARE, EstimatorStatus.FROZEN_SENSOR, EstimatorStatus.OFF_TOOL)
 _NO_SIGMA = np.full(3, np.inf)  # no estimate yet (the noise window): an unbounded error bar
+# kalman-fusion's sensors in use, by (base sensor in use, joint torques in use)
+_ACTIVE = {(False, False): (), (True, False): ("base_wrench",), (False, True): ("tau_J",),
+           (True, True): ("base_wrench", "tau_J")}
 
 
-class TipForceEstimator:
+@njit(cache=True)
+def _within(x, bound) -> bool:  # pragma: no cover (compiled)
+    """Whether -bound < x_i < bound for every i (a standstill: two numpy reductions cost ten times this)."""
+    for i in range(x.shape[0]):
+        if not (-bound < x[i] < bound):
+            return False
+    return True
+
+
+class TipForceEstimator(StreamStarts):
     """Streaming tip-force estimator; see the module docstring."""
 
     def __init__(self, robot: Robot, method: str, config: EstimatorConfig | None = None, model=None):
-        self.robot = robot
         self.config = c = config or EstimatorConfig()
+        if model is None:  # its own model: set_payload changes it in place, and no one else's
+            robot = robot.copy()
+            if robot.payload is not None:
+                check_rating(robot.payload.mass, rated_payload(robot.spec, c), robot.base_name)
+        self.robot = robot
         self.model = model
         nv = robot.nv
         if method == "learned":
@@ -201,6 +218,7 @@ class TipForceEstimator:
             robot, c, self._stream, method, "base_wrench" in sensors, "tau_J" in sensors)
         drift = c.base_drift_rate / c.call_hz  # the follower's largest step per call [N], and [Nm] at 0.2 m
         self._follow_step = np.r_[np.full(3, drift), np.full(3, 0.2 * drift)]
+        _within(self._follow_step, 1.0)  # compiled (or loaded from numba's cache) now, not in a control cycle
         self.reset()
 
     # ------------------------------------------------------------ factories
@@ -215,11 +233,12 @@ class TipForceEstimator:
         libfranka's ``setLoad``): part of the model every method subtracts (``set_payload`` changes it).
         config: ``EstimatorConfig`` settings, a method's bandwidth parameter by its name (``momentum_gain=50.0``)."""
         method = estimator_name(method, REGISTRY, "estimator method")
+        config = EstimatorConfig.from_settings(**config)
         if not isinstance(robot, Robot):
             robot = load_robot(robot, params=params, num_threads=1)
         if payload is not None:
-            robot = with_payload(robot, checked_payload(payload))
-        return cls(robot, method, EstimatorConfig.from_settings(**config))
+            robot = with_payload(robot, checked_payload(payload, rated_payload(robot.spec, config), robot.base_name))
+        return cls(robot, method, config)
 
     @classmethod
     def load(cls, model_dir, robot: str | None = None, runtime: str = "auto", payload=None,
@@ -242,13 +261,19 @@ class TipForceEstimator:
         return cls(model.robot, "learned", EstimatorConfig.from_settings(**config), model=model)
 
     def set_payload(self, mass_kg: float, com_xyz=(0.0, 0.0, 0.0)) -> None:
-        """The tool now carries ``mass_kg`` [kg] with its centre of mass at ``com_xyz`` [m] in the tool frame
-        (0 kg: none). Between calls: the model changes, so the estimator starts over (a new noise window
-        re-tares the base sensor with the new model; nothing may touch the arm for its 0.5 s)."""
+        """The tool carries ``mass_kg`` [kg] from now on, its centre of mass at ``com_xyz`` [m] in the tool frame
+        (0 kg: none); at most the rated payload (``EstimatorConfig.rated_payload_kg``). Between calls, within
+        a tick: the model every method subtracts changes in place (``Robot.set_payload``) and the estimator
+        runs on, with no new window. Declare a load when it is picked up or put down: the base sensor's tare
+        is its bias, which a load does not change (the sensor and the model gain its weight together), so
+        it is kept. A load carried through the tare but declared later is another case: ``reset`` re-tares."""
         if self.model is not None:
             raise UsageError("set_payload is not supported for a learned model yet")
-        payload = checked_payload((mass_kg, com_xyz))
-        self.__init__(with_payload(self.robot, payload if payload[0] > 0 else None), self.method, self.config)
+        mass, com = checked_payload((mass_kg, com_xyz), rated_payload(self.robot.spec, self.config),
+                                    self.robot.base_name)
+        self.robot.set_payload((mass, com) if mass > 0 else None)
+        self._stream.model_changed()  # a weight it computed when it was made
+        self._gate.model_changed()  # the base-wrench bound (3 m g)
 
     # --------------------------------------------------------------- state
     def reset(self) -> None:
@@ -405,7 +430,7 @@ class TipForceEstimator:
         c = self.config
         if c.retare_seconds == math.inf:  # told not to follow
             return
-        if -c.standstill_speed < qd.min() and qd.max() < c.standstill_speed:
+        if _within(qd, c.standstill_speed):
             self._still_calls += 1
         else:
             self._still_calls = 0
@@ -427,7 +452,9 @@ class TipForceEstimator:
         else:
             self.last_sigma = _NO_SIGMA.copy()
         status = _OK if in_range else _OUT_OF_RANGE
-        if status is _OK and not self.last_sigma.max() <= self.config.max_sigma:
+        s0, s1, s2 = self.last_sigma.tolist()  # floats: a numpy max costs a microsecond; NaN still fails
+        limit = self.config.max_sigma
+        if status is _OK and not (s0 <= limit and s1 <= limit and s2 <= limit):
             status = _UNCERTAIN
         if self._calls < self._warmup_calls:
             status = _WARMING_UP if self.window_problem is None else _CONTACT_AT_START
@@ -448,85 +475,18 @@ class TipForceEstimator:
         """kalman-fusion: which sensors the filter estimates from. A sensor back within
         MAX_BRIDGE_CALLS is bridged; one that joins or leaves beyond that restarts the warm-up for the
         new set's settling time. Returns whether any sensor is usable now."""
-        for i, has in enumerate((has_base, has_joint)):
-            if has:
-                self._absent[i] = 0
-            elif self._absent[i] >= 0:
-                self._absent[i] += 1
-        active = tuple(name for i, name in enumerate(("base_wrench", "tau_J"))
-                       if 0 <= self._absent[i] <= MAX_BRIDGE_CALLS)
+        absent = self._absent  # written out per sensor: this runs every call
+        if has_base:
+            absent[0] = 0
+        elif absent[0] >= 0:
+            absent[0] += 1
+        if has_joint:
+            absent[1] = 0
+        elif absent[1] >= 0:
+            absent[1] += 1
+        active = _ACTIVE[0 <= absent[0] <= MAX_BRIDGE_CALLS, 0 <= absent[1] <= MAX_BRIDGE_CALLS]
         if active != self._active:
             self._active = active
             if active:
                 self._warmup_calls = max(self._warmup_calls, self._calls + self._stream.settle_calls(active))
         return bool(active)
-
-    # ------------------------------------------------------- noise window
-    def _restart_window(self, problem: str) -> None:
-        """The window saw a contact: forget it (its tare and noise) and start a new one now."""
-        self.window_problem = problem
-        if self._tare is not None:
-            self._tare.reset()
-        self._stream.reset()
-        self._window.clear()
-        self._calls = 0
-        self._warmup_calls = self._window_calls + 1
-
-    def _close_window(self, noise) -> None:
-        """The first call after the noise window: set the bandwidth by the rule (or the config's) from the
-        window's noise, replay the window through the chosen qdd filter, start the method at this call. No
-        design happens here: the rule picks among designs made when the estimator was built (``cutoff_grid``)."""
-        self._window_noise = None
-        tare = self._tare
-        offset = tare.offset if tare is not None and tare.done else None
-        if offset is None and tare is not None:  # the base sensor did not fill the window: no model error from it
-            self._stream_stats_drop_base()
-        self.bandwidth = self._stream.close_window(noise, offset, self._fixed)
-        self._use_bandwidth(replay=self._window.qd)
-        self._base_tared = tare is None or tare.done
-        if tare is not None and tare.done:
-            self._tared_at = self._calls
-        self._absent, self._active = [-1, -1], ()
-        # A qdd method has no transient (its filter was replayed); an observer settles; kalman-fusion settles
-        # for the sensors it gets (``_track_sensors``).
-        self._warmup_calls = self._calls
-        if not self._optional and not self.spec.needs_qdd:
-            self._warmup_calls += self._stream.settle_calls(self.spec.reads)
-
-    def _stream_stats_drop_base(self) -> None:
-        kalman = getattr(self._stream, "kalman", None)
-        if kalman is not None:
-            kalman.stats[0] = 0.0
-
-    def _use_bandwidth(self, replay=None):
-        """Apply the chosen qdd cutoff (a precomputed design), replaying ``replay`` (n, nv) through it;
-        returns the replay's last qdd (None without one)."""
-        kalman = getattr(self._stream, "kalman", None)
-        self.fusion_noise = None if kalman is None else kalman.noise
-        if self.spec.parameter != QDD_CUTOFF.name:
-            return None
-        grid = cutoff_grid(float(self.config.call_hz))[0]
-        hit = np.flatnonzero(np.isclose(grid, self.bandwidth, rtol=1e-12))
-        self._qdd_filter = (CausalAccelerationFilter.from_design(self.robot.nv, self.config.call_hz, int(hit[0]))
-                            if len(hit) else CausalAccelerationFilter(self.robot.nv, self.config.call_hz, self.bandwidth))
-        self.qdd_cutoff_hz = self.bandwidth
-        return None if replay is None else self._qdd_filter.replay(replay)
-
-    def _restart_dynamics(self, gap_seconds: float) -> None:
-        """After a gap of ``gap_seconds`` in a timed stream: the filter and the method restart (a finished
-        tare and the bandwidth are kept), and it warms up for the method's settling time. The joint-state
-        filter predicts across a short gap (its state stays the arm's) and starts over after a long one."""
-        self._qdd_filter.reset()
-        self._rate.reset()
-        if self._joint is not None:
-            self._joint.coast(int(round(gap_seconds * self.config.call_hz)) - 1)
-        self._error_bar.reset()
-        if self.model is not None:
-            self.model.reset()
-            self._warmup_calls = max(self._warmup_calls, self._calls + self.model.warmup_calls(self.config.call_hz))
-            return
-        if self._calls < self._window_calls:  # a gap inside the window: the window goes on (its noise is measured)
-            return
-        self._stream.reset()
-        self._absent, self._active = [-1, -1], ()
-        self._warmup_calls = max(self._warmup_calls, self._calls + 1 + self._stream.settle_calls(self.spec.reads))

@@ -1,0 +1,89 @@
+"""How a stream (re)starts: the noise window's close (the bandwidth by the rule, the window replayed through the
+chosen qdd filter), a window that saw a contact started over, and the restart after a gap.
+
+:class:`StreamStarts` is a part of ``TipForceEstimator`` (``estimator/tip_force_estimator.py``) and works on its
+state; nothing here runs in a steady control cycle.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..analytic.acceleration import CausalAccelerationFilter, cutoff_grid
+from ..analytic.bandwidth import QDD_CUTOFF
+
+
+class StreamStarts:
+    """The estimator's start and restart steps (a mixin of ``TipForceEstimator``)."""
+
+    def _restart_window(self, problem: str) -> None:
+        """The window saw a contact: forget it (its tare and noise) and start a new one now."""
+        self.window_problem = problem
+        if self._tare is not None:
+            self._tare.reset()
+        self._stream.reset()
+        self._window.clear()
+        self._calls = 0
+        self._warmup_calls = self._window_calls + 1
+
+    def _close_window(self, noise) -> None:
+        """The first call after the noise window: set the bandwidth by the rule (or the config's) from the
+        window's noise, replay the window through the chosen qdd filter, start the method at this call. No
+        design happens here: the rule picks among designs made when the estimator was built (``cutoff_grid``)."""
+        self._window_noise = None
+        tare = self._tare
+        offset = tare.offset if tare is not None and tare.done else None
+        if offset is None and tare is not None:  # the base sensor did not fill the window: no model error from it
+            self._stream_stats_drop_base()
+        self.bandwidth = self._stream.close_window(noise, offset, self._fixed)
+        self._use_bandwidth(replay=self._window.qd)
+        self._base_tared = tare is None or tare.done
+        if tare is not None and tare.done:
+            self._tared_at = self._calls
+        self._absent, self._active = [-1, -1], ()
+        # A qdd method has no transient (its filter was replayed); an observer settles; kalman-fusion settles
+        # for the sensors it gets (``_track_sensors``).
+        self._warmup_calls = self._calls
+        if not self._optional and not self.spec.needs_qdd:
+            self._warmup_calls += self._stream.settle_calls(self.spec.reads)
+
+    def _stream_stats_drop_base(self) -> None:
+        kalman = getattr(self._stream, "kalman", None)
+        if kalman is not None:
+            kalman.stats[0] = 0.0
+
+    def _use_bandwidth(self, replay=None):
+        """Apply the chosen qdd cutoff (a precomputed design), replaying ``replay`` (n, nv) through it;
+        returns the replay's last qdd (None without one)."""
+        kalman = getattr(self._stream, "kalman", None)
+        self.fusion_noise = None if kalman is None else kalman.noise
+        if self.spec.parameter != QDD_CUTOFF.name:
+            return None
+        grid = cutoff_grid(float(self.config.call_hz))[0]
+        hit = np.flatnonzero(np.isclose(grid, self.bandwidth, rtol=1e-12))
+        self._qdd_filter = (CausalAccelerationFilter.from_design(self.robot.nv, self.config.call_hz, int(hit[0]))
+                            if len(hit) else CausalAccelerationFilter(self.robot.nv, self.config.call_hz, self.bandwidth))
+        self.qdd_cutoff_hz = self.bandwidth
+        return None if replay is None else self._qdd_filter.replay(replay)
+
+    def _restart_dynamics(self, gap_seconds: float) -> None:
+        """After a gap of ``gap_seconds`` in a timed stream: the filter and the method restart (a finished
+        tare and the bandwidth are kept), and it warms up for the method's settling time. The joint-state
+        filter predicts across a short gap (its state stays the arm's) and starts over after a long one."""
+        self._qdd_filter.reset()
+        self._rate.reset()
+        if self._joint is not None:
+            self._joint.coast(int(round(gap_seconds * self.config.call_hz)) - 1)
+        self._error_bar.reset()
+        if self.model is not None:
+            self.model.reset()
+            self._warmup_calls = max(self._warmup_calls, self._calls + self.model.warmup_calls(self.config.call_hz))
+            return
+        if self._calls < self._window_calls:  # a gap inside the window: the window goes on (its noise is measured)
+            return
+        self._stream.reset()
+        self._check.restart_observer()
+        self._absent, self._active = [-1, -1], ()
+        self._warmup_calls = max(self._warmup_calls, self._calls + 1 + self._stream.settle_calls(self.spec.reads))
+
+
+__all__ = ["StreamStarts"]
