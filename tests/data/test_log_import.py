@@ -387,11 +387,13 @@ def test_spec_paths_env_override_and_unknown_keys(tmp_path, monkeypatch):
 # The shipped real logs (hybrid_dyn/resources/real/logs, 4.7 MB: they ship with the package)
 
 
-@pytest.mark.parametrize("name,mat,prefix,rows", [
-    ("kuka", "KukaDirectDynamics.mat", "kukatraj", 20068),
-    ("baxter", "BaxterDirectDynamics.mat", "baxtertraj", 19295),
+# order: the file's column (0-based, within each 7-column group) of each of the robot's joints. Baxter's
+# file holds the joints alphabetically (e0, e1, s0, s1, w0, w1, w2); its robot's chain is s0, s1, e0, ...
+@pytest.mark.parametrize("name,mat,prefix,rows,order", [
+    ("kuka", "KukaDirectDynamics.mat", "kukatraj", 20068, [0, 1, 2, 3, 4, 5, 6]),
+    ("baxter", "BaxterDirectDynamics.mat", "baxtertraj", 19295, [2, 3, 0, 1, 4, 5, 6]),
 ])
-def test_shipped_trajectory_logs(tmp_path, name, mat, prefix, rows):
+def test_shipped_trajectory_logs(tmp_path, name, mat, prefix, rows, order):
     report = import_log(SPECS / f"{name}.toml", tmp_path / name)
     assert (report.rows_read, report.rows_kept, report.trajectories, report.instances) == (rows, rows, 10, 10)
     assert not report.issues and not report.warnings
@@ -405,6 +407,7 @@ def test_shipped_trajectory_logs(tmp_path, name, mat, prefix, rows):
     spec = read_spec(SPECS / f"{name}.toml")
     inst = ds.instances[f"{prefix}3"]
     m = raw[f"{prefix}3"]
+    m = np.hstack([m[:, 7 * g:7 * g + 7][:, order] for g in range(5)])  # the robot's joint order
     np.testing.assert_array_equal(inst.q, m[:, :7])
     np.testing.assert_array_equal(inst.qd, m[:, 7:14])
     np.testing.assert_array_equal(inst.tau_m, m[:, 14:21])

@@ -390,12 +390,15 @@ def _fit_by_method(method, robot, columns, data, sigma, pi_nom, pi_lin, phi_lin,
     else:
         # Start the sigmoid from the linear fit: it spans 2*phi1 between its plateaus.
         phi0 = np.stack([np.clip(2 * np.abs(phi_lin[:, 1]), 0.05, None), np.full(nv, 10.0), np.zeros(nv)], 1)
-        # The sigmoid's objective has no linear block: the springs keep the weighted linear fit's
-        # stiffness, taken out of the target first (a two-stage fit, said in the fit record).
-        tau_nospring = data.tau - (S @ k_lin if len(springs) else 0.0)
-        pi, phi, stats = est.fit_sigmoid_friction(robot, Y, data.qd, tau_nospring, sigma, pi_nom, phi0, config)
+        # The sigmoid's objective has no linear block: the springs keep the consistent fit's law, taken
+        # out of the target first (a two-stage fit, said in the fit record). Not the linear fit's: its
+        # spring harmonics trade with unphysical bodies (Baxter: -78 kg on e0) and mean nothing without them.
         if len(springs):
-            fit["springs_fit"] = "stiffness from the weighted linear fit, held fixed in the sigmoid fit"
+            k = _fit_by_method("consistent", robot, columns, data, sigma, pi_nom, pi_lin, phi_lin, k_lin, beta,
+                               base, eps, config, {})[2]
+            fit["springs_fit"] = "the consistent fit's spring law, held fixed in the sigmoid fit"
+        tau_nospring = data.tau - (S @ k if len(springs) else 0.0)
+        pi, phi, stats = est.fit_sigmoid_friction(robot, Y, data.qd, tau_nospring, sigma, pi_nom, phi0, config)
         friction = GazFriction(phi[:, 0], phi[:, 1], phi[:, 2])
         fit.update(ipopt_status=stats["return_status"], iterations=stats["iter_count"], com_margin=config.com_margin,
                    regularization=config.regularization)
