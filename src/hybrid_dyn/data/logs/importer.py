@@ -89,6 +89,10 @@ def import_log(source, out, *, overwrite: bool = False, strict: bool = False, ke
 def _import_locked(spec: "LogSpec", out: Path, overwrite: bool, strict: bool, keep_partial: bool) -> "ImportReport":
     check_replaceable(out, overwrite)
     spec = copy.copy(spec)  # the columns become what the log holds (a bag without velocities): not the caller's
+    if spec.ros is not None and spec.trajectories == "tables":  # one trajectory per bag: streamed to the file
+        from .bag_import import import_bags
+
+        return import_bags(spec, out, overwrite, strict, keep_partial)
     segments, report = checked_segments(spec, strict, keep_partial)
     write_dataset(spec, segments, report, out, overwrite)
     return report
@@ -103,6 +107,13 @@ def checked_segments(spec: "LogSpec", strict: bool = False, keep_partial: bool =
     report = ImportReport(spec.name)
     segments, warnings = validate_log(spec, report, keep_partial, derivatives)
     report.warnings += warnings
+    refuse_as_import(spec, report, strict, len(segments))
+    return segments, report
+
+
+def refuse_as_import(spec: "LogSpec", report: "ImportReport", strict: bool, n_segments: int) -> None:
+    """An import's refusals after its rows were checked: a strict import that found problems, too many rows
+    dropped, no segment kept."""
     if strict and (report.issues or report.channel_warnings):
         found = (("row problems", report.issues), ("dead channels", report.channel_warnings))
         what = " and ".join(w for w, b in found if b)
@@ -115,9 +126,8 @@ def checked_segments(spec: "LogSpec", strict: bool = False, keep_partial: bool =
         raise TooManyRowsDroppedError(
             f"{spec.name}: {report.rows_dropped} of {report.rows_read} rows ({100 * frac:.1f} %) failed validation, "
             f"more than max_drop_fraction = {spec.checks.max_drop_fraction}.{hint}\n{report.text(5)}")
-    if not segments:
+    if not n_segments:
         raise LogImportError(f"{spec.name}: no usable rows\n{report.text(5)}")
-    return segments, report
 
 
 def spec_checksum(spec: LogSpec) -> str:

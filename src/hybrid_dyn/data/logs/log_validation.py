@@ -330,7 +330,6 @@ def _timebase_warning(segments: list, spec: LogSpec) -> str | None:
     dt is each segment's clock (its span over its steps), not each interval: a stream stamped on
     arrival jitters interval by interval while its samples are evenly spaced, and per-interval steps
     biased the ratio (a false "no time unit fits")."""
-    tol = spec.checks.timebase_tol
     dq, vdt = [], []
     for seg in segments:
         f = seg.fields
@@ -343,9 +342,16 @@ def _timebase_warning(segments: list, spec: LogSpec) -> str | None:
     if not dq:
         return None
     dq, vdt = np.concatenate(dq), np.concatenate(vdt)
-    if not vdt @ vdt > 0:
+    return timebase_text(float(dq @ vdt), float(vdt @ vdt), spec)
+
+
+def timebase_text(dq_vdt: float, vdt_vdt: float, spec: LogSpec) -> str | None:
+    """The warning of :func:`_timebase_warning` from its two sums over the rows: the position increments
+    times qd x dt [rad^2] and qd x dt squared [rad^2] (a log read in blocks adds them up)."""
+    tol = spec.checks.timebase_tol
+    if not vdt_vdt > 0:
         return None
-    ratio = float(dq @ vdt / (vdt @ vdt))
+    ratio = dq_vdt / vdt_vdt
     if abs(ratio - 1) <= tol:
         return None
     head = f"the position increments are {ratio:.4g} x the logged velocity times the time step"
