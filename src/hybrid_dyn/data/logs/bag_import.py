@@ -31,8 +31,8 @@ from ..data_checks import channel_problems_of
 from ..dataset import write_instance_blocks
 from .bag_checks import checked_chunks
 from .import_report import ImportReport, RowIssue
-from .importer import refuse_as_import
-from .log_validation import CHANNEL_SIGNALS, TORQUE_SIGNALS, _robot_names_and_effort, timebase_text
+from .log_validation import (CHANNEL_SIGNALS, TORQUE_SIGNALS, _robot_names_and_effort, refuse_as_import,
+                             timebase_text)
 from .log_writer import _swap_in, derive_fields, instance_record, trajectory_split, write_manifest_files
 
 BLOCK_ROWS = 65_536  # rows per block written and differentiated
