@@ -68,11 +68,19 @@ def channel_problems(signal: str, values, unit: str, expected_scale=None, scale_
     x = np.asarray(values, float)
     if x.ndim != 2 or len(x) < 2:
         return []
+    return channel_problems_of(signal, len(x), x[0], x.std(axis=0), np.ptp(x, axis=0) == 0, unit, expected_scale,
+                               scale_factor, joint_names)
+
+
+def channel_problems_of(signal: str, n: int, first, spread, constant, unit: str, expected_scale=None,
+                        scale_factor: float = 1e-3, joint_names=None) -> list[str]:
+    """:func:`channel_problems` from the channels' statistics over ``n`` rows (a log read in blocks): the first
+    row ``first`` (nv,), the standard deviations ``spread`` (nv,) and which channels are ``constant``."""
+    if n < 2:
+        return []
     out = []
-    spread = x.std(axis=0)
-    constant = np.ptp(x, axis=0) == 0
     for j in np.flatnonzero(constant):
-        out.append(f"{signal} of {_joint_label(j, joint_names)} is constant ({x[0, j]:.6g} {unit}) in all {len(x)} "
+        out.append(f"{signal} of {_joint_label(j, joint_names)} is constant ({first[j]:.6g} {unit}) in all {n} "
                    f"rows: a dead channel{' or a joint that never moves' if signal == 'q' else ''}?")
     if expected_scale is not None:
         ratio = spread / np.asarray(expected_scale, float)

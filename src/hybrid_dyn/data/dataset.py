@@ -100,6 +100,30 @@ def write_instance(path: Path, fields: dict, truth: dict | None = None, attrs: d
     return sha
 
 
+def write_instance_blocks(path: Path, n: int, widths: dict, block, attrs: dict | None = None,
+                          rows: int = 65_536) -> str:
+    """Write one instance of ``n`` samples a block of rows at a time (a long log that never sits in memory
+    whole); returns its sha256. ``widths``: field -> columns (None for a (T,) field such as ``t``);
+    ``block(field, a, b)``: rows a..b-1 of the field. Datasets, chunks, filters and their order are
+    :func:`write_instance`'s, and each block is whole chunks, so a reader gets the same arrays."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = unique_temp(path)
+    with h5py.File(tmp, "w", libver=("earliest", "v110"), track_order=False) as f:
+        for k, v in (attrs or {}).items():
+            f.attrs[k] = v
+        for name in sorted(widths):
+            shape = (n,) if widths[name] is None else (n, widths[name])
+            dset = f.create_dataset(name, shape=shape, dtype=np.float64, track_times=False, compression="gzip",
+                                    compression_opts=4, shuffle=True, chunks=True if n * shape[-1] > 0 else None)
+            step = max(rows // dset.chunks[0], 1) * dset.chunks[0] if dset.chunks else max(n, 1)
+            for a in range(0, n, step):
+                dset[a:min(a + step, n)] = block(name, a, min(a + step, n))
+    sha = sha256_file(tmp)
+    os.replace(tmp, path)
+    return sha
+
+
 def _write_group(group, fields: dict) -> None:
     lengths = {k: len(v) for k, v in fields.items()}
     if len(set(lengths.values())) > 1:

@@ -81,16 +81,25 @@ class DerivativeFilter:
             return 3 * (self.order + 1) + 1  # filtfilt's default pad length + 1
         return 3
 
+    def reach(self, dt: float) -> int | None:
+        """Samples on each side of a sample that its derivative depends on (savgol: half the window; central:
+        1, taken as 2 for the one-sided ends of a block); None for ``butter``: filtfilt reaches the whole
+        segment. A block of a segment differentiated with this margin on each side is exact inside it."""
+        if self.method == "savgol":
+            return self.window_samples(dt) // 2
+        return 2 if self.method == "central" else None
+
     def to_dict(self) -> dict:
         return {"method": self.method, "window_s": self.window_s, "polyorder": self.polyorder,
                 "cutoff_hz": self.cutoff_hz, "order": self.order}
 
 
 def differentiate(x: np.ndarray, t: np.ndarray, flt: DerivativeFilter, deriv: int = 1,
-                  x_next: np.ndarray | None = None) -> np.ndarray:
+                  x_next: np.ndarray | None = None, dt: float | None = None) -> np.ndarray:
     """The ``deriv``-th (1 or 2) time derivative of ``x`` (T, n) sampled at times ``t`` (T,) [s].
 
-    ``x_next`` (n,): the sample after the last one, if the log has it (``central`` uses it).
+    ``x_next`` (n,): the sample after the last one, if the log has it (``central`` uses it). ``dt`` [s]:
+    the segment's median step when ``x`` is a block of it (default: the median step of ``t``).
     """
     x = np.asarray(x, dtype=np.float64)
     t = np.asarray(t, dtype=np.float64)
@@ -98,10 +107,10 @@ def differentiate(x: np.ndarray, t: np.ndarray, flt: DerivativeFilter, deriv: in
         raise ValueError(f"differentiate needs x (T, n) and t (T,), got {x.shape} and {t.shape}")
     if deriv not in (1, 2):
         raise ValueError(f"deriv must be 1 or 2, got {deriv}")
-    if len(x) < flt.min_samples(_step(t)):
+    dt = _step(t) if dt is None else dt
+    if len(x) < flt.min_samples(dt):
         raise ValueError(f"segment of {len(x)} samples is too short for the {flt.method} filter "
-                         f"(needs {flt.min_samples(_step(t))})")
-    dt = _step(t)
+                         f"(needs {flt.min_samples(dt)})")
     if flt.method == "savgol":
         window = flt.window_samples(dt)
         return signal.savgol_filter(x, window, flt.polyorder, deriv=deriv, delta=dt, axis=0, mode="interp")

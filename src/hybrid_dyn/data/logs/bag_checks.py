@@ -29,12 +29,14 @@ from .ros_bag import bag_names, bag_notes, chunk_table, read_chunks
 @dataclass
 class CheckedRows:
     """The kept rows of one chunk: ``source`` (the bag), header ``stamps_ns``, ``fields`` (t [s] from the
-    bag's first stamp, q, qd, torques, wrenches, as an import's), ``starts`` (a new segment starts here)."""
+    bag's first stamp, q, qd, torques, wrenches, as an import's), ``starts`` (a new segment starts here),
+    ``rows`` (0-based rows of the bag)."""
 
     source: Path
     stamps_ns: np.ndarray
     fields: dict
     starts: np.ndarray
+    rows: np.ndarray | None = None
 
 
 def checked_chunks(spec, report: ImportReport, keep_partial: bool = False, size: int | None = None):
@@ -73,7 +75,7 @@ def checked_chunks(spec, report: ImportReport, keep_partial: bool = False, size:
             report.instances += int(starts.sum())
             fields = {s: v[keep] for s, v in data.items()}
             fields["t"] = t[keep]
-            yield CheckedRows(path, chunk.stamps_ns[keep], fields, starts)
+            yield CheckedRows(path, chunk.stamps_ns[keep], fields, starts, rows)
         report.warnings += bag_notes(path, spec.ros, stats, stats.messages - stats.skipped)
     bad_unit = angle_unit_problems(spec.angle_unit, q_peak)
     if bad_unit:

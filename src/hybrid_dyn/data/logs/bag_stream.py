@@ -18,18 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
+from .bag_decode import BagDamage, open_reader, topic_batches  # noqa: F401 (re-exported)
+
 CHUNK_ROWS = 65_536  # joint-state rows per chunk: ~15 MB of numbers for a 7-joint arm with two wrenches
 _SLACK = 1024  # rows a chunk may grow by to close a run of jittered stamps at its end
-
-
-class BagDamage(Exception):
-    """A message of ``topic`` could not be read: ``index`` messages were read before it, the last with
-    stamp ``last_ns`` (None before the first)."""
-
-    def __init__(self, path: Path, topic: str, index: int, last_ns, err: Exception):
-        self.path, self.topic, self.index, self.last_ns = path, topic, index, last_ns
-        what = " ".join(f"{type(err).__name__}: {err}".split())  # one line, whatever the reader said
-        super().__init__(what if str(err).strip() else f"{type(err).__name__} in the reader")
 
 
 @dataclass
@@ -70,124 +62,89 @@ class BagChunk:
         return len(self.stamps_ns)
 
 
-def open_reader(path: Path):
-    """An opened ``rosbags`` AnyReader of one bag, or a one-line ``LogReadError``."""
-    from rosbags.highlevel import AnyReader
-    from rosbags.typesys import Stores, get_typestore
-
-    from .log_readers import LogReadError
-
-    if not path.exists():
-        raise LogReadError(f"bag {path} does not exist")
-    if path.is_file() and path.suffix not in (".bag", ".mcap", ".db3"):
-        raise LogReadError(f"{path}: not a ROS bag (a ROS 1 .bag, a ROS 2 .mcap or .db3 file, or a ROS 2 bag folder)")
-    if path.is_dir() and not (path / "metadata.yaml").is_file():
-        raise LogReadError(f"{path}: a folder without metadata.yaml is no ROS 2 bag; name its .mcap or .db3 file")
-    # Bags that embed no message definitions (old ROS 2 sqlite3 bags) are read with the distribution's types.
-    store = get_typestore(Stores.ROS1_NOETIC if path.suffix == ".bag" else Stores.ROS2_HUMBLE)
-    try:
-        reader = AnyReader([path], default_typestore=store)
-        reader.open()
-    except Exception as err:  # rosbags raises its own reader errors, and FileNotFoundError for a folder
-        raise LogReadError(f"{path}: not a readable ROS bag: {' '.join(str(err).split())}") from None
-    return reader
-
-
-def _stamp(msg) -> int:
-    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-
-
-def topic_messages(path: Path, topic: str, counts: dict):
-    """(stamp [ns], message) of one topic in the bag's order, read by a reader of its own; a zero header
-    stamp is replaced by the receive time and counted in ``counts`` [count, first, messages]. Damage
-    raises :class:`BagDamage`."""
-    reader = open_reader(path)
-    last, n = None, 0
-    count = counts.setdefault(topic, [0, 0, 0])
-    try:
-        it = reader.messages(connections=[c for c in reader.connections if c.topic == topic])
-        while True:
-            try:  # anything the reader or the decoder raises here is the file's damage, not ours
-                conn, ts, raw = next(it)
-                msg = reader.deserialize(raw, conn.msgtype)
-                stamp = _stamp(msg)
-            except StopIteration:
-                break
-            except Exception as err:
-                raise BagDamage(path, topic, n, last, err) from None
-            n += 1
-            count[2] = n
-            if stamp == 0:
-                count[0] += 1
-                count[1] = count[1] or n
-                stamp = ts
-            last = stamp
-            yield stamp, msg
-    finally:
-        reader.close()
-
-
 class _JointRows:
-    """Decodes joint-state messages into preallocated rows, matched to the robot's joints by name."""
+    """Joint-state batches turned into rows (matched to the robot's joints by name), pending until a
+    chunk takes them."""
 
-    def __init__(self, joints: list, stats: BagStats):
+    def __init__(self, joints: list, stats: BagStats, batches, keep_partial: bool):
         self.joints, self.stats, self.nv = joints, stats, len(joints)
-        self.order_of = {}
+        self.batches, self.keep_partial, self.done = batches, keep_partial, False
+        self.order_of, self.pending, self.n_pending, self.next_row = {}, [], 0, 0
 
-    def chunk(self, msgs, size: int, first_row: int, keep_partial: bool):
-        """At most about ``size`` rows; with ``keep_partial``, damage ends the rows (``stats.damage``)."""
-        out = ([], [], [], [], [])
-        try:
-            out = self._chunk(msgs, size, first_row)
-        except BagDamage as dmg:
-            if not keep_partial:
-                raise
-            self.stats.damage = self.stats.damage or dmg
-            out = self.partial
-        return out
+    def chunk(self, size: int):
+        """(stamps, q, qd, effort, problems) of about ``size`` rows: a chunk ends on a stamp that advances,
+        so that a run of jittered stamps is re-timed whole (at most ``_SLACK`` rows more)."""
+        while not self.done and self.n_pending < size + _SLACK:
+            try:
+                batch = next(self.batches)
+            except StopIteration:
+                self.done = True
+                break
+            except BagDamage as dmg:
+                if not self.keep_partial:
+                    raise
+                self.stats.damage = self.stats.damage or dmg
+                self.done = True
+                break
+            self._add(batch)
+        if not self.pending:
+            return np.zeros(0, np.int64), *(np.zeros((0, self.nv)) for _ in range(3)), []
+        stamps, q, qd, eff = (np.concatenate([p[k] for p in self.pending]) for k in range(4))
+        problems = [x for p in self.pending for x in p[4]]
+        n = len(stamps)
+        if n > size:  # the first length from ``size`` on whose last stamp advances past all before it
+            last = min(n, size + _SLACK)
+            ends = np.arange(max(size, 2), last + 1)
+            ahead = stamps[ends - 1] > np.maximum.accumulate(stamps)[ends - 2]
+            n = 1 if size < 2 else int(ends[np.argmax(ahead)]) if ahead.any() else last
+        first = self.next_row - len(stamps)
+        rest = [(stamps[n:], q[n:], qd[n:], eff[n:], [x for x in problems if x[0] >= first + n])]
+        self.pending = rest if len(stamps) > n else []
+        self.n_pending = len(stamps) - n
+        return stamps[:n], q[:n], qd[:n], eff[:n], [x for x in problems if x[0] < first + n]
 
-    def _chunk(self, msgs, size: int, first_row: int):
-        nv, stats = self.nv, self.stats
-        cap = size + _SLACK
-        stamps = np.zeros(cap, np.int64)
-        q, qd, eff = (np.full((cap, nv), np.nan) for _ in range(3))
-        problems, k, ref = [], 0, None
-        self.partial = (stamps[:0], q[:0], qd[:0], eff[:0], problems)
-        for stamp, m in msgs:
-            stats.messages += 1
-            names = tuple(m.name)
-            idx = self.order_of.get(names, False)
-            if idx is False:  # the order may change per message: one look-up per distinct order
-                index = {name: i for i, name in enumerate(names)}
+    def _add(self, batch) -> None:
+        stats, nv, m = self.stats, self.nv, len(batch)
+        q, qd, eff = (np.full((m, nv), np.nan) for _ in range(3))
+        accept = np.zeros(m, bool)
+        problems = {}
+        for g in batch.groups:
+            idx = self.order_of.get(g.names, False)
+            if idx is False:  # one look-up per distinct joint order
+                index = {name: i for i, name in enumerate(g.names)}
                 missing = [j for j in self.joints if j not in index]
                 idx = None if missing else np.array([index[j] for j in self.joints])
-                self.order_of[names] = idx
-                if missing and stats.first_lacking is None:
-                    stats.first_lacking = (stats.messages, missing, list(names))
+                self.order_of[g.names] = idx
             if idx is None:  # a gripper's own message: not a row of the robot
-                stats.skipped += 1
-                if stats.skipped_first is None:
-                    stats.skipped_first = (stats.messages, list(names))
+                first = stats.messages + int(g.at[0]) + 1
+                if stats.skipped_first is None or first < stats.skipped_first[0]:
+                    stats.skipped_first = (first, list(g.names))
+                if stats.first_lacking is None or first < stats.first_lacking[0]:
+                    missing = [j for j in self.joints if j not in g.names]
+                    stats.first_lacking = (first, missing, list(g.names))
                 continue
-            stamps[k] = stamp
-            row = first_row + k
-            for out, fld, arr in ((q, "position", m.position), (qd, "velocity", m.velocity), (eff, "effort", m.effort)):
-                if len(arr) == len(names):
-                    out[k] = np.asarray(arr, dtype=np.float64)[idx]
-                elif len(arr) == 0 and fld != "position":  # an empty field is a missing field
+            accept[g.at] = True
+            for out, fld in ((q, "position"), (qd, "velocity"), (eff, "effort")):
+                arr = g.fields[fld]
+                if arr.shape[1] == len(g.names):
+                    out[g.at] = arr[:, idx]
+                elif arr.shape[1] == 0 and fld != "position":  # an empty field is a missing field
                     if fld == "velocity":
-                        stats.no_velocity += 1
+                        stats.no_velocity += len(g.at)
                     else:
-                        stats.no_effort += 1
+                        stats.no_effort += len(g.at)
                 else:
-                    problems.append((row, f"{fld} has {len(arr)} values for {len(names)} joint names"))
-            k += 1
-            self.partial = (stamps[:k], q[:k], qd[:k], eff[:k], problems)
-            # A chunk ends on a stamp that advances, so that a run of jittered stamps is re-timed whole.
-            if k >= size and (ref is None or stamp > ref or k == cap):
-                break
-            ref = stamp if ref is None else max(ref, stamp)
-        return stamps[:k], q[:k], qd[:k], eff[:k], problems
+                    for i in g.at:
+                        problems.setdefault(int(i), []).append(
+                            f"{fld} has {arr.shape[1]} values for {len(g.names)} joint names")
+        stats.messages += m
+        stats.skipped += int((~accept).sum())
+        rows = np.cumsum(accept) - 1 + self.next_row  # each accepted message's row in the bag
+        probs = [(int(rows[i]), why) for i in sorted(problems) for why in problems[i]]
+        keep = np.flatnonzero(accept)
+        self.pending.append((batch.stamps[keep], q[keep], qd[keep], eff[keep], probs))
+        self.n_pending += len(keep)
+        self.next_row += len(keep)
 
 
 class _Retimer:
@@ -232,7 +189,7 @@ class _WrenchWindow:
     before the chunk let go."""
 
     def __init__(self, path: Path, topic: str, counts: dict, stats: BagStats, keep_partial: bool):
-        self.msgs = topic_messages(path, topic, counts)
+        self.msgs = topic_batches(path, topic, counts)
         self.path, self.topic, self.stats, self.keep_partial = path, topic, stats, keep_partial
         self.ns = np.zeros(0, np.int64)
         self.x = np.zeros((0, 6))
@@ -241,12 +198,12 @@ class _WrenchWindow:
 
     def pull(self, upto_ns: int) -> None:
         """Read until a sample past ``upto_ns`` (or the end)."""
-        ns, xs = [], []
+        ns, xs = [self.ns], [self.x]
         frames = self.stats.frames.setdefault(self.topic, set())
         back = self.stats.wrench_back.setdefault(self.topic, [0, 0, 0])
         while not self.done and (self.last is None or self.last <= upto_ns):
             try:
-                stamp, m = next(self.msgs)
+                batch = next(self.msgs)
             except StopIteration:
                 self.done = True
                 break
@@ -256,21 +213,24 @@ class _WrenchWindow:
                 self.done, self.stop_ns = True, dmg.last_ns
                 self.stats.damage = self.stats.damage or dmg
                 break
-            self.n += 1
+            x = np.full((len(batch), 6), np.nan)
+            for g in batch.groups:
+                frames.add(g.names)
+                x[g.at] = g.fields["wrench"]
+            stamps = batch.stamps
+            before = np.maximum.accumulate(np.r_[self.last if self.last is not None else stamps[0] - 1, stamps[:-1]])
+            ahead = stamps > before  # a stamp that does not advance cannot be interpolated between: left out
+            if not ahead.all():
+                back[0] += int((~ahead).sum())
+                back[1] = back[1] or self.n + int(np.argmin(ahead)) + 1
+            self.n += len(batch)
             back[2] = self.n
-            frames.add(m.header.frame_id)
-            if self.last is not None and stamp <= self.last:  # cannot be interpolated between: left out
-                back[0] += 1
-                back[1] = back[1] or self.n
-                continue
-            self.last = stamp
-            f, tq = m.wrench.force, m.wrench.torque
-            ns.append(stamp)
-            xs.append((f.x, f.y, f.z, tq.x, tq.y, tq.z))
-        if ns:
-            self.ns = np.r_[self.ns, np.array(ns, np.int64)]
-            self.x = np.concatenate([self.x, np.array(xs, np.float64)])
-            if self.first_ns is None:
+            self.last = max(int(before[-1]), int(stamps[-1]))
+            ns.append(stamps[ahead])
+            xs.append(x[ahead])
+        if len(ns) > 1:
+            self.ns, self.x = np.concatenate(ns), np.concatenate(xs)
+            if self.first_ns is None and len(self.ns):
                 self.first_ns = int(self.ns[0])
             if self.max_step is None and len(self.ns) > 1:  # the topic's median step, from its first samples
                 self.max_step = float(np.median(np.diff(self.ns[:10_001])))
@@ -295,25 +255,25 @@ def bag_chunks(path: Path, ros, joints: list, jump_factor: float, stats: BagStat
     """The bag's rows in :class:`BagChunk` s of about ``size`` rows (see the module docstring)."""
     from .log_spec import WRENCH_TOPICS
 
-    rows, retime = _JointRows(joints, stats), _Retimer(stats)
-    msgs = topic_messages(path, ros.joint_states, stats.zero_stamps)
+    batches = topic_batches(path, ros.joint_states, stats.zero_stamps)
+    rows, retime = _JointRows(joints, stats, batches, keep_partial), _Retimer(stats)
     windows = {k: _WrenchWindow(path, getattr(ros, k), stats.zero_stamps, stats, keep_partial)
                for k in WRENCH_TOPICS if getattr(ros, k)}
     try:
-        yield from _chunks(rows, retime, msgs, windows, ros, jump_factor, stats, keep_partial, size)
+        yield from _chunks(rows, retime, windows, ros, jump_factor, size)
     finally:  # the readers of topics not read to their end
         for win in windows.values():
             win.msgs.close()
-        msgs.close()
+        batches.close()
 
 
-def _chunks(rows, retime, msgs, windows, ros, jump_factor, stats, keep_partial, size):
+def _chunks(rows, retime, windows, ros, jump_factor, size):
     first_row, stopped = 0, False
     while not stopped:
-        stamps, q, qd, eff, problems = rows.chunk(msgs, size, first_row, keep_partial)
+        stamps, q, qd, eff, problems = rows.chunk(size)
         if not len(stamps):
             return
-        stopped = len(stamps) < size or stats.damage is not None
+        stopped = rows.done and not rows.n_pending
         wrenches = {}
         for key, win in windows.items():
             values, bad = win.at(stamps, ros.resample, jump_factor)
@@ -327,6 +287,8 @@ def _chunks(rows, retime, msgs, windows, ros, jump_factor, stats, keep_partial, 
             wrenches = {k: v[:n] for k, v in wrenches.items()}
             problems = [p for p in problems if p[0] < first_row + n]
             stopped = stopped or n < len(keep)
+        if not len(stamps):
+            return
         yield BagChunk(first_row, stamps, retime(stamps), q, qd, eff, wrenches, sorted(problems))
         first_row += len(stamps)
 

@@ -40,7 +40,7 @@ from pathlib import Path
 
 from ...outputs import output_lock
 from ..dataset import sha256_file
-from .log_validation import validate_log
+from .log_validation import refuse_as_import, validate_log
 # The importer's public names, by concept: the spec, the report, the checks, the writer.
 from .import_report import DROP_KINDS, SPLIT_KINDS, ImportReport, RowIssue  # noqa: F401
 from .log_spec import (  # noqa: F401
@@ -89,6 +89,10 @@ def import_log(source, out, *, overwrite: bool = False, strict: bool = False, ke
 def _import_locked(spec: "LogSpec", out: Path, overwrite: bool, strict: bool, keep_partial: bool) -> "ImportReport":
     check_replaceable(out, overwrite)
     spec = copy.copy(spec)  # the columns become what the log holds (a bag without velocities): not the caller's
+    if spec.ros is not None and spec.trajectories == "tables":  # one trajectory per bag: streamed to the file
+        from .bag_import import import_bags
+
+        return import_bags(spec, out, overwrite, strict, keep_partial)
     segments, report = checked_segments(spec, strict, keep_partial)
     write_dataset(spec, segments, report, out, overwrite)
     return report
@@ -103,20 +107,7 @@ def checked_segments(spec: "LogSpec", strict: bool = False, keep_partial: bool =
     report = ImportReport(spec.name)
     segments, warnings = validate_log(spec, report, keep_partial, derivatives)
     report.warnings += warnings
-    if strict and (report.issues or report.channel_warnings):
-        found = (("row problems", report.issues), ("dead channels", report.channel_warnings))
-        what = " and ".join(w for w, b in found if b)
-        raise StrictImportError(f"strict import of {spec.name} found {what}:\n{report.text()}")
-    frac = report.rows_dropped / max(report.rows_read, 1)
-    if frac > spec.checks.max_drop_fraction:
-        by_kind = report.dropped_by_kind()
-        hint = (" Most are out of range: is the log in degrees? Set [units] angle = \"deg\"."
-                if by_kind and max(by_kind, key=by_kind.get) == "unit_range" else "")
-        raise TooManyRowsDroppedError(
-            f"{spec.name}: {report.rows_dropped} of {report.rows_read} rows ({100 * frac:.1f} %) failed validation, "
-            f"more than max_drop_fraction = {spec.checks.max_drop_fraction}.{hint}\n{report.text(5)}")
-    if not segments:
-        raise LogImportError(f"{spec.name}: no usable rows\n{report.text(5)}")
+    refuse_as_import(spec, report, strict, len(segments))
     return segments, report
 
 

@@ -16,7 +16,8 @@ import numpy as np
 from ...description import joint_limits, resolve_robot
 from ..data_checks import angle_unit_problems, channel_problems
 from .import_report import ImportReport, RowIssue
-from .log_spec import ANGLE_SIGNALS, JOINT_SIGNALS, TIME_UNITS, LogSpec, LogSpecError, MissingColumnError
+from .log_spec import (ANGLE_SIGNALS, JOINT_SIGNALS, TIME_UNITS, LogImportError, LogSpec, LogSpecError,
+                       MissingColumnError, StrictImportError, TooManyRowsDroppedError)
 from .log_readers import LogTable, read_log
 
 @dataclass
@@ -169,6 +170,25 @@ def validate_log(spec: LogSpec, report: ImportReport, keep_partial: bool = False
     return segments, dead + ([warning] if warning else [])
 
 
+def refuse_as_import(spec: LogSpec, report: ImportReport, strict: bool, n_segments: int) -> None:
+    """An import's refusals after its rows were checked: a strict import that found problems, too many rows
+    dropped, no segment kept."""
+    if strict and (report.issues or report.channel_warnings):
+        found = (("row problems", report.issues), ("dead channels", report.channel_warnings))
+        what = " and ".join(w for w, b in found if b)
+        raise StrictImportError(f"strict import of {spec.name} found {what}:\n{report.text()}")
+    frac = report.rows_dropped / max(report.rows_read, 1)
+    if frac > spec.checks.max_drop_fraction:
+        by_kind = report.dropped_by_kind()
+        hint = (" Most are out of range: is the log in degrees? Set [units] angle = \"deg\"."
+                if by_kind and max(by_kind, key=by_kind.get) == "unit_range" else "")
+        raise TooManyRowsDroppedError(
+            f"{spec.name}: {report.rows_dropped} of {report.rows_read} rows ({100 * frac:.1f} %) failed validation, "
+            f"more than max_drop_fraction = {spec.checks.max_drop_fraction}.{hint}\n{report.text(5)}")
+    if not n_segments:
+        raise LogImportError(f"{spec.name}: no usable rows\n{report.text(5)}")
+
+
 # The logged signals whose channels are checked: a dead torque channel made the bench headline a
 # row whose nMSE dropped that joint, and identification put 32 kg on a 0.65 kg link.
 CHANNEL_SIGNALS = {"q": "rad", "qd": "rad/s", "tau_m": "Nm", "tau_J": "Nm"}
@@ -265,7 +285,10 @@ class _RowChecks:
     def ranges(self, data: dict, q_limits: tuple, qd_max: float) -> None:
         """Unit mistakes, by range: q outside the joint bounds (lower, upper), |qd| beyond qd_max."""
         lo, hi = q_limits
-        for i in np.flatnonzero(self.keep):
+        with np.errstate(invalid="ignore"):  # only the rows with a value out of range are looked at one by one
+            out_q = ((data["q"] < lo) | (data["q"] > hi)).any(axis=1)
+            out_qd = (np.abs(data["qd"]) > qd_max).any(axis=1) if "qd" in data else np.zeros(len(out_q), bool)
+        for i in np.flatnonzero(self.keep & (out_q | out_qd)):
             over = np.flatnonzero((data["q"][i] < lo) | (data["q"][i] > hi))
             if len(over):
                 j = over[0]
@@ -330,7 +353,6 @@ def _timebase_warning(segments: list, spec: LogSpec) -> str | None:
     dt is each segment's clock (its span over its steps), not each interval: a stream stamped on
     arrival jitters interval by interval while its samples are evenly spaced, and per-interval steps
     biased the ratio (a false "no time unit fits")."""
-    tol = spec.checks.timebase_tol
     dq, vdt = [], []
     for seg in segments:
         f = seg.fields
@@ -343,9 +365,16 @@ def _timebase_warning(segments: list, spec: LogSpec) -> str | None:
     if not dq:
         return None
     dq, vdt = np.concatenate(dq), np.concatenate(vdt)
-    if not vdt @ vdt > 0:
+    return timebase_text(float(dq @ vdt), float(vdt @ vdt), spec)
+
+
+def timebase_text(dq_vdt: float, vdt_vdt: float, spec: LogSpec) -> str | None:
+    """The warning of :func:`_timebase_warning` from its two sums over the rows: the position increments
+    times qd x dt [rad^2] and qd x dt squared [rad^2] (a log read in blocks adds them up)."""
+    tol = spec.checks.timebase_tol
+    if not vdt_vdt > 0:
         return None
-    ratio = float(dq @ vdt / (vdt @ vdt))
+    ratio = dq_vdt / vdt_vdt
     if abs(ratio - 1) <= tol:
         return None
     head = f"the position increments are {ratio:.4g} x the logged velocity times the time step"

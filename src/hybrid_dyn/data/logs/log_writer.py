@@ -28,24 +28,30 @@ IMPORTER_VERSION = 1  # bump when the importer's algorithm changes what a spec a
 
 
 def _derive(spec: LogSpec, seg: Segment) -> dict:
-    """A segment's fields with qd (when not logged, and in a bag's rows whose velocity is empty) and qdd
-    (unless logged) estimated (``data/derivatives.py``)."""
-    f = dict(seg.fields)
+    """A segment's fields with qd and qdd estimated (:func:`derive_fields`)."""
+    return derive_fields(spec, seg.fields, seg.next_qd)
+
+
+def derive_fields(spec: LogSpec, fields: dict, next_qd=None, dt: float | None = None) -> dict:
+    """``fields`` with qd (when not logged, and in a bag's rows whose velocity is empty) and qdd (unless
+    logged) estimated (``data/derivatives.py``); ``dt`` [s]: the segment's median step when ``fields`` is a
+    block of it."""
+    f = dict(fields)
     flt = spec.derivatives
     if "qd" in f and not np.isfinite(f["qd"]).all():  # rows without a logged velocity: qd from q there
         gap = ~np.isfinite(f["qd"]).all(axis=1)
         qd = f["qd"].copy()
-        qd[gap] = differentiate(f["q"], f["t"], flt, 1)[gap]
+        qd[gap] = differentiate(f["q"], f["t"], flt, 1, dt=dt)[gap]
         f["qd"] = qd
     if "qdd" in f:
         if "qd" not in f:
-            f["qd"] = differentiate(f["q"], f["t"], flt, 1)
+            f["qd"] = differentiate(f["q"], f["t"], flt, 1, dt=dt)
         return f
     if "qd" not in f:
-        f["qd"] = differentiate(f["q"], f["t"], flt, 1)
-        f["qdd"] = differentiate(f["q"], f["t"], flt, 2)
+        f["qd"] = differentiate(f["q"], f["t"], flt, 1, dt=dt)
+        f["qdd"] = differentiate(f["q"], f["t"], flt, 2, dt=dt)
     else:
-        f["qdd"] = differentiate(f["qd"], f["t"], flt, 1, x_next=seg.next_qd)
+        f["qdd"] = differentiate(f["qd"], f["t"], flt, 1, x_next=next_qd, dt=dt)
     return f
 
 
@@ -117,14 +123,7 @@ def _build(spec: LogSpec, segments: list, report: ImportReport, partial: Path) -
         by_traj.setdefault(seg.trajectory, []).append(seg)
     # The split first: fractions that leave a split empty are refused before any instance is written.
     # Each trajectory's first sample time [s]: the order of a time split (data/splits.py).
-    traj_split = split_trajectories(spec.split_spec, {k: min(float(s.fields["t"][0]) for s in v)
-                                                      for k, v in by_traj.items()})
-    empty = empty_split_problems(traj_split) if len(by_traj) >= 3 else []  # fewer: warned below
-    if empty and spec.split_by == "list":
-        raise LogSpecError(f"{spec.name}: {empty[0]}: [split] lists no trajectory for it")
-    if empty:
-        raise LogSpecError(f"{spec.name}: {empty[0]} ({len(by_traj)} trajectories, test_frac = {spec.test_frac}, "
-                           f"val_frac = {spec.val_frac} of the rest); choose smaller fractions")
+    traj_split = trajectory_split(spec, {k: min(float(s.fields["t"][0]) for s in v) for k, v in by_traj.items()})
     records, steps = [], []
     fields_written = None
     for traj in sorted(by_traj, key=natural_key):
@@ -138,15 +137,41 @@ def _build(spec: LogSpec, segments: list, report: ImportReport, partial: Path) -
             fields_written = sorted(f)
             if len(f["t"]) > 1:
                 steps.append(np.diff(f["t"]))
-            records.append({"name": name, "file": f"instances/{name}.h5", "sha256": sha, "n_samples": len(f["t"]),
-                            "trajectory": traj, "source": seg.table.source.name, "table": seg.table.name,
-                            "rows": [attrs["first_row"], attrs["last_row"]]})
+            records.append(instance_record(name, sha, len(f["t"]), attrs))
+    step = float(np.median(np.concatenate(steps))) if steps else None
+    write_manifest_files(spec, report, partial, records, traj_split, step, fields_written)
+
+
+def trajectory_split(spec: LogSpec, first_t: dict) -> dict:
+    """Trajectories to splits (``data/splits.py``) from each one's first sample time [s]; fractions that leave
+    a split empty are refused."""
+    traj_split = split_trajectories(spec.split_spec, first_t)
+    empty = empty_split_problems(traj_split) if len(first_t) >= 3 else []  # fewer: warned in the manifest
+    if empty and spec.split_by == "list":
+        raise LogSpecError(f"{spec.name}: {empty[0]}: [split] lists no trajectory for it")
+    if empty:
+        raise LogSpecError(f"{spec.name}: {empty[0]} ({len(first_t)} trajectories, test_frac = {spec.test_frac}, "
+                           f"val_frac = {spec.val_frac} of the rest); choose smaller fractions")
+    return traj_split
+
+
+def instance_record(name: str, sha: str, n: int, attrs: dict) -> dict:
+    """The manifest's record of one written instance."""
+    return {"name": name, "file": f"instances/{name}.h5", "sha256": sha, "n_samples": n,
+            "trajectory": attrs["trajectory"], "source": attrs["source"], "table": attrs["table"],
+            "rows": [attrs["first_row"], attrs["last_row"]]}
+
+
+def write_manifest_files(spec: LogSpec, report: ImportReport, partial: Path, records: list, traj_split: dict,
+                         step: float | None, fields_written: list) -> None:
+    """The report files and the manifest of the instances ``records`` written in ``partial``; ``step``: the
+    median sample step [s] over them."""
+    n_traj = sum(len(names) for names in traj_split.values())
     report.instances = len(records)
-    if len(by_traj) < 3:
-        report.warnings.append(f"only {len(by_traj)} trajectories: all are in the train split "
+    if n_traj < 3:
+        report.warnings.append(f"only {n_traj} trajectories: all are in the train split "
                                f"(use trajectories from = \"blocks\" to cut one log into several)")
     splits = {s: sorted(r["name"] for r in records if r["trajectory"] in names) for s, names in traj_split.items()}
-    step = float(np.median(np.concatenate(steps))) if steps else None
     estimated = "given" if "qdd" in spec.columns else spec.derivatives.to_dict()
     units = dict(FIELD_UNITS, tau_m="Nm (the logged joint torque)")
     full = report.to_dict()
@@ -159,7 +184,7 @@ def _build(spec: LogSpec, segments: list, report: ImportReport, partial: Path) -
                    "notes": spec.notes},
         "fields": {k: units[k] for k in fields_written}, "packages": package_versions(),
         "instances": records, "splits": splits, "trajectory_splits": traj_split,
-        "split": {**spec.split_spec.to_dict(), "text": spec.split_spec.describe(len(by_traj))},
+        "split": {**spec.split_spec.to_dict(), "text": spec.split_spec.describe(n_traj)},
         "import": {**report.summary(), "derivatives": estimated,
                    "velocities": "logged" if "qd" in spec.columns else "estimated",
                    "sources": [{"file": str(f), "sha256": sha256_file(f)} for f in spec.files],
