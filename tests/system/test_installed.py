@@ -66,7 +66,7 @@ def test_installed_wheel_loads_the_panda_and_the_real_specs_outside_the_checkout
     got = json.loads(run.stdout.strip().splitlines()[-1])
     assert Path(got["file"]).resolve().is_relative_to(site.resolve())  # the wheel's copy, not the checkout's
     assert got["nv"] == 7 and got["tool_frame"] == "panda_hand_tcp"
-    assert {"panda", "ur5", "xarm7"} <= set(got["robots"]) and "kuka-lwr" in got["data_only"]
+    assert {"panda", "ur5", "xarm7", "kuka-lwr", "baxter"} <= set(got["robots"]) and "sarcos" in got["data_only"]
     assert got["params_differ"] > 0  # the parameter-set JSONs shipped too: franka_official is another mass
     assert got["spec_robot"] == "panda[tool=none]" and got["spec_split"] == "time"
     assert got["specs"] == sorted(["real-kuka", "real-baxter", "real-sarcos", "real-panda"])

@@ -158,7 +158,8 @@ def comparison(rows: list[dict], scenario: str, curves: dict | None = None) -> s
                    f"{'-' if noext is None else f'{noext[2]:.4f}'} |")
     out += ["", "### The analytic rows on the same test split", ""]
     for task, unit in (("tip_force", "N"), ("joint_torque", "Nm")):
-        cand = [r for (t, _), r in ok.items() if t == task and is_physics_result(r)]
+        # A row that refused every test sample has no RMSE to rank by.
+        cand = [r for (t, _), r in ok.items() if t == task and is_physics_result(r) and r.get("rmse") not in (None, "")]
         for r in sorted(cand, key=lambda r: float(r["rmse"]))[:3]:
             out.append(f"- {task}: `{r['model']}` {float(r['rmse']):.4f} {unit}")
     return "\n".join(out) + "\n"

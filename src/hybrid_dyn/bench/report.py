@@ -80,9 +80,12 @@ def _headline_notes(rows, ranked, scenario, task) -> list[str]:
                      f"parameters outside the robot's bounds (the bodies are named under `{task}.md`)")
     few = [r for r in rows if r["scenario"] == scenario and r["task"] == task and low_answer(r)]
     if few:
+        def over_answered(r) -> str:  # a row that refused every sample has no RMSE to give
+            return f"RMSE {float(r['rmse']):.3f} over those" if r.get("rmse") not in (None, "") else "no RMSE"
+
         lines.append("  - not a family's best: " + ", ".join(
             f"`{r['model']}` {LOW_ANSWER_MARK} (answered {100 * answered_share(r):.1f} % of the test samples, "
-            f"RMSE {float(r['rmse']):.3f} over those)" for r in few)
+            f"{over_answered(r)})" for r in few)
             + ": refused the rest (its table lists them)")
     return lines
 
