@@ -75,15 +75,8 @@ class _JointRows:
         """(stamps, q, qd, effort, problems) of about ``size`` rows: a chunk ends on a stamp that advances,
         so that a run of jittered stamps is re-timed whole (at most ``_SLACK`` rows more)."""
         while not self.done and self.n_pending < size + _SLACK:
-            try:
-                batch = next(self.batches)
-            except StopIteration:
-                self.done = True
-                break
-            except BagDamage as dmg:
-                if not self.keep_partial:
-                    raise
-                self.stats.damage = self.stats.damage or dmg
+            batch, _ = _next_batch(self.batches, self.stats, self.keep_partial)
+            if batch is None:
                 self.done = True
                 break
             self._add(batch)
@@ -202,16 +195,11 @@ class _WrenchWindow:
         frames = self.stats.frames.setdefault(self.topic, set())
         back = self.stats.wrench_back.setdefault(self.topic, [0, 0, 0])
         while not self.done and (self.last is None or self.last <= upto_ns):
-            try:
-                batch = next(self.msgs)
-            except StopIteration:
+            batch, dmg = _next_batch(self.msgs, self.stats, self.keep_partial)
+            if batch is None:
                 self.done = True
-                break
-            except BagDamage as dmg:
-                if not self.keep_partial:
-                    raise
-                self.done, self.stop_ns = True, dmg.last_ns
-                self.stats.damage = self.stats.damage or dmg
+                if dmg is not None:
+                    self.stop_ns = dmg.last_ns
                 break
             x = np.full((len(batch), 6), np.nan)
             for g in batch.groups:
@@ -327,3 +315,17 @@ def resample(src_ns: np.ndarray, src_x: np.ndarray, dst_ns: np.ndarray, rule: st
         bad.append((r, f"stamp {dst_ns[r] * 1e-9:.6f} s lies in a gap of {s * 1e-9:.4g} s of the topic "
                        f"(over {jump_factor:g} median steps: not interpolated)"))
     return values, bad
+
+
+def _next_batch(batches, stats, keep_partial: bool):
+    """(the topic's next batch, None) or, at its end, (None, None); at damage, with ``keep_partial``,
+    (None, the damage), recorded in ``stats`` (the first damage is the one reported); without it, raise."""
+    try:
+        return next(batches), None
+    except StopIteration:
+        return None, None
+    except BagDamage as dmg:
+        if not keep_partial:
+            raise
+        stats.damage = stats.damage or dmg
+        return None, dmg
