@@ -86,18 +86,12 @@ def write_instance(path: Path, fields: dict, truth: dict | None = None, attrs: d
     before the rename, so a concurrent writer of the same path can never make
     this call vouch for bytes it did not write.
     """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = unique_temp(path)
-    with h5py.File(tmp, "w", libver=("earliest", "v110"), track_order=False) as f:
-        for k, v in (attrs or {}).items():
-            f.attrs[k] = v
+    def fill(f):
         _write_group(f, fields)
         if truth:
             _write_group(f.create_group("truth", track_order=False), truth)
-    sha = sha256_file(tmp)
-    os.replace(tmp, path)
-    return sha
+
+    return _write_atomic(path, attrs, fill)
 
 
 def write_instance_blocks(path: Path, n: int, widths: dict, block, attrs: dict | None = None,
@@ -106,12 +100,7 @@ def write_instance_blocks(path: Path, n: int, widths: dict, block, attrs: dict |
     whole); returns its sha256. ``widths``: field -> columns (None for a (T,) field such as ``t``);
     ``block(field, a, b)``: rows a..b-1 of the field. Datasets, chunks, filters and their order are
     :func:`write_instance`'s, and each block is whole chunks, so a reader gets the same arrays."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = unique_temp(path)
-    with h5py.File(tmp, "w", libver=("earliest", "v110"), track_order=False) as f:
-        for k, v in (attrs or {}).items():
-            f.attrs[k] = v
+    def fill(f):
         for name in sorted(widths):
             shape = (n,) if widths[name] is None else (n, widths[name])
             dset = f.create_dataset(name, shape=shape, dtype=np.float64, track_times=False, compression="gzip",
@@ -119,6 +108,20 @@ def write_instance_blocks(path: Path, n: int, widths: dict, block, attrs: dict |
             step = max(rows // dset.chunks[0], 1) * dset.chunks[0] if dset.chunks else max(n, 1)
             for a in range(0, n, step):
                 dset[a:min(a + step, n)] = block(name, a, min(a + step, n))
+
+    return _write_atomic(path, attrs, fill)
+
+
+def _write_atomic(path, attrs: dict | None, fill) -> str:
+    """An instance file written by ``fill(h5 file)`` under a per-call temporary, its attrs first, then renamed
+    into place; returns the sha256 of the bytes this call wrote (taken before the rename)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = unique_temp(path)
+    with h5py.File(tmp, "w", libver=("earliest", "v110"), track_order=False) as f:
+        for k, v in (attrs or {}).items():
+            f.attrs[k] = v
+        fill(f)
     sha = sha256_file(tmp)
     os.replace(tmp, path)
     return sha
