@@ -201,21 +201,29 @@ class BaseMomentumObserver:
 
 
 @njit(cache=True)
-def _observer_step(state, started, hg, c, mg, R, w, gain, dt):  # pragma: no cover (compiled)
-    """One observer update (``BaseMomentumObserver.step_unchecked``). state rows: H(0), the integral,
-    the last u = R w + W_grav, the wrench estimate r; hg = [h; L_com] (Pinocchio's centroidal momentum),
-    H = [h; L_com + c x h], W_grav = [m g; c x m g]."""
+def momentum_and_weight(hg, c, mg):  # pragma: no cover (compiled)
+    """About the root origin: the momentum H = [h; L_com + c x h] from Pinocchio's centroidal hg = [h; L_com],
+    and the weight's wrench W_grav = [m g; c x m g]; c the centre of mass [m], mg the weight [N]."""
     H = np.empty(6)
-    u = np.empty(6)
+    grav = np.empty(6)
     H[0], H[1], H[2] = hg[0], hg[1], hg[2]
     H[3] = hg[3] + c[1] * hg[2] - c[2] * hg[1]
     H[4] = hg[4] + c[2] * hg[0] - c[0] * hg[2]
     H[5] = hg[5] + c[0] * hg[1] - c[1] * hg[0]
-    grav = np.empty(6)
     grav[0], grav[1], grav[2] = mg[0], mg[1], mg[2]
     grav[3] = c[1] * mg[2] - c[2] * mg[1]
     grav[4] = c[2] * mg[0] - c[0] * mg[2]
     grav[5] = c[0] * mg[1] - c[1] * mg[0]
+    return H, grav
+
+
+@njit(cache=True)
+def _observer_step(state, started, hg, c, mg, R, w, gain, dt):  # pragma: no cover (compiled)
+    """One observer update (``BaseMomentumObserver.step_unchecked``). state rows: H(0), the integral,
+    the last u = R w + W_grav, the wrench estimate r; hg = [h; L_com] (Pinocchio's centroidal momentum),
+    H = [h; L_com + c x h], W_grav = [m g; c x m g]."""
+    u = np.empty(6)
+    H, grav = momentum_and_weight(hg, c, mg)
     for i in range(6):
         acc = grav[i]
         for k in range(6):

@@ -26,6 +26,8 @@ import numpy as np
 import pinocchio as pin
 from numba import njit
 
+from ..analytic.base_momentum import momentum_and_weight
+
 
 CHECK_EVERY = 8  # calls between two off-tool checks (one Jacobian or model wrench each)
 CHECK_GAIN = 100.0  # [1/s] kalman-fusion's observer for the check: base-momentum's rule picks 90-100 on the trust streams
@@ -197,16 +199,7 @@ class SampledObserver:
 def _sample_step(state, hg, c, mg, R, C, w, dt, calls, gain, first):  # pragma: no cover (compiled)
     """One sample of :class:`SampledObserver`: H = [h; L_com + c x h], W_grav = [m g; c x m g]; the
     integral gains R (the sensor's trapezoid) + the weight's trapezoid + the last r over the interval."""
-    H = np.empty(6)
-    grav = np.empty(6)
-    H[0], H[1], H[2] = hg[0], hg[1], hg[2]
-    H[3] = hg[3] + c[1] * hg[2] - c[2] * hg[1]
-    H[4] = hg[4] + c[2] * hg[0] - c[0] * hg[2]
-    H[5] = hg[5] + c[0] * hg[1] - c[1] * hg[0]
-    grav[0], grav[1], grav[2] = mg[0], mg[1], mg[2]
-    grav[3] = c[1] * mg[2] - c[2] * mg[1]
-    grav[4] = c[2] * mg[0] - c[0] * mg[2]
-    grav[5] = c[0] * mg[1] - c[1] * mg[0]
+    H, grav = momentum_and_weight(hg, c, mg)
     if first:
         state[0, :] = H
         state[1, :] = 0.0
