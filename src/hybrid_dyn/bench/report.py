@@ -262,9 +262,13 @@ def _what_was_run(meta: dict, prof: dict, rows=()) -> list[str]:
 
 
 def _invocation_times(invocations: list) -> str:
-    """The parts of a bench that took several invocations (resumed from its caches), and their sum."""
+    """The parts of a bench that took several invocations (resumed from its caches), and their sum. An
+    invocation that began on empty caches starts the count: the ones before it worked on other caches."""
+    cold = [k for k, i in enumerate(invocations) if i.get("cold_start")]
+    if cold:
+        invocations = invocations[cold[-1]:]
     if len(invocations) < 2:
-        return ""
+        return "; it began on empty caches" if invocations and invocations[0].get("cold_start") else ""
     parts = [_minutes(i.get("wall_seconds")) + (" (not finished)" if "finished" in i and i["finished"] is None else "")
              for i in invocations]
     known = [float(i["wall_seconds"]) for i in invocations if i.get("wall_seconds") is not None]
