@@ -8,8 +8,8 @@ Control engineers call :class:`TipForceEstimator` once per tick of a 1 kHz loop:
 
 By concept:
 
-- ``tip_force_estimator.py``: :class:`TipForceEstimator`, what one call does (its module
-  docstring: the input rules, the noise window, the bandwidth, the statuses);
+- ``tip_force_estimator.py``: :class:`TipForceEstimator`, what one call does (docs/estimator.md:
+  the input rules, the noise window, the bandwidth, the statuses); ``call_status.py``: a call's status;
 - ``config.py``: :class:`EstimatorConfig` (rate, bandwidths, bounds) and
   :class:`EstimatorStatus`;
 - ``input.py``: the input gate (:class:`InputGate`, :class:`RateCheck`), which
