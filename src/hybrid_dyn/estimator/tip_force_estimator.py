@@ -17,6 +17,7 @@ from ..analytic.method_declaration import spec_noise
 from ..analytic.methods import TIP_FORCE_METHODS
 from ..analytic.robot import Robot, load_robot, with_payload
 from ..analytic.tare import StreamingTare, tare_samples
+from ..description.spec import resolve_encoder_resolution
 from ..errors import UsageError
 from .call_status import NO_SIGMA, CallStatus, within
 from .config import EstimatorConfig, EstimatorStatus, check_rating, checked_payload, rated_payload
@@ -53,8 +54,7 @@ class TipForceEstimator(CallStatus, StreamStarts):
         self._rate = RateCheck(nv, float(c.call_hz), c.rate_tolerance)
         # Quantized encoders: q becomes q, qd (and qdd) through one Kalman filter every method reads
         # (analytic methods only: a learned model reads what its training data recorded).
-        self.encoder_resolution = (robot.spec.encoder_resolution if c.encoder_resolution == "auto"
-                                   else float(c.encoder_resolution))
+        self.encoder_resolution = resolve_encoder_resolution(c.encoder_resolution, robot.spec)
         self._joint = None if model is not None else joint_filter_for(
             robot, c.call_hz, self.encoder_resolution, c.joint_filter_bandwidth)
         self._error_bar = ErrorBar(c.call_hz, c.motion_sigma_gain, c.base_drift_rate)

@@ -206,7 +206,7 @@ class GeneratorConfig:
         if self.sensors is not None and self.noise != NoiseConfig.off():
             raise ConfigError("sensors=HardwareSensors(...) reads the run; noise must then be NoiseConfig.off() "
                               "(one sensor model per dataset)")
-        if self.sensors is not None and self.sensors.encoder.resolution is None:
+        if self.sensors is not None and self.sensors.encoder.resolution == "auto":
             # The robot's own resolution, written into the config: its dict, hash and manifest name the number.
             enc = dataclasses.replace(self.sensors.encoder, resolution=_robot_encoder_resolution(self.robot))
             object.__setattr__(self, "sensors", dataclasses.replace(self.sensors, encoder=enc))
@@ -286,10 +286,10 @@ class GeneratorConfig:
 
 def _robot_encoder_resolution(robot: str) -> float:
     """The encoder resolution [rad] the description of ``robot`` states (the hardware sensors' default)."""
-    from ..description import RobotDescriptionError, load_spec, parse_robot_name
+    from ..description import RobotDescriptionError, load_spec, parse_robot_name, resolve_encoder_resolution
 
     try:
-        return float(load_spec(parse_robot_name(robot)[0]).encoder_resolution)
+        return resolve_encoder_resolution("auto", load_spec(parse_robot_name(robot)[0]))
     except RobotDescriptionError as err:
         raise ConfigError(f"hardware sensors without an encoder resolution take the robot description's: {err}; "
                           "give EncoderModel(resolution=...)") from err
@@ -333,7 +333,7 @@ SEED_SIM_SIZES = {
 # difference of it, link-side torques at 0.05 Nm, the base F/T sensor at 0.2 N / 0.01 Nm white noise with a
 # per-stream bias and a drift of 0.025 N/s (0.3 N over 12 s) and 0.00125 Nm/s, stamps jittered by 0.2 ms (sigma, clipped at 0.5 ms).
 HARDWARE_SENSORS = HardwareSensors(
-    encoder=EncoderModel(resolution=None, velocity="difference"),
+    encoder=EncoderModel(resolution="auto", velocity="difference"),
     base=ForceTorqueModel(force_noise=0.2, torque_noise=0.01, force_bias=2.0, torque_bias=0.1,
                           force_drift=0.025, torque_drift=0.00125),
     clock=ClockModel(jitter=2e-4, max_jitter=5e-4),

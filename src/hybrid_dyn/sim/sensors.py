@@ -28,12 +28,13 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from ..analytic.acceleration import causal_acceleration
+from ..description.spec import resolve_encoder_resolution
 
 
 @dataclass(frozen=True)
 class EncoderModel:
     """Joint encoders. resolution [rad per count]: q is reported as round(q / resolution) * resolution;
-    None takes the robot description's ``encoder_resolution``; 0 reads q exactly.
+    "auto" takes the robot description's ``encoder_resolution``; 0 reads q exactly.
     velocity: how the drive makes qd: "difference" (the backward difference of the quantized q over the
     nominal period, what libfranka's dq is), "filtered" (that difference through a first-order low-pass
     at ``velocity_cutoff_hz`` [Hz]) or "exact" (the simulator's velocity, an ideal tachometer).
@@ -41,7 +42,7 @@ class EncoderModel:
     the reported qd (a tachometer's); 0 for a digital encoder. The kinematic test streams state the
     white-noise levels their tests were designed on this way."""
 
-    resolution: float | None = None
+    resolution: float | str = "auto"
     velocity: str = "difference"
     velocity_cutoff_hz: float = 0.0
     noise: float = 0.0
@@ -52,7 +53,7 @@ class EncoderModel:
             raise ValueError(f"EncoderModel.velocity must be 'difference', 'filtered' or 'exact', got {self.velocity!r}")
         if self.velocity == "filtered" and not self.velocity_cutoff_hz > 0:
             raise ValueError("EncoderModel.velocity='filtered' needs velocity_cutoff_hz > 0 [Hz]")
-        if self.resolution is not None and not self.resolution >= 0:
+        if self.resolution != "auto" and not (isinstance(self.resolution, (int, float)) and self.resolution >= 0):
             raise ValueError(f"EncoderModel.resolution must be >= 0 [rad], got {self.resolution!r}")
         if not (self.noise >= 0 and self.velocity_noise >= 0):
             raise ValueError(f"EncoderModel noise levels must be >= 0, got {self.noise!r}, {self.velocity_noise!r}")
@@ -126,11 +127,6 @@ class SensorReadings:
     drift: np.ndarray | None = None
 
 
-def encoder_resolution(robot, encoder: EncoderModel) -> float:
-    """The resolution [rad] an encoder model uses on ``robot`` (its own, else the description's)."""
-    return float(robot.spec.encoder_resolution if encoder.resolution is None else encoder.resolution)
-
-
 def read_sensors(robot, sensors: HardwareSensors, dt: float, q, qd, tau_J, base_wrench,
                  rng: np.random.Generator, every: int = 1) -> SensorReadings:
     """What ``sensors`` report of a true run: q, qd (n, nv) sampled every ``dt`` [s] (the control rate, where
@@ -175,7 +171,7 @@ def _read_encoders(robot, enc: EncoderModel, dt: float, q, qd, rng) -> tuple:
     if enc.noise > 0:
         q = q + rng.normal(size=q.shape) * enc.noise
     n_qd = rng.normal(size=qd.shape) * enc.velocity_noise if enc.velocity_noise > 0 else 0.0
-    res = encoder_resolution(robot, enc)
+    res = resolve_encoder_resolution(enc.resolution, robot.spec)
     q_read = np.round(q / res) * res if res > 0 else q.copy()
     if enc.velocity == "exact":
         qd_read = qd.copy()
@@ -191,4 +187,4 @@ def _read_encoders(robot, enc: EncoderModel, dt: float, q, qd, rng) -> tuple:
 
 
 __all__ = ["ClockModel", "EncoderModel", "ForceTorqueModel", "HardwareSensors", "SensorReadings",
-           "causal_acceleration", "encoder_resolution", "read_sensors"]
+           "causal_acceleration", "read_sensors"]
