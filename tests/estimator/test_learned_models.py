@@ -129,7 +129,8 @@ def test_a_stream_at_the_models_rate_runs_its_training_qdd_or_is_refused_naming_
     unless the user picks a cutoff."""
     from hybrid_dyn.analytic.acceleration import default_qdd_cutoff
     from hybrid_dyn.sim.generator import generate_dataset
-    from hybrid_dyn.sim.scenarios import PulseConfig, scenario_config
+    from hybrid_dyn.sim.generator_config import PulseConfig
+    from hybrid_dyn.sim.scenarios import scenario_config
 
     cfg = scenario_config("seed-sim", "quick", n_instances=3, trajectories=(1, 1), standstill=0.3,
                           speed_scale=(0.5, 0.6), seed=2, pulses=PulseConfig(gap=(0.5, 1.0), sigma=(0.2, 0.4)),

@@ -12,8 +12,8 @@ from hybrid_dyn.data import load_dataset
 from hybrid_dyn.description import resolve_encoder_resolution
 from hybrid_dyn.sim.executors import SerialExecutor
 from hybrid_dyn.sim.generator import generate_dataset
-from hybrid_dyn.sim.scenarios import (
-    SCENARIOS, SIZES, ConfigError, GeneratorConfig, NoiseConfig, StartTouchConfig, noise_free, scenario_config)
+from hybrid_dyn.sim.generator_config import SIZES, ConfigError, GeneratorConfig, NoiseConfig, StartTouchConfig
+from hybrid_dyn.sim.scenarios import SCENARIOS, noise_free, scenario_config
 from hybrid_dyn.sim.sensors import (
     ClockModel, EncoderModel, ForceTorqueModel, HardwareSensors, causal_acceleration, read_sensors)
 from hybrid_dyn.sim.stream import StreamConfig, Touch, simulate_stream

@@ -15,7 +15,8 @@ from hybrid_dyn.bench.profiles import PROFILES, BenchProfile
 from hybrid_dyn.cli import build_parser
 from hybrid_dyn.deprecation import DeprecatedNameWarning
 from hybrid_dyn.learn.train import RECIPE_ALIASES, RECIPES, TrainConfig
-from hybrid_dyn.sim.scenarios import SIZES, GeneratorConfig, scenario_config
+from hybrid_dyn.sim.generator_config import SIZES, GeneratorConfig
+from hybrid_dyn.sim.scenarios import scenario_config
 from helpers.legacy_sensors import legacy
 
 pytestmark = pytest.mark.system

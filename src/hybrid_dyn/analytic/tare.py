@@ -2,7 +2,7 @@
 
 A real 6-axis sensor reads the ground reaction plus an offset that drifts from
 one power-up (or one mounting) to the next: our generator draws it per
-instance, up to +-2 N and +-0.1 Nm per axis (``sim.scenarios.NoiseConfig``).
+instance, up to +-2 N and +-0.1 Nm per axis (``sim.generator_config.NoiseConfig``).
 No network can learn a per-run constant from a short window, and the
 base-wrench method turns it straight into tip-force error, so a user tares the
 sensor while nothing touches the arm:

@@ -2,14 +2,12 @@
 from ..deprecation import module_aliases
 from .generator import generate_dataset
 from .instances import simulate_instance
-from .scenarios import (
-    SCENARIO_REGISTRY, SCENARIOS, SIZES, ConfigError, GeneratorConfig, NoiseConfig, PulseConfig, Scenario,
-    scenario_config,
-)
+from .generator_config import SIZES, ConfigError, GeneratorConfig, NoiseConfig, PulseConfig
+from .scenarios import SCENARIOS, Scenario, scenario_config
 from .simulator import SimulatedRun, Simulator, simulate_reference
 
 __all__ = [
-    "SCENARIOS", "SCENARIO_REGISTRY", "SIZES", "ConfigError", "GeneratorConfig", "NoiseConfig", "PulseConfig",
+    "SCENARIOS", "SIZES", "ConfigError", "GeneratorConfig", "NoiseConfig", "PulseConfig",
     "Scenario", "SimulatedRun", "Simulator", "generate_dataset", "scenario_config", "simulate_instance",
     "simulate_reference",
 ]

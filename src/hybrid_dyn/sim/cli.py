@@ -7,11 +7,12 @@ import sys
 
 def register(sub) -> None:
     from ..deprecation import DeprecatedFlag
-    from .scenarios import SCENARIO_REGISTRY, SCENARIOS, SIZES
+    from .generator_config import SIZES
+    from .scenarios import SCENARIOS
 
     p = sub.add_parser("generate", help="simulate a dataset of a named scenario (DART, 1 kHz)")
-    p.add_argument("--scenario", choices=SCENARIOS, default="paper-ext",
-                   help=". ".join(f"{s.name}: {s.description}" for s in SCENARIO_REGISTRY.values()))
+    p.add_argument("--scenario", choices=list(SCENARIOS), default="paper-ext",
+                   help=". ".join(f"{s.name}: {s.description}" for s in SCENARIOS.values()))
     p.add_argument("--size", choices=SIZES, default="quick",
                    help="the dataset's size: quick: under a minute; default: ~0.4 M samples; paper: the seed's "
                         "1000 instances")

@@ -37,7 +37,7 @@ from ..outputs import output_lock, refuse_foreign
 from .executors import make_executor
 from .instances import _finished_record, _instance_job, instance_name
 from .instances import instance_rngs, simulate_instance  # noqa: F401  (re-exported: imported from here)
-from .scenarios import GENERATOR_VERSION, GeneratorConfig
+from .generator_config import GENERATOR_VERSION, GeneratorConfig
 from .simulator import FIELDS
 from .simulator import SimulatedRun, Simulator, simulate_reference  # noqa: F401  (re-exported: imported from here)
 
@@ -174,7 +174,7 @@ def _generate_locked(config, store, workers, progress, executor, log, tqdm, lock
 
     ordered = [records[i] for i in range(config.n_instances)]
     store.write_text("manifest.json", manifest_text({
-        # The size under the key the config stores it by (scenarios.GeneratorConfig.to_dict: hashes stay).
+        # The size under the key the config stores it by (generator_config.GeneratorConfig.to_dict: hashes stay).
         "robot": config.robot, "scenario": config.scenario, "profile": config.size, "seed": config.seed,
         "record_hz": config.record_hz, "dt": config.dt, "generator_version": GENERATOR_VERSION,
         "config": config.to_dict(), "config_hash": chash,

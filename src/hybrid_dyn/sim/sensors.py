@@ -16,7 +16,7 @@ Two families live here, each defined once:
   at the control rate (1 kHz) and the log keeps every n-th reading; the stream serves the tests,
   ``benchmarks/``, ``checks/`` and ``examples/``.
 
-The older :class:`~hybrid_dyn.sim.scenarios.NoiseConfig` (independent white noise on q and qd, a constant
+The older :class:`~hybrid_dyn.sim.generator_config.NoiseConfig` (independent white noise on q and qd, a constant
 base-sensor bias: sensors no robot has) is kept for the ideal-sensor control ``paper-ext-ideal`` and the
 seed's conditions ``seed-sim``; a real qd is made from q, so every other scenario uses
 :class:`HardwareSensors`.

@@ -30,7 +30,7 @@ import pinocchio as pin
 from ..analytic.robot import InputError
 from .collision import collision_checker
 from .plant import DartPlant
-from .scenarios import GeneratorConfig
+from .generator_config import GeneratorConfig
 from .sensors import causal_acceleration, read_sensors
 
 FIELDS = ("t", "q", "qd", "qdd", "tau_m", "tau_J", "base_wrench", "tip_force")

@@ -23,7 +23,7 @@ from ..analytic.robot import Robot, load_robot
 from ..description.spec import resolve_encoder_resolution
 from .plant import DartPlant
 from .pulses import ContactSteps, sample_contact_steps
-from .scenarios import ContactStepConfig
+from .generator_config import ContactStepConfig
 from .sensors import HardwareSensors, SensorReadings, read_sensors
 
 # Joint PD gains of the stream's controller [Nm/rad, Nm s/rad] for a 7-joint arm (the Panda's
