@@ -1,4 +1,4 @@
-"""Datasets in fsspec stores (issue 9): generation into a file:// URL from worker processes and into
+"""Datasets in fsspec stores: generation into a file:// URL from worker processes and into
 memory://, resumed after a corrupt instance, and fetched to a local folder for training."""
 import fsspec
 import pytest

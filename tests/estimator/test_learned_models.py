@@ -97,7 +97,7 @@ def test_out_of_range_is_flagged(trained):
 
 def test_slower_calls_than_training_are_refused(trained):
     """Called at 50 Hz, a model trained at 100 Hz would see windows twice as long as in training
-    (issue 17: it was accepted with stride 1); 150 Hz is no integer multiple either."""
+    (it was once accepted with stride 1); 150 Hz is no integer multiple either."""
     _, dirs = trained
     for hz in (0.5 * RATE, 1.5 * RATE):
         with pytest.raises(ModelError, match="training rate 100 Hz or an integer multiple"):

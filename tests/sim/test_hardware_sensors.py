@@ -1,4 +1,4 @@
-"""Issue 38: sensors as hardware has them (``sim/sensors.py``), the stream simulator on them
+"""Sensors as hardware has them (``sim/sensors.py``), the stream simulator on them
 (``sim/stream.py``) and the ``contact-steps-hardware`` scenario, each against a truth computed here."""
 import json
 

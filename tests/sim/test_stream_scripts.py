@@ -1,4 +1,4 @@
-"""Issue 38: the scripts that ran hand-written loops (checks/, examples/, benchmarks/) run on the one stream
+"""The scripts that ran hand-written loops (checks/, examples/, benchmarks/) run on the one stream
 simulator (``sim.stream``) and tell the estimator what their encoders are."""
 import importlib.util
 

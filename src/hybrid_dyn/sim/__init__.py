@@ -1,5 +1,4 @@
 """Simulation: the DART plant and the dataset generator."""
-from ..deprecation import module_aliases
 from .generator import generate_dataset
 from .instances import simulate_instance
 from .generator_config import SIZES, ConfigError, GeneratorConfig, NoiseConfig, PulseConfig
@@ -12,5 +11,3 @@ __all__ = [
     "simulate_reference",
 ]
 
-# PROFILES: the generator sizes' old name, served with a warning.
-__getattr__ = module_aliases(__name__, {"PROFILES": "SIZES"}, globals(), why="generator sizes, not bench profiles")

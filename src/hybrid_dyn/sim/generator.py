@@ -1,24 +1,6 @@
 """The dataset generator: a torque-controlled arm in DART, with sensors.
 
-The dataset writer: it decides which instances to (re)make, runs them on an executor and writes the
-manifest. One run is simulated in ``simulator.py`` (plant, controller, sensors: PROTOCOL 3); one
-instance's job, its seeds and its completion record are in ``instances.py``.
-
-Parallelism and restarts: each instance is a job for an executor (local
-processes or a Ray cluster, ``executors.py``); it writes ``instances/<name>.h5``
-to the dataset's store (a local directory or an fsspec URL, ``data/store.py``)
-and then a small ``<name>.json`` completion record. A restart skips instances whose record and checksum agree and
-regenerates (and names) missing, partial or corrupt ones; the manifest comes
-last. Per-instance seeds derive from (seed, index) alone, so the bytes do not
-depend on the worker count or on the order in which jobs finish.
-
-Concurrent runs: a run holds ``outputs.output_lock`` on a local output for its
-whole length, so a second run into the same folder is refused at once. Each
-file is written under a temporary name unique to its writer and hashed before
-the atomic rename, so a record only ever vouches for bytes its own job wrote
-(this also holds for Ray workers on a shared folder, which the lock of the
-driver does not cover). A folder is only written into if it is empty or was
-started by the generator (its ``generator.json``).
+The detail (what it computes, the equations, why each choice): docs/design/sim.md, section ``sim/generator.py``.
 """
 from __future__ import annotations
 

@@ -14,7 +14,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..analytic.robot import Robot, SensorMount, load_robot
-from ..deprecation import renamed_field
 from ..description.sensor_noise import NoiseConfig  # the sensors' noise, below sim/ and analytic/
 from ..errors import HybridDynError
 from .sensors import HardwareSensors
@@ -72,12 +71,12 @@ class StartTouchConfig:
     rise: tuple = (0.001, 0.020)      # s
 
 
-@renamed_field("profile", "size", why="a generator size, not a bench profile")
 @dataclass(frozen=True)
 class GeneratorConfig:
     """Everything that determines a simulated dataset. Units SI unless noted.
 
-    size: the scenario's size (:data:`SIZES`); stored as ``profile`` in :meth:`to_dict` (module docstring).
+    size: the scenario's size (:data:`SIZES`); stored under the key ``profile`` in :meth:`to_dict` (the key every
+    cached dataset's hash and manifest has: a file format, kept).
     """
 
     scenario: str = "paper-ext"

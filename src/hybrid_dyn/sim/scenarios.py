@@ -9,7 +9,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..deprecation import module_aliases, renamed_keyword
 from ..description.sensor_noise import NoiseConfig  # the sensors' noise, below sim/ and analytic/
 from ..registry import Registry
 from .generator_config import (SIZES, ConfigError, ContactStepConfig, GeneratorConfig, StartTouchConfig)
@@ -166,7 +165,6 @@ def noise_free(name: str) -> dict:
     return {"noise": NoiseConfig.off(), **({"sensors": HardwareSensors.exact()} if has_hardware else {})}
 
 
-@renamed_keyword("profile", "size", why="a generator size, not a bench profile")
 def scenario_config(name: str, size: str = "quick", seed: int = 0, **overrides) -> GeneratorConfig:
     """The configuration of a named scenario (PROTOCOL 2) at a size (:data:`SIZES`).
 
@@ -184,8 +182,3 @@ def scenario_config(name: str, size: str = "quick", seed: int = 0, **overrides) 
         return GeneratorConfig(**kw)
     except TypeError as err:
         raise ConfigError(f"bad generator override: {err}") from err
-
-
-# The old name of SIZES, served with a warning.
-__getattr__ = module_aliases(__name__, {"PROFILES": "SIZES"}, globals(), why="generator sizes, not bench profiles")
-

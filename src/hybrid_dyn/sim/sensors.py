@@ -1,25 +1,6 @@
 """Sensor models: what a robot's sensors make of the simulated truth.
 
-Two families live here, each defined once:
-
-- **The causal acceleration estimate** (``causal_acceleration``): a real arm measures no joint
-  acceleration; controllers differentiate the measured velocity and low-pass the result (a backward
-  difference, then a 2nd-order Butterworth, both causal; ``analytic/acceleration.py``, re-exported).
-  The generator records qdd this way, and the streaming estimator runs the same kernel.
-- **Sensors as hardware has them** (:class:`HardwareSensors`): joint encoders that quantize q to a
-  resolution, a velocity as the drive reports it (the difference of the quantized q, or that
-  difference through a stated first-order filter), link-side joint torque sensors with white noise,
-  a 6-axis base F/T sensor with white noise, a per-stream bias, a linear bias drift and a delay, and
-  the timestamps a control PC puts on the samples (jitter). One closed-loop stream simulator
-  (``sim/stream.py``) reads a stream through them (``read_sensors``), as does the generator for every
-  simulated scenario of the bench but two (``GeneratorConfig.sensors``): the drive reads the encoders
-  at the control rate (1 kHz) and the log keeps every n-th reading; the stream serves the tests,
-  ``benchmarks/``, ``checks/`` and ``examples/``.
-
-The older :class:`~hybrid_dyn.sim.generator_config.NoiseConfig` (independent white noise on q and qd, a constant
-base-sensor bias: sensors no robot has) is kept for the ideal-sensor control ``paper-ext-ideal`` and the
-seed's conditions ``seed-sim``; a real qd is made from q, so every other scenario uses
-:class:`HardwareSensors`.
+The detail (what it computes, the equations, why each choice): docs/design/sim.md, section ``sim/sensors.py``.
 """
 from __future__ import annotations
 
