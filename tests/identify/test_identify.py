@@ -278,6 +278,8 @@ def test_every_identification_method_fits_and_its_file_gives_the_same_torques(me
     assert model.method == method
     if IDENTIFICATION_METHODS[method].consistent:
         assert model.physically_consistent
+    law = {"linear": LinearFriction, "sigmoid": hd.description.GazFriction}[IDENTIFICATION_METHODS[method].friction]
+    assert isinstance(model.friction, law)
     back = IdentifiedModel.load(model.save(tmp_path / f"{method}.json"))
     q, qd, qdd = random_states(panda, 5, seed=13)
     np.testing.assert_allclose(back.predict_torque(q, qd, qdd), model.predict_torque(q, qd, qdd), atol=1e-10)

@@ -10,18 +10,22 @@ from ..registry import Registry
 
 @dataclass(frozen=True)
 class IdentificationMethod:
-    """A way to fit inertial and friction parameters to motor torques: its name and what it does (the CLI's help).
-    consistent: its bodies are physically consistent by construction (a constrained fit, CasADi/IPOPT)."""
+    """A way to fit inertial and friction parameters to motor torques: its name, the friction law it fits
+    ("linear": fv qd + fc tanh(qd / eps) + fo; "sigmoid": Gaz 2019's), whether its bodies are physically consistent
+    by construction (a constrained fit, CasADi/IPOPT), and what it does (the CLI's help)."""
 
     name: str
+    friction: str
+    consistent: bool
     summary: str
-    consistent: bool = False
 
 
 IDENTIFICATION_METHODS = Registry("identification method", UsageError)
-IDENTIFICATION_METHODS.register(IdentificationMethod("ols", "ordinary least squares on the base parameters"))
-IDENTIFICATION_METHODS.register(IdentificationMethod("wls", "least squares weighted by each joint's residual noise"))
-IDENTIFICATION_METHODS.register(IdentificationMethod(
-    "consistent", "weighted least squares with physically consistent bodies, towards the nominal ones", True))
-IDENTIFICATION_METHODS.register(IdentificationMethod(
-    "sigmoid-friction", "consistent bodies with the sigmoid (Gaz 2019) friction law", True))
+for _method in (
+    IdentificationMethod("ols", "linear", False, "ordinary least squares on the base parameters"),
+    IdentificationMethod("wls", "linear", False, "least squares weighted by each joint's residual noise"),
+    IdentificationMethod("consistent", "linear", True,
+                         "weighted least squares with physically consistent bodies, towards the nominal ones"),
+    IdentificationMethod("sigmoid-friction", "sigmoid", True, "consistent bodies with the sigmoid friction law"),
+):
+    IDENTIFICATION_METHODS.register(_method)

@@ -59,13 +59,14 @@ import pinocchio as pin
 
 from ..analytic.method_names import estimator_name
 from ..analytic.methods import TIP_FORCE_METHODS
+from ..analytic.torque_models import TORQUE_MODELS
 from ..analytic.tare import tare_samples, tared_base_wrench
 from ..analytic.tip_force import base_wrench_force_core, contact_joint_torques, tip_force_from_base_wrench
 from .presets import TORQUE_PRIORS, prior_fingerprint_spelling
 
 # The fields each prior reads: the two torque models here, every tip-force method registered as a prior
 # from its one definition (analytic/methods.py; base-momentum reads qdd only for the tare).
-PRIOR_FIELDS = {"rnea": ("q", "qd", "qdd"), "rnea-bw": ("q", "qd", "qdd", "base_wrench")}
+PRIOR_FIELDS = {m.name: m.fields for m in TORQUE_MODELS.values()}
 STATEFUL_PRIORS: list = []  # the filters among them (the registry's stateful methods)
 FRICTION_PRIORS = TORQUE_PRIORS  # predict the motor torque: rigid body + friction
 
