@@ -1,4 +1,4 @@
-"""A new estimator method, with a new bandwidth parameter, is one module (issue 42; docs/extending.md).
+"""A new estimator method, with a new bandwidth parameter, is one module (docs/extending.md).
 
 The toy below is declared in one place (the ``toy`` fixture: its bandwidth parameter, the method, and a
 residual net on it) and then found, unchanged, by every consumer: ``TipForceEstimator.analytic`` (its
@@ -11,8 +11,10 @@ import pytest
 import scipy.signal
 
 from hybrid_dyn.analytic.bandwidth import BANDWIDTHS, BandwidthParameter
-from hybrid_dyn.analytic.method_names import ESTIMATORS, residual_prior_names
-from hybrid_dyn.analytic.methods import REGISTRY, Method, MethodStream, register, run_batch, unregister
+from hybrid_dyn.analytic.batch_run import run_batch
+from hybrid_dyn.analytic.method_declaration import Method, MethodStream
+from hybrid_dyn.analytic.method_names import residual_prior_names
+from hybrid_dyn.analytic.methods import TIP_FORCE_METHODS
 from hybrid_dyn.errors import UsageError
 from hybrid_dyn.estimator import EstimatorConfig, EstimatorStatus, TipForceEstimator
 from hybrid_dyn.sim.sensors import causal_acceleration
@@ -59,8 +61,8 @@ def toy():
     from hybrid_dyn.learn.presets import TIP_INPUTS, Preset, register_preset
 
     BANDWIDTHS.register(BandwidthParameter("toy_gain", "1/s", "the toy's low-pass gain K", _toy_gains))
-    method = register(Method("static-base", "a toy", ("base_wrench",), False, False, True, "toy_gain", StaticBase,
-                             residual_prior=True))
+    method = TIP_FORCE_METHODS.register(Method("static-base", "a toy", ("base_wrench",), False, False, True, "toy_gain",
+                                               StaticBase, residual_prior=True))
     register_preset(Preset("residual-static-base", "lstm", tuple(TIP_INPUTS), ("tip_force",), window=10,
                            front_units=(32,), prior="static-base", family="residual"))
     yield method
@@ -73,8 +75,8 @@ def _forget_toy():
 
     if "residual-static-base" in PRESETS:
         PRESETS.unregister("residual-static-base")
-    if "static-base" in REGISTRY:
-        unregister("static-base")
+    if "static-base" in TIP_FORCE_METHODS:
+        TIP_FORCE_METHODS.unregister("static-base")
     if "toy_gain" in BANDWIDTHS:
         BANDWIDTHS.unregister("toy_gain")
 
@@ -115,7 +117,7 @@ def test_the_estimator_honours_a_new_bandwidth_parameter(toy, panda):
 
 def _bench_ctx(panda, tmp_path):
     from hybrid_dyn.bench.profiles import BenchProfile
-    from hybrid_dyn.bench.runner import BenchContext
+    from hybrid_dyn.bench.plan import BenchContext
     from hybrid_dyn.data import load_dataset
     from hybrid_dyn.data.synthetic import make_synthetic_dataset
 
@@ -167,27 +169,53 @@ def test_unregistering_removes_everything_derived(toy):
     from hybrid_dyn.learn.priors import PRIOR_FIELDS
 
     PRESETS.unregister("residual-static-base")
-    unregister("static-base")
+    TIP_FORCE_METHODS.unregister("static-base")
     BANDWIDTHS.unregister("toy_gain")
     for name in ("static-base", "static-base-val", "residual-static-base"):
         assert name not in ROWS
     assert "residual-static-base" not in PRESET_ROWS
     assert "static-base" not in PRIOR_ROWS and "static-base" not in PRIOR_FIELDS
-    assert "static-base" not in ESTIMATORS and "static-base" not in residual_prior_names()
+    assert "static-base" not in TIP_FORCE_METHODS and "static-base" not in residual_prior_names()
     assert "toy_gain" not in BANDWIDTHS
 
 
 def test_a_method_needs_its_bandwidth_parameter_declared():
     with pytest.raises(UsageError, match="bandwidth parameter 'toy_rate' is not declared"):
-        register(Method("toy", "a toy", ("base_wrench",), False, False, True, "toy_rate", StaticBase))
-    assert "toy" not in REGISTRY and "toy" not in ESTIMATORS
+        TIP_FORCE_METHODS.register(Method("toy", "a toy", ("base_wrench",), False, False, True, "toy_rate", StaticBase))
+    assert "toy" not in TIP_FORCE_METHODS
 
 
-def test_the_old_prior_field_of_a_method_still_works_with_a_warning():
-    from hybrid_dyn.deprecation import DeprecatedNameWarning
+def test_a_method_may_not_take_a_torque_models_name():
+    for name in ("rnea", "rnea-basewrench"):  # a torque model, and an older spelling of one
+        with pytest.raises(UsageError, match=f"analytic estimator {name!r} is declared twice"):
+            TIP_FORCE_METHODS.register(Method(name, "a toy", ("base_wrench",), False, False, True, "momentum_gain",
+                                              StaticBase))
+        assert name not in TIP_FORCE_METHODS
 
-    with pytest.warns(DeprecatedNameWarning, match="Method field 'prior' is deprecated: use 'residual_prior'"):
-        method = Method("toy", "a toy", ("base_wrench",), False, False, True, "momentum_gain", StaticBase, prior=True)
-    assert method.residual_prior
-    with pytest.warns(DeprecatedNameWarning):
-        assert method.prior
+
+def test_a_method_has_no_prior_field():
+    """``residual_prior`` is the one name (``prior`` names a residual model's analytic part); no release
+    shipped the old field, so it is refused like any unknown one."""
+    with pytest.raises(TypeError, match="prior"):
+        Method("toy", "a toy", ("base_wrench",), False, False, True, "momentum_gain", StaticBase, prior=True)
+
+
+def test_a_new_methods_module_can_import_the_declaration_without_an_import_circle():
+    """A new method's module imports ``method_declaration`` (and may be imported by the catalogue): that module
+    imports no method module and not the catalogue, so no circle can close through it; the catalogue imports
+    every module of the package that registers a method."""
+    import ast
+    import inspect
+
+    from hybrid_dyn.analytic import method_declaration, methods
+
+    def imported(module):
+        tree = ast.parse(inspect.getsource(module))
+        return {a.name if node.module is None else node.module for node in ast.walk(tree)
+                if isinstance(node, ast.ImportFrom) for a in node.names}
+
+    registering = {m.make.__module__.rsplit(".", 1)[-1] for m in TIP_FORCE_METHODS.values()
+                   if m.make.__module__.startswith("hybrid_dyn.analytic.")}  # the package's own (not a plugin's)
+    assert "qdd_methods" in registering and "method_declaration" not in registering
+    assert not (imported(method_declaration) & (registering | {"methods", "batch_run"}))
+    assert registering <= imported(methods)

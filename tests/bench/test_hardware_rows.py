@@ -7,14 +7,15 @@ import numpy as np
 import pytest
 
 from hybrid_dyn.bench.plan import BenchPlan
-from hybrid_dyn.analytic.methods import run_batch
+from hybrid_dyn.analytic.batch_run import run_batch
 from hybrid_dyn.analytic.tare import TARE_SECONDS, tare_samples
 from hybrid_dyn.bench import analytic_rows
 from hybrid_dyn.bench.analytic_rows import refusals_as_nan
 from hybrid_dyn.bench.catalog import ROWS
 from hybrid_dyn.bench.profiles import BenchProfile, get_profile
 from hybrid_dyn.bench.results import read_results, results_columns, write_results
-from hybrid_dyn.bench.runner import BenchContext, score_row, train_split_stats
+from hybrid_dyn.bench.plan import BenchContext
+from hybrid_dyn.bench.scoring import score_row, train_split_stats
 from hybrid_dyn.data import load_dataset
 from hybrid_dyn.sim.executors import SerialExecutor
 from hybrid_dyn.sim.generator import generate_dataset

@@ -1,4 +1,4 @@
-"""The estimator on sensors as hardware has them (issue 38): quantized encoders, a touch during start-up,
+"""The estimator on sensors as hardware has them: quantized encoders, a touch during start-up,
 stamp jitter, a drifting base sensor, a tool's load, and the error bar on every call.
 
 References are independent of the code under test: the textbook Riccati recursion iterated by hand, a
@@ -217,7 +217,7 @@ def test_the_error_bar_covers_the_ok_calls(panda):
 def test_the_batch_run_is_the_estimator_with_its_window_check_and_error_bar(panda):
     """run_batch (the bench's rows) against the streaming estimator on a stream with a touch in the first
     window: the same window (the second), the same forces and the same error bar, call for call."""
-    from hybrid_dyn.analytic.methods import run_batch
+    from hybrid_dyn.analytic.batch_run import run_batch
 
     cfg = StreamConfig(seconds=2.5, sensors=QUANTIZED, contacts=None,
                        touches=(Touch(0.2, 6.0, 0.2, direction=(1.0, 0.0, -0.5)), Touch(1.6, 8.0, 0.5, rise=0.01)))

@@ -20,7 +20,9 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field, replace
 
 from ..analytic import methods  # noqa: F401  (registers the tip-force methods: their names are read below)
-from ..analytic.method_names import ESTIMATOR_NAMES, estimator_name, residual_prior_names
+from ..analytic.method_names import estimator_name, residual_prior_names
+from ..analytic.methods import TIP_FORCE_METHODS
+from ..analytic.torque_models import TORQUE_MODELS
 from ..deprecation import module_aliases
 from ..errors import UsageError
 from ..registry import Registry
@@ -32,11 +34,11 @@ TIP_INPUTS_TAU = TIP_INPUTS + ["tau_J"]
 
 # The analytic estimators a residual can sit on, by their one name (analytic/method_names.py): the two
 # torque models, and the tip-force methods declared with residual_prior=True (analytic/methods.py).
-TORQUE_PRIORS = tuple(e.name for e in ESTIMATOR_NAMES.where(estimates="joint_torque", residual_prior=True))
+TORQUE_PRIORS = tuple(e.name for e in TORQUE_MODELS.where(residual_prior=True))
 PRIORS = (None,) + residual_prior_names()  # at import; residual_prior_names() for a method registered later
 # How training fingerprints (and the keys of the prior caches) spell each prior: the spellings model
 # files wrote until format 3, each an older spelling of the estimator's name
-# (``ESTIMATOR_NAMES.alias``). Frozen: every trained model and every cached training run is keyed by
+# (the registries' ``aliases``). Frozen: every trained model and every cached training run is keyed by
 # them, so a run of today finds the models trained before. Files write the canonical names
 # (:meth:`Preset.to_dict`); only these digests keep the old ones. A prior not listed is spelled by its name.
 _FINGERPRINT_SPELLINGS = ("rnea-basewrench", "basewrench", "momentum")
@@ -45,7 +47,7 @@ _FINGERPRINT_SPELLINGS = ("rnea-basewrench", "basewrench", "momentum")
 def prior_fingerprint_spelling(name: str) -> str:
     """The prior ``name`` (a canonical name) as fingerprints and cache keys spell it."""
     for old in _FINGERPRINT_SPELLINGS:
-        if ESTIMATOR_NAMES.aliases[old][0] == name:
+        if (TIP_FORCE_METHODS.aliases.get(old) or TORQUE_MODELS.aliases[old])[0] == name:
             return old
     return name
 
