@@ -58,6 +58,10 @@ class NoiseWindow:
             if step is not None:
                 return (f"the base sensor's moment residual changed by {step:.2f} Nm inside the noise window (limit "
                         f"{moment_limit:g} Nm): a force held at the tool while it moved")
+            seen = tare.held_force(limit)
+            if seen is not None:
+                return (f"the base sensor's moment residual followed the tool's motion as a force held at the tool "
+                        f"would (fitted: {seen:.2f} N, limit {limit:g} N): a contact, or a tool load the model lacks")
         has = self.has[:, 1]
         seen = window_force(self.force[has], limit) if self.check_torques and has.sum() >= 8 else None
         if seen is not None:
