@@ -132,8 +132,9 @@ def test_a_force_held_at_the_moving_tool_is_seen_through_the_tare_windows_moment
     for k in range(len(q)):
         tare.update(q[k], qd[k], qdd[k], w[k])
     seen = tare.held_force(1.0)
-    # Held through the window: about its size; released in it: seen (the step inflates the fit's size).
-    assert seen is not None and (6.0 < seen < 10.0 if release_at is None else seen > 6.0), seen
+    # Held through the window: about its size; released in it: seen above the estimator's default limit
+    # (tare_held_force, 3 N), the step biasing the fit's size.
+    assert seen is not None and (6.0 < seen < 10.0 if release_at is None else seen > 3.0), seen
     # Without the force, the same motion and noise: nothing is seen.
     tare = StreamingTare(panda, len(q))
     w0 = panda.base_wrench(q, qd, qdd) + rng.normal(0, 1, w.shape) * [0.2, 0.2, 0.2, 0.01, 0.01, 0.01]

@@ -166,7 +166,7 @@ def residual_change(residuals: np.ndarray, threshold: float, segments: int = 5) 
 
 
 def held_tool_force(positions: np.ndarray, moments: np.ndarray, threshold: float,
-                    significance: float = 5.0) -> float | None:
+                    significance: float = 5.0, min_motion: float = 0.01) -> float | None:
     """The force [N] held at the tool through a window that its moment residuals reveal, when it exceeds
     ``threshold`` [N], else None.
 
@@ -175,8 +175,9 @@ def held_tool_force(positions: np.ndarray, moments: np.ndarray, threshold: float
     -p x F to the moment, an offset adds a constant: so m - mean(m) = F x (p - mean(p)), linear in F, which
     least squares solves along the directions the tool's motion excites (the eigenvectors of
     sum |dp|^2 I - dp dp^T). A component counts where it exceeds ``threshold`` and ``significance`` times
-    its standard error (from the moment's noise); a window without motion excites none: a force held
-    at a standstill stays undecidable from the offset, as it is."""
+    its standard error (from the moment's noise), along a direction across which the tool moved at least
+    ``min_motion`` [m] RMS; a window without motion excites none: a force held at a standstill stays
+    undecidable from the offset, as it is."""
     p, m = np.asarray(positions, float), np.asarray(moments, float)
     n = len(p)
     if n < 8:
@@ -185,7 +186,9 @@ def held_tool_force(positions: np.ndarray, moments: np.ndarray, threshold: float
     normal = float((dp * dp).sum()) * np.eye(3) - dp.T @ dp
     lam, vec = np.linalg.eigh(normal)
     rhs = np.cross(dp, dm).sum(0)
-    excited = lam > 1e-12 * max(float(lam[-1]), 1e-300)
+    # A direction counts where the tool moved at least min_motion [m] RMS across it: a sensor's slow drift
+    # (not white, so not in the noise below) over a smaller motion would fit an arbitrarily large force.
+    excited = lam > n * min_motion ** 2
     if not excited.any():
         return None
     coef = np.where(excited, (vec.T @ rhs) / np.where(excited, lam, 1.0), 0.0)
