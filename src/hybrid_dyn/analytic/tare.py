@@ -166,7 +166,7 @@ def residual_change(residuals: np.ndarray, threshold: float, segments: int = 5) 
 
 
 def held_tool_force(positions: np.ndarray, moments: np.ndarray, threshold: float,
-                    significance: float = 5.0, min_motion: float = 0.01) -> float | None:
+                    significance: float = 5.0, min_motion: float = 0.003) -> float | None:
     """The force [N] held at the tool through a window that its moment residuals reveal, when it exceeds
     ``threshold`` [N], else None.
 
