@@ -194,8 +194,10 @@ def held_tool_force(positions: np.ndarray, moments: np.ndarray, threshold: float
     coef = np.where(excited, (vec.T @ rhs) / np.where(excited, lam, 1.0), 0.0)
     # The moment's white noise from its sample-to-sample differences (MAD): a contact's edge inside the
     # window (a step) would inflate the fit's own residual and hide the force it leaves behind.
-    diff = np.diff(m, axis=0)
-    mad = np.median(np.abs(diff - np.median(diff, axis=0)), axis=0)
+    diff = m[1:] - m[:-1]
+    half = len(diff) // 2  # medians by partial sort (the upper one of an even count): a control cycle runs this
+    center = np.partition(diff, half, axis=0)[half]
+    mad = np.partition(np.abs(diff - center), half, axis=0)[half]
     sigma = float(np.sqrt(np.mean((1.4826 * mad) ** 2) / 2.0))
     se = sigma / np.sqrt(np.where(excited, lam, np.inf))
     seen = excited & (np.abs(coef) > threshold) & (np.abs(coef) > significance * se)
