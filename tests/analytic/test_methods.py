@@ -73,3 +73,36 @@ def test_no_design_or_riccati_solve_runs_in_a_call(monkeypatch, panda):
         assert est.bandwidth is not None, m  # the window closed
     assert calls == {"butter": 1, "dare": 0}
 
+
+
+@pytest.mark.parametrize("method", [m.name for m in TIP_FORCE_METHODS.where(tares=True)])
+def test_a_press_held_while_the_tool_moves_is_refused_alike_by_the_stream_and_the_batch(method, panda):
+    """12 N held at the tool from t = 0 to 1.2 s while the arm moves (the rigid-body reaction, base_wrench
+    with tip_force): the base sensor's force cannot tell it from its offset, its moments can. Both the
+    streaming window and run_batch refuse the windows the press lies in, and agree on what follows."""
+    from helpers.motion import CONTACT_SENSORS, sine_motion
+    from hybrid_dyn.sim.sensors import read_sensors
+
+    rng = np.random.default_rng(7)
+    n = 2500
+    t = np.arange(n) / HZ
+    q, qd, qdd = sine_motion(panda, t, rng, (0.15, 0.3))
+    f = np.where(t[:, None] < 1.2, np.array([0.6, -0.3, -0.74]) / np.linalg.norm([0.6, -0.3, -0.74]) * 12.0, 0.0)
+    jv = panda.tip_jacobian(q)[:, :3]
+    tau = panda.inverse_dynamics(q, qd, qdd) - np.einsum("nij,ni->nj", jv, f)
+    r = read_sensors(panda, CONTACT_SENSORS, 1.0 / HZ, q, qd, tau, panda.base_wrench(q, qd, qdd, tip_force=f), rng)
+    spec = TIP_FORCE_METHODS.lookup(method)
+    kw = lambda k: {name: x[k] for name, x in (("base_wrench", r.base_wrench), ("tau_J", r.tau_J))  # noqa: E731
+                    if name in spec.reads}
+    est = TipForceEstimator.analytic(panda, method, call_hz=HZ, encoder_resolution=0.0)
+    out, status = [], []
+    for k in range(n):
+        out.append(est.estimate_tip_force(r.q[k], r.qd[k], t=r.t[k], **kw(k)))
+        status.append(est.last_status)
+    out = np.array(out)
+    assert EstimatorStatus.CONTACT_AT_START in status[500:1200] and EstimatorStatus.OK not in status[:1200]
+    batch, _ = run_batch(method, panda, HZ, r.q, r.qd, r.base_wrench if "base_wrench" in spec.reads else None,
+                         r.tau_J if "tau_J" in spec.reads else None, encoder_resolution=0.0)
+    assert not batch[:1500].any()  # the batch's forces are 0 until its first trusted window ends, too
+    np.testing.assert_allclose(out[2000:], batch[2000:], atol=1e-7)
+    assert np.abs(out[-300:] - f[-300:]).max() < 1.5  # released: the tare did not keep the press

@@ -49,6 +49,10 @@ class StreamingTare:
         self.n_calls = int(n_calls)
         self.residuals = np.zeros((self.n_calls, 3))  # per window call: measured - model force [N]
         self.moments = np.zeros((self.n_calls, 3))  # and moment [Nm]
+        # The moment residual about the root origin in root coordinates, and the tool point [m] there:
+        # what ``held_force`` reads (a force at the tool moves the moment with the tool).
+        self.root_moments = np.zeros((self.n_calls, 3))
+        self.positions = np.zeros((self.n_calls, 3))
         self.reset()
 
     def reset(self) -> None:
@@ -66,6 +70,8 @@ class StreamingTare:
             residual = base_wrench - self.robot.base_wrench_single(q, qd, qdd)
             self.residuals[self.count] = residual[:3]
             self.moments[self.count] = residual[3:]
+            self.root_moments[self.count] = (self.robot._root_from_sensor[3:] @ residual)
+            self.positions[self.count] = self.robot.tip_position_single(q)
             self.count += 1
             self.offset += (residual - self.offset) / self.count
         return base_wrench - self.offset
@@ -92,6 +98,12 @@ class StreamingTare:
         if not self.done:
             return None
         return residual_change(self.moments, threshold, segments)
+
+    def held_force(self, threshold: float) -> float | None:
+        """``held_tool_force`` of the full window: a force held at the tool while it moved."""
+        if not self.done:
+            return None
+        return held_tool_force(self.positions, self.root_moments, threshold)
 
     def set_offset(self, offset) -> None:
         """Use a known offset (e.g. from a tare done elsewhere) and skip the tare window."""
@@ -132,6 +144,46 @@ def residual_change(residuals: np.ndarray, threshold: float, segments: int = 5) 
     sigma = 1.4826 * np.partition(np.abs(r - center), len(r) // 2, axis=0)[len(r) // 2]
     noise_limit = 6.0 * 1.25 * math.sqrt(2.0) * float(np.linalg.norm(sigma)) / math.sqrt(len(parts[-1]))
     return spread if spread > max(threshold, noise_limit) else None
+
+
+def held_tool_force(positions: np.ndarray, moments: np.ndarray, threshold: float,
+                    significance: float = 5.0, min_motion: float = 0.003) -> float | None:
+    """The force [N] held at the tool through a window that its moment residuals reveal, when it exceeds
+    ``threshold`` [N], else None.
+
+    positions (n, 3) [m]: the tool point per sample; moments (n, 3) [Nm]: the base sensor's moment residual
+    (measured - model) about the root origin, both in root coordinates. A force F held at the tool adds
+    -p x F to the moment, an offset adds a constant: so m - mean(m) = F x (p - mean(p)), linear in F, which
+    least squares solves along the directions the tool's motion excites (the eigenvectors of
+    sum |dp|^2 I - dp dp^T). A component counts where it exceeds ``threshold`` and ``significance`` times
+    its standard error (from the moment's noise), along a direction across which the tool moved at least
+    ``min_motion`` [m] RMS; a window without motion excites none: a force held at a standstill stays
+    undecidable from the offset, as it is."""
+    p, m = np.asarray(positions, float), np.asarray(moments, float)
+    n = len(p)
+    if n < 8:
+        return None
+    dp, dm = p - p.mean(0), m - m.mean(0)
+    normal = float((dp * dp).sum()) * np.eye(3) - dp.T @ dp
+    lam, vec = np.linalg.eigh(normal)
+    rhs = np.cross(dp, dm).sum(0)
+    # A direction counts where the tool moved at least min_motion [m] RMS across it: a sensor's slow drift
+    # (not white, so not in the noise below) over a smaller motion would fit an arbitrarily large force.
+    excited = lam > n * min_motion ** 2
+    if not excited.any():
+        return None
+    coef = np.where(excited, (vec.T @ rhs) / np.where(excited, lam, 1.0), 0.0)
+    # The moment's white noise from its sample-to-sample differences (MAD): a contact's edge inside the
+    # window (a step) would inflate the fit's own residual and hide the force it leaves behind.
+    diff = m[1:] - m[:-1]
+    half = len(diff) // 2  # medians by partial sort (the upper one of an even count): a control cycle runs this
+    center = np.partition(diff, half, axis=0)[half]
+    mad = np.partition(np.abs(diff - center), half, axis=0)[half]
+    sigma = float(np.sqrt(np.mean((1.4826 * mad) ** 2) / 2.0))
+    se = sigma / np.sqrt(np.where(excited, lam, np.inf))
+    seen = excited & (np.abs(coef) > threshold) & (np.abs(coef) > significance * se)
+    size = float(np.sqrt((coef[seen] ** 2).sum()))
+    return size if seen.any() else None
 
 
 class TaredRun:

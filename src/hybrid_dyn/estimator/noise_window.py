@@ -44,12 +44,13 @@ class NoiseWindow:
             if self.check_torques:
                 self.force[k] = tip_force_from_torques(self.robot, q, qd, qdd, tau)
 
-    def contact(self, tare, limit: float, moment_limit: float = np.inf) -> str | None:
+    def contact(self, tare, limit: float, moment_limit: float = np.inf, held_limit: float = np.inf) -> str | None:
         """Why this window must not be trusted (a contact in it), or None. The base sensor's residual must
         not change between the window's parts (a contact that began or ended in it, a trend:
         ``StreamingTare.residual_change``); the joint torques, where kept, must see no force above ``limit``
         [N] (a contact held through the whole window, which the base sensor alone cannot tell from its
-        offset)."""
+        offset); its moment residual must reveal no force above ``held_limit`` [N] held at the moving tool.
+        """
         if tare is not None and tare.done:
             step = tare.residual_change(limit)
             if step is not None:
@@ -58,6 +59,10 @@ class NoiseWindow:
             if step is not None:
                 return (f"the base sensor's moment residual changed by {step:.2f} Nm inside the noise window (limit "
                         f"{moment_limit:g} Nm): a force held at the tool while it moved")
+            seen = tare.held_force(held_limit)
+            if seen is not None:
+                return (f"the base sensor's moment residual followed the tool's motion as a force held at the tool "
+                        f"would (fitted: {seen:.2f} N, limit {held_limit:g} N): a contact, or a tool load the model lacks")
         has = self.has[:, 1]
         seen = window_force(self.force[has], limit) if self.check_torques and has.sum() >= 8 else None
         if seen is not None:

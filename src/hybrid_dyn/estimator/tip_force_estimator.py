@@ -246,7 +246,8 @@ class TipForceEstimator(CallStatus, StreamStarts):
             self._window.record(k, q, qd, qdd, base_wrench, tau_J)
             self._stream.window_step(q, qd, qdd, base_wrench, tau_J)
             if self._calls == self._window_calls:  # the window's last call checks it and measures its noise...
-                problem = self._window.contact(self._tare, self.config.tare_contact_force, self.config.off_tool_moment)
+                c = self.config
+                problem = self._window.contact(self._tare, c.tare_contact_force, c.off_tool_moment, c.tare_held_force)
                 if problem is not None:
                     self._restart_window(problem)
                 else:
