@@ -9,10 +9,12 @@ then
 It compares, byte for byte:
 - every dataset under ``data/`` (each file's SHA-256: the HDF5 arrays and the manifests, whose package
   versions and paths are the same when both ran on one machine);
-- every trained model under ``runs/`` (``config.json`` and ``model.safetensors``; ``timing.json`` holds
-  wall-clock times and is left out), matched by its path, which holds its training fingerprint;
+- every trained model under ``runs/``, matched by its path, which holds its training fingerprint: its
+  ``config.json`` but for the display setting ``progress`` (a bench of one worker shows the training
+  bars, of several not), and the tensors of ``model.safetensors`` by name, dtype and value (its metadata
+  holds the config's digest); ``timing.json`` holds wall-clock times and is left out;
 - the report's ``results.csv`` but for the columns that are measured times;
-- every array of the report's ``predictions.h5``.
+- every array of the report's ``predictions.h5`` (NaN, a refused sample, equal to NaN).
 
 Exit status 0 when all are identical, 1 when anything differs (each difference printed).
 """
@@ -21,6 +23,7 @@ from __future__ import annotations
 import argparse
 import csv
 import hashlib
+import json
 import sys
 from pathlib import Path
 
@@ -29,7 +32,6 @@ import numpy as np
 
 # results.csv columns that are measured times, not results.
 TIMING_COLUMNS = {"train_seconds", "infer_us_per_sample", "infer_us_per_call", "train_cpu_seconds", "score_cpu_seconds"}
-MODEL_FILES = ("config.json", "model.safetensors")
 
 
 def _sha(path: Path) -> str:
@@ -50,6 +52,32 @@ def _compare_files(what: str, a: dict, b: dict, out: list) -> int:
     return len(set(a) | set(b))
 
 
+def _without_display(doc):
+    """A model config without its ``progress`` entries: whether training bars were drawn, not what was trained."""
+    if isinstance(doc, dict):
+        return {k: _without_display(v) for k, v in doc.items() if k != "progress"}
+    if isinstance(doc, list):
+        return [_without_display(v) for v in doc]
+    return doc
+
+
+def _models(root: Path) -> dict:
+    """Per model file under ``root``: what it computes (the config without display settings, the tensors)."""
+    from safetensors.numpy import load_file
+
+    out = {}
+    for p in sorted(root.rglob("*")) if root.is_dir() else []:
+        key = p.relative_to(root).as_posix()
+        if p.name == "config.json":
+            out[key] = json.dumps(_without_display(json.loads(p.read_text())), sort_keys=True)
+        elif p.name == "model.safetensors":
+            tensors = load_file(p)
+            out[key] = hashlib.sha256(b"".join(name.encode() + str(t.dtype).encode() + str(t.shape).encode()
+                                               + np.ascontiguousarray(t).tobytes()
+                                               for name, t in sorted(tensors.items()))).hexdigest()
+    return out
+
+
 def _results(path: Path) -> dict:
     with open(path, newline="") as f:
         rows = list(csv.DictReader(f))
@@ -64,10 +92,16 @@ def _arrays(path: Path) -> dict:
     return found
 
 
+def _same_array(a, b) -> bool:
+    a, b = np.asarray(a), np.asarray(b)
+    nan_equal = a.dtype.kind in "fc" and b.dtype.kind in "fc"
+    return a.shape == b.shape and bool(np.array_equal(a, b, equal_nan=nan_equal))
+
+
 def compare(old: Path, new: Path, report: str) -> list[str]:
     out = []
     n_data = _compare_files("dataset file", _files(old / "data"), _files(new / "data"), out)
-    n_models = _compare_files("model file", _files(old / "runs", MODEL_FILES), _files(new / "runs", MODEL_FILES), out)
+    n_models = _compare_files("model file", _models(old / "runs"), _models(new / "runs"), out)
     ra, rb = _results(old / report / "results.csv"), _results(new / report / "results.csv")
     for key in sorted(set(ra) | set(rb)):
         if ra.get(key) != rb.get(key):
@@ -75,7 +109,7 @@ def compare(old: Path, new: Path, report: str) -> list[str]:
             out.append(f"results.csv row {'/'.join(key)}: differs in {', '.join(diff)}")
     pa, pb = _arrays(old / report / "predictions.h5"), _arrays(new / report / "predictions.h5")
     for name in sorted(set(pa) | set(pb)):
-        if name not in pa or name not in pb or not np.array_equal(pa[name], pb[name]):
+        if name not in pa or name not in pb or not _same_array(pa[name], pb[name]):
             out.append(f"predictions.h5 {name}: differs or missing in one")
     print(f"compared {n_data} dataset files, {n_models} model files, {len(ra)} result rows (timing columns left out), "
           f"{len(pa)} prediction arrays")
