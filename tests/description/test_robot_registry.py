@@ -9,6 +9,7 @@ import pytest
 
 import hybrid_dyn as hd
 from hybrid_dyn.description import ROBOTS, RobotDeclaration, RobotDescriptionError, has_description, load_spec
+from hybrid_dyn.description.robots import declare_robot_folder
 from hybrid_dyn.resources import resource_dir
 
 from helpers import REPO
@@ -82,6 +83,11 @@ def test_bad_declarations_are_refused_naming_the_problem(tmp_path):
             load_spec("other-name")
     finally:
         ROBOTS.unregister("other-name")
+    (tmp_path / "data_only.toml").write_text('robots = ["my-arm"]\n')
+    before = dict(ROBOTS)
+    with pytest.raises(RobotDescriptionError, match=r"data_only.toml: \[robots\] is a table"):
+        declare_robot_folder(tmp_path)
+    assert dict(ROBOTS) == before  # nothing of the folder declared
     ROBOTS.register(RobotDeclaration("gone", tmp_path / "gone.toml"))
     try:
         with pytest.raises(RobotDescriptionError, match="no description file"):

@@ -52,6 +52,8 @@ def declare_robot_folder(folder: str | os.PathLike) -> list[RobotDeclaration]:
             names = tomllib.loads(listed.read_text()).get("robots", {})
         except tomllib.TOMLDecodeError as err:
             raise RobotDescriptionError(f"{listed} is not valid TOML: {err}") from err
+        if not isinstance(names, dict):
+            raise RobotDescriptionError(f"{listed}: [robots] is a table of name = \"what the arm is\"")
         found += [RobotDeclaration(name, None, str(summary)) for name, summary in names.items()]
     for robot in found:
         if robot.name in ROBOTS:
