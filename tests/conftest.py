@@ -5,7 +5,7 @@ Helpers that build data (random states, motions, logs) are in ``tests/helpers`` 
 import pytest
 
 import hybrid_dyn as hd
-from hybrid_dyn.description import available_robots
+from hybrid_dyn.description import ROBOTS
 
 
 def pytest_addoption(parser):
@@ -33,9 +33,9 @@ def ur5():
     return hd.load_robot("ur5")
 
 
-@pytest.fixture(scope="session", params=available_robots())
+@pytest.fixture(scope="session", params=[robot.name for robot in ROBOTS.where(data_only=False)])
 def described_robot(request):
-    """Every robot declared in the robot registry (``hybrid_dyn/resources/robots/``, or ``$HYBRID_DYN_ROBOTS``)
+    """Every robot declared in the robot registry ``ROBOTS`` (``description/robots.py``, a plugin, ``$HYBRID_DYN_ROBOTS``)
     with a full description (URDF, frames), one at a time: a robot is checked against DART, and by every
     test that takes this fixture, by being declared there."""
     return hd.load_robot(request.param)

@@ -87,12 +87,12 @@ def test_every_preset_is_a_bench_row_that_runs_where_its_fields_are():
     exactly when it corrects a physics prior (which needs the URDF)."""
     from hybrid_dyn.bench.catalog import reference_label
     from hybrid_dyn.data import FIELD_UNITS
-    from hybrid_dyn.description import data_only_robots
+    from hybrid_dyn.description import ROBOTS
     from hybrid_dyn.learn.presets import PRESETS
 
     profile = BenchProfile(name="t", scenarios=("s",))
     every_field = tuple(FIELD_UNITS)
-    data_only = data_only_robots()[0]
+    data_only = ROBOTS.where(data_only=True)[0].name
     for p in PRESETS.values():
         row = ROWS[p.name]  # under the preset's own name, a trained row of its task
         assert row.trains and ("tip_force" if "tip_force" in p.targets else "joint_torque") == row.task, p.name

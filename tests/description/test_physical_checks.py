@@ -82,10 +82,10 @@ def test_every_shipped_and_example_robot_urdf_is_a_tree():
     """The check refuses nothing the toolkit ships (its robots and the arms of example-robot-data load)."""
     import xml.etree.ElementTree as ET
 
-    from hybrid_dyn.description import available_robots, load_spec
+    from hybrid_dyn.description import ROBOTS, load_spec
 
-    for name in available_robots():
-        assert urdf_tree_problems(ET.parse(load_spec(name).urdf_path).getroot()) == [], name
+    for robot in ROBOTS.where(data_only=False):
+        assert urdf_tree_problems(ET.parse(load_spec(robot.name).urdf_path).getroot()) == [], robot.name
     assert hd.load_robot("ur10").nv == 6 and hd.load_robot("panda[tool=none]").nv == 7
 
 

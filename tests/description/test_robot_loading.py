@@ -153,10 +153,10 @@ def test_auto_encoder_resolution_is_the_descriptions_number():
     shipped description that states one."""
     import tomllib
 
-    from hybrid_dyn.description import load_spec, resolve_encoder_resolution, robots_dir
+    from hybrid_dyn.description import ROBOTS, load_spec, resolve_encoder_resolution
 
-    stated = {p.stem: tomllib.loads(p.read_text())["encoder_resolution"] for p in sorted(robots_dir().glob("*.toml"))
-              if "encoder_resolution" in tomllib.loads(p.read_text())}
+    texts = {r.name: tomllib.loads(r.toml.read_text()) for r in ROBOTS.where(data_only=False)}
+    stated = {name: doc["encoder_resolution"] for name, doc in texts.items() if "encoder_resolution" in doc}
     assert stated["panda"] == 1e-5 and len(stated) >= 2
     for name, value in stated.items():
         spec = load_spec(name)

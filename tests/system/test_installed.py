@@ -24,13 +24,14 @@ PROBE = """
 import json, hybrid_dyn as hd
 from hybrid_dyn.data.logs.importer import read_spec
 from hybrid_dyn.data.logs.real_logs import REAL_SETS, missing_real_log, real_spec_path
-from hybrid_dyn.description import available_robots, data_only_robots, load_spec
+from hybrid_dyn.description import ROBOTS, load_spec
 robot = hd.load_robot("panda")
 spec = read_spec(real_spec_path("real-panda"))
 official = hd.load_robot("panda", params="franka_official")
 mass = lambda r: sum(i.mass for i in r.model.inertias)  # kg, every body of the model
 print(json.dumps({"file": hd.__file__, "nv": robot.nv, "tool_frame": load_spec("panda").tool_frame,
-                  "robots": available_robots(), "data_only": data_only_robots(),
+                  "robots": [r.name for r in ROBOTS.where(data_only=False)],
+                  "data_only": [r.name for r in ROBOTS.where(data_only=True)],
                   "spec_robot": spec.robot, "spec_split": spec.split_by,
                   "specs": sorted(n for n in REAL_SETS if real_spec_path(n).is_file()),
                   "logs_missing": {n: missing_real_log(n) is not None for n in REAL_SETS},

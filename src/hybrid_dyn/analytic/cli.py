@@ -12,10 +12,10 @@ def register(sub) -> None:
 
 
 def cmd_robots(args) -> int:
-    from ..description import available_robots, load_spec
+    from ..description import ROBOTS, load_spec
     from .robot import load_robot
 
-    for name in available_robots():
+    for name in sorted(robot.name for robot in ROBOTS.where(data_only=False)):
         spec = load_spec(name)
         robot = load_robot(name)
         print(f"{name:8s} nv={robot.nv} mass={robot.total_mass:.3f} kg tool={spec.tool_frame} "

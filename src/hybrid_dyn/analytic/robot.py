@@ -402,7 +402,7 @@ def load_robot(name: str = "panda", params: str | os.PathLike | None = None, pay
     """
     ref = resolve_robot(name, tool=tool, payload=payload)
     if not ref.described:
-        raise RobotDescriptionError(f"robot {ref.name!r} is known for data only (robots/data_only.toml): it has no "
+        raise RobotDescriptionError(f"robot {ref.name!r} is known for data only (no description in ROBOTS): it has no "
                                     f"URDF, so no analytic model; models that need none (seed nets, DeLaN) apply")
     spec, payload = ref.spec, ref.variant.payload
     urdf = build_urdf(spec, params=params, payload=payload)

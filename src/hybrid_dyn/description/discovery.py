@@ -9,7 +9,8 @@ from pathlib import Path
 
 from .base import RobotDescriptionError, _checked_tree
 from .locations import example_robot_data_dir
-from .spec import RobotSpec, available_robots, load_spec
+from .robots import ROBOTS
+from .spec import RobotSpec, load_spec
 
 
 def describe_urdf(path: str | os.PathLike, name: str | None = None) -> RobotSpec:
@@ -94,14 +95,15 @@ def _example_robot_data_urdfs() -> dict:
 
 
 def example_robot_data_arms() -> list[str]:
-    """The serial arms of example-robot-data that ``robots/`` does not describe
+    """The serial arms of example-robot-data that ``ROBOTS`` does not describe
     (loadable by name: ``load_robot("ur10")``)."""
     return list(_example_robot_data_arms())
 
 
 @functools.cache
 def _example_robot_data_arms() -> tuple:
-    arms = {load_spec(n).urdf_path: n for n in available_robots()}  # described in robots/: listed there
+    described = [robot.name for robot in ROBOTS.where(data_only=False)]
+    arms = {load_spec(n).urdf_path: n for n in described}  # declared in ROBOTS: listed there
     for name, files in sorted(_example_robot_data_urdfs().items(), key=lambda kv: (len(kv[0]), kv[0])):
         if len(files) == 1 and files[0] not in arms:  # one name per file, the shortest
             try:
@@ -109,4 +111,4 @@ def _example_robot_data_arms() -> tuple:
             except RobotDescriptionError:
                 continue
             arms[files[0]] = name
-    return tuple(sorted(set(arms.values()) - set(available_robots())))
+    return tuple(sorted(set(arms.values()) - set(described)))

@@ -10,9 +10,8 @@ from .base import RobotDescriptionError
 
 
 def robots_dir() -> Path:
-    """The folder holding ``<name>.toml`` robot descriptions.
-
-    ``$HYBRID_DYN_ROBOTS`` wins; otherwise the descriptions that ship inside the package
+    """The folder of ``<name>.toml`` robot descriptions: ``$HYBRID_DYN_ROBOTS`` (a user's own, which the
+    catalogue ``robots.py`` declares beside the shipped ones), else the folder the shipped ones are in
     (``hybrid_dyn/resources/robots``, package data: an installed toolkit has them too).
     """
     env = os.environ.get("HYBRID_DYN_ROBOTS")

@@ -9,8 +9,8 @@ from pathlib import Path
 
 from .base import RobotDescriptionError
 from .discovery import _example_robot_data_urdfs, describe_urdf, example_robot_data_arms
-from .locations import robots_dir
-from .spec import Payload, RobotSpec, available_robots, data_only_robots, load_spec
+from .robots import ROBOTS
+from .spec import Payload, RobotSpec, load_spec
 from .tools import with_tool
 
 
@@ -110,10 +110,11 @@ def as_payload(payload) -> Payload | None:
 
 def _unknown_robot(base: str) -> RobotDescriptionError:
     return RobotDescriptionError(
-        f"unknown robot {base!r}. A robot name is: a description in {robots_dir()} "
-        f"({', '.join(available_robots()) or 'none'}); an arm of example-robot-data "
+        f"unknown robot {base!r}. A robot name is: a declared description "
+        f"({', '.join(r.name for r in ROBOTS.where(data_only=False)) or 'none'}); an arm of example-robot-data "
         f"({', '.join(example_robot_data_arms()) or 'none'}); a name known for data only "
-        f"({', '.join(data_only_robots()) or 'none'}; add yours to robots/data_only.toml); or the path of a .urdf "
+        f"({', '.join(r.name for r in ROBOTS.where(data_only=True)) or 'none'}; declare yours in ROBOTS, "
+        f"description/robots.py); or the path of a .urdf "
         f"or .toml file. A variant: {ROBOT_NAME_HELP}"
     )
 
@@ -124,7 +125,7 @@ def resolve_robot(name: str | os.PathLike, tool=None, payload=None) -> RobotRef:
 
     name: see :data:`ROBOT_NAME_HELP`; ``tool`` and ``payload`` give the variant as
     arguments instead (not both ways at once). The base name is looked up in this
-    order: a ``robots/<name>.toml``, robots/data_only.toml, an example-robot-data
+    order: a described robot of ``ROBOTS``, a data-only one, an example-robot-data
     URDF (``ur10``); a ``.toml`` or ``.urdf`` path is read as such.
     """
     if not isinstance(name, (str, os.PathLike)):
@@ -146,9 +147,9 @@ def resolve_robot(name: str | os.PathLike, tool=None, payload=None) -> RobotRef:
         if not p.is_file():
             raise RobotDescriptionError(f"robot URDF not found: {p.resolve()}")
         source, spec = "urdf", describe_urdf(p)
-    elif base in available_robots():
+    elif base in ROBOTS and not ROBOTS[base].data_only:
         source, spec = "robots", load_spec(base)
-    elif base in data_only_robots():
+    elif base in ROBOTS:
         if tool is not None or payload is not None:
             raise RobotDescriptionError(f"robot {base!r} is known for data only (no URDF): it takes no tool or payload")
         return RobotRef(base, RobotVariant(), None, "data-only")
@@ -159,9 +160,9 @@ def resolve_robot(name: str | os.PathLike, tool=None, payload=None) -> RobotRef:
                                         f"({', '.join(map(str, files))}): give the path of one")
         # One name per arm, so that its models and caches agree: the robots/ description of the
         # same URDF ("ur5_robot" is "ur5"), else the shortest ("ur10", not "ur10_robot").
-        for described in available_robots():
-            if load_spec(described).urdf_path == files[0]:
-                return resolve_robot(described, tool=tool, payload=payload)
+        for described in ROBOTS.where(data_only=False):
+            if load_spec(described.name).urdf_path == files[0]:
+                return resolve_robot(described.name, tool=tool, payload=payload)
         short = min((n for n, fs in _example_robot_data_urdfs().items() if fs == files), key=lambda n: (len(n), n))
         source, spec = "example-robot-data", describe_urdf(files[0], short)
     else:

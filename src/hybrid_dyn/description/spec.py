@@ -1,4 +1,4 @@
-"""A robot's description as its TOML file gives it (:class:`RobotSpec`), and the names of the described robots."""
+"""A robot's description as its TOML file gives it (:class:`RobotSpec`), read by name (``ROBOTS``) or path."""
 from __future__ import annotations
 
 import os
@@ -7,8 +7,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .base import RobotDescriptionError
-from .locations import example_robot_data_dir, robots_dir
+from .locations import example_robot_data_dir
 from .params import GazFriction
+from .robots import ROBOTS
 
 
 @dataclass(frozen=True)
@@ -69,35 +70,20 @@ def resolve_encoder_resolution(setting, spec: RobotSpec) -> float:
     return float(spec.encoder_resolution if isinstance(setting, str) and setting == "auto" else setting)
 
 
-def available_robots() -> list[str]:
-    """Robots with a full description (URDF, frames): every part of the toolkit applies."""
-    return sorted(p.stem for p in robots_dir().glob("*.toml") if p.stem != "data_only")
-
-
-def data_only_robots() -> list[str]:
-    """Arms known by name only (``robots/data_only.toml``): data-only models apply."""
-    path = robots_dir() / "data_only.toml"
-    if not path.is_file():
-        return []
-    return sorted(tomllib.loads(path.read_text()).get("robots", {}))
-
-
-def known_robots() -> list[str]:
-    """Every robot name a model file may carry."""
-    return sorted(set(available_robots()) | set(data_only_robots()))
+def _description_file(name_or_path: str | os.PathLike) -> Path:
+    """The TOML of a robot declared in ``ROBOTS``, or the ``.toml`` path given; refused where there is none."""
+    p = Path(name_or_path)
+    toml_path = p if p.suffix == ".toml" else ROBOTS.lookup(str(name_or_path)).toml
+    if toml_path is None:
+        raise RobotDescriptionError(f"robot {str(name_or_path)!r} is known for data only: it has no description")
+    if not toml_path.is_file():
+        raise RobotDescriptionError(f"robot {str(name_or_path)!r}: no description file {toml_path}")
+    return toml_path
 
 
 def load_spec(name_or_path: str | os.PathLike) -> RobotSpec:
-    """Read a robot description by name (``"panda"``) or TOML path."""
-    p = Path(name_or_path)
-    if p.suffix == ".toml":
-        toml_path = p
-    else:
-        toml_path = robots_dir() / f"{name_or_path}.toml"
-    if not toml_path.is_file():
-        raise RobotDescriptionError(
-            f"unknown robot {str(name_or_path)!r}: no {toml_path}; available: {', '.join(available_robots()) or 'none'}"
-        )
+    """Read a robot description by name (``"panda"``, declared in ``ROBOTS``) or TOML path."""
+    toml_path = _description_file(name_or_path)
     try:
         doc = tomllib.loads(toml_path.read_text())
     except tomllib.TOMLDecodeError as err:
@@ -105,6 +91,9 @@ def load_spec(name_or_path: str | os.PathLike) -> RobotSpec:
     for key in ("name", "urdf", "tool_frame", "base_sensor_frame"):
         if key not in doc:
             raise RobotDescriptionError(f"{toml_path} lacks the key {key!r}")
+    if Path(name_or_path).suffix != ".toml" and doc["name"] != str(name_or_path):  # a model file names the robot by its TOML's name
+        raise RobotDescriptionError(f"robot {str(name_or_path)!r} is declared with {toml_path}, which describes "
+                                    f"{doc['name']!r}: the two names must agree")
     here = toml_path.parent
     # example-robot-data first (the shipped descriptions), then beside the TOML (a user's own URDF).
     urdf = example_robot_data_dir() / doc["urdf"]

@@ -133,7 +133,7 @@ def train_model(dataset, preset, out_dir, config: TrainConfig | None = None, wai
 def _train_locked(ds: Dataset, preset: Preset, out_dir: Path, config: TrainConfig, fingerprint: str,
                   device) -> TrainedModel:
     """Checks of robot and data first (nothing is written before they pass), then training."""
-    from ..description import available_robots, has_description
+    from ..description import ROBOTS, has_description
 
     robot_name = ds.meta.get("robot")
     if not robot_name:
@@ -155,7 +155,7 @@ def _train_locked(ds: Dataset, preset: Preset, out_dir: Path, config: TrainConfi
         robot = load_robot(robot_name, params=config.analytic_params)
     elif preset.prior is not None:
         raise ModelError(f"preset {preset.name!r} needs a description of robot {robot_name!r} (dataset {ds.path}) "
-                         f"for its analytic part, and there is none (available: {', '.join(available_robots())}); "
+                         f"for its analytic part, and there is none (available: {', '.join(r.name for r in ROBOTS.where(data_only=False))}); "
                          f"a data-only preset (seed nets, DeLaN) needs none")
     elif sensor_tare > 0:
         raise ModelError(f"preset {preset.name!r} reads the base wrench, tared with the model of robot "

@@ -345,7 +345,7 @@ def load_model(model_dir, robot=None, device: str = "cpu") -> TrainedModel:
     MODEL_FILES.check_tensors_digest(model_dir, meta, tensors)
     train_seconds = MODEL_FILES.train_seconds(model_dir, config)  # timing.json names the config as saved
 
-    from ..description import available_robots, has_description
+    from ..description import ROBOTS, has_description
 
     config = read_older_spellings(config, model_dir)  # formats 1-2: older estimator spellings, one warning
     # The analytic part, and the base sensor's tare, need the robot's model.
@@ -353,7 +353,7 @@ def load_model(model_dir, robot=None, device: str = "cpu") -> TrainedModel:
         if not has_description(config["robot"]):
             raise ModelError(f"model {model_dir} needs a description of robot {config['robot']!r} for its analytic "
                              f"part or its sensor tare, and this toolkit has none "
-                             f"(available: {', '.join(available_robots())})")
+                             f"(available: {', '.join(r.name for r in ROBOTS.where(data_only=False))})")
     if robot is not None:
         name = robot if isinstance(robot, str) else robot.name
         if name != config["robot"]:

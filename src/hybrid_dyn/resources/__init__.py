@@ -1,7 +1,7 @@
 """Data files that ship inside the package (package data), found through importlib.resources.
 
-- ``robots/``: the robot descriptions (``<name>.toml``, ``data_only.toml``) and their
-  published parameter sets (``params/*.json``); read by :mod:`hybrid_dyn.description`.
+- ``robots/``: the robot descriptions (``<name>.toml``, each declared in ``description/robots.py``) and
+  their published parameter sets (``params/*.json``); read by :mod:`hybrid_dyn.description`.
 - ``real/``: the import specs of the real-robot logs (``*.toml``) and the three public logs
   that ship with them (``real/logs``, 4.7 MB); read by :mod:`hybrid_dyn.data.logs.real_logs`.
 - ``bench/``: the bench's profiles and studies, declared as data (``profiles.toml``, ``studies.toml``);
