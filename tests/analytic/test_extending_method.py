@@ -56,12 +56,12 @@ def _toy_gains(rate_hz):
 @pytest.fixture
 def toy():
     """The one place the toy is declared: a new bandwidth parameter, the method, a residual net on it."""
-    from hybrid_dyn.learn.presets import TIP_INPUTS, Preset, register_preset
+    from hybrid_dyn.learn.presets import PRESETS, TIP_INPUTS, Preset
 
     BANDWIDTHS.register(BandwidthParameter("toy_gain", "1/s", "the toy's low-pass gain K", _toy_gains))
     method = register(Method("static-base", "a toy", ("base_wrench",), False, False, True, "toy_gain", StaticBase,
                              residual_prior=True))
-    register_preset(Preset("residual-static-base", "lstm", tuple(TIP_INPUTS), ("tip_force",), window=10,
+    PRESETS.register(Preset("residual-static-base", "lstm", tuple(TIP_INPUTS), ("tip_force",), window=10,
                            front_units=(32,), prior="static-base", family="residual"))
     yield method
     _forget_toy()

@@ -12,7 +12,7 @@ from hybrid_dyn.analytic.tare import TARE_SECONDS, tare_samples
 from hybrid_dyn.bench import analytic_rows
 from hybrid_dyn.bench.analytic_rows import refusals_as_nan
 from hybrid_dyn.bench.catalog import ROWS
-from hybrid_dyn.bench.profiles import BenchProfile, get_profile
+from hybrid_dyn.bench.profiles import PROFILES, BenchProfile
 from hybrid_dyn.bench.results import read_results, results_columns, write_results
 from hybrid_dyn.bench.runner import BenchContext, score_row, train_split_stats
 from hybrid_dyn.data import load_dataset
@@ -39,7 +39,7 @@ def _ctx(ds, panda, tmp_path, logs):
 
 
 def test_the_default_profile_runs_the_analytic_rows_on_the_hardware_scenario(hardware_ds):
-    prof = get_profile("default")
+    prof = PROFILES.lookup("default")
     assert "contact-steps-hardware" in prof.scenarios
     ds = SimpleNamespace(fields=list(hardware_ds.fields), meta=hardware_ds.meta)
     applied = {s.family for s in BenchPlan(prof).selected_rows() if BenchPlan(prof).applies(s, ds)}

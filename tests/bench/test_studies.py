@@ -6,7 +6,7 @@ import pytest
 
 from hybrid_dyn.bench.plan import BenchPlan
 from hybrid_dyn.bench import profiles as profiles_mod
-from hybrid_dyn.bench.profiles import get_profile
+from hybrid_dyn.bench.profiles import PROFILES
 from hybrid_dyn.bench.runner import run_bench
 from hybrid_dyn.bench.studies import BASE, STUDIES, Overrides, Study, StudyRun, run_study
 from hybrid_dyn.bench.study_summaries import controls
@@ -69,7 +69,7 @@ def test_a_bad_declaration_is_refused_when_declared():
 
 
 def test_preset_overrides_are_recorded_only_when_set():
-    plain = get_profile("seed-sim")
+    plain = PROFILES.lookup("seed-sim")
     assert "preset_overrides" not in plain.to_dict()  # reports written before the field compare equal
     wide = dataclasses.replace(plain, preset_overrides={"fc_units": 256})
     assert wide.to_dict()["preset_overrides"] == {"fc_units": 256}
@@ -175,7 +175,7 @@ def test_a_real_sets_scenario_overrides_reach_its_import(monkeypatch, tmp_path):
 def test_a_budget_is_scaled_from_the_preset_a_row_trains():
     from hybrid_dyn.bench.studies import _preset
 
-    profile = get_profile("seed-sim")
+    profile = PROFILES.lookup("seed-sim")
     assert _preset(profile, "residual-rnea-identified").name == "residual-rnea"  # the identified residual's net
     assert _preset(profile, "seed-tau-mlp").kind == "mlp"
     with pytest.raises(UsageError, match="no step budget"):

@@ -10,7 +10,7 @@ from hybrid_dyn.data.synthetic import make_synthetic_dataset
 from hybrid_dyn.data.windows import concat_fields
 from hybrid_dyn.errors import UsageError
 from hybrid_dyn.learn import TrainConfig, load_model, train_model
-from hybrid_dyn.learn.kinds import KINDS, NetworkKind, network_kind, register, search_fc, single_net, unregister
+from hybrid_dyn.learn.kinds import NETWORK_KINDS, NetworkKind, search_fc, single_net
 from hybrid_dyn.learn.nets import fc_head
 from hybrid_dyn.learn.presets import Preset
 
@@ -36,10 +36,10 @@ WINDOW_MEAN = NetworkKind(
 
 @pytest.fixture
 def window_mean():
-    kind = register(WINDOW_MEAN)
+    kind = NETWORK_KINDS.register(WINDOW_MEAN)
     yield kind
-    unregister(kind.name)
-    assert kind.name not in KINDS
+    NETWORK_KINDS.unregister(kind.name)
+    assert kind.name not in NETWORK_KINDS
 
 
 def test_a_new_kind_trains_saves_and_loads_with_the_same_predictions(window_mean, panda, tmp_path):
@@ -65,7 +65,7 @@ def test_a_new_kind_trains_saves_and_loads_with_the_same_predictions(window_mean
 
 def test_an_unknown_kind_is_refused_naming_the_known_ones(window_mean):
     with pytest.raises(UsageError, match="unknown network kind 'gru'; known: mlp, conv, lstm, delan, window-mean"):
-        network_kind("gru")
+        NETWORK_KINDS.lookup("gru")
     with pytest.raises(ValueError, match="kind must be one of") as err:  # a preset of it, refused when made
         Preset("toy", "gru", ("q",), ("tau_m",))
     assert all(repr(name) in str(err.value) for name in ("mlp", "conv", "lstm", "delan", "window-mean"))

@@ -9,7 +9,7 @@ import pytest
 
 from hybrid_dyn.analytic.method_names import ESTIMATORS, estimator_name
 from hybrid_dyn.deprecation import DeprecatedNameWarning
-from hybrid_dyn.learn.presets import PRESETS, PRIOR_FINGERPRINT_SPELLING, Preset
+from hybrid_dyn.learn.presets import PRESETS, PRIOR_FINGERPRINT_SPELLING, Preset, prior_fingerprint_spelling
 from hybrid_dyn.learn.priors import PRIOR_FIELDS, AnalyticPrior
 
 # run_fingerprint of two presets on dataset checksum "0" * 64, by the code before issue 30 (commit cbc35cb).
@@ -80,8 +80,8 @@ def _as_format_2(src, dst):
     model = __import__("hybrid_dyn.learn", fromlist=["load_model"]).load_model(dst)
     config = json.loads((dst / "config.json").read_text())
     config["format_version"] = 2
-    config["preset"]["prior"] = PRIOR_FINGERPRINT_SPELLING[config["preset"]["prior"]]
-    config["prior"]["kind"] = PRIOR_FINGERPRINT_SPELLING[config["prior"]["kind"]]
+    config["preset"]["prior"] = prior_fingerprint_spelling(config["preset"]["prior"])
+    config["prior"]["kind"] = prior_fingerprint_spelling(config["prior"]["kind"])
     save_model(model.module, config, dst, train_seconds=1.5)
     return config
 

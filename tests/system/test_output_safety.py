@@ -276,28 +276,28 @@ def _no_data(scenario, profile):
 
 @pytest.mark.parametrize("name", ["README.md", "results.csv"])
 def test_bench_refuses_a_folder_with_a_users_file(tmp_path, name):
-    from hybrid_dyn.bench.profiles import get_profile
+    from hybrid_dyn.bench.profiles import PROFILES
     from hybrid_dyn.bench.runner import run_bench
 
     out = tmp_path / "report"
     out.mkdir()
     (out / name).write_text("the user's own")
     with pytest.raises(OutputPathError) as err:
-        run_bench(get_profile("quick"), out, dataset_provider=_no_data, log=quiet)
+        run_bench(PROFILES.lookup("quick"), out, dataset_provider=_no_data, log=quiet)
     assert says(err.value, "refusing", out, name, "run.json"), err.value
     assert sorted(p.name for p in out.iterdir()) == [name] and (out / name).read_text() == "the user's own"
 
 
 def test_bench_claims_a_new_folder_and_reuses_its_own(tmp_path):
-    from hybrid_dyn.bench.profiles import get_profile
+    from hybrid_dyn.bench.profiles import PROFILES
     from hybrid_dyn.bench.runner import run_bench
 
     out = tmp_path / "report"
     for _ in range(2):  # new folder, then the folder it claimed (a killed run's)
         with pytest.raises(Sentinel):
-            run_bench(get_profile("quick"), out, dataset_provider=_no_data, log=quiet)
+            run_bench(PROFILES.lookup("quick"), out, dataset_provider=_no_data, log=quiet)
     meta = json.loads((out / "run.json").read_text())
-    assert meta["profile"] == get_profile("quick").to_dict()
+    assert meta["profile"] == PROFILES.lookup("quick").to_dict()
     # the marker, and what a killed run's report needs: the rows requested and those found not to apply
     assert set(meta) == {"bench_report", "invocations", "profile", "requested", "skipped"}
     assert "mismatch-ext / joint_torque / rnea" in meta["requested"] and meta["skipped"] == []
@@ -305,7 +305,7 @@ def test_bench_claims_a_new_folder_and_reuses_its_own(tmp_path):
     assert [i["finished"] for i in meta["invocations"]] == [None, None]
     (out / "run.json").write_text('{"something": "else"}')
     with pytest.raises(OutputPathError, match="it is not a run.json of hybrid-dyn bench"):
-        run_bench(get_profile("quick"), out, dataset_provider=_no_data, log=quiet)
+        run_bench(PROFILES.lookup("quick"), out, dataset_provider=_no_data, log=quiet)
 
 
 # ---------------------------------------------------------------- every command

@@ -1,6 +1,6 @@
 """The analytic rows of the benchmark: physics on the nominal model, nothing trained.
 
-Each row is declared once, here (``rows.declare``): its name, task, the fields it
+Each row is declared once, here (``ROWS.register``): its name, task, the fields it
 reads, and how it predicts a run (batch) and one sample (the call a user makes in a
 control loop: the same library functions, an observer or filter stepped once per
 call). Adding an analytic row is one ``_analytic(...)`` call in this file.
@@ -22,7 +22,7 @@ from ..analytic.methods import REGISTRY, add_listener, run_batch
 from ..analytic.tare import TARE_SECONDS, tare_samples, tared_base_wrench
 from ..analytic.tip_force import contact_joint_torques, tip_force_from_base_wrench, tip_force_from_torques
 from ..estimator import EstimatorConfig, TipForceEstimator
-from .rows import ROWS, Predictor, Row, declare
+from .rows import ROWS, Predictor, Row
 
 TARED = "(tared on the first 0.5 s)"  # how the inputs column says a row reads the tared base sensor
 # A residual preset's prior -> the analytic row that computes it as the preset reads it (the base wrench
@@ -49,7 +49,7 @@ def _analytic(name: str, task: str, needs: tuple, inputs, batch_fn, single_fn=No
             sigma_coverage=None if sigma_coverage is None else sigma_coverage(ctx),
         )
 
-    return declare(Row(name, task, "analytic", needs=needs, needs_urdf=True, build=build, reference=reference))
+    return ROWS.register(Row(name, task, "analytic", needs=needs, needs_urdf=True, build=build, reference=reference))
 
 
 # The registry's methods (analytic/methods.py): two rows each. ``name`` is what TipForceEstimator does

@@ -7,14 +7,10 @@ elsewhere (a test's toy row, a user's own) is appended after them.
 from __future__ import annotations
 
 from . import analytic_rows, learned_rows, identified_rows  # noqa: F401  (they declare the rows)
-from .rows import FAMILIES, ROWS, Row
+from .families import FAMILIES
+from .rows import ROWS, Row
 
-__all__ = ["FAMILIES", "ROWS", "get_row", "reference_label", "select_rows"]
-
-
-def get_row(name: str) -> Row:
-    """The row declared as ``name`` (or under an alias of it), or the error naming the known ones."""
-    return ROWS.lookup(name)
+__all__ = ["ROWS", "reference_label", "select_rows"]
 
 
 def select_rows(names=(), families=()) -> list[Row]:

@@ -124,7 +124,7 @@ def machine_info() -> dict:
 
 def _command(prof: dict) -> str:
     """The command line that wrote a report, from its profile (run.json)."""
-    from .profiles import is_dataset_path
+    from .plan import is_dataset_path
 
     scenarios = prof.get("scenarios") or []
     if prof.get("name") == "data" and scenarios and all(is_dataset_path(s) for s in scenarios):

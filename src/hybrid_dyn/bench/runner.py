@@ -47,7 +47,7 @@ from ..data.splits import dataset_split_text
 from ..errors import UsageError
 from ..outputs import output_lock
 from ..timing import time_calls
-from .catalog import ROWS, get_row  # noqa: F401  (ROWS: every declared row)
+from .catalog import ROWS  # noqa: F401  (ROWS: every declared row)
 from .integrity import DIGEST_KEY, REPORT_FILES, read_run_json, results_digest, row_key
 from .invocations import InvocationClock, caches_empty, claim_report_dir
 from .learned_rows import PRESET_ROWS
@@ -174,9 +174,9 @@ def epoch_cost_rank(preset) -> tuple:
     1.1-1.6, MLPs 0.45-1.05.
     """
     from ..learn.kinds import cost_rank
-    from ..learn.presets import get_preset
+    from ..learn.presets import PRESETS
 
-    p = get_preset(preset)
+    p = PRESETS.lookup(preset) if isinstance(preset, str) else preset
     kind = cost_rank(p)  # declared with the network kind (learn/kinds.py)
     return (-kind, -sum(p.front_units), -p.window, -p.fc_units)
 

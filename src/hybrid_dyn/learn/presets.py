@@ -21,10 +21,9 @@ from dataclasses import asdict, dataclass, field, replace
 
 from ..analytic import methods  # noqa: F401  (registers the tip-force methods: their names are read below)
 from ..analytic.method_names import ESTIMATOR_NAMES, estimator_name, residual_prior_names
-from ..deprecation import module_aliases
 from ..errors import UsageError
 from ..registry import Registry
-from .kinds import KINDS, preset_problems  # noqa: F401  (KINDS re-exported: the network kinds' names)
+from .kinds import NETWORK_KINDS, preset_problems
 
 STATE = ["q", "qd", "qdd"]
 TIP_INPUTS = ["base_wrench", "q", "qd", "qdd"]
@@ -34,23 +33,16 @@ TIP_INPUTS_TAU = TIP_INPUTS + ["tau_J"]
 # torque models, and the tip-force methods declared with residual_prior=True (analytic/methods.py).
 TORQUE_PRIORS = tuple(e.name for e in ESTIMATOR_NAMES.where(estimates="joint_torque", residual_prior=True))
 PRIORS = (None,) + residual_prior_names()  # at import; residual_prior_names() for a method registered later
-# How training fingerprints (and the keys of the prior caches) spell each prior: the spellings model
-# files wrote until format 3, each an older spelling of the estimator's name
-# (``ESTIMATOR_NAMES.alias``). Frozen: every trained model and every cached training run is keyed by
-# them, so a run of today finds the models trained before. Files write the canonical names
+# How training fingerprints (and the keys of the prior caches) spell a prior: the spellings model files
+# wrote until format 3. Frozen data, not names: every trained model and every cached training run is
+# keyed by them, so a run of today finds the models trained before. Files write the estimators' names
 # (:meth:`Preset.to_dict`); only these digests keep the old ones. A prior not listed is spelled by its name.
-_FINGERPRINT_SPELLINGS = ("rnea-basewrench", "basewrench", "momentum")
+PRIOR_FINGERPRINT_SPELLING = {"rnea-bw": "rnea-basewrench", "base-wrench": "basewrench", "momentum-observer": "momentum"}
 
 
 def prior_fingerprint_spelling(name: str) -> str:
-    """The prior ``name`` (a canonical name) as fingerprints and cache keys spell it."""
-    for old in _FINGERPRINT_SPELLINGS:
-        if ESTIMATOR_NAMES.aliases[old][0] == name:
-            return old
-    return name
-
-
-PRIOR_FINGERPRINT_SPELLING = {name: prior_fingerprint_spelling(name) for name in PRIORS[1:]}  # read from the above
+    """The prior ``name`` (an estimator's name) as fingerprints and cache keys spell it."""
+    return PRIOR_FINGERPRINT_SPELLING.get(name, name)
 
 
 @dataclass(frozen=True)
@@ -107,8 +99,8 @@ class Preset:
     family: str | None = field(default=None, compare=False)
 
     def __post_init__(self):
-        if self.kind not in KINDS:
-            raise ValueError(f"preset {self.name!r}: kind must be one of {tuple(KINDS)}, got {self.kind!r}")
+        if self.kind not in NETWORK_KINDS:
+            raise ValueError(f"preset {self.name!r}: kind must be one of {tuple(NETWORK_KINDS)}, got {self.kind!r}")
         if self.prior is not None:  # one name per estimator; a saved model's older spelling is read as it
             object.__setattr__(self, "prior",
                                estimator_name(self.prior, residual_prior_names(), f"prior of preset {self.name!r}"))
@@ -172,15 +164,10 @@ def _tip(no, kind, torques, fc_units, window, front=(16,), activation="relu"):
     )
 
 
-PRESETS = Registry("preset", UsageError)  # name -> Preset: training, the CLI and the bench's rows read it
-
-
-def register_preset(preset: Preset) -> Preset:
-    """Declare a preset (with its bench ``family``): from now on ``train_model``, the CLI and the bench's rows
-    (``bench/learned_rows.py``, which listens) know it by its name."""
-    if preset.family is None:
-        raise UsageError(f"preset {preset.name!r} has no bench family: declare it with family=...")
-    return PRESETS.register(preset)
+# name -> Preset: training, the CLI and the bench's rows (bench/learned_rows.py, which listens) read it.
+# A declared preset names its bench family (a tuned preset, read from a model file, has none).
+PRESETS = Registry("preset", UsageError,
+                   check=lambda p: None if p.family is not None else "has no bench family: declare it with family=...")
 
 
 for _preset in (
@@ -239,16 +226,4 @@ for _preset in (
            residual_kind="lstm", front_units=(32,),
            family="residual", description="DeLaN + learned friction + LSTM residual on the window of q, qd, qdd"),
 ):
-    register_preset(_preset)
-
-
-def get_preset(name_or_preset) -> Preset:
-    """A preset by name (see :data:`PRESETS`), or the preset itself."""
-    if isinstance(name_or_preset, Preset):
-        return name_or_preset
-    return PRESETS.lookup(name_or_preset)
-
-
-# prior_kinds: the residual priors' names were called "kinds", as the networks' are.
-__getattr__ = module_aliases(__name__, {"prior_kinds": "residual_prior_names"}, globals(),
-                             why="a prior is an estimator, not a kind")
+    PRESETS.register(_preset)

@@ -1,50 +1,6 @@
 """The analytic part of a residual (hybrid) model: computed, cached, never trained.
 
-A residual model predicts ``prior + network``; the prior is one of the
-toolkit's analytic models on the *nominal* robot (or another parameter set, e.g.
-an identified one):
-
-- ``rnea``              tau = RNEA(q, qd, qdd) [+ tau_f(qd)]           [Nm] (nv)
-- ``rnea-bw``           tau = RNEA(q, qd, qdd) [+ tau_f(qd)] - J_v^T F_bw [Nm] (nv)
-  with F_bw the base-wrench tip-force estimate: physics-informed torque models
-  may use the base sensor (PROTOCOL 4), which sees the external force.
-- ``base-wrench``       F = tip_force_from_base_wrench(q, qd, qdd, w)  [N] (3)
-- ``momentum-observer`` F = MomentumObserver(q, qd, tau_J), dt = 1 / record_hz [N] (3)
-- ``base-momentum``     F = the base momentum observer (q, qd, tared base wrench) [N] (3),
-  0 in the tare window and started after it
-- any tip-force method registered with ``residual_prior=True`` (``analytic/methods.py``): its
-  batch run from its one definition, at the bandwidth ``observer_gain`` (the training config's name
-  for the prior method's bandwidth, in that method's unit: kept, as model files and cache keys hold it)
-
-A prior is named by its estimator's one name (``analytic/method_names.py``; the model files'
-``kind`` key holds it, hence ``AnalyticPrior.kind``); the older
-spellings ``rnea-basewrench``, ``basewrench`` and ``momentum`` are accepted with a
-warning. Model files (from format 3) and cache file names write the canonical names;
-the cache keys and training fingerprints keep hashing the older spellings
-(``presets.PRIOR_FINGERPRINT_SPELLING``), so every saved model and cache is found, and
-predicts, as before.
-
-On an identified parameter file (``hybrid-dyn identify``; ``TrainConfig.analytic_params``)
-the two torque priors are the identified model itself: its inertials and the
-friction tau_f fitted with them, so that the motor torque tau_m is predicted as
-``IdentifiedModel.predict_torque`` does (an untrained residual equals it). A nominal
-set (a name, or a file that ``identify`` did not write, with or without a friction
-section) is rigid body only, as the nominal prior has always been. The tip-force
-priors take the file's inertials and no friction: the base sensor sees the whole
-robot, in which joint friction is internal, and the momentum observer reads tau_J,
-the torque after friction.
-
-The two observers are filters with state, so their value at a sample depends
-on the whole instance before it; the others are per sample.
-
-The two base-wrench priors tare the sensor first (``analytic/tare.py``): the
-offset is estimated on each instance's first ``tare_seconds`` (contact-free)
-and removed. Offline (``compute``) that is done per instance; on a stream the
-caller tares and passes the tared wrench to ``single``.
-
-Priors are computed once per dataset and cached in an HDF5 file (one array per
-instance) whose name holds a digest of the dataset checksum, the prior, the
-robot and its parameter set: a changed dataset or robot never reads a stale cache.
+The design in full: ``docs/design/learn.md`` (priors.py).
 """
 from __future__ import annotations
 
