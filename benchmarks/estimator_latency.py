@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 import hybrid_dyn as hd
-from hybrid_dyn.analytic.methods import REGISTRY
+from hybrid_dyn.analytic.methods import TIP_FORCE_METHODS
 from hybrid_dyn.analytic.tare import tare_samples
 from hybrid_dyn.estimator import TipForceEstimator
 from hybrid_dyn.sim.stream import StreamConfig, simulate_stream
@@ -42,7 +42,7 @@ N_CALLS = 20_000
 MEDIAN_FLOOR_US = 30.0
 P99_FLOOR_US = {"base-momentum": 60.0, "kalman-fusion": 60.0}
 LATE_JOIN = "kalman-fusion"  # the method also measured with a base sensor that joins late (it may run without)
-assert set(P99_FLOOR_US) | {LATE_JOIN} <= set(REGISTRY), "a floor names a method the registry does not have"
+assert set(P99_FLOOR_US) | {LATE_JOIN} <= set(TIP_FORCE_METHODS), "a floor names a method the registry does not have"
 
 
 def stream(robot, n, seed=0):
@@ -80,7 +80,7 @@ def measure_set_payload(robot, t, q, qd, w, tau):
     """Per analytic method: (median, max, max CPU) [us] of PAYLOAD_CALLS set_payload calls on an estimator
     running past its noise window, each between two estimate calls (the load on, off, on, ...)."""
     out = {}
-    for m in REGISTRY:
+    for m in TIP_FORCE_METHODS:
         est = TipForceEstimator.analytic(robot, m, call_hz=1000.0)
         wall, cpu = np.empty(PAYLOAD_CALLS), np.empty(PAYLOAD_CALLS)
         k0 = 1000
@@ -138,7 +138,7 @@ def main(argv=None) -> None:
     def build_cases():
         # Every method of the registry, by its one name (the bench's row), with its floors.
         cases = [(m, TipForceEstimator.analytic(robot, m, call_hz=1000.0), MEDIAN_FLOOR_US, P99_FLOOR_US.get(m))
-                 for m in REGISTRY]
+                 for m in TIP_FORCE_METHODS]
         cases.append((f"{LATE_JOIN} (base sensor joins at {LATE_BASE_S:g} s)",
                       TipForceEstimator.analytic(robot, LATE_JOIN, call_hz=1000.0), MEDIAN_FLOOR_US,
                       P99_FLOOR_US.get(LATE_JOIN)))

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 import hybrid_dyn as hd
-from hybrid_dyn.analytic.methods import run_batch
+from hybrid_dyn.analytic.batch_run import run_batch
 from hybrid_dyn.data import load_dataset
 from hybrid_dyn.sim.generator import generate_dataset
 from hybrid_dyn.sim.scenarios import scenario_config

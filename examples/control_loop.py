@@ -24,7 +24,8 @@ import time
 import numpy as np
 
 import hybrid_dyn as hd
-from hybrid_dyn.estimator import METHODS, TipForceEstimator
+from hybrid_dyn.analytic.methods import TIP_FORCE_METHODS
+from hybrid_dyn.estimator import TipForceEstimator
 from hybrid_dyn.sim.stream import StreamConfig, Touch, simulate_stream
 
 DT = 1e-3
@@ -33,7 +34,7 @@ PUSH = Touch(start=3.0, amplitude=15.0, plateau=2.0, rise=1.0, direction=(0.0, 0
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--method", default="base-wrench", choices=list(METHODS), help=", ".join(METHODS))
+    ap.add_argument("--method", default="base-wrench", choices=list(TIP_FORCE_METHODS), help=", ".join(TIP_FORCE_METHODS))
     ap.add_argument("--model", default=None, help="a trained tip-force model directory instead of an analytic method")
     ap.add_argument("--seconds", type=float, default=10.0)
     args = ap.parse_args(argv)

@@ -9,7 +9,7 @@ import pytest
 from scipy.signal import lfilter
 
 from hybrid_dyn.analytic.bandwidth import CONTACT_STEP, contact_rate, lag_variance, measure_window, observer_gain
-from hybrid_dyn.analytic.methods import REGISTRY
+from hybrid_dyn.analytic.methods import TIP_FORCE_METHODS
 from hybrid_dyn.estimator import TipForceEstimator
 
 HZ = 1000.0
@@ -43,7 +43,7 @@ def bandwidth(robot, method, s_qd, s_force, s_tau):
     kalman-fusion, the bandwidth [1/s] of its steady-state force gain k per call with both sensors (its force
     rate is the model's): the first-order filter with pole 1 - k, -ln(1 - k) / dt."""
     t, q, qd, w, tau = quiet_stream(robot, 500, s_qd, s_force, s_tau, seed=1)
-    stream = REGISTRY[method].make(robot, HZ)
+    stream = TIP_FORCE_METHODS[method].make(robot, HZ)
     noise = measure_window(q, qd, w, tau)
     if method == "kalman-fusion":
         stream.close_window(noise, None)

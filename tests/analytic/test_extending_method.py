@@ -11,8 +11,10 @@ import pytest
 import scipy.signal
 
 from hybrid_dyn.analytic.bandwidth import BANDWIDTHS, BandwidthParameter
-from hybrid_dyn.analytic.method_names import ESTIMATORS, residual_prior_names
-from hybrid_dyn.analytic.methods import REGISTRY, Method, MethodStream, register, run_batch, unregister
+from hybrid_dyn.analytic.batch_run import run_batch
+from hybrid_dyn.analytic.method_declaration import Method, MethodStream
+from hybrid_dyn.analytic.method_names import residual_prior_names
+from hybrid_dyn.analytic.methods import TIP_FORCE_METHODS
 from hybrid_dyn.errors import UsageError
 from hybrid_dyn.estimator import EstimatorConfig, EstimatorStatus, TipForceEstimator
 from hybrid_dyn.sim.sensors import causal_acceleration
@@ -59,8 +61,8 @@ def toy():
     from hybrid_dyn.learn.presets import PRESETS, TIP_INPUTS, Preset
 
     BANDWIDTHS.register(BandwidthParameter("toy_gain", "1/s", "the toy's low-pass gain K", _toy_gains))
-    method = register(Method("static-base", "a toy", ("base_wrench",), False, False, True, "toy_gain", StaticBase,
-                             residual_prior=True))
+    method = TIP_FORCE_METHODS.register(Method("static-base", "a toy", ("base_wrench",), False, False, True, "toy_gain",
+                                               StaticBase, residual_prior=True))
     PRESETS.register(Preset("residual-static-base", "lstm", tuple(TIP_INPUTS), ("tip_force",), window=10,
                            front_units=(32,), prior="static-base", family="residual"))
     yield method
@@ -73,8 +75,8 @@ def _forget_toy():
 
     if "residual-static-base" in PRESETS:
         PRESETS.unregister("residual-static-base")
-    if "static-base" in REGISTRY:
-        unregister("static-base")
+    if "static-base" in TIP_FORCE_METHODS:
+        TIP_FORCE_METHODS.unregister("static-base")
     if "toy_gain" in BANDWIDTHS:
         BANDWIDTHS.unregister("toy_gain")
 
@@ -167,20 +169,28 @@ def test_unregistering_removes_everything_derived(toy):
     from hybrid_dyn.learn.priors import PRIOR_FIELDS
 
     PRESETS.unregister("residual-static-base")
-    unregister("static-base")
+    TIP_FORCE_METHODS.unregister("static-base")
     BANDWIDTHS.unregister("toy_gain")
     for name in ("static-base", "static-base-val", "residual-static-base"):
         assert name not in ROWS
     assert "residual-static-base" not in PRESET_ROWS
     assert "static-base" not in PRIOR_ROWS and "static-base" not in PRIOR_FIELDS
-    assert "static-base" not in ESTIMATORS and "static-base" not in residual_prior_names()
+    assert "static-base" not in TIP_FORCE_METHODS and "static-base" not in residual_prior_names()
     assert "toy_gain" not in BANDWIDTHS
 
 
 def test_a_method_needs_its_bandwidth_parameter_declared():
     with pytest.raises(UsageError, match="bandwidth parameter 'toy_rate' is not declared"):
-        register(Method("toy", "a toy", ("base_wrench",), False, False, True, "toy_rate", StaticBase))
-    assert "toy" not in REGISTRY and "toy" not in ESTIMATORS
+        TIP_FORCE_METHODS.register(Method("toy", "a toy", ("base_wrench",), False, False, True, "toy_rate", StaticBase))
+    assert "toy" not in TIP_FORCE_METHODS
+
+
+def test_a_method_may_not_take_a_torque_models_name():
+    for name in ("rnea", "rnea-basewrench"):  # a torque model, and an older spelling of one
+        with pytest.raises(UsageError, match=f"analytic estimator {name!r} is declared twice"):
+            TIP_FORCE_METHODS.register(Method(name, "a toy", ("base_wrench",), False, False, True, "momentum_gain",
+                                              StaticBase))
+        assert name not in TIP_FORCE_METHODS
 
 
 def test_the_old_prior_field_of_a_method_still_works_with_a_warning():

@@ -10,7 +10,8 @@ import scipy.linalg
 import scipy.signal
 
 from hybrid_dyn.analytic import kalman
-from hybrid_dyn.analytic.methods import REGISTRY, run_batch
+from hybrid_dyn.analytic.batch_run import run_batch
+from hybrid_dyn.analytic.methods import TIP_FORCE_METHODS
 from hybrid_dyn.estimator import EstimatorStatus, TipForceEstimator
 
 from helpers.motion import contact_stream
@@ -35,7 +36,7 @@ def test_streaming_step_equals_the_batch_run(method, hz, n, settled, panda):
     """The user's call, sample by sample, against the method's batch run over the whole stream (the tare
     as a running mean and the window's noise as running sums, against the whole window's arrays)."""
     t, q, qd, w, tau, f = noisy_stream(panda, n, seed=3, hz=hz)
-    spec = REGISTRY[method]
+    spec = TIP_FORCE_METHODS[method]
     kw = lambda k: {name: x[k] for name, x in (("base_wrench", w), ("tau_J", tau)) if name in spec.reads}  # noqa: E731
     est = TipForceEstimator.analytic(panda, method, call_hz=hz, encoder_resolution=0.0)
     out = np.stack([est.estimate_tip_force(q[k], qd[k], t=t[k], **kw(k)) for k in range(len(t))])
@@ -52,7 +53,7 @@ def test_no_design_or_riccati_solve_runs_in_a_call(monkeypatch, panda):
     """Counted: scipy's Butterworth design and discrete Riccati solver, from construction on. None may
     run in any call, the window-closing one included (the rule picks among designs made at construction)."""
     t, q, qd, w, tau, f = noisy_stream(panda, 700)
-    estimators = {m: TipForceEstimator.analytic(panda, m, call_hz=HZ, encoder_resolution=0.0) for m in REGISTRY}
+    estimators = {m: TipForceEstimator.analytic(panda, m, call_hz=HZ, encoder_resolution=0.0) for m in TIP_FORCE_METHODS}
     calls = {"butter": 0, "dare": 0}
 
     def counting(name, fn):

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from hybrid_dyn.bench.plan import BenchPlan
-from hybrid_dyn.analytic.methods import run_batch
+from hybrid_dyn.analytic.batch_run import run_batch
 from hybrid_dyn.analytic.tare import TARE_SECONDS, tare_samples
 from hybrid_dyn.bench import analytic_rows
 from hybrid_dyn.bench.analytic_rows import refusals_as_nan

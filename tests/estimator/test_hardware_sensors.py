@@ -217,7 +217,7 @@ def test_the_error_bar_covers_the_ok_calls(panda):
 def test_the_batch_run_is_the_estimator_with_its_window_check_and_error_bar(panda):
     """run_batch (the bench's rows) against the streaming estimator on a stream with a touch in the first
     window: the same window (the second), the same forces and the same error bar, call for call."""
-    from hybrid_dyn.analytic.methods import run_batch
+    from hybrid_dyn.analytic.batch_run import run_batch
 
     cfg = StreamConfig(seconds=2.5, sensors=QUANTIZED, contacts=None,
                        touches=(Touch(0.2, 6.0, 0.2, direction=(1.0, 0.0, -0.5)), Touch(1.6, 8.0, 0.5, rise=0.01)))

@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import pytest
 
-from hybrid_dyn.analytic.method_names import ESTIMATORS, estimator_name
+from hybrid_dyn.analytic.method_names import estimator_name, residual_prior_names
 from hybrid_dyn.deprecation import DeprecatedNameWarning
 from hybrid_dyn.learn.presets import PRESETS, PRIOR_FINGERPRINT_SPELLING, Preset, prior_fingerprint_spelling
 from hybrid_dyn.learn.priors import PRIOR_FIELDS, AnalyticPrior
@@ -27,7 +27,7 @@ def test_old_prior_spellings_warn_and_model_files_write_the_canonical_names(pand
         warnings.simplefilter("error", DeprecatedNameWarning)
         for p in PRESETS.values():  # the declared presets use the canonical names: no warning on import or load
             d = p.to_dict()
-            assert d["prior"] is None or d["prior"] in ESTIMATORS  # written by the canonical name
+            assert d["prior"] is None or d["prior"] in residual_prior_names()  # written by the canonical name
             assert Preset.from_dict(d) == p
     d = PRESETS["residual-basewrench"].to_dict()
     assert d["prior"] == "base-wrench"
@@ -43,7 +43,7 @@ def test_fingerprints_keep_the_spellings_every_cached_run_was_keyed_by():
     assert PRESETS["residual-basewrench"].fingerprint_dict()["prior"] == "basewrench"
     assert PRESETS["residual-momentum"].fingerprint_dict()["prior"] == "momentum"
     assert PRESETS["residual-rnea-bw"].fingerprint_dict()["prior"] == "rnea-basewrench"
-    assert set(PRIOR_FINGERPRINT_SPELLING) <= set(ESTIMATORS)
+    assert set(PRIOR_FINGERPRINT_SPELLING) <= set(residual_prior_names())
     budget = TrainConfig.recipe("budget")
     assert run_fingerprint(PRESETS["residual-basewrench"], budget.for_preset(PRESETS["residual-basewrench"]),
                            "0" * 64) == FINGERPRINT_RESIDUAL_BASEWRENCH_BUDGET

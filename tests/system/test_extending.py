@@ -16,9 +16,8 @@ import pytest
 from torch import nn
 
 from hybrid_dyn.analytic.bandwidth import BANDWIDTHS, BandwidthParameter
-from hybrid_dyn.analytic.method_names import ESTIMATORS
-from hybrid_dyn.analytic.methods import REGISTRY, Method, MethodStream, register, unregister
-from hybrid_dyn.estimator import estimator_methods
+from hybrid_dyn.analytic.method_declaration import Method, MethodStream
+from hybrid_dyn.analytic.methods import TIP_FORCE_METHODS
 from hybrid_dyn.bench import report as report_mod
 from hybrid_dyn.bench.compare import compare_reports
 from hybrid_dyn.bench.families import FAMILIES, Family
@@ -86,8 +85,9 @@ def toys():
     """The one place each toy is declared; withdrawn after the test, what was derived from them checked gone."""
     BANDWIDTHS.register(BandwidthParameter(TOYS["parameter"], "1/s", "the toy's low-pass gain K",
                                            val_grid=lambda rate_hz: (0.05 * rate_hz, 0.5 * rate_hz)))
-    register(Method(TOYS["method"], "a toy: the base sensor's force less the arm's weight", reads=("base_wrench",),
-                    any_of=False, needs_qdd=False, tares=True, parameter=TOYS["parameter"], make=StaticBase))
+    TIP_FORCE_METHODS.register(Method(TOYS["method"], "a toy: the base sensor's force less the arm's weight",
+                                      reads=("base_wrench",), any_of=False, needs_qdd=False, tares=True,
+                                      parameter=TOYS["parameter"], make=StaticBase))
     kinds.NETWORK_KINDS.register(kinds.NetworkKind(
         TOYS["kind"], "the window's mean over time, then FC layers (a toy)",
         build=kinds.single_net(lambda p, n_in, n_out: WindowMeanNet(n_in, n_out, p)),
@@ -106,8 +106,8 @@ def toys():
                                (kinds.NETWORK_KINDS, TOYS["kind"])):
             if name in registry:
                 registry.unregister(name)
-        if TOYS["method"] in REGISTRY:
-            unregister(TOYS["method"])
+        if TOYS["method"] in TIP_FORCE_METHODS:
+            TIP_FORCE_METHODS.unregister(TOYS["method"])
         if TOYS["parameter"] in BANDWIDTHS:
             BANDWIDTHS.unregister(TOYS["parameter"])
     _assert_nothing_left()
@@ -116,8 +116,7 @@ def toys():
 def _assert_nothing_left():
     """Nothing the toys declared, nor anything derived from them, is left in a registry or a derived list."""
     m, fam = TOYS["method"], TOYS["family"]
-    assert TOYS["parameter"] not in BANDWIDTHS and m not in REGISTRY and m not in ESTIMATORS
-    assert m not in estimator_methods()
+    assert TOYS["parameter"] not in BANDWIDTHS and m not in TIP_FORCE_METHODS
     assert TOYS["kind"] not in kinds.NETWORK_KINDS and TOYS["preset"] not in PRESETS
     for row in (m, f"{m}-val", TOYS["preset"], TOYS["row"]):
         assert row not in ROWS, row
@@ -134,17 +133,15 @@ def test_toys_declared_once_reach_estimator_bench_report_and_compare(toys, panda
     from hybrid_dyn.bench.runner import run_bench
     from hybrid_dyn.data import load_dataset
     from hybrid_dyn.data.synthetic import make_synthetic_dataset
-    import hybrid_dyn.estimator as estimator
     from hybrid_dyn.estimator import TipForceEstimator
 
     m, fam, preset = toys["method"], toys["family"], toys["preset"]
     # Declared, derived: the method's two bench rows, the preset's row, the family in every list read from it.
-    assert ROWS[m].family == "analytic" and ROWS[f"{m}-val"].reference and m in ESTIMATORS
+    assert ROWS[m].family == "analytic" and ROWS[f"{m}-val"].reference
     assert ROWS[preset].family == fam and ROWS[preset].trains and preset in PRESET_ROWS
     assert [p.name for p in PRESETS.where(family=fam)] == [preset]
     assert fam in FAMILIES.names(fitted=True, in_studies=True)  # a study's and compare's families
     assert not any(fam in p.families for p in PROFILES.values())  # a shipped profile names its own
-    assert m in estimator.METHODS  # the estimator's list of its methods (a CLI's choices) is read afresh
 
     # 11 s runs: the estimator refuses its 0.5 s window, and a row answering under 95 % is no best row.
     ds = load_dataset(make_synthetic_dataset(tmp_path / "d", panda, n_instances=6, n_samples=1100, record_hz=HZ,

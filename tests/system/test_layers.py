@@ -112,7 +112,8 @@ def test_the_checks_see_a_circle_and_an_upward_import():
     analytic above data."""
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
     assert _layer("hybrid_dyn.analytic.robot") > _layer("hybrid_dyn.data.dataset") > _layer("hybrid_dyn.registry")
-    assert "hybrid_dyn.analytic.robot" in _imports(PACKAGE / "analytic" / "methods.py", "hybrid_dyn.analytic.methods")
+    assert "hybrid_dyn.analytic.robot" in _imports(PACKAGE / "analytic" / "method_declaration.py",
+                                                       "hybrid_dyn.analytic.method_declaration")
 
 
 def test_no_two_modules_share_a_file_name():

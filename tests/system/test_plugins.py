@@ -25,7 +25,8 @@ PLUGIN = '''
 """A toy hybrid_dyn plugin: a method (the base momentum observer at half its gain), a family and a row."""
 import numpy as np
 
-from hybrid_dyn.analytic.methods import BaseMomentumMethod, Method, register
+from hybrid_dyn.analytic.method_declaration import TIP_FORCE_METHODS, Method
+from hybrid_dyn.analytic.observer_methods import BaseMomentumMethod
 from hybrid_dyn.bench.families import FAMILIES, Family
 from hybrid_dyn.bench.rows import ROWS, Predictor, Row
 
@@ -35,8 +36,8 @@ class HalfGain(BaseMomentumMethod):
         return 0.5 * super().choose(noise)
 
 
-register(Method("toy-half-momentum", "the base momentum observer at half its gain (a plugin's)",
-                ("base_wrench",), False, False, True, "momentum_gain", HalfGain))
+TIP_FORCE_METHODS.register(Method("toy-half-momentum", "the base momentum observer at half its gain (a plugin's)",
+                                  ("base_wrench",), False, False, True, "momentum_gain", HalfGain))
 FAMILIES.register(Family("toy-baseline", "a plugin's baselines", fitted=True))
 
 

@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..analytic.methods import REGISTRY, add_listener, run_batch
+from ..analytic.batch_run import run_batch
+from ..analytic.methods import TIP_FORCE_METHODS
 from ..analytic.tare import TARE_SECONDS, tare_samples, tared_base_wrench
 from ..analytic.tip_force import contact_joint_torques, tip_force_from_base_wrench, tip_force_from_torques
 from ..estimator import EstimatorConfig, TipForceEstimator
@@ -147,7 +148,7 @@ def _user_call(method):
 
 
 def declare_method_rows(method) -> None:
-    """The rows ``name`` and ``name-val`` of a registered method (``analytic.methods.register`` calls it)."""
+    """The rows ``name`` and ``name-val`` of a registered method (``TIP_FORCE_METHODS.listen`` calls it)."""
     if not method.bench_rows:
         return
     if method.residual_prior:
@@ -226,7 +227,7 @@ _analytic("base-wrench-tared", "tip_force", ("q", "qd", "qdd", "base_wrench", "t
           lambda r, i, ctx: tip_force_from_base_wrench(r, i.q, i.qd, i.qdd, _tared(r, i, ctx)),
           lambda r, i, k, ctx: tip_force_from_base_wrench(r, i.q[k], i.qd[k], i.qdd[k], _tared(r, i, ctx)[k]))
 # The registry's methods (Newton's law for the whole robot, and both force sensors fused).
-for _method in REGISTRY.values():
+for _method in TIP_FORCE_METHODS.values():
     declare_method_rows(_method)
 _analytic("rnea", "joint_torque", ("q", "qd", "qdd", "tau_m"), "q, qd, qdd",
           lambda r, i, ctx: r.inverse_dynamics(i.q, i.qd, i.qdd),
@@ -238,4 +239,4 @@ _analytic("rnea-bw", "joint_torque", ("q", "qd", "qdd", "base_wrench", "tau_m"),
 _analytic("rnea-bw-tared", "joint_torque", ("q", "qd", "qdd", "base_wrench", "tau_m"), f"q, qd, qdd, base_wrench {TARED}",
           lambda r, i, ctx: _rnea_minus_contact(r, i.q, i.qd, i.qdd, _tared(r, i, ctx)),
           lambda r, i, k, ctx: _rnea_minus_contact(r, i.q[k], i.qd[k], i.qdd[k], _tared(r, i, ctx)[k]))
-add_listener(declare_method_rows, forget_method_rows)  # a method registered later gets its rows too
+TIP_FORCE_METHODS.listen(declare_method_rows, forget_method_rows)  # a method registered later gets its rows too

@@ -24,17 +24,9 @@ from ..analytic.acceleration import (  # noqa: F401  (re-exported: the estimator
 from .batch import estimate_tip_force
 from .config import EstimatorConfig, EstimatorStatus
 from .input import EstimatorInputError, InputGate, RateCheck
-from . import tip_force_estimator
-from .tip_force_estimator import TipForceEstimator, estimator_methods, method_aliases
+from .tip_force_estimator import TipForceEstimator
 
 
-def __getattr__(name):
-    # METHODS and METHOD_ALIASES are the module's, derived afresh at each read (a late registration counts).
-    if name in ("METHODS", "METHOD_ALIASES"):
-        return getattr(tip_force_estimator, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-__all__ = ["DEFAULT_QDD_CUTOFF_HZ", "METHODS", "METHOD_ALIASES", "CausalAccelerationFilter", "EstimatorConfig",
+__all__ = ["DEFAULT_QDD_CUTOFF_HZ", "CausalAccelerationFilter", "EstimatorConfig",
            "EstimatorInputError", "EstimatorStatus", "InputGate", "RateCheck", "TipForceEstimator", "auto_qdd_cutoff",
-           "cutoff_grid", "estimate_tip_force", "estimator_methods", "method_aliases", "qdd_noise_gain", "white_noise_rms"]
+           "cutoff_grid", "estimate_tip_force", "qdd_noise_gain", "white_noise_rms"]

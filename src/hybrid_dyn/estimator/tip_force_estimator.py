@@ -108,10 +108,10 @@ from numba import njit
 
 from ..analytic.acceleration import CausalAccelerationFilter, cutoff_grid, default_qdd_cutoff
 from ..analytic.error_bar import ErrorBar, qdd_norm
-from ..analytic.method_names import ALIASES, estimator_name
 from ..analytic.joint_state import joint_filter_for, with_joint_state_noise
 from ..analytic.kalman import MAX_BRIDGE_CALLS
-from ..analytic.methods import REGISTRY, spec_noise
+from ..analytic.method_declaration import spec_noise
+from ..analytic.methods import TIP_FORCE_METHODS
 from ..analytic.robot import Robot, load_robot, with_payload
 from ..analytic.tare import StreamingTare, tare_samples
 from ..errors import UsageError
@@ -120,23 +120,6 @@ from .consistency import Consistency
 from .input import EstimatorInputError, InputGate, RateCheck
 from .noise_window import NoiseWindow
 from .stream_starts import StreamStarts
-
-
-def estimator_methods() -> tuple[str, ...]:
-    """The analytic methods by their one name, as registered now (a method registered late is among them)."""
-    return tuple(REGISTRY)
-
-
-def method_aliases() -> dict[str, str]:
-    """The methods' older spellings (base_wrench, torques, momentum, ...) -> the one name, as registered now."""
-    return {a: c for a, c in ALIASES.items() if c in REGISTRY}
-
-
-def __getattr__(name):
-    derived = {"METHODS": estimator_methods, "METHOD_ALIASES": method_aliases}.get(name)  # afresh at each access
-    if derived is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return derived()
 
 
 # The statuses as plain names for the per-call path: an Enum member looked up on its class costs ~0.3 us.
@@ -177,8 +160,8 @@ class TipForceEstimator(StreamStarts):
             sensors = tuple(model.inputs) + tuple(getattr(model.model.prior, "fields", None) or ())
             self._needs_qdd, self._optional = True, frozenset()
         else:
-            method = estimator_name(method, REGISTRY, "estimator method")
-            self.spec = REGISTRY[method]
+            self.spec = TIP_FORCE_METHODS.lookup(method)
+            method = self.spec.name
             self._stream = self.spec.make(robot, float(c.call_hz))  # builds (and compiles) everything it runs
             sensors, self._needs_qdd = self.spec.reads, self.spec.needs_qdd
             self._optional = frozenset(sensors) if self.spec.any_of else frozenset()
@@ -225,14 +208,12 @@ class TipForceEstimator(StreamStarts):
     @classmethod
     def analytic(cls, robot: str | Robot = "panda", method: str = "base-wrench", params=None, payload=None,
                  **config) -> "TipForceEstimator":
-        """A model-free estimator, by the estimators' one name (``analytic/methods.py``): "base-wrench",
-        "torques-pinv" (needs tau_J), "momentum-observer" (needs tau_J), "base-momentum" (needs
-        base_wrench) or "kalman-fusion" (base_wrench, tau_J or both per call); the older spellings
-        (``METHOD_ALIASES``: "base_wrench", "torques", "momentum", "base_momentum", "kalman_fusion") mean the same.
+        """A model-free estimator: ``method`` is a name of ``analytic.methods.TIP_FORCE_METHODS`` (what each reads:
+        its declaration's ``reads``), or an older spelling of one (the registry's ``aliases``, with a warning).
         payload: the tool's load, ``(mass_kg, (x, y, z))`` with its centre of mass [m] in the tool frame (as
         libfranka's ``setLoad``): part of the model every method subtracts (``set_payload`` changes it).
         config: ``EstimatorConfig`` settings, a method's bandwidth parameter by its name (``momentum_gain=50.0``)."""
-        method = estimator_name(method, REGISTRY, "estimator method")
+        method = TIP_FORCE_METHODS.lookup(method).name
         config = EstimatorConfig.from_settings(**config)
         if not isinstance(robot, Robot):
             robot = load_robot(robot, params=params, num_threads=1)

@@ -123,7 +123,10 @@ def cmd_predict(args) -> int:
         _check_save_path(args.save, args.overwrite)  # before the work, not after it
     ds = load_dataset(args.data)
     model = load_model(args.model, robot=ds.meta.get("robot"))
-    if model.preset.prior in ("momentum-observer", "base-momentum") and ds.meta.get("record_hz") != model.config.get("record_hz"):
+    from ..analytic.methods import TIP_FORCE_METHODS
+
+    prior = TIP_FORCE_METHODS.get(model.preset.prior)  # an observer's prior depends on the rate (dt = 1 / rate)
+    if prior is not None and prior.stateful and ds.meta.get("record_hz") != model.config.get("record_hz"):
         raise ModelError(f"model was trained at {model.config.get('record_hz')} Hz, data is at {ds.meta.get('record_hz')} Hz")
     instances = ds.split(args.split)
     preds = model.predict(instances)

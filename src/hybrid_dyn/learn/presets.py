@@ -20,7 +20,8 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field, replace
 
 from ..analytic import methods  # noqa: F401  (registers the tip-force methods: their names are read below)
-from ..analytic.method_names import ESTIMATOR_NAMES, estimator_name, residual_prior_names
+from ..analytic.method_names import estimator_name, residual_prior_names
+from ..analytic.torque_models import TORQUE_MODELS
 from ..errors import UsageError
 from ..registry import Registry
 from .kinds import NETWORK_KINDS, preset_problems
@@ -31,7 +32,7 @@ TIP_INPUTS_TAU = TIP_INPUTS + ["tau_J"]
 
 # The analytic estimators a residual can sit on, by their one name (analytic/method_names.py): the two
 # torque models, and the tip-force methods declared with residual_prior=True (analytic/methods.py).
-TORQUE_PRIORS = tuple(e.name for e in ESTIMATOR_NAMES.where(estimates="joint_torque", residual_prior=True))
+TORQUE_PRIORS = tuple(e.name for e in TORQUE_MODELS.where(residual_prior=True))
 PRIORS = (None,) + residual_prior_names()  # at import; residual_prior_names() for a method registered later
 # How training fingerprints (and the keys of the prior caches) spell a prior: the spellings model files
 # wrote until format 3. Frozen data, not names: every trained model and every cached training run is

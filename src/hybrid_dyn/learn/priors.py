@@ -14,7 +14,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..analytic.method_names import estimator_name
-from ..analytic.methods import REGISTRY, add_listener
+from ..analytic.methods import TIP_FORCE_METHODS
 from ..analytic.tare import tare_samples, tared_base_wrench
 from ..analytic.tip_force import base_wrench_force_core, contact_joint_torques, tip_force_from_base_wrench
 from .presets import TORQUE_PRIORS, prior_fingerprint_spelling
@@ -39,9 +39,9 @@ def _on_unregister(method) -> None:
         STATEFUL_PRIORS.remove(method.name)
 
 
-for _method in REGISTRY.values():
+for _method in TIP_FORCE_METHODS.values():
     _on_register(_method)
-add_listener(_on_register, _on_unregister)
+TIP_FORCE_METHODS.listen(_on_register, _on_unregister)
 
 
 class AnalyticPrior:
@@ -127,8 +127,8 @@ class AnalyticPrior:
         n_tare = tare_samples(self.record_hz, self.tare_seconds) if self.tare_seconds > 0 else 0
         if n_tare:
             w = tared_base_wrench(r, q, qd, qdd, w, n_tare)
-        if self.kind in REGISTRY:
-            return self._method_run(REGISTRY[self.kind], fields, w, n_tare)
+        if self.kind in TIP_FORCE_METHODS:
+            return self._method_run(TIP_FORCE_METHODS[self.kind], fields, w, n_tare)
         f_bw = np.atleast_2d(tip_force_from_base_wrench(r, q, qd, qdd, w))
         return np.atleast_2d(r.inverse_dynamics(q, qd, qdd) + self.joint_terms(q, qd)) \
             - contact_joint_torques(r, np.atleast_2d(q), f_bw)
@@ -162,13 +162,13 @@ class AnalyticPrior:
                              "(the observer's step_force) as `prior`")
         if self._single is None:
             self._single = _SingleSample(self.robot)
-            if self.kind in REGISTRY:
-                self._single.stream = self._method_stream(REGISTRY[self.kind])
+            if self.kind in TIP_FORCE_METHODS:
+                self._single.stream = self._method_stream(TIP_FORCE_METHODS[self.kind])
         s = self._single
         q, qd, qdd = (np.asarray(sample[k], float) for k in ("q", "qd", "qdd"))
         if self.kind == "rnea":
             return pin.rnea(s.model, s.data, q, qd, qdd) + self.joint_terms(q, qd)
-        if self.kind in REGISTRY:
+        if self.kind in TIP_FORCE_METHODS:
             get = lambda k: None if sample.get(k) is None else np.asarray(sample[k], float)  # noqa: E731
             return s.stream.step(q, qd, qdd, get("base_wrench"), get("tau_J"))
         f_bw = s.basewrench_force(q, qd, qdd, np.asarray(sample["base_wrench"], float))

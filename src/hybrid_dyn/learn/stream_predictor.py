@@ -27,7 +27,7 @@ import numpy as np
 import torch
 
 from ..analytic.acceleration import default_qdd_cutoff
-from ..analytic.methods import REGISTRY
+from ..analytic.methods import TIP_FORCE_METHODS
 from ..analytic.tare import StreamingTare, tare_samples, tared_runs
 from ..data.windows import window_index
 from ..errors import UsageError
@@ -187,7 +187,7 @@ class StreamingModel:
         self._window_rows = (np.arange(n)[:, None] - self._offsets) % n
         # A registered method as the prior: its one definition, stepped at the call rate with the
         # bandwidth the model was trained with (a filter: stepped at every call).
-        self._method = REGISTRY.get(self.model.preset.prior)
+        self._method = TIP_FORCE_METHODS.get(self.model.preset.prior)
         self._prior_stream = None
         if self._method is not None:
             self._prior_stream = self._method.make(self.robot, call_hz)
