@@ -1,4 +1,4 @@
-"""What the bench refuses before any output exists (issue 28, findings 5 and 7): a robot, parameter set or
+"""What the bench refuses before any output exists: a robot, parameter set or
 rows it cannot score, in one line and with no report folder; an import's warning reaches the report; a
 model another bench is training is waited for; a bench that ran no row does not exit 0."""
 from __future__ import annotations

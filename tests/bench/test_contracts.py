@@ -43,8 +43,9 @@ def test_a_rows_metadata_agrees_with_its_family_and_its_prior(name):
     if row.trains:  # a trained row has a loss curve: its family is fitted to data
         assert FAMILIES[row.family].fitted
     if row.prior_row is not None:  # the hybrid's physics prior is a physics row of the same task
-        prior = ROWS[row.prior_row]
-        assert prior.task == row.task and not prior.trains and prior.family == "analytic"
+        prior, family = ROWS[row.prior_row], FAMILIES[ROWS[row.prior_row].family]
+        assert prior.task == row.task and not prior.trains and prior.prior_row is None
+        assert not family.fitted or family.identifies_parameters  # physics: nominal, or identified parameters
     assert row.reference is None or (isinstance(row.reference, str) and row.reference)
 
 

@@ -1,4 +1,4 @@
-"""Issue 38 on the bench: the analytic rows on contact-steps-hardware run at the dataset's encoder
+"""The hardware sensor model on the bench: the analytic rows on contact-steps-hardware run at the dataset's encoder
 resolution (0 for the legacy sensor model, so today's rows are unchanged) and report their error
 bar's coverage (``sigma_coverage`` in results.csv, from run_batch's ``with_sigma``)."""
 from types import SimpleNamespace

@@ -1,4 +1,4 @@
-"""Hybrid rows and their physics priors in the bench (issue 29): declared priors, the report's lines."""
+"""Hybrid rows and their physics priors in the bench: declared priors, the report's lines."""
 import pytest
 
 from hybrid_dyn.bench.catalog import ROWS

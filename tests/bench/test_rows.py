@@ -1,4 +1,4 @@
-"""The bench's row registry (issue 15, item 5): a row is declared once and the runner, the report and
+"""The bench's row registry: a row is declared once and the runner, the report and
 the profiles read that declaration; a declaration without what the row reads is refused."""
 import ast
 import csv

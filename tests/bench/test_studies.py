@@ -187,7 +187,7 @@ class _Started(Exception):
 
 
 def test_study_out_refuses_a_users_folder_before_any_work(tmp_path, monkeypatch, capsys):
-    """Issue 39, finding 4: `study --out DIR` on a folder holding the user's README.md started generating."""
+    """`study --out DIR` on a folder holding the user's README.md started generating."""
     from hybrid_dyn.bench import studies as studies_mod
     from hybrid_dyn.cli import main as cli_main
 
@@ -210,7 +210,7 @@ def test_study_out_refuses_a_users_folder_before_any_work(tmp_path, monkeypatch,
 
 
 def test_a_study_writes_its_summary_only_where_it_is_still_its_own(tmp_path, monkeypatch):
-    """Issue 39, finding 4: the summary was written with no ownership check. A folder the study wrote (its
+    """The summary was written with no ownership check. A folder the study wrote (its
     summary JSON names it) is its own on a rerun; a user's file that appears in a new folder while the
     variants run makes the summary a refusal, and the file stays."""
     from hybrid_dyn.bench import studies as studies_mod

@@ -1,4 +1,4 @@
-"""The budgeted recipe (issue 26): a fixed number of optimizer steps, a warm-up, a cosine decay to zero,
+"""The budgeted recipe: a fixed number of optimizer steps, a warm-up, a cosine decay to zero,
 batches from the whole pool, and a resume that is bit-identical. Tiny synthetic sets, built here."""
 import math
 

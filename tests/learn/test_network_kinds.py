@@ -1,4 +1,4 @@
-"""Network kinds declared once (issue 30): a kind's pieces live in one declaration
+"""Network kinds declared once: a kind's pieces live in one declaration
 (learn/kinds.py), a kind missing one is refused there, and a toy kind declared in
 this file alone trains, resumes its budget, runs its fast path and is tuned."""
 import numpy as np

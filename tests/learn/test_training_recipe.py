@@ -1,4 +1,4 @@
-"""The training recipe (issue 14): the tared sensor reaches the nets, the learning-rate schedule,
+"""The training recipe: the tared sensor reaches the nets, the learning-rate schedule,
 and why a run stopped. Tiny synthetic sets with exact physics, built here."""
 import numpy as np
 import pytest

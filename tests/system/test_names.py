@@ -1,4 +1,4 @@
-"""One name per concept (issue 30, item 4): a generator *size* is not a bench *profile*, the training
+"""One name per concept: a generator *size* is not a bench *profile*, the training
 recipes have names of their own, ``train`` takes ``--params`` and ``--max-epochs`` as ``bench`` and
 TrainConfig say. Every old name still works, with a DeprecatedNameWarning naming the new one, and
 nothing a cache or a report is keyed by moves: config hashes, fingerprints, run.json's profile."""

@@ -1,4 +1,4 @@
-"""Output paths (issue 17): concurrent runs, and the rule that the toolkit replaces only what it wrote.
+"""Output paths: concurrent runs, and the rule that the toolkit replaces only what it wrote.
 
 Each test builds its own tiny data. The concurrency tests are deterministic: the
 second run starts while the first is provably inside its run (it waits on an
@@ -310,7 +310,7 @@ def test_bench_claims_a_new_folder_and_reuses_its_own(tmp_path):
 
 # ---------------------------------------------------------------- every command
 def test_every_command_leaves_a_users_folder_alone(panda_log, tmp_path, capsys):
-    """Ownership by proof (issue 28): a folder holding a user's files that happen to carry the toolkit's
+    """Ownership by proof: a folder holding a user's files that happen to carry the toolkit's
     file names (run.json with a 'profile' key, config.json, generator.json, manifest.json) is refused by
     bench, report, generate, train and import alike, and every file is left as it was."""
     from hybrid_dyn.cli import main as cli_main

@@ -77,7 +77,7 @@ for command in ("bench", "study"):
             main([command, "--help"])
         except SystemExit:
             pass
-    helps[command] = " ".join(text.getvalue().split())
+    helps[command] = "".join(text.getvalue().split())  # argparse wraps at hyphens
 code = main(["bench", "--data", data, "--rows", "toy-half-momentum,toy-tau-mean", "--out", out, "--workers", "1"])
 print(json.dumps({"loaded": LOADED, "method": est.method, "gain": float(est.bandwidth),
                   "base_gain": float(base.bandwidth), "help": helps, "code": code}))

@@ -17,14 +17,13 @@ from .kinds import NETWORK_KINDS, build_parts
 from .model_file import (METADATA_KEY, TIMING_FORMAT, ModelError, ModelFiles, SavedModel, canonical_json,  # noqa: F401
                          config_digest, partial, read_file_metadata, read_model_config, read_timing,
                          recorded_train_cpu, tensors_digest, timing_doc)  # (re-exported: imported from here before)
-from .model_spellings import read_older_spellings
 from .presets import Preset
 from ..analytic.tare import tared_runs
 from .priors import AnalyticPrior
 
 MODEL_FORMAT = "hybrid_dyn.model"
 # 2: tensor digest in the metadata, wall-clock figures in timing.json; 3: the analytic prior by its
-# canonical estimator name (older spellings are read with a warning, model_spellings.py).
+# canonical estimator name (a file of 1-2 spells it the old way: read as the estimator's alias, with a warning).
 MODEL_FORMAT_VERSION = 3
 # What training writes into a model folder besides the model's files: checkpoints (``checkpoints.py``).
 _OWN_TEMPORARY = re.compile(r"(model\.safetensors|config\.json|timing\.json|checkpoint\.safetensors|checkpoint\.json)"
@@ -324,7 +323,6 @@ def load_model(model_dir, robot=None, device: str = "cpu") -> TrainedModel:
 
     from ..description import available_robots, has_description
 
-    config = read_older_spellings(config, model_dir)  # formats 1-2: older estimator spellings, one warning
     # The analytic part, and the base sensor's tare, need the robot's model.
     if Preset.from_dict(config["preset"]).prior is not None or config.get("sensor_tare_seconds", 0) > 0:
         if not has_description(config["robot"]):
