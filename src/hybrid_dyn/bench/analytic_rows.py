@@ -107,9 +107,9 @@ def refusals_as_nan(forces: np.ndarray) -> np.ndarray:
     ``metrics.answered``): it gives exactly 0 N up to the end of the noise window it trusts, and over the
     whole run when it trusts none, where the estimator itself declines to answer (its status is not ``ok``);
     scored as a zero force, a method that declines read as one that errs. run_batch does not return where it
-    started, so a first answer of exactly 0 N on every axis counts as refused too: the observers'
-    (momentum-observer, base-momentum, kalman-fusion) first output after the window is their initial state,
-    0 N, one sample per run more than the window."""
+    started, so a first answer of exactly 0 N on every axis counts as refused too: a stateful method's
+    (``Method.stateful``) first output after the window is its initial state, 0 N, one sample per run more
+    than the window."""
     forces = np.array(forces, dtype=float)
     started = np.flatnonzero(np.any(forces != 0.0, axis=1))
     forces[: started[0] if len(started) else len(forces)] = np.nan

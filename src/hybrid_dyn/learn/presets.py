@@ -50,9 +50,7 @@ def prior_fingerprint_spelling(name: str) -> str:
 class Preset:
     """A model architecture with its inputs and outputs.
 
-    kind: a network kind of ``learn/kinds.py``: "mlp" (current sample only), "conv" (one
-    Conv1d front layer), "lstm" (stacked LSTM front layers) or "delan" (Lagrangian
-    structure, current sample), or one registered there later.
+    kind: the name of a declared network kind (``NETWORK_KINDS``; each says what it is).
     inputs / targets: dataset field names (see ``hybrid_dyn.data.FIELD_UNITS``).
     window: samples per input window (1 for MLP and DeLaN).
     front_units: units of each conv/LSTM front layer (conv uses the first only).
@@ -60,20 +58,17 @@ class Preset:
     linear output layer. activation: of the FC layers ("relu" or "tanh").
     dropout: probability of dropping an FC hidden unit in training (0: none;
     inference never drops).
-    prior: the analytic part the network corrects (None: a plain network), by the estimator's
-    one name (older spellings, in brackets, are accepted with a warning and mean the same):
-      "rnea"              tau = RNEA(q, qd, qdd)
-      "rnea-bw"           tau = RNEA(q, qd, qdd) - J_v^T F_bw (F_bw: base-wrench method) ("rnea-basewrench")
-      "base-wrench"       F = tip_force_from_base_wrench(q, qd, qdd, base_wrench) ("basewrench")
-      "momentum-observer" F = MomentumObserver(q, qd, tau_J) at dt = 1 / record_hz ("momentum")
-      "base-momentum"     F = base momentum observer(q, qd, tared base_wrench) at dt = 1 / record_hz
+    prior: the analytic part the network corrects (None: a plain network), by its estimator's name: a
+    torque model of ``TORQUE_MODELS`` or a tip-force method of ``TIP_FORCE_METHODS`` declared with
+    ``residual_prior=True`` (an older spelling, a registry alias, is read with a warning); a stateful
+    method runs at dt = 1 / record_hz.
     raw_sensor: read the base wrench untared (a labelled reference row: what the
     sensor's per-run offset costs); by default every preset reads it tared, as
     every analytic row does (``learn/train.py``).
     delan_*: DeLaN's hidden layers for L(q) and V(q); friction: learn a Gaz
     sigmoid friction per joint; residual: add a residual network of the other
     fields (kind of the residual net: residual_kind, with its own window).
-    family: the bench family of its row ("seed-net", "residual", "delan", "learned"; ``bench/learned_rows.py``),
+    family: the bench family of its row (a name in ``bench.families.FAMILIES``; ``bench/learned_rows.py``),
     metadata of a declared preset, not of the model: files and fingerprints leave it out, equality ignores it.
     """
 
