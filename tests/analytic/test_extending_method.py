@@ -147,7 +147,7 @@ def test_the_bench_rows_of_a_new_method_build_and_run(toy, panda, tmp_path):
     # as a residual prior: the method's declaration and one preset declaration
     assert "static-base" in residual_prior_names() and PRIOR_ROWS["static-base"] == "static-base"
     row = ROWS["residual-static-base"]
-    assert row.family == "residual" and row.prior == "static-base" and row.trains
+    assert row.family == "residual" and row.prior_row == "static-base" and row.trains
 
 
 def test_a_new_method_as_a_residual_prior(toy, panda):
