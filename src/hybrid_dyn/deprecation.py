@@ -1,9 +1,8 @@
 """Old names that still work, and say so: one warning class and the helpers that raise it.
 
-Each concept has one name (a generator *size* vs a bench *profile*, distinct training
-recipes, one ``--params`` flag, the estimators' canonical spellings). Every older name keeps
-working as an alias, never silently: it raises a :class:`DeprecatedNameWarning` that names what
-to write instead.
+Only names a file on disk may still hold are kept as aliases (a registry's ``alias``: the estimators'
+spellings in model files of format 1-2, the recipe names in committed run.json files), never silently:
+each raises a :class:`DeprecatedNameWarning` that names what to write instead.
 
 The class derives from ``FutureWarning``, not ``DeprecationWarning``, so that Python shows it by
 default: the old names are typed by users of the CLI and read from their files, and
