@@ -21,7 +21,6 @@ from dataclasses import asdict, dataclass, field, replace
 
 from ..analytic import methods  # noqa: F401  (registers the tip-force methods: their names are read below)
 from ..analytic.method_names import estimator_name, residual_prior_names
-from ..analytic.torque_models import TORQUE_MODELS
 from ..errors import UsageError
 from ..registry import Registry
 from .kinds import NETWORK_KINDS, preset_problems
@@ -30,10 +29,6 @@ STATE = ["q", "qd", "qdd"]
 TIP_INPUTS = ["base_wrench", "q", "qd", "qdd"]
 TIP_INPUTS_TAU = TIP_INPUTS + ["tau_J"]
 
-# The analytic estimators a residual can sit on, by their one name (analytic/method_names.py): the two
-# torque models, and the tip-force methods declared with residual_prior=True (analytic/methods.py).
-TORQUE_PRIORS = tuple(e.name for e in TORQUE_MODELS.where(residual_prior=True))
-PRIORS = (None,) + residual_prior_names()  # at import; residual_prior_names() for a method registered later
 # How training fingerprints (and the keys of the prior caches) spell a prior: the spellings model files
 # wrote until format 3. Frozen data, not names: every trained model and every cached training run is
 # keyed by them, so a run of today finds the models trained before. Files write the estimators' names

@@ -17,26 +17,21 @@ from ..analytic.method_names import estimator_name
 from ..analytic.methods import TIP_FORCE_METHODS
 from ..analytic.tare import tare_samples, tared_base_wrench
 from ..analytic.tip_force import base_wrench_force_core, contact_joint_torques, tip_force_from_base_wrench
-from .presets import TORQUE_PRIORS, prior_fingerprint_spelling
+from ..analytic.torque_models import TORQUE_MODELS
+from .presets import prior_fingerprint_spelling
 
 # The fields each prior reads: the two torque models here, every tip-force method registered as a prior
 # from its one definition (analytic/methods.py; base-momentum reads qdd only for the tare).
 PRIOR_FIELDS = {"rnea": ("q", "qd", "qdd"), "rnea-bw": ("q", "qd", "qdd", "base_wrench")}
-STATEFUL_PRIORS: list = []  # the filters among them (the registry's stateful methods)
-FRICTION_PRIORS = TORQUE_PRIORS  # predict the motor torque: rigid body + friction
 
 
 def _on_register(method) -> None:
     if method.residual_prior:
         PRIOR_FIELDS[method.name] = method.fields
-        if method.stateful:
-            STATEFUL_PRIORS.append(method.name)
 
 
 def _on_unregister(method) -> None:
     PRIOR_FIELDS.pop(method.name, None)
-    if method.name in STATEFUL_PRIORS:
-        STATEFUL_PRIORS.remove(method.name)
 
 
 for _method in TIP_FORCE_METHODS.values():
@@ -62,7 +57,7 @@ class AnalyticPrior:
     def __init__(self, kind: str, robot, record_hz: float | None = None, observer_gain: float = 20.0,
                  tare_seconds: float = 0.0, friction: dict | str | None = "auto"):
         kind = estimator_name(kind, among=PRIOR_FIELDS, what="analytic prior")
-        if kind in STATEFUL_PRIORS and not record_hz:
+        if kind in TIP_FORCE_METHODS and TIP_FORCE_METHODS[kind].stateful and not record_hz:  # a filter's dt
             raise ValueError(f"the {kind} prior needs the dataset's record_hz")
         self.tare_seconds = float(tare_seconds) if "base_wrench" in PRIOR_FIELDS[kind] else 0.0
         if self.tare_seconds > 0 and not record_hz:
@@ -80,9 +75,9 @@ class AnalyticPrior:
         # would let a file rewritten in place serve a stale cache or a mismatched loaded model.
         self.params_sha256 = identified[1] if identified else None
         if isinstance(friction, str) and friction == "auto":
-            friction = identified[0]["friction"] if identified and kind in FRICTION_PRIORS else None
-        if friction is not None and kind not in FRICTION_PRIORS:
-            raise ValueError(f"the {kind} prior takes no joint friction (only {', '.join(FRICTION_PRIORS)} do)")
+            friction = identified[0]["friction"] if identified and kind in TORQUE_MODELS else None
+        if friction is not None and kind not in TORQUE_MODELS:  # a torque model: rigid body + friction
+            raise ValueError(f"the {kind} prior takes no joint friction (only {', '.join(TORQUE_MODELS)} do)")
         if friction is not None and not isinstance(friction, dict):
             raise ValueError(f"friction must be a parameter file's friction section (dict), 'auto' or None, "
                              f"got {friction!r}")
@@ -90,7 +85,7 @@ class AnalyticPrior:
         self._friction = friction_from_dict(friction, f"the {kind} prior's friction") if friction else None
         # The identified file's declared springs (Baxter's shoulder), joint-local like its friction.
         self.springs = springs_from_dict(identified[0], robot.joint_names, str(robot.params_name)) \
-            if identified and kind in FRICTION_PRIORS else {}
+            if identified and kind in TORQUE_MODELS else {}
 
     def describe(self) -> dict:
         """What identifies this prior's values (the model config; the cache key hashes it with the kind's
@@ -157,7 +152,7 @@ class AnalyticPrior:
         overhead); it computes exactly what :meth:`compute` does (tested).
         A tared prior expects ``sample["base_wrench"]`` already tared.
         """
-        if self.kind in STATEFUL_PRIORS:
+        if self.kind in TIP_FORCE_METHODS and TIP_FORCE_METHODS[self.kind].stateful:
             raise ValueError(f"the {self.kind} prior is a filter with state: pass its current estimate "
                              "(the observer's step_force) as `prior`")
         if self._single is None:
