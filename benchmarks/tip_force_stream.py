@@ -38,7 +38,7 @@ import numpy as np
 
 import hybrid_dyn as hd
 from hybrid_dyn.estimator import TipForceEstimator
-from hybrid_dyn.sim.scenarios import ContactStepConfig
+from hybrid_dyn.sim.generator_config import ContactStepConfig
 from hybrid_dyn.sim.sensors import ClockModel, EncoderModel, ForceTorqueModel, HardwareSensors
 from hybrid_dyn.sim.stream import StreamConfig, Touch, simulate_stream
 

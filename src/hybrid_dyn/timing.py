@@ -14,7 +14,7 @@ Each figure is one of four measurements, and each is taken here, the same way ev
 :class:`Stopwatch` is the wall clock (and the CPU time of this process and its finished children) of
 one block of work, such as generating a dataset.
 
-Callers: the bench's per-row single call (``bench/runner.py``), the streaming runtime's choice
+Callers: the bench's per-row single call (``bench/scoring.py``), the streaming runtime's choice
 (``learn/stream_predictor.py``), the training throughput (``learn/speed.py``) and ``benchmarks/*.py``.
 """
 from __future__ import annotations

@@ -1,15 +1,18 @@
-"""Issue 27: the bandwidth chosen from the data (analytic/bandwidth.py), on synthetic streams of known noise.
+"""The bandwidth chosen from the data (analytic/bandwidth.py), on synthetic streams of known noise.
 
 - the window measures the noise it was given;
-- the rule widens the band when a noise drops and narrows it when it grows (monotone, every method);
-- on a contact-free stream the estimate's noise is the noise the rule predicted for its choice.
+- the rule widens the band when a noise drops and narrows it when it grows (monotone, every registered method:
+  the filters' band, the qdd methods' cutoff);
+- on a contact-free stream an observer's estimate noise is the noise the rule predicted for its choice.
 """
 import numpy as np
 import pytest
 from scipy.signal import lfilter
 
 from hybrid_dyn.analytic.bandwidth import CONTACT_STEP, contact_rate, lag_variance, measure_window, observer_gain
+from hybrid_dyn.analytic.kalman_method import KalmanFusionMethod
 from hybrid_dyn.analytic.methods import TIP_FORCE_METHODS
+from hybrid_dyn.analytic.observer_methods import ObserverMethod
 from hybrid_dyn.estimator import TipForceEstimator
 
 HZ = 1000.0
@@ -45,27 +48,34 @@ def bandwidth(robot, method, s_qd, s_force, s_tau):
     t, q, qd, w, tau = quiet_stream(robot, 500, s_qd, s_force, s_tau, seed=1)
     stream = TIP_FORCE_METHODS[method].make(robot, HZ)
     noise = measure_window(q, qd, w, tau)
-    if method == "kalman-fusion":
+    if isinstance(stream, KalmanFusionMethod):
         stream.close_window(noise, None)
         return -np.log(1.0 - stream.kalman.gains[("base", "joint")]) * HZ
     return stream.choose(noise)
 
 
-@pytest.mark.parametrize("method", ["momentum-observer", "base-momentum", "kalman-fusion"])
+FILTERS = [m.name for m in TIP_FORCE_METHODS.where(needs_qdd=False)]  # filters with state: a band to narrow
+QDD_METHODS = [m.name for m in TIP_FORCE_METHODS.where(needs_qdd=True)]  # per sample: the qdd filter's cutoff
+# The observers' rule states the noise it predicts for the gain it picks.
+OBSERVERS = [m.name for m in TIP_FORCE_METHODS.values() if isinstance(m.make, type) and issubclass(m.make, ObserverMethod)]
+
+
+@pytest.mark.parametrize("method", FILTERS)
 def test_the_band_narrows_as_any_noise_grows(method, panda):
     """Each noise in turn, the others fixed: a monotone answer, and a change across the range."""
     # Quiet encoders while a force sensor's noise moves (else the velocity noise decides the band).
     base = dict(s_qd=2e-5, s_force=0.1, s_tau=0.03)
     for name, levels in (("s_qd", (2e-5, 1e-4, 3e-4, 1e-3, 3e-3)), ("s_force", (0.02, 0.05, 0.1, 0.3, 1.0)),
                          ("s_tau", (0.005, 0.02, 0.05, 0.2, 0.5))):
-        if name == "s_force" and method == "momentum-observer" or name == "s_tau" and method == "base-momentum":
+        reads = TIP_FORCE_METHODS[method].reads
+        if name == "s_force" and "base_wrench" not in reads or name == "s_tau" and "tau_J" not in reads:
             continue  # a sensor the method does not read
         bands = [bandwidth(panda, method, **dict(base, **{name: v})) for v in levels]
         assert all(a >= b for a, b in zip(bands, bands[1:])), (method, name, bands)
         assert bands[0] > 1.5 * bands[-1], (method, name, bands)
 
 
-@pytest.mark.parametrize("method", ["base-wrench", "torques-pinv"])
+@pytest.mark.parametrize("method", QDD_METHODS)
 def test_the_qdd_cutoff_narrows_as_the_velocity_noise_grows(method, panda):
     """The qdd methods pass the contact unfiltered; their cutoff follows the qd noise against the sensor's."""
     bands = [bandwidth(panda, method, s_qd, 0.2, 0.05) for s_qd in (2e-5, 1e-4, 5e-4, 2e-3)]
@@ -94,7 +104,7 @@ def test_the_rule_is_the_minimum_of_noise_and_lag():
     assert contact_rate(1e-3) == pytest.approx(CONTACT_STEP / np.sqrt(1e-3))
 
 
-@pytest.mark.parametrize("method", ["base-momentum", "momentum-observer"])
+@pytest.mark.parametrize("method", OBSERVERS)
 @pytest.mark.parametrize("levels", [(1e-4, 0.05, 0.02), (5e-4, 0.2, 0.05)], ids=["quiet", "generator"])
 def test_contact_free_estimate_noise_is_what_the_rule_predicts(method, levels, panda):
     """The estimator with its defaults on a contact-free stream (the arm at rest): the estimate's noise per

@@ -1,4 +1,4 @@
-"""A new estimator method, with a new bandwidth parameter, is one module (issue 42; docs/extending.md).
+"""A new estimator method, with a new bandwidth parameter, is one module (docs/extending.md).
 
 The toy below is declared in one place (the ``toy`` fixture: its bandwidth parameter, the method, and a
 residual net on it) and then found, unchanged, by every consumer: ``TipForceEstimator.analytic`` (its
@@ -117,7 +117,7 @@ def test_the_estimator_honours_a_new_bandwidth_parameter(toy, panda):
 
 def _bench_ctx(panda, tmp_path):
     from hybrid_dyn.bench.profiles import BenchProfile
-    from hybrid_dyn.bench.runner import BenchContext
+    from hybrid_dyn.bench.plan import BenchContext
     from hybrid_dyn.data import load_dataset
     from hybrid_dyn.data.synthetic import make_synthetic_dataset
 
@@ -193,11 +193,8 @@ def test_a_method_may_not_take_a_torque_models_name():
         assert name not in TIP_FORCE_METHODS
 
 
-def test_the_old_prior_field_of_a_method_still_works_with_a_warning():
-    from hybrid_dyn.deprecation import DeprecatedNameWarning
-
-    with pytest.warns(DeprecatedNameWarning, match="Method field 'prior' is deprecated: use 'residual_prior'"):
-        method = Method("toy", "a toy", ("base_wrench",), False, False, True, "momentum_gain", StaticBase, prior=True)
-    assert method.residual_prior
-    with pytest.warns(DeprecatedNameWarning):
-        assert method.prior
+def test_a_method_has_no_prior_field():
+    """``residual_prior`` is the one name (``prior`` names a residual model's analytic part); no release
+    shipped the old field, so it is refused like any unknown one."""
+    with pytest.raises(TypeError, match="prior"):
+        Method("toy", "a toy", ("base_wrench",), False, False, True, "momentum_gain", StaticBase, prior=True)

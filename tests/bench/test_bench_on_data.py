@@ -257,7 +257,7 @@ def test_the_heartbeat_records_the_time_of_a_long_step_while_it_runs(tmp_path):
     bench killed by a signal no handler sees (the OOM killer) loses at most one period."""
     import time
 
-    from hybrid_dyn.bench.invocations import InvocationClock
+    from hybrid_dyn.bench.run_record import InvocationClock
 
     (tmp_path / "run.json").write_text(json.dumps({"bench_report": 1, "invocations": [], "profile": {"name": "t"}}))
     clock = InvocationClock([], period=0.05)

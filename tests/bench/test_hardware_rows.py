@@ -14,7 +14,8 @@ from hybrid_dyn.bench.analytic_rows import refusals_as_nan
 from hybrid_dyn.bench.catalog import ROWS
 from hybrid_dyn.bench.profiles import PROFILES, BenchProfile
 from hybrid_dyn.bench.results import read_results, results_columns, write_results
-from hybrid_dyn.bench.runner import BenchContext, score_row, train_split_stats
+from hybrid_dyn.bench.plan import BenchContext
+from hybrid_dyn.bench.scoring import score_row, train_split_stats
 from hybrid_dyn.data import load_dataset
 from hybrid_dyn.sim.executors import SerialExecutor
 from hybrid_dyn.sim.generator import generate_dataset

@@ -19,7 +19,8 @@ TINY_TRAINING = dict(max_epochs=1, max_batches_per_epoch=1, batch_size=64, progr
 def test_bench_identifies_an_imported_log_on_train_and_val_and_scores_on_test(panda, identified_log, tmp_path):
     from hybrid_dyn.bench.catalog import select_rows
     from hybrid_dyn.bench.profiles import BenchProfile
-    from hybrid_dyn.bench.runner import BenchContext, score_row, train_split_stats
+    from hybrid_dyn.bench.plan import BenchContext
+    from hybrid_dyn.bench.scoring import score_row, train_split_stats
 
     ds, model, _ = identified_log
     profile = BenchProfile(name="t", scenarios=("log",), recipe="plateau", train=TINY_TRAINING, workers=1)
@@ -51,7 +52,7 @@ def test_bench_identifies_an_imported_log_on_train_and_val_and_scores_on_test(pa
 def test_identified_file_names_of_a_robot_variant_hold_no_brackets(tmp_path):
     from hybrid_dyn.bench.identified_rows import _identified
     from hybrid_dyn.bench.profiles import BenchProfile
-    from hybrid_dyn.bench.runner import BenchContext
+    from hybrid_dyn.bench.plan import BenchContext
 
     bare = hd.load_robot("panda[tool=none]")
     ds = load_dataset(make_synthetic_dataset(tmp_path / "d", bare, n_instances=3, n_samples=150, tip_forces=False))

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from hybrid_dyn.bench.metrics import ErrorReport, nmse, rmse, rmse_per_component, standardized_mse
-from hybrid_dyn.bench.runner import COLUMNS, read_results, write_results
+from hybrid_dyn.bench.results import COLUMNS, read_results, write_results
 
 
 def test_rmse_hand_computed():

@@ -8,7 +8,7 @@ import pytest
 from hybrid_dyn.bench.report import CAP_MARK, write_report
 from hybrid_dyn.bench.catalog import ROWS, reference_label
 from hybrid_dyn.bench.learned_rows import training_summary
-from hybrid_dyn.bench.runner import COLUMNS, CURVES_FILE, read_curves, read_results, write_curves, write_results
+from hybrid_dyn.bench.results import COLUMNS, CURVES_FILE, read_curves, read_results, write_curves, write_results
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 

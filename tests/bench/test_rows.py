@@ -110,7 +110,7 @@ def test_every_preset_is_a_bench_row_that_runs_where_its_fields_are():
 
 
 def test_the_timed_single_call_sees_the_run_in_order_from_its_start():
-    from hybrid_dyn.bench.runner import _median_call_us
+    from hybrid_dyn.bench.scoring import _median_call_us
 
     seen = []
     inst = np.zeros((30, 1))
@@ -140,13 +140,13 @@ def test_pretrain_queues_the_dearest_architectures_first(monkeypatch):
     """The bench's training queue starts the DeLaN and wide LSTM rows before the MLPs, whatever order
     the rows come in, so that no core idles at the end while the other trains a DeLaN queued last.
     Observed in the order the queue hands the models to training (given here in declaration order)."""
-    from hybrid_dyn.bench import runner
+    from hybrid_dyn.bench import training_queue
     from hybrid_dyn.learn.presets import PRESETS
 
     started = []
-    monkeypatch.setattr(runner, "_train_job", lambda job: (started.append(job[2]), (job[2], None))[1])
+    monkeypatch.setattr(training_queue, "_train_job", lambda job: (started.append(job[2]), (job[2], None))[1])
     jobs = [("data", "panda", name, f"models/{name}", None, 1) for name in PRESETS]
-    runner.pretrain(jobs, workers=1, log=lambda m: None)
+    training_queue.pretrain(jobs, workers=1, log=lambda m: None)
     order = started
     assert sorted(order) == sorted(PRESETS)  # every model trained once
     assert order[0] == "delan-residual"

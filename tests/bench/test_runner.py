@@ -1,8 +1,8 @@
-"""hybrid_dyn.bench.runner: what run.json records of where the data were."""
+"""hybrid_dyn.bench.run_record: what run.json records of where the data were."""
 import os
 from pathlib import Path
 
-from hybrid_dyn.bench.runner import recorded_path
+from hybrid_dyn.bench.run_record import recorded_path
 
 
 def test_a_dataset_path_is_recorded_relative_to_the_working_directory(tmp_path, monkeypatch):

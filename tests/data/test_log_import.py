@@ -1,4 +1,4 @@
-"""Real-robot log import (issue 8): formats, derivative estimation, row-by-row validation, shipped logs.
+"""Real-robot log import: formats, derivative estimation, row-by-row validation, shipped logs.
 
 References are independent of the importer: analytic derivatives of sines, the
 raw .mat matrices read with scipy, and the clean log imported without defects.
@@ -261,7 +261,7 @@ def test_strict_mode_and_existing_output_are_safe(tmp_path, clean):
 
 
 def test_a_dead_torque_channel_is_a_warning_naming_the_joint_and_strict_refuses_it(tmp_path):
-    """Issue 39, finding 7: joint 4's torque 0 throughout imported without a word. Now each channel that carries
+    """Joint 4's torque 0 throughout once imported without a word. Now each channel that carries
     nothing is a warning naming its joint: constant (0 Nm), or far below its joint's scale (only ADC noise,
     1e-5 Nm against the other joints' 5 Nm sines: five decades, past the 1e-3 threshold); the warning reaches the
     manifest (where the bench reads it); ``strict`` refuses the log. The clean log gives none."""

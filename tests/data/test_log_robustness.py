@@ -1,4 +1,4 @@
-"""Odd logs a user may bring (issue 28, findings 6 and 7): a truncated MATLAB v7.3 file, a Parquet file
+"""Odd logs a user may bring: a truncated MATLAB v7.3 file, a Parquet file
 with a null list cell or a text column, degrees declared on a radian log. Each ends in a dataset that
 holds the good rows, or in one line naming the problem; never a traceback."""
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Splits of an imported log (issue 29): at random, in time order, or as the spec lists them.
+"""Splits of an imported log: at random, in time order, or as the spec lists them.
 
 The time-order property is checked on the written dataset's own sample times (each
 instance's ``t`` and its source file), not on the split function's output.

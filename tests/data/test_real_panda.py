@@ -48,7 +48,7 @@ def test_real_panda_imports_a_log_with_the_real_files_columns(tmp_path, monkeypa
     insts = sorted(ds.instances.values(), key=lambda i: i.t[0])
     assert [len(i) for i in insts] == [120] * 10
     assert [len(ds.split(s)) for s in ("train", "val", "test")] == [6, 2, 2]
-    # In time order (issue 29): the first 720 rows train, the next 240 validate, the last 240 test.
+    # In time order: the first 720 rows train, the next 240 validate, the last 240 test.
     span = {s: (min(i.t[0] for i in ds.split(s)), max(i.t[-1] for i in ds.split(s))) for s in ("train", "val", "test")}
     assert span["train"] == (truth["t"][0], truth["t"][719]) and span["val"] == (truth["t"][720], truth["t"][959])
     assert span["test"] == (truth["t"][960], truth["t"][-1])

@@ -1,4 +1,4 @@
-"""ROS bags in (issue 41): ``hybrid-dyn import`` of ROS 2 (MCAP, sqlite3) and ROS 1 bags named by a
+"""ROS bags in: ``hybrid-dyn import`` of ROS 2 (MCAP, sqlite3) and ROS 1 bags named by a
 ``[ros]`` table, through the same checks as a CSV log.
 
 References: the signals the bags were written from (``helpers/ros_bags.py``: a Panda motion, its
@@ -223,7 +223,7 @@ ODD = [None, True, 0, 1.5, float("nan"), "", "abc", "/ft_base", [], ["panda_join
 
 
 def test_any_value_in_any_ros_key_ends_in_a_dataset_or_one_error(sig, tmp_path):
-    """A small fuzz of the [ros] table (as issue 28's of the spec): never a traceback, never a partial output."""
+    """A small fuzz of the [ros] table (as the spec's own fuzz): never a traceback, never a partial output."""
     import tomllib
 
     from hybrid_dyn.data.logs.importer import spec_from_dict

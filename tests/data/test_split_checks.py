@@ -1,4 +1,4 @@
-"""Split settings of an import spec (issue 28, finding 4): refused in one line before the log is read,
+"""Split settings of an import spec: refused in one line before the log is read,
 and fractions that would leave a split empty refused by import and bench alike, nothing written."""
 from __future__ import annotations
 

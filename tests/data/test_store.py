@@ -1,4 +1,4 @@
-"""Datasets in fsspec stores (issue 9): generation into a file:// URL from worker processes and into
+"""Datasets in fsspec stores: generation into a file:// URL from worker processes and into
 memory://, resumed after a corrupt instance, and fetched to a local folder for training."""
 import fsspec
 import pytest
@@ -7,7 +7,8 @@ from hybrid_dyn.data import DatasetError, load_dataset
 from hybrid_dyn.data.store import fetch_dataset
 from hybrid_dyn.sim.executors import ProcessExecutor, SerialExecutor
 from hybrid_dyn.sim.generator import generate_dataset
-from hybrid_dyn.sim.scenarios import PulseConfig, scenario_config
+from hybrid_dyn.sim.generator_config import PulseConfig
+from hybrid_dyn.sim.scenarios import scenario_config
 
 from helpers.files import dir_bytes
 from helpers.messages import says

@@ -1,4 +1,4 @@
-"""Input checks of robot descriptions before any output exists (issue 28): URDF structure, parameter files
+"""Input checks of robot descriptions before any output exists: URDF structure, parameter files
 (split settings: data/test_split_checks.py; the bench's arguments: bench/test_bench_refusals.py).
 
 Each case is one the issue found breaking: a hang, a traceback or a silently wrong dataset. The

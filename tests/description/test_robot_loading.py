@@ -146,3 +146,19 @@ def test_the_parallel_rnea_leaves_torchs_thread_count_as_it_found_it():
         torch.set_num_threads(before)
     ref = np.stack([pin.rnea(robot.model, robot.data, q[i], qd[i], qdd[i]) for i in range(len(q))])
     np.testing.assert_allclose(tau, ref, rtol=0, atol=1e-9)
+
+
+def test_auto_encoder_resolution_is_the_descriptions_number():
+    """"auto" is what the robot's TOML states (read here from the file's text), a number is itself, on every
+    shipped description that states one."""
+    import tomllib
+
+    from hybrid_dyn.description import load_spec, resolve_encoder_resolution, robots_dir
+
+    stated = {p.stem: tomllib.loads(p.read_text())["encoder_resolution"] for p in sorted(robots_dir().glob("*.toml"))
+              if "encoder_resolution" in tomllib.loads(p.read_text())}
+    assert stated["panda"] == 1e-5 and len(stated) >= 2
+    for name, value in stated.items():
+        spec = load_spec(name)
+        assert resolve_encoder_resolution("auto", spec) == value
+        assert resolve_encoder_resolution(0.0, spec) == 0.0 and resolve_encoder_resolution(3e-4, spec) == 3e-4

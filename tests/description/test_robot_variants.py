@@ -1,4 +1,4 @@
-"""Robot variants (a tool taken off or mounted, a payload) and robot names (issue 15, item 4).
+"""Robot variants (a tool taken off or mounted, a payload) and robot names.
 
 References are independent of build_urdf: URDF XML edited here by hand and built
 straight with Pinocchio, masses summed from the XML, a pendulum's gravity torque.

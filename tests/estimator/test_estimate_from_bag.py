@@ -1,4 +1,4 @@
-"""``hybrid-dyn estimate`` (issue 41): a recorded ROS 2 bag replayed through the streaming estimator, the
+"""``hybrid-dyn estimate``: a recorded ROS 2 bag replayed through the streaming estimator, the
 tip force written to an MCAP bag (or a CSV) at the input's stamps.
 
 The reference: the tip force the bag was built with (``helpers/ros_bags.py``: the base wrench is the

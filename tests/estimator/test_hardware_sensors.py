@@ -1,4 +1,4 @@
-"""The estimator on sensors as hardware has them (issue 38): quantized encoders, a touch during start-up,
+"""The estimator on sensors as hardware has them: quantized encoders, a touch during start-up,
 stamp jitter, a drifting base sensor, a tool's load, and the error bar on every call.
 
 References are independent of the code under test: the textbook Riccati recursion iterated by hand, a

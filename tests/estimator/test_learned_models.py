@@ -97,7 +97,7 @@ def test_out_of_range_is_flagged(trained):
 
 def test_slower_calls_than_training_are_refused(trained):
     """Called at 50 Hz, a model trained at 100 Hz would see windows twice as long as in training
-    (issue 17: it was accepted with stride 1); 150 Hz is no integer multiple either."""
+    (it was once accepted with stride 1); 150 Hz is no integer multiple either."""
     _, dirs = trained
     for hz in (0.5 * RATE, 1.5 * RATE):
         with pytest.raises(ModelError, match="training rate 100 Hz or an integer multiple"):
@@ -129,7 +129,8 @@ def test_a_stream_at_the_models_rate_runs_its_training_qdd_or_is_refused_naming_
     unless the user picks a cutoff."""
     from hybrid_dyn.analytic.acceleration import default_qdd_cutoff
     from hybrid_dyn.sim.generator import generate_dataset
-    from hybrid_dyn.sim.scenarios import PulseConfig, scenario_config
+    from hybrid_dyn.sim.generator_config import PulseConfig
+    from hybrid_dyn.sim.scenarios import scenario_config
 
     cfg = scenario_config("seed-sim", "quick", n_instances=3, trajectories=(1, 1), standstill=0.3,
                           speed_scale=(0.5, 0.6), seed=2, pulses=PulseConfig(gap=(0.5, 1.0), sigma=(0.2, 0.4)),

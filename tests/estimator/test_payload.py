@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import hybrid_dyn as hd
+from hybrid_dyn.analytic.methods import TIP_FORCE_METHODS
 from hybrid_dyn.errors import UsageError
 from hybrid_dyn.estimator import EstimatorStatus, TipForceEstimator
 from hybrid_dyn.sim.sensors import read_sensors
@@ -93,8 +94,7 @@ def _run(robot, method, r, declare_at=None):
     return e, status
 
 
-@pytest.mark.parametrize("method", ["base-wrench", "torques-pinv", "base-momentum", "momentum-observer",
-                                    "kalman-fusion"])
+@pytest.mark.parametrize("method", list(TIP_FORCE_METHODS))
 def test_a_load_declared_when_it_is_picked_up_errs_as_little_as_none_and_restarts_nothing(panda, method):
     bare, picked, after = _streams(panda)
     e0, s0 = _run(panda, method, bare)

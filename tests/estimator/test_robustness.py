@@ -1,22 +1,21 @@
-"""Issue 17: the streaming estimator never says "ok" to garbage.
+"""The streaming estimator never says "ok" to garbage.
 
 The floor test feeds 10,000 calls that mix good samples with bad ones (NaN, inf, huge values, wrong
 types and shapes, q past its limits, qd past the velocity limits, time going back or missing, a wrong
-rate) to the five analytic methods, in both modes. No call may return "ok" with a force beyond the
+rate) to every registered analytic method, in both modes. No call may return "ok" with a force beyond the
 bound, every bad sample must be rejected, and every good call must give exactly what the run without
 the bad samples gives. The other tests reproduce the issue's cases one by one.
 """
 import numpy as np
 import pytest
 
+from hybrid_dyn.analytic.methods import TIP_FORCE_METHODS
 from hybrid_dyn.estimator import EstimatorInputError, EstimatorStatus, TipForceEstimator
 
 from helpers.motion import CONTACT_AT, HZ, contact_stream, sine_motion
 
 BOUND = 500.0  # EstimatorConfig.max_tip_force's default [N]
-NEEDS = {"base-wrench": ("q", "qd", "base_wrench"), "torques-pinv": ("q", "qd", "tau_J"),
-         "momentum-observer": ("q", "qd", "tau_J"), "base-momentum": ("q", "qd", "base_wrench"),
-         "kalman-fusion": ("q", "qd", "base_wrench", "tau_J")}
+NEEDS = {m.name: ("q", "qd") + m.reads for m in TIP_FORCE_METHODS.values()}  # every registered method
 
 
 def stream(robot, n, hz=HZ, seed=0):
@@ -137,7 +136,7 @@ def test_floor_no_ok_garbage_and_rejected_samples_leave_no_trace(panda):
         def make(mode):
             return TipForceEstimator.analytic(panda, method, call_hz=HZ, on_bad_input=mode, encoder_resolution=0.0)
         n, clean_status = check_floor(make, panda, NEEDS[method], good, rng, 1.0 / HZ,
-                                      optional=("base_wrench", "tau_J") if method == "kalman-fusion" else ())
+                                      optional=TIP_FORCE_METHODS[method].reads if TIP_FORCE_METHODS[method].any_of else ())
         calls += n
         if method == "base-wrench":  # the loads above are base-wrench inputs
             assert [clean_status[k] for k in (700, 701, 1100)] == [EstimatorStatus.FORCE_OUT_OF_RANGE] * 3
@@ -264,7 +263,7 @@ def test_any_numeric_layout_gives_what_float64_arrays_give(panda):
                 assert other.last_status is plain.last_status
 
 
-# ------------------------------------------------- issue 27: statuses that tell the truth
+# ------------------------------------------------- statuses that tell the truth
 OK_TOLERANCE = 1.0  # N: no "ok" call may err more, once a contact has lasted the method's settling time (the
 # issue's check is 2 N; the worst seen here is 0.65 N, the noise the rule allows on these streams)
 OK_RMS = 0.3  # N: nor may the "ok" calls' RMS error (0.22 N at most here)
@@ -315,12 +314,10 @@ def pattern_run(robot, method, pattern, rng):
     return statuses, np.array(errors), settle_calls(est), np.array(since)
 
 
-PATTERNS = {"base-wrench": ("untimed", "gap", "untimed-half-rate"),
-            "torques-pinv": ("untimed", "gap", "untimed-half-rate"),
-            "momentum-observer": ("untimed", "gap", "untimed-half-rate"),
-            "base-momentum": ("untimed", "gap", "untimed-half-rate"),
-            "kalman-fusion": ("untimed", "gap", "untimed-half-rate", "alternating", "alternating-after-window",
-                              "late-base")}
+# Every registered method; one whose call may bring either sensor (any_of) meets the alternating ones too.
+PATTERNS = {m.name: ("untimed", "gap", "untimed-half-rate")
+            + (("alternating", "alternating-after-window", "late-base") if m.any_of else ())
+            for m in TIP_FORCE_METHODS.values()}
 
 
 @pytest.mark.parametrize("method", list(PATTERNS))

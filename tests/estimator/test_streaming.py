@@ -1,4 +1,4 @@
-"""The streaming estimator (issue 6): streaming == batch, bad input, warm-up, threads."""
+"""The streaming estimator: streaming == batch, bad input, warm-up, threads."""
 import dataclasses
 import threading
 
@@ -96,7 +96,7 @@ BAD_CASES = [
     ("wrong number of joints", dict(q=np.zeros(6)), r"q must have shape \(7,\)"),
     ("missing wrench", dict(base_wrench=None), "needs base_wrench"),
     ("time going backwards", dict(t=0.0), "time must increase"),
-    # issue 17: garbage that used to pass, or to raise a foreign error even in hold mode
+    # garbage that used to pass, or to raise a foreign error even in hold mode
     ("absurd velocity", dict(qd=np.full(7, 1e12)), r"qd\[0\] = 1e\+12 rad/s is outside"),
     ("velocity 1e150", dict(qd=np.full(7, 1e150)), r"qd\[0\] = 1e\+150 rad/s is outside"),
     ("q 10 rad past a limit", dict(q=np.array([12.9, 0, 0, -1.5, 0, 1.5, 0])), r"q\[0\] = 12\.9 rad is outside"),

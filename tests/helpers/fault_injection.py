@@ -77,10 +77,11 @@ RUN_TIMEOUT_S = 300.0  # a run that takes longer hangs (a reference takes 10-20 
 def generate_cli(argv: list[str]) -> int:
     """`hybrid-dyn generate` with the quick profile shrunk to GENERATOR_SIZES (run in the child process)."""
     import hybrid_dyn.sim.scenarios as scenarios
+    from hybrid_dyn.sim.generator_config import PulseConfig
     from hybrid_dyn.cli import main
 
     sizes = dict(GENERATOR_SIZES)
-    pulses = scenarios.PulseConfig(gap=sizes.pop("pulse_gap"), sigma=sizes.pop("pulse_sigma"))
+    pulses = PulseConfig(gap=sizes.pop("pulse_gap"), sigma=sizes.pop("pulse_sigma"))
     full_size = scenarios.scenario_config
 
     def tiny(name, size="quick", seed=0, **overrides):

@@ -1,7 +1,8 @@
 """The overrides that read a scenario by the legacy sensor model it had before the hardware sensors became
 every simulated scenario's (white noise on q and qd, a constant bias): the configs whose hashes name the
 datasets cached until then, which a new field must leave as they were."""
-from hybrid_dyn.sim.scenarios import QUIET_BASE_NOISE, NoiseConfig
+from hybrid_dyn.sim.generator_config import NoiseConfig
+from hybrid_dyn.sim.scenarios import QUIET_BASE_NOISE
 
 LEGACY = {"paper-noext", "paper-ext", "mismatch-ext", "contact-steps", "contact-steps-quiet"}
 

@@ -1,4 +1,4 @@
-"""Identification (issue 7): regressor, base parameters, estimators, files, excitation.
+"""Identification: regressor, base parameters, estimators, files, excitation.
 
 References are independent of the code under test: DART's inverse dynamics for
 the data, Pinocchio's Inertia class and numpy eigenvalues for the parameter
@@ -193,7 +193,7 @@ def test_consistent_is_physically_valid_where_ols_may_not_be(panda, noisy_mismat
 
 def test_a_dead_torque_channel_gives_bodies_outside_the_robots_bounds_and_identify_names_them(
         panda, mismatch_plant, noisy_mismatch_data):
-    """Issue 39, finding 7: with joint 4's torque 0 throughout, OLS returned bodies of negative mass with a centre
+    """With joint 4's torque 0 throughout, OLS returned bodies of negative mass with a centre
     of mass metres away and nothing said so. The bounds (``plausibility.PlausibilityBounds``) hold the truth: the
     simulated plant's own bodies (Franka's official inertials + a 0.5 kg tool, a set the nominal URDF differs
     from by 4x on link 2) are within them, and so are the fits of its clean data; the fits of the dead channel
@@ -217,7 +217,7 @@ def test_a_dead_torque_channel_gives_bodies_outside_the_robots_bounds_and_identi
 
 
 def test_a_joint_that_never_moves_is_a_warning_with_its_range_and_the_condition_number(panda, tmp_path, capsys):
-    """Issue 39, finding 8: ``identify`` printed a condition number of 3e19 and no warning. Now a joint whose
+    """``identify`` once printed a condition number of 3e19 and no warning. Now a joint whose
     range of motion is under 5 degrees, and a condition number above 1e8, are warnings naming the joint; the
     same motion with every joint moving gives none."""
     from hybrid_dyn.cli import main

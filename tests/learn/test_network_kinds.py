@@ -7,7 +7,7 @@ import pytest
 import torch
 from torch import nn
 
-from hybrid_dyn.bench.runner import epoch_cost_rank
+from hybrid_dyn.bench.training_queue import epoch_cost_rank
 from hybrid_dyn.data import load_dataset
 from hybrid_dyn.data.synthetic import make_synthetic_dataset
 from hybrid_dyn.data.windows import concat_fields

@@ -7,7 +7,8 @@ from hybrid_dyn.bench.plan import BenchPlan
 from hybrid_dyn.data import load_dataset
 from hybrid_dyn.sim.generator import generate_dataset
 from hybrid_dyn.sim.pulses import ContactSteps, sample_contact_steps
-from hybrid_dyn.sim.scenarios import ContactStepConfig, GeneratorConfig, scenario_config
+from hybrid_dyn.sim.generator_config import ContactStepConfig, GeneratorConfig
+from hybrid_dyn.sim.scenarios import scenario_config
 from helpers.legacy_sensors import legacy
 
 

@@ -1,4 +1,4 @@
-"""Generation's executors (issues 9 and 17): Ray gives the local files byte for byte, the executor choice
+"""Generation's executors: Ray gives the local files byte for byte, the executor choice
 is checked, and a killed `generate` leaves no worker alive."""
 import contextlib
 import os
@@ -40,7 +40,7 @@ def test_executor_choice_errors():
     assert isinstance(make_executor(2, "ray"), RayExecutor)
 
 
-# -------------------------------------------------------- worker processes (issue 17)
+# -------------------------------------------------------- worker processes
 def _session_processes(sid: int) -> dict:
     """pid -> command line of the live (not zombie) processes of session ``sid``, its leader excluded.
 

@@ -13,7 +13,8 @@ import pytest
 from hybrid_dyn.data import DatasetError, load_dataset
 from hybrid_dyn.sim.executors import SerialExecutor
 from hybrid_dyn.sim.generator import generate_dataset
-from hybrid_dyn.sim.scenarios import GeneratorConfig, PulseConfig, scenario_config
+from hybrid_dyn.sim.generator_config import GeneratorConfig, PulseConfig
+from hybrid_dyn.sim.scenarios import scenario_config
 
 from helpers import REPO
 from helpers.files import dir_bytes

@@ -13,7 +13,8 @@ from hybrid_dyn.analytic.robot import InputError
 from hybrid_dyn.sim.collision import collision_checker
 from hybrid_dyn.sim.generator import Simulator, simulate_instance, simulate_reference
 from hybrid_dyn.sim.pulses import sample_pulses
-from hybrid_dyn.sim.scenarios import ConfigError, GeneratorConfig, NoiseConfig, PulseConfig, noise_free, scenario_config
+from hybrid_dyn.sim.generator_config import ConfigError, GeneratorConfig, NoiseConfig, PulseConfig
+from hybrid_dyn.sim.scenarios import noise_free, scenario_config
 from hybrid_dyn.sim.sensors import causal_acceleration
 from hybrid_dyn.sim.trajectories import motion_valid, random_reference, rrt_connect, time_segment
 

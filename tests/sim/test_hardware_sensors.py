@@ -1,4 +1,4 @@
-"""Issue 38: sensors as hardware has them (``sim/sensors.py``), the stream simulator on them
+"""Sensors as hardware has them (``sim/sensors.py``), the stream simulator on them
 (``sim/stream.py``) and the ``contact-steps-hardware`` scenario, each against a truth computed here."""
 import json
 
@@ -9,12 +9,13 @@ import pytest
 import scipy.stats
 
 from hybrid_dyn.data import load_dataset
+from hybrid_dyn.description import resolve_encoder_resolution
 from hybrid_dyn.sim.executors import SerialExecutor
 from hybrid_dyn.sim.generator import generate_dataset
-from hybrid_dyn.sim.scenarios import (
-    SCENARIOS, SIZES, ConfigError, GeneratorConfig, NoiseConfig, StartTouchConfig, noise_free, scenario_config)
+from hybrid_dyn.sim.generator_config import SIZES, ConfigError, GeneratorConfig, NoiseConfig, StartTouchConfig
+from hybrid_dyn.sim.scenarios import SCENARIOS, noise_free, scenario_config
 from hybrid_dyn.sim.sensors import (
-    ClockModel, EncoderModel, ForceTorqueModel, HardwareSensors, causal_acceleration, encoder_resolution, read_sensors)
+    ClockModel, EncoderModel, ForceTorqueModel, HardwareSensors, causal_acceleration, read_sensors)
 from hybrid_dyn.sim.stream import StreamConfig, Touch, simulate_stream
 from helpers.legacy_sensors import legacy
 
@@ -30,12 +31,12 @@ def _read(panda, sensors, q, qd=None, seed=0):
 
 def test_quantized_q_lies_on_the_grid_within_half_a_count(panda):
     # The Panda's description states 1e-5 rad (a 19-20 bit absolute encoder): the default takes it.
-    assert encoder_resolution(panda, EncoderModel()) == 1e-5
+    assert resolve_encoder_resolution(EncoderModel().resolution, panda.spec) == 1e-5
     rng = np.random.default_rng(1)
     q = np.array(panda.spec.home) + rng.uniform(-1, 1, (5000, panda.nv))
-    for res in (None, 1e-4):
+    for res in ("auto", 1e-4):
         r = _read(panda, HardwareSensors(EncoderModel(res), QUIET, ClockModel(), 0.0), q)
-        step = 1e-5 if res is None else res
+        step = 1e-5 if res == "auto" else res
         assert np.abs(r.q - q).max() <= step / 2 * (1 + 1e-9)
         assert np.abs(r.q - q).max() > 0.45 * step  # it does quantize (uniform error over +-step/2)
         counts = r.q / step

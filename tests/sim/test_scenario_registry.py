@@ -1,4 +1,4 @@
-"""Scenarios declared once (issue 30): a registry entry is all a new scenario needs, and
+"""Scenarios declared once: a registry entry is all a new scenario needs, and
 mismatch-ext's plant comes from the robot's declared parameter sets."""
 import shutil
 
@@ -8,27 +8,25 @@ import pytest
 from hybrid_dyn.description.locations import robots_dir
 
 from hybrid_dyn.data import load_dataset
-from hybrid_dyn.sim import scenarios
 from hybrid_dyn.sim.executors import SerialExecutor
 from hybrid_dyn.sim.generator import generate_dataset
-from hybrid_dyn.sim.scenarios import (
-    SCENARIOS, ConfigError, NoiseConfig, PulseConfig, Scenario, alternative_params, scenario_config,
-)
+from hybrid_dyn.sim.generator_config import SIZES, ConfigError, NoiseConfig, PulseConfig
+from hybrid_dyn.sim.scenarios import SCENARIOS, Scenario, alternative_params, scenario_config
 from helpers.legacy_sensors import legacy
 
-TINY_SIZES = {size: dict(n_instances=3, trajectories=(1, 1)) for size in scenarios.SIZES}
+TINY_SIZES = {size: dict(n_instances=3, trajectories=(1, 1)) for size in SIZES}
 
 
 @pytest.fixture
 def toy_scenario():
     """A scenario declared in this one place: 50 Hz, no noise, short pulses."""
-    toy = scenarios.register(Scenario(
+    toy = SCENARIOS.register(Scenario(
         "toy-50hz", "paper-ext at 50 Hz without noise (a test's toy)",
         overrides=dict(record_hz=50.0, noise=NoiseConfig.off(), standstill=0.2, speed_scale=(0.5, 0.6),
                        pulses=PulseConfig(gap=(0.5, 1.0), sigma=(0.2, 0.4))),
         sizes=TINY_SIZES))
     yield toy
-    scenarios.unregister(toy.name)
+    SCENARIOS.unregister(toy.name)
 
 
 def test_a_declared_scenario_is_generated(toy_scenario, tmp_path):
@@ -52,7 +50,7 @@ def test_a_scenario_missing_a_piece_is_refused_when_declared():
     with pytest.raises(ConfigError, match="n_instances"):
         Scenario("x", "sizes belong in sizes", overrides=dict(n_instances=3))
     with pytest.raises(ConfigError, match="declared twice"):
-        scenarios.register(Scenario("paper-ext", "again"))
+        SCENARIOS.register(Scenario("paper-ext", "again"))
 
 
 def test_mismatch_plant_is_the_robots_alternative_parameter_set(tmp_path):

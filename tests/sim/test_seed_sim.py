@@ -14,7 +14,8 @@ import pytest
 from hybrid_dyn.data import load_dataset
 from hybrid_dyn.sim.generator import FIELDS, Simulator, generate_dataset, simulate_instance
 from hybrid_dyn.sim.plant import DartPlant
-from hybrid_dyn.sim.scenarios import ConfigError, GeneratorConfig, NoiseConfig, PulseConfig, scenario_config
+from hybrid_dyn.sim.generator_config import ConfigError, GeneratorConfig, NoiseConfig, PulseConfig
+from hybrid_dyn.sim.scenarios import scenario_config
 from helpers.legacy_sensors import legacy
 
 # One short instance whose bells surely act inside it (seconds to simulate).

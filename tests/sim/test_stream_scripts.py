@@ -1,4 +1,4 @@
-"""Issue 38: the scripts that ran hand-written loops (checks/, examples/, benchmarks/) run on the one stream
+"""The scripts that ran hand-written loops (checks/, examples/, benchmarks/) run on the one stream
 simulator (``sim.stream``) and tell the estimator what their encoders are."""
 import importlib.util
 
@@ -58,7 +58,7 @@ def test_the_example_reads_hardware_sensors_and_tells_the_estimator_their_resolu
 def test_the_latency_benchmarks_stream_is_read_by_the_hardware_defaults(panda):
     bench = load_script("benchmarks", "estimator_latency")
     t, q, qd, w, tau = bench.stream(panda, 400)
-    assert HardwareSensors().encoder.resolution is None  # the description's, 1e-5 rad on the Panda
+    assert HardwareSensors().encoder.resolution == "auto"  # the description's, 1e-5 rad on the Panda
     np.testing.assert_allclose(q / 1e-5, np.round(q / 1e-5), rtol=0, atol=1e-6)
     np.testing.assert_array_equal(qd[1:], np.diff(q, axis=0) / 1e-3)
     np.testing.assert_allclose(np.diff(t), 1e-3, atol=1e-12)

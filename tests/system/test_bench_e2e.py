@@ -6,7 +6,8 @@ import pytest
 
 from hybrid_dyn.bench.catalog import ROWS
 from hybrid_dyn.bench.profiles import PROFILES
-from hybrid_dyn.bench.runner import COLUMNS, run_bench
+from hybrid_dyn.bench.results import COLUMNS
+from hybrid_dyn.bench.runner import run_bench
 
 pytestmark = pytest.mark.system
 

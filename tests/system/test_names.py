@@ -14,7 +14,8 @@ from hybrid_dyn.bench.profiles import PROFILES
 from hybrid_dyn.cli import build_parser
 from hybrid_dyn.deprecation import DeprecatedNameWarning
 from hybrid_dyn.learn.recipes import RECIPE_ALIASES, RECIPES, TrainConfig
-from hybrid_dyn.sim.scenarios import SIZES, GeneratorConfig, scenario_config
+from hybrid_dyn.sim.generator_config import SIZES, GeneratorConfig
+from hybrid_dyn.sim.scenarios import scenario_config
 from helpers.legacy_sensors import legacy
 
 pytestmark = pytest.mark.system
@@ -40,36 +41,27 @@ def test_a_generator_size_keeps_the_config_hash_it_had_as_a_profile(no_deprecati
     assert SIZES == ("quick", "default", "paper")
 
 
-def test_the_old_profile_keyword_field_and_constant_warn_and_mean_the_size():
-    with pytest.warns(DeprecatedNameWarning, match="scenario_config\\(\\) keyword 'profile' is deprecated: use 'size'"):
-        old = scenario_config("paper-ext", profile="default")
-    assert old == scenario_config("paper-ext", size="default")
-    with pytest.warns(DeprecatedNameWarning, match="GeneratorConfig field 'profile'"):
-        assert GeneratorConfig(profile="paper").size == "paper"
-    with pytest.warns(DeprecatedNameWarning, match="GeneratorConfig field 'profile'"):
-        assert old.profile == "default"
-    with pytest.raises(TypeError, match="both 'size' and its old name 'profile'"):
-        scenario_config("paper-ext", size="quick", profile="paper")
+def test_the_sizes_old_name_profile_is_gone_from_the_api_and_the_cli():
+    """No release shipped ``profile`` for a generator size: the keyword, the field, the constant and the flag are
+    refused like any unknown name (the stored key ``profile`` of to_dict stays: a file format)."""
+    from hybrid_dyn.sim.generator_config import ConfigError
+
+    with pytest.raises(ConfigError, match="profile"):
+        scenario_config("paper-ext", profile="default")
+    with pytest.raises(TypeError, match="profile"):
+        GeneratorConfig(profile="paper")
     import hybrid_dyn.sim as sim
     import hybrid_dyn.sim.scenarios as scenarios
 
     for module in (sim, scenarios):
-        with pytest.warns(DeprecatedNameWarning, match="PROFILES' is deprecated: use .*SIZES"):
-            assert module.PROFILES == SIZES
-    with pytest.raises(AttributeError):
-        scenarios.NOT_A_NAME
-
-
-def test_generate_takes_size_and_its_old_flag_warns(capsys):
+        assert not hasattr(module, "PROFILES")
     parser = build_parser()
     with warnings.catch_warnings():
         warnings.simplefilter("error", DeprecatedNameWarning)
         assert parser.parse_args(["generate", "--size", "paper", "--out", "x"]).size == "paper"
         assert parser.parse_args(["generate", "--out", "x"]).size == "quick"
-    with pytest.warns(DeprecatedNameWarning, match="flag '--profile' is deprecated: use '--size'"):
-        assert parser.parse_args(["generate", "--profile", "default", "--out", "x"]).size == "default"
-    with pytest.raises(SystemExit):  # the old flag keeps its choices
-        parser.parse_args(["generate", "--profile", "huge", "--out", "x"])
+    with pytest.raises(SystemExit):
+        parser.parse_args(["generate", "--profile", "default", "--out", "x"])
 
 
 def test_a_bench_profile_names_its_generator_size_and_run_json_keeps_the_key(no_deprecation):

@@ -19,7 +19,8 @@ from hybrid_dyn.data import import_log, load_dataset
 from hybrid_dyn.data.dataset import DatasetError
 from hybrid_dyn.errors import OutputPathError, UsageError
 from hybrid_dyn.sim.generator import generate_dataset
-from hybrid_dyn.sim.scenarios import PulseConfig, scenario_config
+from hybrid_dyn.sim.generator_config import PulseConfig
+from hybrid_dyn.sim.scenarios import scenario_config
 
 from helpers.files import generate_in_child
 from helpers.messages import says

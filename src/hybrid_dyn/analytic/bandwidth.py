@@ -1,54 +1,6 @@
 """One rule for every filter that trades noise against lag, applied to the noise a window measures.
 
-**The rule.** Take the bandwidth that minimises the estimate's predicted error
-variance on a contact under a stated contact model, given the noise measured on
-the (contact-free) noise window:
-
-    error^2 (b) = noise^2 (b) + lag^2 (b)
-
-- noise^2: what the sensors' white noise, measured on the window
-  (:func:`measure_window`, the median-based ``white_noise_rms``), puts into the
-  estimate at bandwidth b, in closed form;
-- lag^2: what the filter's lag costs on the contact model: the contact force as
-  a random walk whose step per sample is CONTACT_STEP = 0.1 N per axis (its
-  variance grows by 0.01 N^2 a sample: 3.2 N/sqrt(s) at 1 kHz, 1 N/sqrt(s) at
-  100 Hz). A first-order filter with pole a = 1 - K dt lags it by
-  CONTACT_STEP^2 a^2 / (1 - a^2).
-  The model is a stated prior, not a measurement. It is per sample because a
-  recording's rate is chosen for the contacts it must show (contact-steps is
-  recorded at 1 kHz since 10 ms samples hide a step), and its size is what the
-  bench's validation split picks for kalman-fusion's force rate on both kinds
-  of contact: 1 N/sqrt(s) on paper-ext's bells at 100 Hz, 3 N/sqrt(s) on
-  contact-steps' 1-20 ms steps at 1 kHz (the ``-val`` rows of ``reports/default``, chosen on validation);
-  one constant rate served one of them at 2x the other's error.
-
-So a quieter sensor widens the band and a noisier one narrows it, whichever
-noise it is (tested). Per method:
-
-- observer gain K (base-momentum, momentum-observer): the observer
-  r = K (H - H0 - integral(u + r)) passes the input's white noise (sigma_u, the
-  sensor's force or torque, trapezoid) with variance gain K dt / 2 and the
-  momentum's (sigma_H, from qd through m J_com or M) with 2 K^2 / (2 - K dt)
-  (:func:`observer_noise_gains`); the best K on a grid up to K dt = 1
-  (:func:`observer_gain`);
-- Kalman filter (kalman-fusion): the minimum of noise^2 + lag^2 for a random-walk
-  force *is* the Kalman filter whose force rate is the contact model's
-  (``force_rate = CONTACT_STEP / sqrt(dt)``, :func:`contact_rate`), with the noises
-  measured on the window;
-- qdd cutoff (base-wrench, torques-pinv): these methods pass the contact
-  unfiltered; their filter lags the arm's own motion, which a window does not
-  predict. The rule's noise side alone: the widest cutoff at which the qdd
-  estimate adds no more noise than the sensor carries (``acceleration.auto_qdd_cutoff``).
-
-Failure modes (what the rule does not know):
-- the contact model is a prior, not a measurement: slow contacts would be served
-  by a narrower band, 1 ms steps by a wider one. The bench's ``-val`` rows show
-  what a band chosen on validation data gains.
-- it sees only white noise: a slow drift, a vibration or a model error on the
-  window does not narrow it (the Kalman filter weighs a measured model error).
-- the window must be contact-free and long enough (>= 8 samples; 0.5 s by default).
-- noise-free data (a simulation without sensor noise): the force sensors' noise is
-  taken as at least FORCE_RESOLUTION (0.01 N or Nm).
+The detail (what it computes, the equations, why each choice): docs/design/analytic.md, section ``analytic/bandwidth.py``.
 """
 from __future__ import annotations
 

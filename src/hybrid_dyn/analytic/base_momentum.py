@@ -1,34 +1,6 @@
 """Base momentum observer: the tip force from Newton's law for the whole robot, no joint acceleration.
 
-The ground (through the base sensor), gravity and the environment are the only
-wrenches on the robot. About the root origin O, which does not move,
-
-    d/dt [h; L_O] = W_ground + W_grav(q) + W_ext                              (1)
-
-with h = m v_com the linear momentum [N s], L_O = L_com + c x h the angular
-momentum about O [N m s] (both from q and qd alone: Pinocchio's centroidal
-momentum), W_grav = [m g; c x m g] the weight, and W_ext = [F; p x F] for a force
-F at the tool point p. Everything is in root (``panda_link0``) coordinates; the
-measured base wrench is mapped there from the sensor frame.
-
-The observer integrates (1) instead of differentiating qd (De Luca & Mattone's
-construction, applied to the whole body):
-
-    r(t) = K [ H(t) - H(0) - integral_0^t (W_ground + W_grav + r) ds ],   H = [h; L_O]
-
-so that r' = K (W_ext - r): a first-order filter of the external wrench with
-bandwidth K [1/s]. The same discretisation as ``MomentumObserver``: trapezoid
-on the sensor and gravity terms, the previous estimate for r.
-
-Tip force from r: the force rows alone (``moment_weight = 0``, the default), or
-the least squares of all six rows with the moment rows weighted by
-``moment_weight`` [1/m]. On the force rows the weight is the constant
-[0, 0, -m g], so a tare absorbs a mass error completely; the moment rows carry
-c(q) x m g, whose error changes with the pose (see ``docs/analytic.md``, where
-both are measured).
-
-Feed it a tared base wrench (``analytic/tare.py``): a sensor offset passes
-straight through (1) into r.
+The detail (what it computes, the equations, why each choice): docs/design/analytic.md, section ``analytic/base_momentum.py``.
 """
 from __future__ import annotations
 

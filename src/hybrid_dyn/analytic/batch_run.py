@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..description.spec import resolve_encoder_resolution
 from .acceleration import causal_acceleration, default_qdd_cutoff
 from .bandwidth import measure_window
 from .error_bar import ErrorBar, qdd_norm
@@ -37,7 +38,7 @@ def run_batch(method: str | Method, robot: Robot, rate_hz: float, q, qd, base_wr
     m = TIP_FORCE_METHODS[method] if isinstance(method, str) else method
     stream = stream or m.make(robot, rate_hz)
     q, qd = np.asarray(q, float), np.asarray(qd, float)
-    res = robot.spec.encoder_resolution if encoder_resolution == "auto" else float(encoder_resolution)
+    res = resolve_encoder_resolution(encoder_resolution, robot.spec)
     joint = joint_filter_for(robot, rate_hz, res, joint_filter_bandwidth)
     qdd_joint = None
     if joint is not None:

@@ -1,32 +1,6 @@
 """The error bar on every call: ``TipForceEstimator.last_sigma``, the predicted 1-sigma error per axis [N].
 
-A tip-force estimate errs for four reasons, each with a term (per axis, added in quadrature):
-
-- **noise**: the sensors' noise through the method's filter, measured on the estimate itself: the
-  variance of its deviation from a 20 ms running mean, averaged over ~1 s (a deviation beyond 3 sigma
-  enters clipped: it is a transient, the lag term's), times NOISE_GAIN;
-- **lag**: a filter that has not caught up with a change. While the estimate moves, it differs from
-  its own 20 ms running mean by about what it still lacks: that difference, less the LAG_NOISE_SIGMAS
-  sigma of it that noise explains, is the term;
-- **motion**: the model's inertial terms read the joints' acceleration through the joint-state filter
-  (``analytic/joint_state.py``), which lags the arm's own accelerations: ``motion_gain`` [N per
-  rad/s^2] times the norm of the filtered qdd. On the hardware stream of
-  ``benchmarks/tip_force_stream.py`` (1e-5 rad encoders, the filter at 300 rad/s) the error of every
-  method grows by 0.1-0.15 N per axis per rad/s^2 of joint acceleration. Without the filter (exact
-  encoders, a learned model) the term is 0: nothing lags the arm's accelerations but what the lag
-  term sees;
-- **drift**: a base sensor's bias moves after its tare: ``drift_rate`` [N/s] (the sensor's stated rate,
-  ``description.sensor_noise.SENSOR_DRIFT``) times the time since the tare was last verified (set, or
-  followed at a standstill with no contact).
-
-Calibration: NOISE_GAIN = 1.3, LAG_NOISE_SIGMAS = 1 and motion_gain = 0.1 were chosen on streams of
-``benchmarks/tip_force_stream.py`` that its table does not use (seeds 200-201 of ``hardware``, 202
-of ``step-15``): there 97 % or more of the ``ok`` calls of base-momentum, kalman-fusion,
-momentum-observer and base-wrench lay within 2 sigma on every axis, with 82-94 % of the calls ``ok``.
-The benchmark reports the coverage on its own seeds (100 on).
-
-The status says ``uncertain`` while any axis's sigma exceeds ``EstimatorConfig.max_sigma``;
-``benchmarks/tip_force_stream.py`` reports how many ``ok`` calls lie within 2 sigma on every axis.
+The detail (what it computes, the equations, why each choice): docs/design/analytic.md, section ``analytic/error_bar.py``.
 """
 from __future__ import annotations
 
@@ -47,7 +21,7 @@ DRIFT_RATE = SENSOR_DRIFT.base_force  # [N/s]: the drift term's default (Estimat
 
 
 class ErrorBar:
-    """Per-stream state of the error model; ``update`` once per estimate (see the module docstring)."""
+    """Per-stream state of the error model; ``update`` once per estimate (docs/design/analytic.md, ``analytic/error_bar.py``)."""
 
     def __init__(self, rate_hz: float, motion_gain: float = MOTION_GAIN, drift_rate: float = DRIFT_RATE):
         dt = 1.0 / float(rate_hz)
@@ -80,7 +54,7 @@ class ErrorBar:
 
 @njit(cache=True)
 def _update(mean, var, out, f, a_fast, a_slow, clip, extra):  # pragma: no cover (compiled)
-    """One sample of the running mean and noise variance per axis, and the sigma (module docstring)."""
+    """One sample of the running mean and noise variance per axis, and the sigma (docs/design/analytic.md)."""
     for i in range(3):
         dev = f[i] - mean[i]  # against the mean before this sample: white noise shows at least its variance
         mean[i] += a_fast * dev

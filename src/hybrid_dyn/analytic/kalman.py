@@ -1,39 +1,6 @@
 """A Kalman filter that fuses the base sensor and the joint torques into one tip force.
 
-Both sensors see the tip force F through a momentum law that needs no joint
-acceleration:
-
-- base sensor (``base_momentum.py``): h' = f_ground + m g + F, h = m v_com [N s];
-- joint torques (``momentum_observer.py``): p' = tau_J + C^T qd - g + J_v^T F,
-  p = M(q) qd [N m s]; projected to the tool by pinv(J_v^T) increment by increment.
-
-For each sensor c, the "unexplained momentum" y_c (3,) [N s] is what remains of
-the measured momentum after the sensor's own integral:
-
-    y_b,k = h_k - h_0 - sum_j dt (u_j + u_j-1) / 2,     u = f_ground + m g
-    y_J,k = sum_j pinv(J_v,j^T) [p_j - p_j-1 - dt (beta_j + beta_j-1) / 2]
-
-and the filter's model is, per Cartesian axis (the three axes are independent
-and alike, so every matrix below is (n, n) with n = sensors + 1):
-
-    s_c,k+1 = s_c,k + dt F_k + w_c      (w_c: the sensor's noise, integrated)
-    F_k+1   = F_k + w_F                 (the force as a random walk)
-    y_c,k   = s_c,k + v_c               (v_c: the velocity noise in the momentum)
-
-The filter is the time-varying one: its covariance is propagated every call
-(a few 3 x 3 operations in a compiled kernel, ``kalman_kernels.py``), so no
-call solves a Riccati equation, and it settles to the steady-state filter
-(``SteadyStateKalman``, the reference a test compares it with). A sensor that is
-absent (``None``) at a call is predicted, not updated: with one sensor missing
-throughout, this *is* the single-sensor filter; a sensor that comes every other
-call is bridged (its increment spans the gap).
-
-Noise covariances (``FusionNoise``) map the sensors' noise through the arm's
-Jacobians at its home pose (the isotropic mean over axes): see
-:func:`channel_covariances`. On a stream they are measured on the noise window,
-and the force rate follows the bandwidth rule (:func:`window_fusion_noise`,
-``bandwidth.py``); the specifications (the generator's ``NoiseConfig`` values)
-are the defaults.
+The detail (what it computes, the equations, why each choice): docs/design/analytic.md, section ``analytic/kalman.py``.
 """
 from __future__ import annotations
 

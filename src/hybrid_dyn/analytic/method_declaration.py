@@ -13,7 +13,6 @@ from typing import Callable
 
 import numpy as np
 
-from ..deprecation import renamed_field
 from ..description.sensor_noise import NoiseConfig
 from ..errors import UsageError
 from ..registry import Registry
@@ -75,7 +74,6 @@ class MethodStream:
 
 
 
-@renamed_field("prior", "residual_prior", why="'prior' also names a residual model's analytic part")
 @dataclass(frozen=True)
 class Method:
     """One analytic tip-force estimator: its declaration, read by every consumer of ``TIP_FORCE_METHODS``.
@@ -86,7 +84,7 @@ class Method:
     a declaration of ``bandwidth.BANDWIDTHS`` (its unit, default and the values the bench's ``-val``
     row chooses from: :attr:`bandwidth`). make(robot, rate_hz) -> :class:`MethodStream`.
     bench_rows: the bench declares its rows from here (False where ``analytic_rows`` declares them).
-    residual_prior: a residual network may sit on it (``learn/priors.py``; formerly ``prior``)."""
+    residual_prior: a residual network may sit on it (``learn/priors.py``)."""
 
     name: str
     summary: str

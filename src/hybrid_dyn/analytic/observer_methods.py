@@ -11,7 +11,7 @@ from .method_declaration import TIP_FORCE_METHODS, Method, MethodStream
 from .momentum_observer import MomentumObserver
 
 
-class _ObserverMethod(MethodStream):
+class ObserverMethod(MethodStream):
     """A momentum observer (``cls``) stepped on one sensor (``sensor``: "w" or "tau"), gain K by the rule."""
 
     cls = sensor = None
@@ -38,7 +38,7 @@ class _ObserverMethod(MethodStream):
         return observer_settle_calls(self.value, self.dt)
 
 
-class MomentumObserverMethod(_ObserverMethod):
+class MomentumObserverMethod(ObserverMethod):
     """The joint-torque momentum observer: K by the rule on the torque sensors' and p = M qd's noise."""
 
     cls, sensor = MomentumObserver, "tau"
@@ -60,7 +60,7 @@ class MomentumObserverMethod(_ObserverMethod):
         return self.value
 
 
-class BaseMomentumMethod(_ObserverMethod):
+class BaseMomentumMethod(ObserverMethod):
     """The base momentum observer: K by the rule on the base sensor's and h = m J_com qd's noise."""
 
     cls, sensor = BaseMomentumObserver, "w"

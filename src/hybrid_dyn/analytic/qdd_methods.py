@@ -10,7 +10,7 @@ from .method_declaration import TIP_FORCE_METHODS, Method, MethodStream
 from .tip_force import base_wrench_force_core, tip_force_from_base_wrench, tip_force_from_torques
 
 
-class _QddMethod(MethodStream):
+class QddMethod(MethodStream):
     """A per-sample method whose bandwidth is the qdd filter's cutoff [Hz] (the estimator's filter)."""
 
     sensor_input = "base_wrench"  # the input whose noise the qdd estimate's noise is weighed against
@@ -28,7 +28,7 @@ class _QddMethod(MethodStream):
         return int(settle[hit[0]]) if len(hit) else filter_settle_calls(self.rate_hz, self.value)
 
 
-class BaseWrench(_QddMethod):
+class BaseWrench(QddMethod):
     def step(self, q, qd, qdd, w, tau):
         return base_wrench_force_core(self.robot, q, qd, qdd, w)
 
@@ -36,7 +36,7 @@ class BaseWrench(_QddMethod):
         return tip_force_from_base_wrench(self.robot, q, qd, qdd, w)
 
 
-class TorquesPinv(_QddMethod):
+class TorquesPinv(QddMethod):
     sensor_input = "tau_J"
 
     def sensor_noise(self, noise):

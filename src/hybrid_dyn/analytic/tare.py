@@ -1,25 +1,6 @@
 """Taring the base force/torque sensor: remove its offset before the base-wrench method.
 
-A real 6-axis sensor reads the ground reaction plus an offset that drifts from
-one power-up (or one mounting) to the next: our generator draws it per
-instance, up to +-2 N and +-0.1 Nm per axis (``sim.scenarios.NoiseConfig``).
-No network can learn a per-run constant from a short window, and the
-base-wrench method turns it straight into tip-force error, so a user tares the
-sensor while nothing touches the arm:
-
-    offset = mean over contact-free samples of (w_measured - w_model(q, qd, qdd))   [N, Nm] (6,)
-
-and uses ``w_measured - offset`` from then on. Unlike zeroing the raw reading,
-this model-based tare keeps the arm's own weight in the signal, so the arm
-may move during the tare window. With a mass-mismatched model the offset also
-absorbs the gravity-wrench error at the tare pose: a partial correction that
-is exact only there.
-
-The generator's first bell is centred one gap (>= 5 s) after t = 0 with a width
-of at most 1.5 s, so the first ``TARE_SECONDS`` of every instance are all but
-free of contact: at least 3 sigma before the earliest possible centre, which in
-the worst case (gap 5 s, sigma 1.5 s, 20 N) leaves a force below 0.23 N at
-t = 0.5 s and a smaller mean over the window; that much can enter the offset.
+The detail (what it computes, the equations, why each choice): docs/design/analytic.md, section ``analytic/tare.py``.
 """
 from __future__ import annotations
 

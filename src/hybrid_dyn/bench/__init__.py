@@ -2,8 +2,9 @@
 from .metrics import ErrorReport, nmse, rmse, rmse_per_component
 from .families import FAMILIES, Family
 from .profiles import PROFILES, BenchProfile
+from .results import COLUMNS
 from .rows import ROWS, Row
-from .runner import COLUMNS, run_bench
+from .runner import run_bench
 
 __all__ = ["COLUMNS", "FAMILIES", "PROFILES", "ROWS", "BenchProfile", "ErrorReport", "Family", "Row",
            "nmse", "rmse", "rmse_per_component", "run_bench"]

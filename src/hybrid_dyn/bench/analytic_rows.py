@@ -84,10 +84,11 @@ def _encoder_resolution(ctx) -> float:
     """The dataset's encoder resolution [rad]: its hardware sensors' (``sim/sensors.py``; the robot
     description's when they state none); 0 for the legacy sensor model and for data without a generator
     config (q as recorded, not quantized by the simulator: the estimator reads it as exact, as before)."""
-    from ..sim.sensors import HardwareSensors, encoder_resolution
+    from ..description.spec import resolve_encoder_resolution
+    from ..sim.sensors import HardwareSensors
 
     sensors = (ctx.dataset.meta.get("config") or {}).get("sensors")
-    return 0.0 if sensors is None else encoder_resolution(ctx.robot, HardwareSensors.from_dict(sensors).encoder)
+    return 0.0 if sensors is None else resolve_encoder_resolution(HardwareSensors.from_dict(sensors).encoder.resolution, ctx.robot.spec)
 
 
 def _method_run(method, robot, inst, ctx, value=None):

@@ -141,7 +141,7 @@ class BenchPlan:
         """The generator config that simulated ``ds``: a named scenario's (:meth:`scenario_config`), or for a
         dataset path the config its manifest records (the plant an identification run is recorded on)."""
         if is_dataset_path(scenario):
-            from ..sim.scenarios import GeneratorConfig
+            from ..sim.generator_config import GeneratorConfig
 
             return GeneratorConfig.from_dict(ds.meta["config"])
         return self.scenario_config(scenario)

@@ -61,10 +61,10 @@ GAZ2019_VALIDATION_RMSE = (0.64, 1.01, 0.77, 0.65, 0.42, 0.20, 0.16)
 def reference_dataset_label(scenario: str) -> str | None:
     """Which of the reference study's data sets a toolkit scenario mirrors (PROTOCOL 2): a simulated scenario's declared
     ``seed_dataset`` (``sim/scenarios.py``), "real" for the real-robot logs, else None."""
-    from ..sim.scenarios import SCENARIO_REGISTRY
+    from ..sim.scenarios import SCENARIOS
 
-    if scenario in SCENARIO_REGISTRY:
-        return SCENARIO_REGISTRY[scenario].seed_dataset
+    if scenario in SCENARIOS:
+        return SCENARIOS[scenario].seed_dataset
     if scenario.startswith("real"):
         return "real"
     return None

@@ -136,7 +136,7 @@ def _error_vs_force(out_dir: Path, ok, preds: Predictions, scenario: str, test) 
 def learning_curve_figures(out_dir: Path, curves: dict) -> list[str]:
     """``learning_curves_<scenario>.png``: one panel per learned row, train and validation loss per epoch.
 
-    ``curves`` is curves.json (``runner.write_curves``): scenario -> model -> {task, epochs, stopped_by,
+    ``curves`` is curves.json (``results.write_curves``): scenario -> model -> {task, epochs, stopped_by,
     best_epoch, history, initial_val_loss}. Losses are standardized MSE on a log axis; the star marks the
     epoch whose weights were kept, the dotted line the untrained model's validation loss, and a title in
     red a row stopped by the epoch cap (it may not have converged). The learning rate, where the history

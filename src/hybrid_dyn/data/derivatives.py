@@ -1,34 +1,6 @@
 """Velocities and accelerations from logged joint positions or velocities.
 
-Real robot logs seldom carry joint accelerations, and some carry no velocities.
-Offline, the whole trajectory is known, so the derivative can be taken with a
-*zero-phase* filter: a symmetric (non-causal) stencil that delays nothing. Three
-are offered; each works on one contiguous segment sampled at (nearly) uniform
-steps, shape (T, n):
-
-``savgol`` (default)
-    Savitzky-Golay derivative: a least-squares polynomial of degree
-    ``polyorder`` is fitted over a centred window of ``window_s`` seconds and
-    differentiated analytically (``scipy.signal.savgol_filter(..., deriv=k)``).
-    Smooths and differentiates in one pass; exact for polynomials up to
-    ``polyorder``; near the ends the window's fit is used unshifted
-    (``mode="interp"``), so the first and last ``window // 2`` samples are a
-    one-sided fit. Uses the median sample time of the segment.
-``central``
-    The plain central difference ``(x[k+1] - x[k-1]) / (t[k+1] - t[k-1])``
-    (``numpy.gradient``, second-order one-sided at the ends), no smoothing.
-    Accepts non-uniform time. When the log holds the *next* sample of the
-    signal (the KUKA and Baxter logs carry qd(t+1) in every row), the last row
-    also gets a true central difference.
-``butter``
-    The central difference above, then a Butterworth low-pass of order ``order``
-    at ``cutoff_hz`` run forwards and backwards (``scipy.signal.filtfilt``: zero
-    phase, squared magnitude; the ends are padded by an odd extension two cutoff
-    periods long). Filtering the difference quotient equals differentiating the
-    filtered signal (both are linear and shift-invariant) but behaves better at
-    the ends.
-
-Units: positions [rad], velocities [rad/s], accelerations [rad/s^2], time [s].
+The detail (what it computes, the equations, why each choice): docs/design/data.md, section ``data/derivatives.py``.
 """
 from __future__ import annotations
 
@@ -44,7 +16,7 @@ METHODS = ("savgol", "central", "butter")
 
 @dataclass
 class DerivativeFilter:
-    """How derivatives are estimated (see the module docstring).
+    """How derivatives are estimated (docs/design/data.md, ``data/derivatives.py``).
 
     ``window_s`` [s] and ``polyorder`` for ``savgol``; ``cutoff_hz`` [Hz] and
     ``order`` for ``butter``.

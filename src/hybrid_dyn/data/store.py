@@ -1,23 +1,6 @@
 """Where a dataset is written: a local directory or any fsspec URL.
 
-The generator writes through a :class:`DatasetStore`, so the same code fills a
-local folder, a shared network folder, or an object store (``s3://``,
-``gs://``, ``memory://``, ``file://`` ...; any protocol whose fsspec
-filesystem the user has installed). Workers on other machines open the store
-from its URL, so a Ray task writes its instance straight to the shared place.
-
-Writes are made safe for restarts in the way each back-end allows:
-- a local directory: a temp file whose name is unique to the writer
-  (``outputs.unique_temp``), then ``os.replace`` (atomic), so two writers of one
-  file never share, truncate or rename each other's temporary;
-- an fsspec URL: the file is written whole, and only then its small
-  completion record; object stores have no atomic rename, so the record is the
-  commit: a file without a record (or not matching the record's checksum) is
-  regenerated on resume.
-
-Instances are first written to a local temporary file by h5py (which needs a
-seekable file) and uploaded unchanged, so the bytes, and their checksums, are
-the same whatever the store.
+The detail (what it computes, the equations, why each choice): docs/design/data.md, section ``data/store.py``.
 """
 from __future__ import annotations
 

@@ -26,7 +26,8 @@ from .locations import example_robot_data_dir, robots_dir
 from .names import (ROBOT_NAME_HELP, RobotRef, RobotVariant, as_payload, has_description, parse_robot_name,
                     resolve_robot)
 from .params import GazFriction, LinkInertial, read_param_file
-from .spec import Payload, RobotSpec, available_robots, data_only_robots, known_robots, load_spec
+from .spec import (Payload, RobotSpec, available_robots, data_only_robots, known_robots, load_spec,
+                   resolve_encoder_resolution)
 from .tools import ToolUrdf, read_tool, with_tool
 from .urdf import build_urdf, urdf_with_payload
 
@@ -35,5 +36,5 @@ __all__ = [
     "RobotRef", "RobotSpec", "RobotVariant", "ToolUrdf", "as_payload", "available_robots", "build_urdf",
     "data_only_robots", "describe_urdf", "example_robot_data_arms", "example_robot_data_dir", "has_description",
     "joint_limits", "known_robots", "load_spec", "parse_robot_name", "read_param_file", "read_tool",
-    "resolve_robot", "robots_dir", "urdf_with_payload", "with_tool",
+    "resolve_encoder_resolution", "resolve_robot", "robots_dir", "urdf_with_payload", "with_tool",
 ]

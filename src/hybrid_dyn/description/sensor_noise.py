@@ -3,7 +3,7 @@ when it has no noise window of its own.
 
 It sits beside the robot's description so that both the simulator (``sim/``, which draws the noise)
 and the analytic layer (``analytic/methods.spec_noise``, which reads the levels) can read it: one
-specification, below both. ``sim.scenarios.NoiseConfig`` is this class.
+specification, below both. ``sim.generator_config.NoiseConfig`` is this class.
 """
 from __future__ import annotations
 

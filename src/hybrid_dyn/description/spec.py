@@ -62,6 +62,13 @@ class RobotSpec:
         return GazFriction.from_json(path) if path else None
 
 
+def resolve_encoder_resolution(setting, spec: RobotSpec) -> float:
+    """The joint-encoder resolution [rad per count] a setting means on the robot ``spec`` describes: "auto" is the
+    description's ``encoder_resolution``, a number is itself (0: q read exactly). The one place "auto" is resolved:
+    the estimator, the batch run, the simulator's encoders and the generator's config call it."""
+    return float(spec.encoder_resolution if isinstance(setting, str) and setting == "auto" else setting)
+
+
 def available_robots() -> list[str]:
     """Robots with a full description (URDF, frames): every part of the toolkit applies."""
     return sorted(p.stem for p in robots_dir().glob("*.toml") if p.stem != "data_only")

@@ -3,7 +3,7 @@
 :class:`EstimatorConfig` holds a stream's rate, each method's bandwidth ("auto": the
 rule of ``analytic/bandwidth.py``) and the plausibility bounds of the input gate
 (``estimator/input.py``); :class:`EstimatorStatus` says what one call's estimate is
-worth. Why each bound is what it is: ``estimator/tip_force_estimator.py``'s module docstring.
+worth. Why each bound is what it is: docs/estimator.md.
 """
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ from ..errors import UsageError
 
 class EstimatorStatus(str, Enum):
     """What one call's estimate is worth (``TipForceEstimator.last_status``); the first that applies wins,
-    in the order of ``estimator/tip_force_estimator.py``'s module docstring."""
+    in the order of docs/estimator.md."""
 
     OK = "ok"
     WARMING_UP = "warming up"            # window, tare, filter or observer still settling

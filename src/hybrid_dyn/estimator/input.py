@@ -1,7 +1,7 @@
 """The streaming estimator's input gate: every sample is checked before it touches any state.
 
 :class:`InputGate` holds the plausibility box of every value a call brings and the
-stream's time (``estimator/tip_force_estimator.py``'s module docstring states the rules);
+stream's time (docs/estimator.md states the rules);
 :class:`RateCheck` tells an untimed stream that runs at another rate than
 ``call_hz`` from its own samples (q's increments against qd / call_hz).
 """
@@ -54,7 +54,7 @@ def _gate(sample, lo, inv_width, slots, q, qd, base_wrench, tau_J):  # pragma: n
 
 
 class InputGate:
-    """The plausibility box and the time checks of one stream (``estimator/tip_force_estimator.py``, step 1)."""
+    """The plausibility box and the time checks of one stream (docs/estimator.md, step 1)."""
 
     def __init__(self, robot: Robot, config, needs_wrench: bool, needs_tau: bool, optional=frozenset()):
         self.robot, self.config = robot, config

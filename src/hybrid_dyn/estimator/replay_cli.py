@@ -2,18 +2,24 @@
 from __future__ import annotations
 
 
+def resolution(text: str):
+    """``--encoder-resolution``: "auto" (resolved with the robot's description, by the estimator) or a number [rad]."""
+    return text if text == "auto" else float(text)
+
+
 def register(sub) -> None:
+    from ..analytic.methods import TIP_FORCE_METHODS
+
     p = sub.add_parser("estimate", help="replay a recorded log (a ROS bag, CSV, ...) through the streaming tip-force "
                                         "estimator; write /tip_force to an MCAP bag or a CSV")
     p.add_argument("spec", help="the log's import spec (TOML; a ROS bag's names its topics in [ros]: "
                                 "docs/from_a_ros_bag.md)")
     p.add_argument("--method", default="base-momentum",
-                   help="the analytic estimator (base-momentum, kalman-fusion, momentum-observer, base-wrench, "
-                        "torques-pinv); default base-momentum")
+                   help=f"the analytic estimator ({', '.join(TIP_FORCE_METHODS)}); default base-momentum")
     p.add_argument("--model", default=None, help="a trained tip-force model folder instead of --method")
-    p.add_argument("--encoder-resolution", type=float, default=None,
-                   help="the log's joint-encoder resolution [rad]; default the robot description's (1e-5 on the "
-                        "Panda); 0 for exact q and qd (a simulation's)")
+    p.add_argument("--encoder-resolution", type=resolution, default="auto",
+                   help="the log's joint-encoder resolution [rad]; default auto: the robot description's (1e-5 on "
+                        "the Panda); 0 for exact q and qd (a simulation's)")
     p.add_argument("--out", required=True, help="OUT.mcap (a ROS 2 bag: /tip_force, /tip_force/status) or OUT.csv; "
                                                 "never overwritten; OUT.png beside it where the log has a tip sensor")
     p.add_argument("--keep-partial", action="store_true",
@@ -27,9 +33,8 @@ def cmd_estimate(args) -> int:
     from .replay import check_outputs, estimate_to
 
     check_outputs(args.out)  # before the log is read: a taken name costs nothing
-    resolution = "auto" if args.encoder_resolution is None else args.encoder_resolution
     summary, report, written, info = estimate_to(read_spec(args.spec), args.out, method=args.method,
-                                                 model=args.model, encoder_resolution=resolution,
+                                                 model=args.model, encoder_resolution=args.encoder_resolution,
                                                  keep_partial=args.keep_partial)
     print(report.text(max_per_kind=5))
     print(f"{info['method']}: {summary.n} samples estimated at {info['call_hz']:.6g} Hz; status {summary.statuses}")

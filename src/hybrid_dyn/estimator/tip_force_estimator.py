@@ -1,120 +1,25 @@
 """The streaming tip-force estimator, :class:`TipForceEstimator`: one sample in, one force out.
 
-Control engineers call :class:`TipForceEstimator` once per tick of a 1 kHz loop::
-
-    est = TipForceEstimator.analytic("panda", method="base-momentum")
-    F = est.estimate_tip_force(q, qd, base_wrench=w, t=t)   # (3,) N, base frame
-    est.last_status                                         # EstimatorStatus.OK, ...
-
-The analytic methods are defined once, in ``analytic/methods.py`` (what each
-reads, its bandwidth and the rule that sets it, its streaming step and batch
-run); this module runs them on a stream. What happens in one call:
-
-1. The sample is checked before any state is touched (``estimator/input.py``).
-   It is rejected when
-   - an argument is not numeric, has the wrong shape, holds NaN/inf, or a
-     needed one (base_wrench, tau_J) is missing;
-   - it is physically implausible for the robot description (the bounds are
-     ``EstimatorConfig`` fields): q more than ``q_margin`` (0.1 rad) outside the
-     URDF position limits; |qd| above the velocity limit by more than
-     ``qd_margin`` (50 %); |tau_J| above the URDF effort limit by more than
-     ``tau_margin`` (50 %); a base-wrench force component above
-     ``max_tip_force + 3 m g`` [N] (the arm's weight and up to 2 g of inertial
-     load on top of the largest believable contact), or a moment component above
-     that times the arm's reach [Nm] (the sum of its joint offsets: no point of
-     the arm lies farther from the base);
-   - its time breaks the stream: t not increasing, t missing once the stream
-     has given t (the first call with t makes a stream timed until ``reset``), or
-     a stamp off the stream's clock by more than max(``rate_tolerance`` periods,
-     1.5 ``stamp_jitter``). The robot samples on its own clock; a control PC's
-     stamps jitter about it (up to 0.5 ms by default), so the estimator follows the
-     stamps' grid (slowly, for a drift between the clocks) and runs its filters on
-     the nominal period. A wrong ``call_hz`` (a 100 Hz recording fed to a 1 kHz
-     estimator errs 10 N) or a lost tick is refused rather than silently
-     mis-filtered. A wrong rate is refused at every call; after a gap, the sample
-     one period after the refused one resumes the stream: the filters and observers
-     restart (a finished tare is kept; the joint-state filter predicts across a gap
-     of up to 50 samples) and it warms up anew for the method's settling time.
-   A rejected sample raises :class:`EstimatorInputError` (a ``ValueError`` that
-   names the argument), or with ``on_bad_input="hold"`` returns the last good
-   estimate with ``last_status = INPUT_REJECTED`` (``last_rejection`` says why).
-   It never enters the filter, observer, tare, window or time state: the calls
-   after it give exactly what they give without it. An untimed stream is checked
-   for its rate from its own samples (``RateCheck``: q's increments against
-   qd / call_hz): a stream at another rate says "wrong rate".
-2. Quantized encoders (``encoder_resolution`` > 0, the robot description's by
-   default): q becomes q, qd and qdd through the joint-state Kalman filter
-   (``analytic/joint_state.py``); every method reads its q and qd, and the rules
-   below get the velocity noise it carries in motion (a still window shows none).
-3. The first ``tare_seconds`` of calls are the noise window (nothing may touch
-   the arm then; status "warming up"). On it the base sensor is tared
-   (``analytic/tare.py``), the sensors' white noise is measured, and the
-   method's bandwidth (qdd cutoff, observer gain, Kalman force rate) is chosen by
-   the one rule of ``analytic/bandwidth.py`` (a number given in the config
-   instead of "auto" is used as is). Without a window (``tare_seconds=0``) the
-   rule runs on the sensors' specifications. Every filter design happens when
-   the estimator is built, and the close is split over two calls: the window's
-   last call checks and measures it, the first call after it picks the bandwidth
-   (and the method starts there). The check: a window whose base-sensor residual
-   steps or trends by more than ``tare_contact_force`` (or six times its own
-   noise), or in which the joint torques (where the method reads them) see such a
-   force, is not trusted: a new window starts, status "contact at start-up"
-   (``window_problem`` says why). After the window, at a standstill with no
-   contact, the tare follows the base sensor's drift (``retare_seconds``).
-4. Where the method needs it, qdd is estimated from qd causally, with the
-   generator's filter (``analytic/acceleration.py``) at the call rate; the
-   window is replayed through the chosen filter, so that it runs as if from the start.
-5. The method gives the force. Its transient after a start, a gap, or (for
-   kalman-fusion, which takes whichever sensors a call brings) a sensor joining
-   or leaving is its settling time: "warming up" until it has passed. A sensor
-   absent for up to 5 calls (alternating sensors) is bridged, not a leave. A
-   base sensor that joins kalman-fusion after the window is tared when it comes;
-   while the joint torques see a force above ``tare_contact_force`` the tare starts
-   over (it never tares over a contact), and the filter runs on the torques alone.
-6. An estimate above ``max_tip_force`` (500 N) is returned with status
-   FORCE_OUT_OF_RANGE ("force out of range") and is not kept as the last good one.
-7. Every estimate gets an error bar, ``last_sigma`` (3,) [N] (``analytic/error_bar.py``;
-   infinite while there is no estimate); a settled call whose error bar exceeds
-   ``max_sigma`` on any axis is "uncertain", not "ok".
-
-Statuses (``last_status``), first match wins: INPUT_REJECTED (this sample was
-refused; the last good estimate is returned), FORCE_OUT_OF_RANGE (the estimate
-exceeds ``max_tip_force``), WRONG_RATE (an untimed stream whose samples are
-spaced unlike 1 / call_hz), NO_SENSOR ("no usable sensor": this call brings
-nothing the method can estimate from, e.g. kalman-fusion given only a base
-sensor that is not yet tared; the returned force is a prediction), WARMING_UP
-(the window, tare, filter or observer still settles) or CONTACT_AT_START (the
-same after a window that saw a contact), OUT_OF_RANGE (a learned model's input
-lies outside its training range: "input out of training range"), UNCERTAIN
-(``last_sigma`` above ``max_sigma``), OK.
-
-A known base-sensor offset can be given with ``set_tare_offset``; ``reset``
-tares anew. A tool's load: ``payload=`` at construction or ``set_payload`` between
-calls (the model every method subtracts carries it, changed in place within a tick: the estimator runs on).
-
-Threading: an estimator holds per-stream state (filter, window, observer) and
-preallocated buffers, so one instance must be used by one thread at a time;
-use one estimator per control thread. ``estimate_tip_force()`` (the stateless
-batch form, ``estimator/batch.py``) is thread-safe: it keeps one robot model per thread.
+What one call does (the input checks, the noise window, the bandwidth, the statuses, threading):
+docs/estimator.md. The per-call status and error bar: ``call_status.py``; the (re)starts: ``stream_starts.py``.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from numba import njit
 
 from ..analytic.acceleration import CausalAccelerationFilter, cutoff_grid, default_qdd_cutoff
 from ..analytic.error_bar import ErrorBar, qdd_norm
 from ..analytic.joint_state import joint_filter_for, with_joint_state_noise
-from ..analytic.kalman import MAX_BRIDGE_CALLS
 from ..analytic.method_declaration import spec_noise
 from ..analytic.methods import TIP_FORCE_METHODS
 from ..analytic.robot import Robot, load_robot, with_payload
 from ..analytic.tare import StreamingTare, tare_samples
+from ..description.spec import resolve_encoder_resolution
 from ..errors import UsageError
+from .call_status import NO_SIGMA, CallStatus, within
 from .config import EstimatorConfig, EstimatorStatus, check_rating, checked_payload, rated_payload
 from .consistency import Consistency
 from .input import EstimatorInputError, InputGate, RateCheck
@@ -122,29 +27,8 @@ from .noise_window import NoiseWindow
 from .stream_starts import StreamStarts
 
 
-# The statuses as plain names for the per-call path: an Enum member looked up on its class costs ~0.3 us.
-_OK, _WARMING_UP, _OUT_OF_RANGE, _FORCE_OUT_OF_RANGE, _WRONG_RATE, _NO_SENSOR, _UNCERTAIN, _CONTACT_AT_START = (
-    EstimatorStatus.OK, EstimatorStatus.WARMING_UP, EstimatorStatus.OUT_OF_RANGE, EstimatorStatus.FORCE_OUT_OF_RANGE,
-    EstimatorStatus.WRONG_RATE, EstimatorStatus.NO_SENSOR, EstimatorStatus.UNCERTAIN, EstimatorStatus.CONTACT_AT_START)
-_IMPLAUSIBLE_TARE, _FROZEN_SENSOR, _OFF_TOOL = (
-    EstimatorStatus.IMPLAUSIBLE_TARE, EstimatorStatus.FROZEN_SENSOR, EstimatorStatus.OFF_TOOL)
-_NO_SIGMA = np.full(3, np.inf)  # no estimate yet (the noise window): an unbounded error bar
-# kalman-fusion's sensors in use, by (base sensor in use, joint torques in use)
-_ACTIVE = {(False, False): (), (True, False): ("base_wrench",), (False, True): ("tau_J",),
-           (True, True): ("base_wrench", "tau_J")}
-
-
-@njit(cache=True)
-def _within(x, bound) -> bool:  # pragma: no cover (compiled)
-    """Whether -bound < x_i < bound for every i (a standstill: two numpy reductions cost ten times this)."""
-    for i in range(x.shape[0]):
-        if not (-bound < x[i] < bound):
-            return False
-    return True
-
-
-class TipForceEstimator(StreamStarts):
-    """Streaming tip-force estimator; see the module docstring."""
+class TipForceEstimator(CallStatus, StreamStarts):
+    """Streaming tip-force estimator: what one call does, docs/estimator.md."""
 
     def __init__(self, robot: Robot, method: str, config: EstimatorConfig | None = None, model=None):
         self.config = c = config or EstimatorConfig()
@@ -170,8 +54,7 @@ class TipForceEstimator(StreamStarts):
         self._rate = RateCheck(nv, float(c.call_hz), c.rate_tolerance)
         # Quantized encoders: q becomes q, qd (and qdd) through one Kalman filter every method reads
         # (analytic methods only: a learned model reads what its training data recorded).
-        self.encoder_resolution = (robot.spec.encoder_resolution if c.encoder_resolution == "auto"
-                                   else float(c.encoder_resolution))
+        self.encoder_resolution = resolve_encoder_resolution(c.encoder_resolution, robot.spec)
         self._joint = None if model is not None else joint_filter_for(
             robot, c.call_hz, self.encoder_resolution, c.joint_filter_bandwidth)
         self._error_bar = ErrorBar(c.call_hz, c.motion_sigma_gain, c.base_drift_rate)
@@ -201,7 +84,7 @@ class TipForceEstimator(StreamStarts):
             robot, c, self._stream, method, "base_wrench" in sensors, "tau_J" in sensors)
         drift = c.base_drift_rate / c.call_hz  # the follower's largest step per call [N], and [Nm] at 0.2 m
         self._follow_step = np.r_[np.full(3, drift), np.full(3, 0.2 * drift)]
-        _within(self._follow_step, 1.0)  # compiled (or loaded from numba's cache) now, not in a control cycle
+        within(self._follow_step, 1.0)  # compiled (or loaded from numba's cache) now, not in a control cycle
         self.reset()
 
     # ------------------------------------------------------------ factories
@@ -269,7 +152,7 @@ class TipForceEstimator(StreamStarts):
         # a tare (or a window check) on them before that absorbs the transient. The window waits for it.
         self._joint_wait = 0 if self._joint is None or self._tare is None else self._joint.settle_calls()
         self._error_bar.reset()
-        self.last_sigma = _NO_SIGMA.copy()
+        self.last_sigma = NO_SIGMA.copy()
         self._motion = 0.0  # this call's joint-acceleration norm [rad/s^2], for the error bar
         self._tared_at = None  # the call at which the base sensor's offset was last set
         self.window_problem = None  # why the last noise window was not trusted (a contact), until one is
@@ -388,86 +271,3 @@ class TipForceEstimator(StreamStarts):
             self._follow_drift(q, qd, base_wrench, f)
         self._judge(q, qd, qdd, w_in, base_wrench, tau_J)
         return self._finish(f, True, wrong_rate, usable)
-
-    def _judge(self, q, qd, qdd, w_in, base_wrench, tau_J) -> None:
-        """This call's consistency status (``estimator/consistency.py``), first match: an implausible tare,
-        a frozen sensor, a contact off the tool."""
-        check, fault = self._check, None
-        if w_in is not None and self._tare is not None:
-            o = self._tare.offset
-            if o[0] * o[0] + o[1] * o[1] + o[2] * o[2] > self.config.max_tare_offset ** 2:
-                fault = _IMPLAUSIBLE_TARE
-        if check.frozen(base_wrench, tau_J) and fault is None:
-            fault = _FROZEN_SENSOR
-        if check.check_off_tool(q, qd, qdd, w_in, tau_J) and fault is None:
-            fault = _OFF_TOOL
-        self._fault = fault
-
-    def _follow_drift(self, q, qd, base_wrench, f) -> None:
-        """A base sensor's bias drifts after its tare. While the arm stands still (every joint slower than
-        ``standstill_speed`` for ``standstill_seconds``) and the estimate shows no contact (below
-        ``tare_contact_force``), the tare follows the sensor with time constant ``retare_seconds``: a
-        contact held that still and that small is what it may absorb."""
-        c = self.config
-        if c.retare_seconds == math.inf:  # told not to follow
-            return
-        if _within(qd, c.standstill_speed):
-            self._still_calls += 1
-        else:
-            self._still_calls = 0
-        if self._still_calls >= c.standstill_seconds * c.call_hz and f.dot(f) < c.tare_contact_force ** 2:
-            self._tare.follow(q, base_wrench, 1.0 / (c.retare_seconds * c.call_hz), self._follow_step)
-            self._tared_at = self._calls
-
-    def _finish(self, f, in_range, wrong_rate, usable, estimated=True) -> np.ndarray:
-        """The status of this call's estimate f, and f (a copy); a force within the bound is kept.
-        estimated: f is the method's estimate of this call (not the held one of the noise window)."""
-        if self._calls < self._warmup_calls:  # the method's own transient: no error model of it
-            estimated = False
-            self._error_bar.reset()
-        if estimated:
-            since = None
-            if self._tared_at is not None:
-                since = (self._calls - self._tared_at) / self.config.call_hz
-            self.last_sigma = self._error_bar.update(f, self._motion, since)
-        else:
-            self.last_sigma = _NO_SIGMA.copy()
-        status = _OK if in_range else _OUT_OF_RANGE
-        s0, s1, s2 = self.last_sigma.tolist()  # floats: a numpy max costs a microsecond; NaN still fails
-        limit = self.config.max_sigma
-        if status is _OK and not (s0 <= limit and s1 <= limit and s2 <= limit):
-            status = _UNCERTAIN
-        if self._calls < self._warmup_calls:
-            status = _WARMING_UP if self.window_problem is None else _CONTACT_AT_START
-        if self._fault is not None and estimated:
-            status = self._fault
-        if not usable:
-            status = _NO_SENSOR
-        if wrong_rate:
-            status = _WRONG_RATE
-        if not f.dot(f) <= self.config.max_tip_force ** 2:  # NaN compares False: flagged too
-            status = _FORCE_OUT_OF_RANGE  # returned, but never held as the last good estimate
-        else:
-            self._last_good = f
-        self.last_status = status
-        return f.copy()
-
-    def _track_sensors(self, has_base: bool, has_joint: bool) -> bool:
-        """kalman-fusion: which sensors the filter estimates from. A sensor back within
-        MAX_BRIDGE_CALLS is bridged; one that joins or leaves beyond that restarts the warm-up for the
-        new set's settling time. Returns whether any sensor is usable now."""
-        absent = self._absent  # written out per sensor: this runs every call
-        if has_base:
-            absent[0] = 0
-        elif absent[0] >= 0:
-            absent[0] += 1
-        if has_joint:
-            absent[1] = 0
-        elif absent[1] >= 0:
-            absent[1] += 1
-        active = _ACTIVE[0 <= absent[0] <= MAX_BRIDGE_CALLS, 0 <= absent[1] <= MAX_BRIDGE_CALLS]
-        if active != self._active:
-            self._active = active
-            if active:
-                self._warmup_calls = max(self._warmup_calls, self._calls + self._stream.settle_calls(active))
-        return bool(active)

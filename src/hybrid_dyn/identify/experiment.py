@@ -30,7 +30,7 @@ def record_excitation_dataset(path, config, traj: FourierTrajectory, n_instances
                               seed: int = 0, progress: bool = True) -> Path:
     """Simulate ``n_instances`` runs of ``traj`` (independent sensor noise) and write a dataset.
 
-    config: a :class:`~hybrid_dyn.sim.scenarios.GeneratorConfig` (plant, controller,
+    config: a :class:`~hybrid_dyn.sim.generator_config.GeneratorConfig` (plant, controller,
     noise); its pulses are switched off. All runs go to the ``train`` split: an
     identification set is fitted whole and validated on other data.
     """

@@ -1,27 +1,6 @@
 """The linear-in-parameters form of the joint torques and its base parameters.
 
-Rigid-body torques are linear in the ten inertial parameters of every body
-(:mod:`.parameters`), and so is a friction law built from fixed basis functions:
-
-    tau_m = Y(q, qd, qdd) pi + F(qd) phi
-
-Y (nv x 10 nv) is Pinocchio's ``computeJointTorqueRegressor`` (body j = everything
-rigidly attached to joint j, parameters about joint j's frame origin). F (nv x 3 nv)
-holds, for each joint j, three columns acting on row j only:
-
-    viscous  fv_j * qd_j,   Coulomb  fc_j * tanh(qd_j / eps),   offset  fo_j
-
-(tanh is a smooth sign: a step is not differentiable and the Gaz law, which the
-data follow, is smooth too).
-
-Not every column is independent: a body's parameters that never move anything
-(link 1 turns about a fixed vertical axis, so only its I_zz matters) and parameters
-that act only in fixed combinations make Y rank-deficient. The *base parameters*
-beta = K pi are the identifiable combinations: QR with column pivoting of the
-regressor stacked over random states picks r independent columns (|R_ii| above
-``tol`` times |R_11|; the default 1e-8 sits many decades above round-off, ~1e-15,
-and many below any physical column, ~1e-3 for the Panda), and the others are
-written in terms of them, W_d = W_b R1^-1 R2, so beta = pi_b + R1^-1 R2 pi_d.
+The detail (what it computes, the equations, why each choice): docs/design/identify.md, section ``identify/regressor.py``.
 """
 from __future__ import annotations
 

@@ -1,18 +1,13 @@
 """Simulation: the DART plant and the dataset generator."""
-from ..deprecation import module_aliases
 from .generator import generate_dataset
 from .instances import simulate_instance
-from .scenarios import (
-    SCENARIO_REGISTRY, SCENARIOS, SIZES, ConfigError, GeneratorConfig, NoiseConfig, PulseConfig, Scenario,
-    scenario_config,
-)
+from .generator_config import SIZES, ConfigError, GeneratorConfig, NoiseConfig, PulseConfig
+from .scenarios import SCENARIOS, Scenario, scenario_config
 from .simulator import SimulatedRun, Simulator, simulate_reference
 
 __all__ = [
-    "SCENARIOS", "SCENARIO_REGISTRY", "SIZES", "ConfigError", "GeneratorConfig", "NoiseConfig", "PulseConfig",
+    "SCENARIOS", "SIZES", "ConfigError", "GeneratorConfig", "NoiseConfig", "PulseConfig",
     "Scenario", "SimulatedRun", "Simulator", "generate_dataset", "scenario_config", "simulate_instance",
     "simulate_reference",
 ]
 
-# PROFILES: the generator sizes' old name, served with a warning.
-__getattr__ = module_aliases(__name__, {"PROFILES": "SIZES"}, globals(), why="generator sizes, not bench profiles")

@@ -1,23 +1,19 @@
 """CLI: ``hybrid-dyn generate``, the DART dataset generator."""
 from __future__ import annotations
 
-import argparse
 import sys
 
 
 def register(sub) -> None:
-    from ..deprecation import DeprecatedFlag
-    from .scenarios import SCENARIO_REGISTRY, SCENARIOS, SIZES
+    from .generator_config import SIZES
+    from .scenarios import SCENARIOS
 
     p = sub.add_parser("generate", help="simulate a dataset of a named scenario (DART, 1 kHz)")
-    p.add_argument("--scenario", choices=SCENARIOS, default="paper-ext",
-                   help=". ".join(f"{s.name}: {s.description}" for s in SCENARIO_REGISTRY.values()))
+    p.add_argument("--scenario", choices=list(SCENARIOS), default="paper-ext",
+                   help=". ".join(f"{s.name}: {s.description}" for s in SCENARIOS.values()))
     p.add_argument("--size", choices=SIZES, default="quick",
                    help="the dataset's size: quick: under a minute; default: ~0.4 M samples; paper: the seed's "
                         "1000 instances")
-    # Its old name (it is a size, not a bench profile).
-    p.add_argument("--profile", dest="size", choices=SIZES, action=DeprecatedFlag, new="--size",
-                   help=argparse.SUPPRESS)
     p.add_argument("--out", required=True, help="dataset directory or fsspec URL (created in an existing folder; an "
                                                  "interrupted run there resumes; one run at a time)")
     p.add_argument("--seed", type=int, default=0)

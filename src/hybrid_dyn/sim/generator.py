@@ -1,24 +1,6 @@
 """The dataset generator: a torque-controlled arm in DART, with sensors.
 
-The dataset writer: it decides which instances to (re)make, runs them on an executor and writes the
-manifest. One run is simulated in ``simulator.py`` (plant, controller, sensors: PROTOCOL 3); one
-instance's job, its seeds and its completion record are in ``instances.py``.
-
-Parallelism and restarts: each instance is a job for an executor (local
-processes or a Ray cluster, ``executors.py``); it writes ``instances/<name>.h5``
-to the dataset's store (a local directory or an fsspec URL, ``data/store.py``)
-and then a small ``<name>.json`` completion record. A restart skips instances whose record and checksum agree and
-regenerates (and names) missing, partial or corrupt ones; the manifest comes
-last. Per-instance seeds derive from (seed, index) alone, so the bytes do not
-depend on the worker count or on the order in which jobs finish.
-
-Concurrent runs: a run holds ``outputs.output_lock`` on a local output for its
-whole length, so a second run into the same folder is refused at once. Each
-file is written under a temporary name unique to its writer and hashed before
-the atomic rename, so a record only ever vouches for bytes its own job wrote
-(this also holds for Ray workers on a shared folder, which the lock of the
-driver does not cover). A folder is only written into if it is empty or was
-started by the generator (its ``generator.json``).
+The detail (what it computes, the equations, why each choice): docs/design/sim.md, section ``sim/generator.py``.
 """
 from __future__ import annotations
 
@@ -37,7 +19,7 @@ from ..outputs import output_lock, refuse_foreign
 from .executors import make_executor
 from .instances import _finished_record, _instance_job, instance_name
 from .instances import instance_rngs, simulate_instance  # noqa: F401  (re-exported: imported from here)
-from .scenarios import GENERATOR_VERSION, GeneratorConfig
+from .generator_config import GENERATOR_VERSION, GeneratorConfig
 from .simulator import FIELDS
 from .simulator import SimulatedRun, Simulator, simulate_reference  # noqa: F401  (re-exported: imported from here)
 
@@ -174,7 +156,7 @@ def _generate_locked(config, store, workers, progress, executor, log, tqdm, lock
 
     ordered = [records[i] for i in range(config.n_instances)]
     store.write_text("manifest.json", manifest_text({
-        # The size under the key the config stores it by (scenarios.GeneratorConfig.to_dict: hashes stay).
+        # The size under the key the config stores it by (generator_config.GeneratorConfig.to_dict: hashes stay).
         "robot": config.robot, "scenario": config.scenario, "profile": config.size, "seed": config.seed,
         "record_hz": config.record_hz, "dt": config.dt, "generator_version": GENERATOR_VERSION,
         "config": config.to_dict(), "config_hash": chash,

@@ -16,7 +16,7 @@ import numpy as np
 from ..data.dataset import write_instance
 from ..data.store import DatasetStore
 from .pulses import BellPulses, sample_contact_steps, sample_pulses, sample_start_touch
-from .scenarios import GeneratorConfig
+from .generator_config import GeneratorConfig
 from .simulator import SimulatedRun, Simulator
 from .trajectories import random_reference
 

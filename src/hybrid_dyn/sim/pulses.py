@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scenarios import ContactStepConfig, PulseConfig, StartTouchConfig
+from .generator_config import ContactStepConfig, PulseConfig, StartTouchConfig
 
 
 @dataclass(frozen=True)

@@ -1,25 +1,6 @@
 """Sensor models: what a robot's sensors make of the simulated truth.
 
-Two families live here, each defined once:
-
-- **The causal acceleration estimate** (``causal_acceleration``): a real arm measures no joint
-  acceleration; controllers differentiate the measured velocity and low-pass the result (a backward
-  difference, then a 2nd-order Butterworth, both causal; ``analytic/acceleration.py``, re-exported).
-  The generator records qdd this way, and the streaming estimator runs the same kernel.
-- **Sensors as hardware has them** (:class:`HardwareSensors`): joint encoders that quantize q to a
-  resolution, a velocity as the drive reports it (the difference of the quantized q, or that
-  difference through a stated first-order filter), link-side joint torque sensors with white noise,
-  a 6-axis base F/T sensor with white noise, a per-stream bias, a linear bias drift and a delay, and
-  the timestamps a control PC puts on the samples (jitter). One closed-loop stream simulator
-  (``sim/stream.py``) reads a stream through them (``read_sensors``), as does the generator for every
-  simulated scenario of the bench but two (``GeneratorConfig.sensors``): the drive reads the encoders
-  at the control rate (1 kHz) and the log keeps every n-th reading; the stream serves the tests,
-  ``benchmarks/``, ``checks/`` and ``examples/``.
-
-The older :class:`~hybrid_dyn.sim.scenarios.NoiseConfig` (independent white noise on q and qd, a constant
-base-sensor bias: sensors no robot has) is kept for the ideal-sensor control ``paper-ext-ideal`` and the
-seed's conditions ``seed-sim``; a real qd is made from q, so every other scenario uses
-:class:`HardwareSensors`.
+The detail (what it computes, the equations, why each choice): docs/design/sim.md, section ``sim/sensors.py``.
 """
 from __future__ import annotations
 
@@ -28,12 +9,13 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from ..analytic.acceleration import causal_acceleration
+from ..description.spec import resolve_encoder_resolution
 
 
 @dataclass(frozen=True)
 class EncoderModel:
     """Joint encoders. resolution [rad per count]: q is reported as round(q / resolution) * resolution;
-    None takes the robot description's ``encoder_resolution``; 0 reads q exactly.
+    "auto" takes the robot description's ``encoder_resolution``; 0 reads q exactly.
     velocity: how the drive makes qd: "difference" (the backward difference of the quantized q over the
     nominal period, what libfranka's dq is), "filtered" (that difference through a first-order low-pass
     at ``velocity_cutoff_hz`` [Hz]) or "exact" (the simulator's velocity, an ideal tachometer).
@@ -41,7 +23,7 @@ class EncoderModel:
     the reported qd (a tachometer's); 0 for a digital encoder. The kinematic test streams state the
     white-noise levels their tests were designed on this way."""
 
-    resolution: float | None = None
+    resolution: float | str = "auto"
     velocity: str = "difference"
     velocity_cutoff_hz: float = 0.0
     noise: float = 0.0
@@ -52,7 +34,7 @@ class EncoderModel:
             raise ValueError(f"EncoderModel.velocity must be 'difference', 'filtered' or 'exact', got {self.velocity!r}")
         if self.velocity == "filtered" and not self.velocity_cutoff_hz > 0:
             raise ValueError("EncoderModel.velocity='filtered' needs velocity_cutoff_hz > 0 [Hz]")
-        if self.resolution is not None and not self.resolution >= 0:
+        if self.resolution != "auto" and not (isinstance(self.resolution, (int, float)) and self.resolution >= 0):
             raise ValueError(f"EncoderModel.resolution must be >= 0 [rad], got {self.resolution!r}")
         if not (self.noise >= 0 and self.velocity_noise >= 0):
             raise ValueError(f"EncoderModel noise levels must be >= 0, got {self.noise!r}, {self.velocity_noise!r}")
@@ -126,11 +108,6 @@ class SensorReadings:
     drift: np.ndarray | None = None
 
 
-def encoder_resolution(robot, encoder: EncoderModel) -> float:
-    """The resolution [rad] an encoder model uses on ``robot`` (its own, else the description's)."""
-    return float(robot.spec.encoder_resolution if encoder.resolution is None else encoder.resolution)
-
-
 def read_sensors(robot, sensors: HardwareSensors, dt: float, q, qd, tau_J, base_wrench,
                  rng: np.random.Generator, every: int = 1) -> SensorReadings:
     """What ``sensors`` report of a true run: q, qd (n, nv) sampled every ``dt`` [s] (the control rate, where
@@ -175,7 +152,7 @@ def _read_encoders(robot, enc: EncoderModel, dt: float, q, qd, rng) -> tuple:
     if enc.noise > 0:
         q = q + rng.normal(size=q.shape) * enc.noise
     n_qd = rng.normal(size=qd.shape) * enc.velocity_noise if enc.velocity_noise > 0 else 0.0
-    res = encoder_resolution(robot, enc)
+    res = resolve_encoder_resolution(enc.resolution, robot.spec)
     q_read = np.round(q / res) * res if res > 0 else q.copy()
     if enc.velocity == "exact":
         qd_read = qd.copy()
@@ -191,4 +168,4 @@ def _read_encoders(robot, enc: EncoderModel, dt: float, q, qd, rng) -> tuple:
 
 
 __all__ = ["ClockModel", "EncoderModel", "ForceTorqueModel", "HardwareSensors", "SensorReadings",
-           "causal_acceleration", "encoder_resolution", "read_sensors"]
+           "causal_acceleration", "read_sensors"]

@@ -1,24 +1,6 @@
 """One simulated run: a torque-controlled arm in DART, with sensors (the generator's simulator).
 
-One instance (PROTOCOL 3) is simulated at ``1/dt`` (1 kHz):
-
-1. reference: standstill, then 5-50 random trajectories (``trajectories.py``);
-2. controller, every step: computed torque on the NOMINAL model plus PD, one
-   RNEA call ``tau_m = RNEA_nom(q_m, qd_m, qdd_ref + Kp e + Kd e_dot)`` on the
-   measured (noisy) state; friction is not compensated;
-3. plant, every step: DART, with joint force ``tau_m - tau_f(qd)`` (the Gaz
-   friction law at the true velocity) and, in ``*-ext`` scenarios, the bell
-   pulses at the tool point;
-4. sensors at ``record_hz``: see :func:`simulate_reference`.
-
-Every recorded sample k is the state *before* integration step k together with
-what DART computed in that step: its acceleration and the ground reaction on
-the base. So ``truth`` is one consistent rigid-body state per sample, which the
-tests check against the analytic model.
-
-Apart from the dataset writer (``generator.py``) and the instance jobs (``instances.py``) because a
-run is useful on its own: identification simulates its excitation runs here
-(``identify/experiment.py``), and nothing in it knows of files, executors or restarts.
+The detail (what it computes, the equations, why each choice): docs/design/sim.md, section ``sim/simulator.py``.
 """
 from __future__ import annotations
 
@@ -30,7 +12,7 @@ import pinocchio as pin
 from ..analytic.robot import InputError
 from .collision import collision_checker
 from .plant import DartPlant
-from .scenarios import GeneratorConfig
+from .generator_config import GeneratorConfig
 from .sensors import causal_acceleration, read_sensors
 
 FIELDS = ("t", "q", "qd", "qdd", "tau_m", "tau_J", "base_wrench", "tip_force")

@@ -20,10 +20,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..analytic.robot import Robot, load_robot
+from ..description.spec import resolve_encoder_resolution
 from .plant import DartPlant
 from .pulses import ContactSteps, sample_contact_steps
-from .scenarios import ContactStepConfig
-from .sensors import HardwareSensors, SensorReadings, encoder_resolution, read_sensors
+from .generator_config import ContactStepConfig
+from .sensors import HardwareSensors, SensorReadings, read_sensors
 
 # Joint PD gains of the stream's controller [Nm/rad, Nm s/rad] for a 7-joint arm (the Panda's
 # impedance-controller scale); other arms take the first nv.
@@ -120,7 +121,8 @@ def simulate_stream(robot: Robot | str = "panda", cfg: StreamConfig = StreamConf
         out_q[k], out_qd[k], out_tau[k], out_w[k] = q, qd, tau_link, plant.base_wrench()
         q, qd = plant.q, plant.qd
     readings = read_sensors(robot, cfg.sensors, cfg.dt, out_q, out_qd, out_tau, out_w, rng)
-    return ControlStream(readings, t, out_q, out_qd, force, encoder_resolution(robot, cfg.sensors.encoder))
+    resolution = resolve_encoder_resolution(cfg.sensors.encoder.resolution, robot.spec)
+    return ControlStream(readings, t, out_q, out_qd, force, resolution)
 
 
 __all__ = ["ControlStream", "StreamConfig", "Touch", "contact_force", "simulate_stream"]

@@ -1,24 +1,6 @@
 """Reference trajectories: random goals, RRT-Connect paths, jerk-limited timing.
 
-As in seed section 3.1 and PROTOCOL 3: a random joint-space goal (uniform
-within the limits less a margin), a collision-free path to it from the present
-state (RRT-Connect in joint space, when a collision checker exists; a straight
-line otherwise), time-parameterized within the published velocity,
-acceleration and jerk limits; a standstill between trajectories.
-
-Why our own RRT-Connect and not OMPL's: OMPL seeds one global random generator
-per process and ends path simplification on a wall-clock budget, so the same
-seed would give different paths on different worker counts or machine loads.
-The generator's promise (same seed and config, byte-identical data whatever
-``--workers``) needs a planner driven by the instance's own numpy generator
-and by iteration counts only. The algorithm is Kuffner & LaValle's (2000)
-RRT-Connect, followed by random shortcutting, as OMPL/MoveIt do by default.
-
-Timing: each path segment is a rest-to-rest jerk-limited ruckig trajectory of
-the arc length along the straight joint-space segment, so the checked path is
-exactly the executed path, with durations that are whole multiples of the
-control period. The limits are the published ones scaled by
-a per-trajectory speed factor (like MoveIt's velocity/acceleration scaling).
+The detail (what it computes, the equations, why each choice): docs/design/sim.md, section ``sim/trajectories.py``.
 """
 from __future__ import annotations
 

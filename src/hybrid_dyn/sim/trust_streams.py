@@ -17,7 +17,7 @@ import numpy as np
 
 from .sensors import ClockModel, EncoderModel, ForceTorqueModel, HardwareSensors, read_sensors
 
-HARDWARE = HardwareSensors(EncoderModel(None, "difference"), ForceTorqueModel(force_drift=0.025, torque_drift=0.0))
+HARDWARE = HardwareSensors(EncoderModel("auto", "difference"), ForceTorqueModel(force_drift=0.025, torque_drift=0.0))
 
 
 @dataclass(frozen=True)
@@ -26,7 +26,7 @@ class TrustCase:
     between them (a step: two points 1 ms apart) along ``direction``; moving: ((start, stop) [s], ...) when
     the arm moves (0.2 s smooth ramps). fault: None, "flip-base", "freeze-base" (from fault_at [s]),
     "flip-tau", "elbow" (the force acts on the elbow, not the tool), "gap" (5 samples lost at fault_at).
-    declared_resolution: what the estimator is told (None: the description's)."""
+    declared_resolution: what the estimator is told [rad] ("auto": the description's)."""
 
     seconds: float
     force: tuple = ()
@@ -35,7 +35,7 @@ class TrustCase:
     sensors: HardwareSensors = field(default_factory=lambda: HARDWARE)
     fault: str | None = None
     fault_at: float = 0.0
-    declared_resolution: float | None = None
+    declared_resolution: float | str = "auto"
 
 
 def _ramp(t0, t1, top, hold, seconds):
@@ -179,8 +179,7 @@ def build(robot, case: TrustCase | str, seed: int = 0) -> TrustStream:
     moving_f = np.linalg.norm(np.diff(truth if c.fault != "elbow" else f, axis=0), axis=1) > 1e-9
     edges = np.flatnonzero(np.diff(np.r_[0, moving_f.astype(int)]) != 0)
     changes = np.r_[edges * 1e-3, [c.fault_at] if c.fault == "gap" else []]
-    res = "auto" if c.declared_resolution is None else c.declared_resolution
-    return TrustStream(r.t, r.q, r.qd, bw, tj, truth, np.sort(changes), arrives, res)
+    return TrustStream(r.t, r.q, r.qd, bw, tj, truth, np.sort(changes), arrives, c.declared_resolution)
 
 
 __all__ = ["CASES", "HARDWARE", "TrustCase", "TrustStream", "build", "kinematics"]

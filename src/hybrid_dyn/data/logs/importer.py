@@ -1,34 +1,6 @@
 """Importing real robot logs into the toolkit's dataset format.
 
-A log (CSV, npz, MATLAB .mat, Parquet or a ROS bag) is described by a :class:`LogSpec`:
-which file(s), which columns hold which signal, where time comes from, what a
-trajectory is. The spec is given as keyword arguments of :func:`import_log` or as
-a small TOML file (:func:`read_spec`; the format is in ``docs/bring_your_own_log.md``).
-The importer then
-
-1. reads the tables (:mod:`.log_readers`, :mod:`.ros_bag`) and cuts them into trajectories
-   (one per variable or file, per value of a trajectory-id column, or contiguous
-   blocks of one table);
-2. validates every row and reports what it finds *by row* in an
-   :class:`ImportReport`: unreadable or NaN cells, time that does not increase,
-   gaps in time, values out of range (degrees logged as radians), and, when the
-   log carries the next sample of each row, rows whose successor is not the
-   logged next sample. A bad row is dropped and counted; a gap splits the
-   trajectory into segments (a derivative filter must not run across it);
-   nothing is dropped without an entry in the report;
-3. estimates velocities when missing and accelerations always (unless the log
-   has them) with a zero-phase filter, segment by segment (:mod:`..derivatives`);
-4. writes a dataset (instances = segments, splits by trajectory, so all segments
-   of one trajectory are in one split: at random, in time order or as listed,
-   :mod:`..splits`) with the report in the manifest.
-
-By concept: the spec and the importer's errors in :mod:`.log_spec`, the report in
-:mod:`.import_report`, steps 1-2 in :mod:`.log_validation`, steps 3-4 in
-:mod:`.log_writer`; this module runs them (:func:`import_log`) and keeps every
-name importable from here.
-
-Units after import are the toolkit's SI units (``FIELD_UNITS``): t [s], q [rad],
-qd [rad/s], qdd [rad/s^2], torques [Nm]. ``tau_m`` is the logged joint torque.
+The detail (what it computes, the equations, why each choice): docs/design/data.md, section ``data/logs/importer.py``.
 """
 from __future__ import annotations
 

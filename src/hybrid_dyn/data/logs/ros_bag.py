@@ -1,34 +1,6 @@
 """ROS 1 and ROS 2 bags as one more log reader (``docs/from_a_ros_bag.md``).
 
-A spec's ``[ros]`` table (:class:`RosTopics`) names the topics; :func:`read_bags` turns each bag into
-one :class:`RosTable` with the columns the spec maps (``t``, ``q[1..n]``, ``qd``, ``tau_m`` and/or
-``tau_J`` (``effort``), ``base_wrench[1..6]``, ``tip_force[1..3]``), and the importer's own checks (``log_validation.py``) run
-on it exactly as on a CSV file: a row is one ``/joint_states`` message (row 1 = the first).
-
-The time base (stated in the import report):
-
-- every message's time is its header stamp; a zero stamp (a driver that does not fill it) is replaced
-  by the bag's receive time, and the report says how many messages of which topic got it;
-- the rows are the joint-state messages; a wrench topic is put on their stamps by ``resample``:
-  ``"linear"`` interpolation between the two wrench samples around a stamp, or the ``"nearest"`` of
-  them. Never extrapolation: a stamp before the topic's first sample, after its last, or inside a gap
-  of the topic (two samples more than ``jump_factor`` median steps apart) gets NaN cells listed by row,
-  so the importer drops that row and reports why;
-- a joint-state stamp that ties or goes back by at most half the topic's median step (the jitter of a
-  stream stamped on arrival) is kept in message order and re-timed evenly between the stamps around it;
-  one that goes back further is the CSV rule's (``time_order``: the row is dropped and named); a wrench
-  message whose stamp does not advance is left out of the interpolation and counted in the report.
-
-Joint names are matched to the robot description by name in every message (their order may change
-from message to message); names the robot does not have (a second arm, the gripper's fingers) are
-ignored; a message that lacks a robot joint (franka_ros publishes the gripper's fingers in messages of
-their own on ``/joint_states``) is skipped and counted; a bag with no message of the robot's joints is
-refused, named. An empty field is a missing field: qd is derived from q where the velocity is empty,
-and a bag whose efforts are all empty has no joint torques (a method that reads none still runs). A
-wrench whose ``frame_id`` is not the robot's base-sensor frame is refused, named, unless the spec's
-``frame`` says which frame_id the bag uses for it. Bags are read with ``rosbags`` (pure Python, no ROS
-installation), in chunks (``bag_stream.py``); a damaged bag is one line naming the file, the message and
-the last good stamp, or with ``keep_partial`` the rows before the damage, the report saying where it stopped.
+The detail (what it computes, the equations, why each choice): docs/design/data.md, section ``data/logs/ros_bag.py``.
 """
 from __future__ import annotations
 

@@ -1,20 +1,25 @@
-"""A report folder's ownership and its invocations: the bench claims a folder (or refuses one that is
-not its own), and records each invocation's wall time in run.json while it runs.
+"""A bench report folder's record, written here and only here while the bench runs: the folder claimed (or
+refused when it is not the bench's), each invocation's wall and CPU time in run.json as it goes (a heartbeat
+while it generates or trains), results.csv and curves.json after every row, and at the end run.json with the
+digest that vouches for results.csv (``integrity.py`` computes and checks the digests; ``results.py`` is the
+files' format).
 
-A bench may take several invocations (it resumes from its caches), and one of them may be killed by
-the user or by the OOM killer; the report adds up the parts that run.json recorded
-(``report._invocation_times``), and ``checks/acceptance.py`` reads a wall time "from empty caches" only
-where the first invocation says it began on empty caches (:func:`caches_empty`).
+A bench may take several invocations (it resumes from its caches), and one of them may be killed by the user or
+by the OOM killer; the report adds up the parts that run.json recorded (``report._invocation_times``), and
+``checks/acceptance.py`` reads a wall time "from empty caches" only where the first invocation says it began on
+empty caches (:func:`caches_empty`).
 """
 from __future__ import annotations
 
 import contextlib
 import dataclasses
+import os
 import threading
 import time
 from pathlib import Path
 
 from ..data.logs.real_logs import REAL_SETS
+from ..data.splits import dataset_split_text
 from ..outputs import refuse_foreign
 from ..timing import cpu_seconds
 from .integrity import (DIGEST_KEY, REPORT_FILES, read_run_json, remove_report_files, results_digest, run_digest,
@@ -22,6 +27,7 @@ from .integrity import (DIGEST_KEY, REPORT_FILES, read_run_json, remove_report_f
 from .predictions import PREDICTIONS_FILE
 from .plan import BenchPlan, is_dataset_path
 from .profiles import BenchProfile
+from .report import machine_info
 from .results import CURVES_FILE, write_curves, write_json, write_results
 from .reference_study import REFERENCE_COMPARISON_FILE
 
@@ -172,3 +178,59 @@ def caches_empty(profile: BenchProfile, data_root: Path, work_root: Path) -> boo
     plan = BenchPlan(profile)
     return not any(plan.dataset_path(s, data_root).exists() for s in profile.scenarios
                    if not is_dataset_path(s) and s not in REAL_SETS)
+
+
+def record_row(out_dir: Path, rows: list, clock: InvocationClock) -> None:
+    """A row just finished (appended to ``rows``): results.csv, run.json's invocation and digest, curves.json."""
+    write_results(out_dir / "results.csv", rows)
+    clock.record(out_dir, rows)
+    write_curves(out_dir / CURVES_FILE, rows)
+
+
+def finish_record(out_dir: Path, rows: list, meta: dict) -> None:
+    """The run's end: results.csv (also when no row applied: the report reads it), and run.json (``meta``, from
+    :func:`run_meta`) with the digest ``hybrid-dyn report`` checks against. The files an earlier report drew
+    here stay on record (this report removes those it no longer draws)."""
+    meta[REPORT_FILES] = read_run_json(out_dir).get(REPORT_FILES) or []
+    write_results(out_dir / "results.csv", rows)
+    meta[DIGEST_KEY] = results_digest(out_dir / "results.csv", meta)
+    write_json(out_dir / "run.json", meta)
+
+
+def import_warnings(ds) -> list[str]:
+    """The warnings an import recorded in the dataset's manifest (they once never reached the report,
+    which then showed RNEA off by 0.55 Nm on a log whose time unit the import had said did not fit)."""
+    imp = ds.meta.get("import")
+    warnings = imp.get("warnings") if isinstance(imp, dict) else None
+    return [str(w) for w in warnings] if isinstance(warnings, list) else []
+
+
+def recorded_path(path) -> str:
+    """A dataset's path as run.json and the README record it: relative to the working directory, so that a
+    committed report names no folder of the machine that wrote it (an absolute path given on the command
+    line, ``--data-root /work/x/data``, is recorded as ``data/...`` when run from ``/work/x``)."""
+    path = Path(path)
+    if not path.is_absolute():
+        return str(path)
+    try:
+        return os.path.relpath(path)
+    except ValueError:  # another drive (Windows): no relative path exists
+        return str(path)
+
+
+def run_meta(profile: BenchProfile, clock: InvocationClock, rows: list, labels: dict, skipped: list,
+              datasets: dict, dataset_seconds: dict) -> dict:
+    """run.json (before its digest): the profile, every invocation's wall time, the scenarios and rows not run,
+    the machine and each dataset."""
+    # Keep every invocation (``clock.previous``, read when the folder was claimed): a rerun
+    # that reuses cached data and models is fast, and the first, full run's wall
+    # time must not be overwritten by it.
+    invocations = clock.invocations(rows, finished=True)
+    wall = invocations[-1]["wall_seconds"]
+    return {"bench_report": 1, "profile": profile.to_dict(), "wall_seconds": wall, "invocations": invocations,
+            "scenarios": labels, "requested": clock.requested, "skipped": skipped, "machine": machine_info(),
+            "datasets": {s: {"path": recorded_path(d.path), "checksum": d.checksum, "seed": d.meta.get("seed"),
+                             "config_hash": d.meta.get("config_hash"), "robot": d.meta.get("robot"),
+                             "split": dataset_split_text(d), "dataset_seconds": dataset_seconds.get(s),
+                             **({"import_warnings": import_warnings(d)} if import_warnings(d) else {})}
+                         for s, d in datasets.items()}}

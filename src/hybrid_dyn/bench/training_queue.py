@@ -1,0 +1,112 @@
+"""The training queue: the learned rows trained in parallel before they are scored, one single-threaded model per
+job (``pretrain``, dearest first), and the residual nets on the identified model trained in workers while the
+bench's process scores the other rows (``background_training``)."""
+from __future__ import annotations
+
+import contextlib
+
+from tqdm.auto import tqdm
+
+from ..data import load_dataset
+from .plan import BenchContext
+
+
+def _train_job(args) -> tuple[str, str | None]:
+    """Train one learned row in a worker process (single-threaded torch)."""
+    dataset_path, robot, preset, out_dir, train_config, threads = args
+    set_torch_threads(threads)
+    from ..learn import train_model
+
+    try:
+        ds = load_dataset(dataset_path)
+        ds.meta["robot"] = robot  # the bench's robot for this dataset (--robot / --tool), as score_row sees it
+        train_model(ds, preset, out_dir, config=train_config, wait=True)  # another bench sharing runs/
+        return _preset_name(preset), None
+    except Exception as err:  # reported again, with its row, when the row is scored
+        return _preset_name(preset), f"{type(err).__name__}: {err}"
+
+
+def _preset_name(preset) -> str:
+    """A job's preset by name (a job carries a name, or a Preset changed by the profile's preset_overrides)."""
+    return preset if isinstance(preset, str) else preset.name
+
+
+def epoch_cost_rank(preset) -> tuple:
+    """A sort key that orders presets by their cost per epoch, dearest first.
+
+    From the architecture alone: DeLaN (autograd through H(q) and V(q); with an LSTM
+    residual the dearest), then LSTMs, conv nets, MLPs; within a kind, wider fronts and
+    longer windows first. Measured on one thread on a default-profile scenario (144 k
+    training windows): delan-residual 10.7 s per epoch, delan-friction 6.4, the 2 x 32
+    LSTMs 5.0-5.9, the 32-unit residual LSTMs 2.7-4.0, the 16-unit LSTMs 1.4-2.5, conv
+    1.1-1.6, MLPs 0.45-1.05.
+    """
+    from ..learn.kinds import cost_rank
+    from ..learn.presets import PRESETS
+
+    p = PRESETS.lookup(preset) if isinstance(preset, str) else preset
+    kind = cost_rank(p)  # declared with the network kind (learn/kinds.py)
+    return (-kind, -sum(p.front_units), -p.window, -p.fc_units)
+
+
+def pretrain(jobs: list, workers: int, log=print, executor=None) -> None:
+    """Train the learned rows in parallel, one single-threaded model per job.
+
+    ``executor``: where the jobs run (``sim/executors.py``, as for generation): local
+    processes by default (serial for one worker), or a Ray cluster. Each model's training
+    is seeded on its own and reads and writes only paths in its job, so the model files do
+    not depend on the executor, the worker count or the order; finished models are reused
+    on a rerun (on a cluster, the data and model folders must be on a file system every
+    node sees: docs/cluster.md). The dearest models are queued first
+    (:func:`epoch_cost_rank`): queued in declaration order, the DeLaN rows came last and
+    one core idled while the other finished them. Local workers die with this process, and
+    an interrupt stops them instead of waiting for every queued model.
+    """
+    if not jobs:
+        return
+    from ..sim.executors import make_executor
+
+    jobs = sorted(jobs, key=lambda job: epoch_cost_rank(job[2]))  # stable: declaration order within a rank
+    executor = executor or make_executor(workers)
+    results = executor.map_unordered(_train_job, [(job,) for job in jobs])
+    for preset, err in tqdm(results, total=len(jobs), desc="training", unit="model"):
+        if err:
+            log(f"[bench] training {preset} failed: {err}")
+
+
+def set_torch_threads(n: int) -> None:
+    try:
+        import torch
+    except ImportError:  # pragma: no cover
+        return
+    torch.set_num_threads(n)
+
+
+@contextlib.contextmanager
+def background_training(ctx: BenchContext, specs: list, tcfg, robot: str, executor):
+    """The residual nets on the identified model (which ``pretrain`` cannot train: they need the identified
+    fit first) trained in worker processes while this process fits and scores the other rows, on local
+    workers beyond this process (``profile.workers - 1``); yields {row name: future}. Their row waits for its
+    future before it is built, then finds the model trained (a worker's error is raised again by the build)."""
+    from .identified_rows import RESIDUAL_ROWS, residual_training
+
+    names = [s.name for s in specs if s.name in RESIDUAL_ROWS]
+    if not names or ctx.profile.workers < 2 or executor is not None:
+        yield {}
+        return
+    from ..sim.executors import process_pool
+
+    jobs = {}
+    try:
+        for name in names:
+            config, out = residual_training(ctx, name, tcfg)
+            jobs[name] = (str(ctx.dataset.path), robot, ctx.plan.preset(RESIDUAL_ROWS[name]), str(out), config,
+                          ctx.profile.torch_threads)
+    except Exception as err:  # the identification failed: each row that needs it fails with it, named, when scored
+        ctx.log(f"[bench] {ctx.scenario}: the residual nets on the identified model train when scored ({err})")
+        yield {}
+        return
+    ctx.log(f"[bench] {ctx.scenario}: training {', '.join(jobs)} in a worker while this process fits and scores "
+            "the other rows")
+    with process_pool(min(len(jobs), ctx.profile.workers - 1)) as pool:
+        yield {name: pool.submit(_train_job, job) for name, job in jobs.items()}
