@@ -53,7 +53,7 @@ def main(argv=None) -> int:
     traceback); 130/143 interrupted by SIGINT/SIGTERM; any other exception is a bug in the toolkit
     and propagates with its traceback (exit 1)."""
     formatwarning = warnings.formatwarning
-    warnings.formatwarning = _one_line_deprecation(formatwarning)  # old flags warn while parsing, too
+    warnings.formatwarning = _one_line_deprecation(formatwarning)  # an old recipe or estimator name, one line
     try:
         return _run(build_parser().parse_args(argv))
     finally:
@@ -61,7 +61,7 @@ def main(argv=None) -> int:
 
 
 def _one_line_deprecation(formatwarning):
-    """A renamed flag or name is the user's to fix, not a place in the toolkit: ``warning: <message>``."""
+    """A renamed name is the user's to fix, not a place in the toolkit: ``warning: <message>``."""
 
     def one_line(message, category, filename, lineno, line=None):
         if issubclass(category, DeprecatedNameWarning):
