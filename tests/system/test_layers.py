@@ -125,17 +125,12 @@ def test_no_two_modules_share_a_file_name():
     assert {n: ps for n, ps in seen.items() if len(ps) > 1} == {}
 
 
-# Test folders still citing issue numbers, to be cleaned by their owners; the list only shrinks.
-TESTS_CITING = ("analytic", "data", "description", "estimator", "identify", "sim")
-
-
 def test_the_source_and_the_tests_cite_no_issue_numbers():
     """The code says what it is; how it came to be so is in CHANGELOG.md."""
     import re
 
     tests = Path(__file__).resolve().parents[1]
     cite = re.compile(r"\bissues? \d+", re.IGNORECASE)
-    files = [*PACKAGE.rglob("*.py"), *(p for p in tests.rglob("*.py")
-                                      if p.relative_to(tests).parts[0] not in TESTS_CITING)]
+    files = [*PACKAGE.rglob("*.py"), *tests.rglob("*.py")]
     found = [f"{p}:{i}" for p in files for i, line in enumerate(p.read_text().splitlines(), 1) if cite.search(line)]
     assert found == []
