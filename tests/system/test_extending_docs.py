@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-pytestmark = [pytest.mark.system, pytest.mark.slow]  # three pytest runs and a bench in a fresh interpreter each
+pytestmark = pytest.mark.system
 
 ROOT = Path(__file__).resolve().parents[2]
 DOC = ROOT / "docs" / "extending.md"
@@ -48,6 +48,21 @@ def _edit(path: Path, new_line: str) -> None:
     path.write_text("".join(lines))
 
 
+def test_the_pages_table_lists_every_registry_the_source_declares():
+    import importlib
+
+    from hybrid_dyn.registry import Registry
+
+    listed = re.findall(r"^\| `(hybrid_dyn\.[\w.]+)\.([A-Z_]+)` \|", DOC.read_text(), flags=re.M)
+    for module, name in listed:
+        assert isinstance(getattr(importlib.import_module(module), name), Registry), (module, name)
+    declared = {(str(p.relative_to(ROOT / "src").with_suffix("")).replace("/", "."), m)
+                for p in (ROOT / "src" / "hybrid_dyn").rglob("*.py")
+                for m in re.findall(r"^([A-Z_]+) = Registry\(", p.read_text(), flags=re.M)}
+    assert declared == set(listed)
+
+
+@pytest.mark.slow  # three pytest runs and a bench, each in a fresh interpreter
 def test_the_extending_page_followed_word_for_word(tmp_path, panda):
     from hybrid_dyn.data.synthetic import make_synthetic_dataset
 
