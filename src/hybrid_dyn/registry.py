@@ -95,8 +95,8 @@ def help_listing(**sources: Callable[[], Iterable[str]]) -> type[argparse.HelpFo
     a command that prints no help imports nothing for it."""
 
     class Names(dict):
-        def __missing__(self, key):
-            return ", ".join(sources[key]())
+        def __missing__(self, key):  # argparse expands %(...)s after us: a name's own % is kept literal
+            return ", ".join(sources[key]()).replace("%", "%%")
 
     class HelpWithNames(argparse.HelpFormatter):
         def _get_help_string(self, action):
