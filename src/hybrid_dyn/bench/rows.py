@@ -35,7 +35,7 @@ class Predictor:
     train_cpu_seconds: float | None = None
     n_params: int = 0
     inputs: str = ""
-    training: dict | None = None  # learned rows: ``training_summary`` of the model's config
+    training: dict | None = None  # trained rows: ``training_summary`` of the model's config
     # A hybrid row (a correction on a physics prior): whether validation kept the prior, from
     # prior_kept_text ("all", "none", "joints 2, 5"); None for a row with no prior.
     prior_kept: str | None = None
@@ -55,7 +55,7 @@ class Row:
     name: the row's name in results.csv and the tables. task: a key of :data:`TASK_TARGET`.
     family: a key of :data:`FAMILIES`. needs: the dataset fields the row reads, its target
     included (no default: a row must say). needs_urdf: whether it needs a description of the
-    dataset's robot. build(ds, ctx) -> :class:`Predictor`. trains: a learned row (trained, with
+    dataset's robot. build(ds, ctx) -> :class:`Predictor`. trains: a trained row (with
     a loss curve). reference: the label of a reference row (in the tables, never a family's
     best), None for a contender. more_needs(ds) -> fields: what it needs beyond ``needs`` on that
     dataset (identified rows fit on an imported log's own torques). prior_row: the row that is this

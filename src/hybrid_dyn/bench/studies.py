@@ -186,12 +186,12 @@ def choose_rows(full: list[dict]) -> dict:
     (scenario, task, "physics on <inputs>"), where that row is another."""
     best = {}
     physics = []
-    learned = FAMILIES.names(fitted=True, in_studies=True)  # a study picks their best trained rows
+    fitted = FAMILIES.names(fitted=True, in_studies=True)  # a study picks their best trained rows
     for r in _ok(full):
         row = ROWS.lookup(r["model"])
         if row.reference is not None:
             continue
-        if row.trains and row.family in learned:
+        if row.trains and row.family in fitted:
             key = (r["scenario"], r["task"], row.family)
         elif is_physics_result(r):
             key = (r["scenario"], r["task"], "physics")
