@@ -53,7 +53,7 @@ def identified_log(panda, tmp_path_factory):
     ds = load_dataset(make_synthetic_dataset(root / "d", panda, n_instances=5, n_samples=150, seed=5,
                                              friction=panda.spec.friction("gaz2019"), contact_free_s=0.6))
     assert ds.meta.get("generator_version") is None
-    model = identify(ds, "consistent", panda)  # what `hybrid-dyn identify --method consistent` runs
+    model = identify(ds, "consistent", panda)  # what `hybrid-dyn identify --fit consistent` runs
     return ds, model, model.save(root / "panda_identified.json")
 
 

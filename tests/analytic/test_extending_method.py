@@ -198,3 +198,24 @@ def test_a_method_has_no_prior_field():
     shipped the old field, so it is refused like any unknown one."""
     with pytest.raises(TypeError, match="prior"):
         Method("toy", "a toy", ("base_wrench",), False, False, True, "momentum_gain", StaticBase, prior=True)
+
+
+def test_a_new_methods_module_can_import_the_declaration_without_an_import_circle():
+    """A new method's module imports ``method_declaration`` (and may be imported by the catalogue): that module
+    imports no method module and not the catalogue, so no circle can close through it; the catalogue imports
+    every module of the package that registers a method."""
+    import ast
+    import inspect
+
+    from hybrid_dyn.analytic import method_declaration, methods
+
+    def imported(module):
+        tree = ast.parse(inspect.getsource(module))
+        return {a.name if node.module is None else node.module for node in ast.walk(tree)
+                if isinstance(node, ast.ImportFrom) for a in node.names}
+
+    registering = {m.make.__module__.rsplit(".", 1)[-1] for m in TIP_FORCE_METHODS.values()
+                   if m.make.__module__.startswith("hybrid_dyn.analytic.")}  # the package's own (not a plugin's)
+    assert "qdd_methods" in registering and "method_declaration" not in registering
+    assert not (imported(method_declaration) & (registering | {"methods", "batch_run"}))
+    assert registering <= imported(methods)

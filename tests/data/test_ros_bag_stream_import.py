@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from hybrid_dyn.data import import_log, load_dataset
+from hybrid_dyn.data.derivative_methods import DERIVATIVE_METHODS
 from hybrid_dyn.data.logs import bag_stream
 from hybrid_dyn.data.logs.bag_decode import JOINT_STATE, open_reader, topic_batches
 from hybrid_dyn.data.logs.bag_import import _Scratch, _segment_fields
@@ -34,7 +35,7 @@ def gapped_bag(sig, folder, **kw):
                      empty=lambda k: {"velocity"} if k % 10 == 3 else (), **kw)
 
 
-@pytest.mark.parametrize("method", ["savgol", "central", "butter"])
+@pytest.mark.parametrize("method", list(DERIVATIVE_METHODS))
 def test_a_streamed_import_writes_what_the_whole_bag_import_writes(method, sig, tmp_path, monkeypatch):
     bag = gapped_bag(sig, tmp_path / "run")
     spec_path = ros_spec(tmp_path / "spec", bag, extra=f'[derivatives]\nmethod = "{method}"\n')
@@ -59,9 +60,11 @@ def test_a_streamed_import_writes_what_the_whole_bag_import_writes(method, sig, 
         assert sha256_file(tmp_path / "streamed" / rec["file"]) == rec["sha256"]
 
 
-@pytest.mark.parametrize("method", ["savgol", "central"])
+@pytest.mark.parametrize("method", [m.name for m in DERIVATIVE_METHODS.where(local=True)])
 def test_derivatives_in_blocks_with_the_filters_margin_equal_the_whole_segments(method, tmp_path):
     from hybrid_dyn.data.derivatives import DerivativeFilter
+
+    assert all((DerivativeFilter(m.name).reach(1e-3) is not None) == m.local for m in DERIVATIVE_METHODS.values())
 
     rng = np.random.default_rng(0)
     n = 2000

@@ -14,6 +14,7 @@ import hybrid_dyn as hd
 from hybrid_dyn.description import RobotDescriptionError
 from hybrid_dyn.identify import (IdentifiedModel, LinearFriction, base_parameters, friction_from_file,
                                  full_regressor, identify, inertial_regressor)
+from hybrid_dyn.identify.identification_methods import IDENTIFICATION_METHODS
 from hybrid_dyn.identify.parameters import (dynamic_to_log_cholesky, from_urdf_form, log_cholesky_to_pseudo,
                                             pseudo_to_dynamic, to_urdf_form)
 from hybrid_dyn.identify.regressor import nominal_body_parameters
@@ -234,7 +235,7 @@ def test_a_joint_that_never_moves_is_a_warning_with_its_range_and_the_condition_
     assert still.fit["condition_number"] > 1e8 and "above 1e+08" in still.fit["warnings"][1]
     # On the command line, from a dataset of the still motion (the train split is what identify fits on).
     ds = _dataset(tmp_path / "ds", panda, q, qd, qdd, panda.inverse_dynamics(q, qd, qdd))
-    assert main(["identify", "--data", str(ds), "--method", "ols", "--splits", "train",
+    assert main(["identify", "--data", str(ds), "--fit", "ols", "--splits", "train",
                  "--out", str(tmp_path / "p.json")]) == 0
     out = capsys.readouterr().out
     assert "warning: joint 4 (panda_joint4) moves 0 deg in the identification data, under the 5 deg" in out, out
@@ -267,6 +268,23 @@ def test_sigmoid_friction_recovers_the_plants_gaz_law(panda, noisy_mismatch_data
     assert np.max(model.fit["rmse_per_joint"]) < 0.06
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("method", list(IDENTIFICATION_METHODS))
+def test_every_identification_method_fits_and_its_file_gives_the_same_torques(method, panda, noisy_mismatch_data,
+                                                                            tmp_path):
+    """Each registered method (a new one too): the model says which method made it, a method declared consistent
+    gives physically consistent bodies, and its saved file, loaded, predicts the torques the model does."""
+    model = identify(noisy_mismatch_data, method, panda)
+    assert model.method == method
+    if IDENTIFICATION_METHODS[method].consistent:
+        assert model.physically_consistent
+    law = {"linear": LinearFriction, "sigmoid": hd.description.GazFriction}[IDENTIFICATION_METHODS[method].friction]
+    assert isinstance(model.friction, law)
+    back = IdentifiedModel.load(model.save(tmp_path / f"{method}.json"))
+    q, qd, qdd = random_states(panda, 5, seed=13)
+    np.testing.assert_allclose(back.predict_torque(q, qd, qdd), model.predict_torque(q, qd, qdd), atol=1e-10)
+
+
 def test_identified_model_file_roundtrip_and_errors(panda, noisy_mismatch_data, tmp_path):
     model = identify(noisy_mismatch_data, "wls", panda)
     path = model.save(tmp_path / "wls.json")
@@ -296,11 +314,11 @@ def test_cli_identify_on_a_dataset(panda, tmp_path, capsys):
     ds = make_synthetic_dataset(tmp_path / "ds", panda, n_instances=3, n_samples=300, tip_forces=False,
                                 friction=panda.spec.friction("gaz2019"))
     out = tmp_path / "p.json"
-    assert main(["identify", "--data", str(ds), "--method", "ols", "--out", str(out)]) == 0
+    assert main(["identify", "--data", str(ds), "--fit", "ols", "--out", str(out)]) == 0
     text = capsys.readouterr().out
     assert "condition number" in text and "fit RMSE per joint" in text
     assert IdentifiedModel.load(out).method == "ols"
-    assert main(["identify", "--data", str(tmp_path / "nope"), "--method", "ols", "--out", str(out)]) == 2
+    assert main(["identify", "--data", str(tmp_path / "nope"), "--fit", "ols", "--out", str(out)]) == 2
 
 
 # ------------------------------------------------------------------- excitation

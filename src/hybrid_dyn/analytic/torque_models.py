@@ -13,15 +13,18 @@ from ..registry import Registry
 
 @dataclass(frozen=True)
 class TorqueModel:
-    """A joint-torque model tau_m [Nm] by its one name: what it is (``summary``); residual_prior: a residual
-    network may sit on it (``learn/priors.py``)."""
+    """A joint-torque model tau_m [Nm] by its one name: the dataset fields it reads (``fields``, what a residual
+    prior on it is given: ``learn/priors.PRIOR_FIELDS``), what it is (``summary``); residual_prior: a residual
+    network may sit on it."""
 
     name: str
+    fields: tuple
     summary: str
     residual_prior: bool = True
 
 
 TORQUE_MODELS = Registry("joint-torque model", UsageError)
-TORQUE_MODELS.register(TorqueModel("rnea", "inverse dynamics (+ friction on an identified set)"))
-TORQUE_MODELS.register(TorqueModel("rnea-bw", "RNEA - J_v^T F, F from base-wrench"))
+for _model in (TorqueModel("rnea", ("q", "qd", "qdd"), "inverse dynamics (+ friction on an identified set)"),
+               TorqueModel("rnea-bw", ("q", "qd", "qdd", "base_wrench"), "RNEA - J_v^T F, F from base-wrench")):
+    TORQUE_MODELS.register(_model)
 TORQUE_MODELS.alias("rnea-basewrench", "rnea-bw")

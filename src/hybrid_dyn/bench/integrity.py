@@ -29,7 +29,7 @@ import numpy as np
 from ..errors import HybridDynError
 from ..outputs import json_marker, refuse_foreign
 from .metrics import ErrorReport
-from .results import SCORED_STATUSES, read_results, write_json
+from .results import SCORED_STATUSES, read_results
 
 RUN_FILE = "run.json"
 RESULTS_FILE = "results.csv"
@@ -142,7 +142,7 @@ def check_meta(meta: dict, path) -> None:
     if requested is not None and not _texts(requested):
         bad("requested", "a list of rows (scenario / task / model)")
     files = meta.get(REPORT_FILES)
-    if files is not None and not (isinstance(files, list) and all(_is_plain_name(f) for f in files)):
+    if files is not None and not (isinstance(files, list) and all(is_plain_name(f) for f in files)):
         bad(REPORT_FILES, "a list of file names in the report folder")
     machine = meta.get("machine")
     if machine is not None and not (all(k in machine for k in ("machine", "processor", "python"))
@@ -159,7 +159,7 @@ PROFILE_FIELDS = (("name", _text, "text"), ("generator_profile", _text, "text"),
                   ("seed", lambda x: _is_number(x) and float(x).is_integer(), "an integer"))
 
 
-def _is_plain_name(name) -> bool:
+def is_plain_name(name) -> bool:
     """A file name inside the folder, nothing else: the report deletes by these names."""
     return isinstance(name, str) and name not in ("", ".", "..") and "/" not in name and "\\" not in name \
         and not name.startswith(".") and name != RUN_FILE
@@ -248,27 +248,6 @@ def _same(text, value: float) -> bool:
     except (TypeError, ValueError):
         return False
     return math.isclose(cell, value, rel_tol=1e-5, abs_tol=1e-300)
-
-
-def record_report_files(out_dir, meta: dict, files) -> None:
-    """Record in the folder's run.json (``meta``, as on disk and checked) the files the report wrote there, and
-    vouch for run.json anew with them (its digest's run part); no run.json of the bench's there: nothing."""
-    out_dir = Path(out_dir)
-    if not (out_dir / RUN_FILE).is_file() or not is_bench_meta(meta):
-        return
-    meta = {**meta, REPORT_FILES: sorted(set(files))}
-    if isinstance(meta.get(DIGEST_KEY), dict):
-        meta[DIGEST_KEY] = {**meta[DIGEST_KEY], "run": run_digest(meta)}
-    write_json(out_dir / RUN_FILE, meta)
-
-
-def remove_report_files(out_dir, names) -> None:
-    """Remove the report's files ``names`` (recorded in run.json: the only files ever removed by name) from
-    ``out_dir``; a name already gone is skipped."""
-    for name in names:
-        path = Path(out_dir) / name
-        if _is_plain_name(name) and (path.is_file() or path.is_symlink()):
-            path.unlink()
 
 
 @dataclasses.dataclass

@@ -147,7 +147,8 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
     """Write the tables (``.md``, ``.tex``), the figures and README.md into ``out_dir`` from ``rows`` (as
     results.csv holds them: ``results.read_results``), ``meta`` (run.json), curves.json and predictions.h5
     there. Returns the notes on what could not be drawn (a figure without its predictions), also logged."""
-    from .integrity import REPORT_FILES, record_report_files, remove_report_files
+    from .integrity import REPORT_FILES
+    from .run_record import record_report_files, remove_report_files
 
     out_dir = Path(out_dir)
     written = ["README.md"]

@@ -1,8 +1,8 @@
 """A bench report folder's record, written here and only here while the bench runs: the folder claimed (or
 refused when it is not the bench's), each invocation's wall and CPU time in run.json as it goes (a heartbeat
-while it generates or trains), results.csv and curves.json after every row, and at the end run.json with the
-digest that vouches for results.csv (``integrity.py`` computes and checks the digests; ``results.py`` is the
-files' format).
+while it generates or trains), results.csv and curves.json after every row, at the end run.json with the
+digest that vouches for results.csv, and the files the report draws (``report.py`` calls
+:func:`record_report_files`). ``integrity.py`` computes and checks the digests; ``results.py`` is the files' format.
 
 A bench may take several invocations (it resumes from its caches), and one of them may be killed by the user or
 by the OOM killer; the report adds up the parts that run.json recorded (``report._invocation_times``), and
@@ -22,12 +22,11 @@ from ..data.logs.real_logs import REAL_SETS
 from ..data.splits import dataset_split_text
 from ..outputs import refuse_foreign
 from ..timing import cpu_seconds
-from .integrity import (DIGEST_KEY, REPORT_FILES, read_run_json, remove_report_files, results_digest, run_digest,
-                        same_profile)
+from .integrity import (DIGEST_KEY, REPORT_FILES, RUN_FILE, is_bench_meta, is_plain_name, read_run_json,
+                        results_digest, run_digest, same_profile)
 from .predictions import PREDICTIONS_FILE
 from .plan import BenchPlan, is_dataset_path
 from .profiles import BenchProfile
-from .report import machine_info
 from .results import CURVES_FILE, write_curves, write_json, write_results
 from .reference_study import REFERENCE_COMPARISON_FILE
 
@@ -219,7 +218,7 @@ def recorded_path(path) -> str:
 
 
 def run_meta(profile: BenchProfile, clock: InvocationClock, rows: list, labels: dict, skipped: list,
-              datasets: dict, dataset_seconds: dict) -> dict:
+             datasets: dict, dataset_seconds: dict, machine: dict) -> dict:
     """run.json (before its digest): the profile, every invocation's wall time, the scenarios and rows not run,
     the machine and each dataset."""
     # Keep every invocation (``clock.previous``, read when the folder was claimed): a rerun
@@ -228,9 +227,30 @@ def run_meta(profile: BenchProfile, clock: InvocationClock, rows: list, labels: 
     invocations = clock.invocations(rows, finished=True)
     wall = invocations[-1]["wall_seconds"]
     return {"bench_report": 1, "profile": profile.to_dict(), "wall_seconds": wall, "invocations": invocations,
-            "scenarios": labels, "requested": clock.requested, "skipped": skipped, "machine": machine_info(),
+            "scenarios": labels, "requested": clock.requested, "skipped": skipped, "machine": machine,
             "datasets": {s: {"path": recorded_path(d.path), "checksum": d.checksum, "seed": d.meta.get("seed"),
                              "config_hash": d.meta.get("config_hash"), "robot": d.meta.get("robot"),
                              "split": dataset_split_text(d), "dataset_seconds": dataset_seconds.get(s),
                              **({"import_warnings": import_warnings(d)} if import_warnings(d) else {})}
                          for s, d in datasets.items()}}
+
+
+def record_report_files(out_dir, meta: dict, files) -> None:
+    """Record in the folder's run.json (``meta``, as on disk and checked) the files the report wrote there, and
+    vouch for run.json anew with them (its digest's run part); no run.json of the bench's there: nothing."""
+    out_dir = Path(out_dir)
+    if not (out_dir / RUN_FILE).is_file() or not is_bench_meta(meta):
+        return
+    meta = {**meta, REPORT_FILES: sorted(set(files))}
+    if isinstance(meta.get(DIGEST_KEY), dict):
+        meta[DIGEST_KEY] = {**meta[DIGEST_KEY], "run": run_digest(meta)}
+    write_json(out_dir / RUN_FILE, meta)
+
+
+def remove_report_files(out_dir, names) -> None:
+    """Remove the report's files ``names`` (recorded in run.json: the only files ever removed by name) from
+    ``out_dir``; a name already gone is skipped."""
+    for name in names:
+        path = Path(out_dir) / name
+        if is_plain_name(name) and (path.is_file() or path.is_symlink()):
+            path.unlink()

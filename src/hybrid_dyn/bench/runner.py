@@ -34,7 +34,7 @@ from .learned_rows import PRESET_ROWS
 from .predictions import PREDICTIONS_FILE, PredictionWriter
 from .plan import BenchContext, BenchPlan, is_dataset_path, scenario_label
 from .profiles import BenchProfile
-from .report import write_report
+from .report import machine_info, write_report
 from .results import SCORED_STATUSES, read_results
 from .rows import TASK_TARGET
 from .run_record import (InvocationClock, caches_empty, claim_report_dir, finish_record, import_warnings,
@@ -172,7 +172,7 @@ def _run_bench_locked(plan: BenchPlan, out_dir, clock: InvocationClock, data_roo
             ctx = BenchContext(profile, scenario, ds, robot, work_dir(plan, scenario, ds, work_root),
                                data_root, log=log, source=entry)
             _bench_scenario(plan, out_dir, ctx, ref, predictions, rows, skipped, log, clock, executor, device)
-    meta = run_meta(profile, clock, rows, labels, skipped, datasets, dataset_seconds)
+    meta = run_meta(profile, clock, rows, labels, skipped, datasets, dataset_seconds, machine_info())
     finish_record(out_dir, rows, meta)
     # The report is drawn from the files just written, exactly as ``hybrid-dyn report`` redraws it.
     write_report(out_dir, read_results(out_dir / "results.csv"), meta, log=log)

@@ -10,8 +10,7 @@ import numpy as np
 from scipy import signal
 
 from ..errors import UsageError
-
-METHODS = ("savgol", "central", "butter")
+from .derivative_methods import DERIVATIVE_METHODS
 
 
 @dataclass
@@ -29,8 +28,7 @@ class DerivativeFilter:
     order: int = 4
 
     def __post_init__(self):
-        if self.method not in METHODS:
-            raise UsageError(f"derivative method must be one of {METHODS}, got {self.method!r}")
+        DERIVATIVE_METHODS.lookup(self.method)  # an unknown one is refused, naming the known ones
         from .logs.spec_checks import is_number
 
         if not all(is_number(v) for v in (self.window_s, self.cutoff_hz)) or not all(

@@ -5,11 +5,13 @@ import numpy as np
 
 
 def register(sub) -> None:
-    from .identified_model import METHODS
+    from .identification_methods import IDENTIFICATION_METHODS
 
     p = sub.add_parser("identify", help="identify inertial and friction parameters from a dataset")
     p.add_argument("--data", required=True, help="dataset directory (toolkit format)")
-    p.add_argument("--method", choices=METHODS, default="consistent")
+    p.add_argument("--fit", choices=list(IDENTIFICATION_METHODS), default="consistent",
+                   help="the identification method (default consistent): "
+                        + "; ".join(f"{m.name}: {m.summary}" for m in IDENTIFICATION_METHODS.values()))
     p.add_argument("--out", required=True, help="parameter JSON to write (load_robot(..., params=OUT) reads it)")
     p.add_argument("--robot", default=None, help="nominal robot (default: the dataset's), e.g. panda[tool=none]")
     p.add_argument("--tool", default=None, help="its tool: none (the bare flange), a tool .urdf, or the URDF's own")
@@ -36,11 +38,11 @@ def cmd_identify(args) -> int:
     ds = load_dataset(args.data)
     robot = load_robot(args.robot or ds.meta.get("robot", "panda"), tool=args.tool)
     splits = tuple(s for s in args.splits.split(",") if s)
-    model = identify(ds, args.method, robot, splits=splits, acceleration=args.acceleration)
+    model = identify(ds, args.fit, robot, splits=splits, acceleration=args.acceleration)
     model.save(args.out)
     fit = model.fit
     rmse = np.asarray(fit["rmse_per_joint"])
-    print(f"{args.method}: {fit['n_samples']} samples, {fit['n_base']} base parameters, "
+    print(f"{args.fit}: {fit['n_samples']} samples, {fit['n_base']} base parameters, "
           f"condition number of the base regressor {fit['condition_number']:.1f}")
     print("fit RMSE per joint [Nm]: " + " ".join(f"{x:.4f}" for x in rmse) + f"  (all {np.sqrt(np.mean(rmse**2)):.4f})")
     print(f"physically consistent: {fit['physically_consistent']}" +

@@ -32,13 +32,13 @@ from ..description import GazFriction, RobotDescriptionError
 from ..errors import UsageError
 from ..outputs import unique_temp
 from . import least_squares as est
+from .identification_methods import IDENTIFICATION_METHODS
 from .extra_terms import SPRING_TERMS, spring_basis, spring_joints, spring_regressor
 from .parameters import N_BODY_PARAMS, check_consistency, to_urdf_form
 from .plausibility import fit_warnings
 from .regressor import (DEFAULT_COULOMB_EPS, BaseParameters, base_parameters, friction_regressor,
                         inertial_regressor, nominal_body_parameters)
 
-METHODS = ("ols", "wls", "consistent", "sigmoid-friction")
 FILE_FORMAT = "hybrid_dyn.identified_params"
 
 
@@ -413,14 +413,13 @@ def identify(data, method: str = "consistent", robot: Robot | None = None, *, sp
 
     data: a :class:`~hybrid_dyn.data.Dataset` (its ``splits`` are used, the test split
       stays held out), an :class:`IdentificationData`, or a tuple (q, qd, qdd, tau).
-    method: ``ols`` | ``wls`` | ``consistent`` | ``sigmoid-friction`` (see :mod:`.estimators`).
+    method: a name of ``identification_methods.IDENTIFICATION_METHODS`` (the fits: :mod:`.least_squares`).
     acceleration: for a dataset, ``measured`` (its qdd) or ``zero-phase`` (re-estimated offline).
     robot: the nominal model: its kinematics define the regressor and its inertials
       are the prior that ``consistent`` regularizes towards and the fill-in for
       directions ``ols``/``wls`` cannot see. Default: the dataset's robot, nominal.
     """
-    if method not in METHODS:
-        raise UsageError(f"unknown identification method {method!r}; choose from {', '.join(METHODS)}")
+    IDENTIFICATION_METHODS.lookup(method)  # an unknown one is refused, naming the known ones
     if robot is None:
         name = getattr(data, "meta", {}).get("robot") if hasattr(data, "meta") else None
         if name is None:

@@ -22,7 +22,7 @@ from .presets import prior_fingerprint_spelling
 
 # The fields each prior reads: the two torque models here, every tip-force method registered as a prior
 # from its one definition (analytic/methods.py; base-momentum reads qdd only for the tare).
-PRIOR_FIELDS = {"rnea": ("q", "qd", "qdd"), "rnea-bw": ("q", "qd", "qdd", "base_wrench")}
+PRIOR_FIELDS = {m.name: m.fields for m in TORQUE_MODELS.values()}
 
 
 def _on_register(method) -> None:
