@@ -164,7 +164,6 @@ def test_a_new_method_as_a_residual_prior(toy, panda):
 def test_unregistering_removes_everything_derived(toy):
     from hybrid_dyn.bench.analytic_rows import PRIOR_ROWS
     from hybrid_dyn.bench.catalog import ROWS
-    from hybrid_dyn.bench.learned_rows import PRESET_ROWS
     from hybrid_dyn.learn.presets import PRESETS
     from hybrid_dyn.learn.priors import PRIOR_FIELDS
 
@@ -173,7 +172,6 @@ def test_unregistering_removes_everything_derived(toy):
     BANDWIDTHS.unregister("toy_gain")
     for name in ("static-base", "static-base-val", "residual-static-base"):
         assert name not in ROWS
-    assert "residual-static-base" not in PRESET_ROWS
     assert "static-base" not in PRIOR_ROWS and "static-base" not in PRIOR_FIELDS
     assert "static-base" not in TIP_FORCE_METHODS and "static-base" not in residual_prior_names()
     assert "toy_gain" not in BANDWIDTHS

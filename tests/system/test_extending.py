@@ -21,7 +21,6 @@ from hybrid_dyn.analytic.methods import TIP_FORCE_METHODS
 from hybrid_dyn.bench import report as report_mod
 from hybrid_dyn.bench.compare import compare_reports
 from hybrid_dyn.bench.families import FAMILIES, Family
-from hybrid_dyn.bench.learned_rows import PRESET_ROWS
 from hybrid_dyn.bench.profiles import PROFILES, BenchProfile
 from hybrid_dyn.bench.rows import ROWS, Predictor, Row
 from hybrid_dyn.learn import kinds
@@ -120,7 +119,7 @@ def _assert_nothing_left():
     assert TOYS["kind"] not in kinds.NETWORK_KINDS and TOYS["preset"] not in PRESETS
     for row in (m, f"{m}-val", TOYS["preset"], TOYS["row"]):
         assert row not in ROWS, row
-    assert TOYS["preset"] not in PRESET_ROWS and fam not in FAMILIES
+    assert fam not in FAMILIES
     assert not any(fam in p.families for p in PROFILES.values())
 
 
@@ -138,7 +137,7 @@ def test_toys_declared_once_reach_estimator_bench_report_and_compare(toys, panda
     m, fam, preset = toys["method"], toys["family"], toys["preset"]
     # Declared, derived: the method's two bench rows, the preset's row, the family in every list read from it.
     assert ROWS[m].family == "analytic" and ROWS[f"{m}-val"].reference
-    assert ROWS[preset].family == fam and ROWS[preset].trains and preset in PRESET_ROWS
+    assert ROWS[preset].family == fam and ROWS[preset].trains
     assert [p.name for p in PRESETS.where(family=fam)] == [preset]
     assert fam in FAMILIES.names(fitted=True, in_studies=True)  # a study's and compare's families
     assert not any(fam in p.families for p in PROFILES.values())  # a shipped profile names its own

@@ -30,7 +30,6 @@ from .rows import ROWS, Predictor, Row, prior_kept_text
 
 RAW_SENSOR_LABEL = "raw sensor, untared: reference"  # a preset with raw_sensor=True (what the offset costs)
 TASK_OF_TARGETS = {("tip_force",): "tip_force", ("tau_m",): "joint_torque"}
-PRESET_ROWS: set = set()  # the rows declared here, one per preset (the runner trains them in parallel first)
 
 
 def training_summary(config: dict) -> dict:
@@ -148,12 +147,10 @@ def declare_preset_row(p) -> None:
                 needs_urdf=p.prior is not None, build=_build(p.name), trains=True,
                 reference=RAW_SENSOR_LABEL if p.raw_sensor else None,
                 prior_row=None if p.raw_sensor else PRIOR_ROWS.get(p.prior)))
-    PRESET_ROWS.add(p.name)
 
 
 def forget_preset_row(p) -> None:
     ROWS.pop(p.name, None)
-    PRESET_ROWS.discard(p.name)
 
 
 def _declare_presets() -> None:

@@ -345,10 +345,9 @@ def _preset(profile: BenchProfile, row: str):
     """The preset a row trains (a residual on the identified model: its preset), for its step budget."""
     from ..learn.presets import PRESETS
     from .identified_rows import RESIDUAL_ROWS
-    from .learned_rows import PRESET_ROWS
 
     name = RESIDUAL_ROWS.get(row, row)
-    if name not in PRESET_ROWS:
+    if name not in PRESETS:  # a preset's row, trained by the runner
         raise UsageError(f"row {row!r} trains no network preset: it has no step budget to scale (budget_factor)")
     preset = BenchPlan(profile).preset(name)
     return PRESETS.lookup(preset) if isinstance(preset, str) else preset
