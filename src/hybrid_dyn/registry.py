@@ -75,6 +75,14 @@ class Registry(dict):
             raise self._unknown(f"unknown {self.what} {name!r}; known: {', '.join(self)}")
         return self[name]
 
+    def missing(self, names) -> list:
+        """The ``names`` not declared (after loading the installed plugins, as :meth:`lookup` does), in order."""
+        if any(n not in self for n in names):
+            from .plugins import load_plugins
+
+            load_plugins()
+        return [n for n in names if n not in self]
+
     def listen(self, on_register: Callable, on_unregister: Callable | None = None) -> None:
         """Call ``on_register(item)`` for every declaration from now on (and ``on_unregister`` on removal).
         The declarations made before are the listener's to read from the registry itself."""

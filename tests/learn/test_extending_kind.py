@@ -69,3 +69,21 @@ def test_an_unknown_kind_is_refused_naming_the_known_ones(window_mean):
     with pytest.raises(ValueError, match="kind must be one of") as err:  # a preset of it, refused when made
         Preset("toy", "gru", ("q",), ("tau_m",))
     assert all(repr(name) in str(err.value) for name in ("mlp", "conv", "lstm", "delan", "window-mean"))
+
+
+def test_a_preset_of_a_plugins_kind_loads_the_plugin_first(monkeypatch):
+    """A model file's preset naming a kind a plugin declares (a fresh process: nothing loaded it yet)."""
+    from types import SimpleNamespace
+
+    from hybrid_dyn import plugins
+
+    entry = SimpleNamespace(name="kinds", value="pkg.kinds", load=lambda: NETWORK_KINDS.register(WINDOW_MEAN))
+    monkeypatch.setattr(plugins.importlib.metadata, "entry_points", lambda group: [entry])
+    monkeypatch.setattr(plugins, "LOADED", {})
+    monkeypatch.setitem(plugins._state, "scanned", False)
+    try:
+        preset = Preset("toy", "window-mean", ("q",), ("tau_m",), window=5)  # as a model file's preset is read
+        assert preset.kind == "window-mean" and plugins.LOADED == {"kinds": "pkg.kinds"}
+    finally:
+        if "window-mean" in NETWORK_KINDS:
+            NETWORK_KINDS.unregister("window-mean")

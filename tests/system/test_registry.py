@@ -45,7 +45,8 @@ def test_a_miss_loads_the_plugins_once_and_finds_what_they_declare(monkeypatch):
     monkeypatch.setattr(plugins.importlib.metadata, "entry_points", entry_points)
     monkeypatch.setattr(plugins, "LOADED", {})
     monkeypatch.setitem(plugins._state, "scanned", False)
-    assert things.lookup("from-plugin").name == "from-plugin"  # not declared until the miss loaded the plugin
+    assert things.missing(["x", "from-plugin"]) == ["x"]  # not declared until the check loaded the plugin
+    assert things.lookup("from-plugin").name == "from-plugin"
     with pytest.raises(LookupError, match="unknown thing 'nope'; known: from-plugin"):
         things.lookup("nope")
     assert loads == [plugins.GROUP] and plugins.LOADED == {"p": "pkg.mod"}  # scanned once, not per miss

@@ -18,10 +18,10 @@ def select_rows(names=(), families=()) -> list[Row]:
     (an unknown name or family is refused, naming it)."""
     from ..errors import UsageError
 
-    unknown = [n for n in names if n not in ROWS]
+    unknown = ROWS.missing(names)
     if unknown:
         raise UsageError(f"unknown bench rows {unknown}; known: {', '.join(ROWS)}")
-    bad = [f for f in families if f not in FAMILIES]
+    bad = FAMILIES.missing(families)
     if bad:
         raise UsageError(f"unknown bench families {bad}; known: {', '.join(FAMILIES)}")
     return [r for r in ROWS.values() if r.name in names or r.family in families]

@@ -78,7 +78,7 @@ class Row:
         where = f"bench row {self.name!r}"
         if self.task not in TASK_TARGET:
             raise UsageError(f"{where}: task must be one of {', '.join(TASK_TARGET)}, got {self.task!r}")
-        if self.family not in FAMILIES:
+        if FAMILIES.missing([self.family]):
             raise UsageError(f"{where}: family must be one of {', '.join(FAMILIES)}, got {self.family!r}")
         if not isinstance(self.needs, (tuple, list)) or not self.needs:
             raise UsageError(f"{where}: declare the dataset fields it reads (needs), got {self.needs!r}")

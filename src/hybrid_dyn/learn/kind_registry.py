@@ -121,7 +121,7 @@ def cost_rank(preset) -> int:
 
 def preset_problems(preset) -> list[str]:
     """What ``preset``'s kind refuses in its fields (``Preset.__post_init__`` raises them)."""
-    if preset.kind not in NETWORK_KINDS:
+    if NETWORK_KINDS.missing([preset.kind]):
         return [f"kind must be one of {', '.join(NETWORK_KINDS)}, got {preset.kind!r}"]
     kind = NETWORK_KINDS[preset.kind]
     out = []
@@ -130,7 +130,7 @@ def preset_problems(preset) -> list[str]:
     if kind.needs_front and not preset.front_units:
         out.append(f"{kind.name} needs front_units")
     if preset.residual_kind is not None:
-        if preset.residual_kind not in NETWORK_KINDS or not NETWORK_KINDS[preset.residual_kind].is_net:
+        if NETWORK_KINDS.missing([preset.residual_kind]) or not NETWORK_KINDS[preset.residual_kind].is_net:
             nets = [k.name for k in NETWORK_KINDS.values() if k.is_net]
             out.append(f"residual_kind must be one of {', '.join(nets)}, got {preset.residual_kind!r}")
     reason = kind.check(preset) if kind.check is not None else None

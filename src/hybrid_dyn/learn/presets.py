@@ -22,6 +22,7 @@ from dataclasses import asdict, dataclass, field, replace
 from ..analytic import methods  # noqa: F401  (registers the tip-force methods: their names are read below)
 from ..analytic.method_names import estimator_name, residual_prior_names
 from ..errors import UsageError
+from ..plugins import load_plugins
 from ..registry import Registry
 from .kinds import NETWORK_KINDS, preset_problems
 
@@ -90,9 +91,11 @@ class Preset:
     family: str | None = field(default=None, compare=False)
 
     def __post_init__(self):
-        if self.kind not in NETWORK_KINDS:
+        if NETWORK_KINDS.missing([self.kind]):  # a plugin's kind (a model file of it) loads the plugins first
             raise ValueError(f"preset {self.name!r}: kind must be one of {tuple(NETWORK_KINDS)}, got {self.kind!r}")
         if self.prior is not None:  # one name per estimator; a saved model's older spelling is read as it
+            if self.prior not in residual_prior_names():
+                load_plugins()  # a plugin's method as the prior (a model file of it): declared once its plugin loads
             object.__setattr__(self, "prior",
                                estimator_name(self.prior, residual_prior_names(), f"prior of preset {self.name!r}"))
         if self.activation not in ("relu", "tanh"):
