@@ -24,13 +24,13 @@ def steps_of(ds, names, batch: int):
     """{preset: (step, batch)}: one training step of a freshly initialised model of each preset."""
     from hybrid_dyn.data.windows import WindowedSplit
     from hybrid_dyn.learn.trained_model import HybridModel
-    from hybrid_dyn.learn.presets import get_preset
+    from hybrid_dyn.learn.presets import PRESETS
     from hybrid_dyn.learn.training_data import _batches, _stats, field_widths
 
     train = ds.split("train")
     out = {}
     for name in names:
-        preset = get_preset(name)
+        preset = PRESETS.lookup(name)
         ws = WindowedSplit(train, preset.window, list(preset.inputs), list(preset.targets))
         widths = field_widths(train[0], list(dict.fromkeys(preset.inputs + preset.targets)))
         torch.manual_seed(0)

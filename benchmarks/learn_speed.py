@@ -14,7 +14,7 @@ Floor (issue 4): single-call seed-tip-11 and residual-basewrench <= 200 us media
 
 ``--loop`` (issue 26): per family, at the budgeted recipe's batch, the training loop's samples/s
 (``train_model`` under the ``budget`` recipe, validation rounds at the recipe's spacing of
-``BUDGET_STEPS / budget_evals`` steps included) beside the bare forward-backward-Adam step of the
+``budget_steps / budget_evals`` steps included) beside the bare forward-backward-Adam step of the
 same module on one batch already in memory; and DeLaN's forward-mode terms beside the
 ``torch.func`` oracle (``terms_autograd``) in the same bare step. One torch thread, medians of
 ``--repeats`` in one run (loop/bare: the median of the ratios of each loop run and the bare step timed
@@ -37,7 +37,7 @@ from hybrid_dyn.data import load_dataset
 from hybrid_dyn.data.synthetic import make_synthetic_dataset
 from hybrid_dyn.data.windows import concat_fields
 from hybrid_dyn.learn import TrainConfig, train_model
-from hybrid_dyn.learn.presets import get_preset
+from hybrid_dyn.learn import presets as declared
 from hybrid_dyn.learn.speed import bare_step, training_windows
 from hybrid_dyn.timing import interleaved_rates, median_call_us, per_item_us
 
@@ -54,7 +54,7 @@ LOOP_FLOOR, DELAN_FLOOR = 0.7, 2.0
 
 
 def loop_table(args) -> int:
-    from hybrid_dyn.learn.recipes import BUDGET_STEPS
+    from hybrid_dyn.learn.kinds import NETWORK_KINDS
 
     torch.set_num_threads(1)
     with tempfile.TemporaryDirectory() as tmp:
@@ -68,9 +68,9 @@ def loop_table(args) -> int:
         print(f"{'family':9s} {'preset':18s} {'loop samples/s':>15s} {'bare samples/s':>15s} {'loop/bare':>9s}  floor")
         ok = True
         for name, family in LOOP_PRESETS.items():
-            kind = get_preset(name).kind
+            kind = declared.PRESETS.lookup(name).kind
             evals = 2  # validation every budget/2 steps of this run = the recipe's spacing, BUDGET/40
-            steps = max(2, 2 * BUDGET_STEPS[kind] // recipe.budget_evals)
+            steps = max(2, 2 * NETWORK_KINDS[kind].budget_steps // recipe.budget_evals)
             # Each repeat times the loop, then the bare step right after it: a pair sees the same load
             # from other processes, and the ratio is the median over the pairs.
             loops, bares = [], []

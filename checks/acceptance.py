@@ -22,11 +22,11 @@ import json
 import sys
 from pathlib import Path
 
-from hybrid_dyn.bench.catalog import get_row
+from hybrid_dyn.bench.catalog import ROWS
 from hybrid_dyn.bench.integrity import read_run_json
 from hybrid_dyn.bench.report import _ok, best_row
 from hybrid_dyn.bench.results import read_results
-from hybrid_dyn.bench.rows import family_names
+from hybrid_dyn.bench.families import FAMILIES
 
 NEW_ANALYTIC = ("base-momentum", "kalman-fusion")  # issue 16's estimators that need no joint acceleration
 
@@ -54,7 +54,7 @@ def floor_checks(rows) -> list[tuple[str, bool | str | None, str]]:
     # Not a floor: the stronger baseline a user who tares the sensor has.
     _ratio_check(out, "(no floor) tip force, mismatch-ext: best residual vs the tared base-wrench method", None,
                  hyb, bwt, unit=" N")
-    phys = best_row(rows, "joint_torque", "paper-ext", lambda r: r["family"] in family_names(physics_informed=True))
+    phys = best_row(rows, "joint_torque", "paper-ext", lambda r: r["family"] in FAMILIES.names(physics_informed=True))
     seedt = best_row(rows, "joint_torque", "paper-ext", lambda r: r["family"] == "seed-net")
     _ratio_check(out, "issue 5: joint torque, paper-ext: best physics-informed <= 0.5 x best seed net", 0.5,
                  phys, seedt, unit=" Nm")
@@ -119,7 +119,7 @@ def floor_checks(rows) -> list[tuple[str, bool | str | None, str]]:
     _ratio_check(out, "issue 29: real-panda: identified-consistent <= 0.65 x nominal bare-flange RNEA", 0.65,
                  ident, rnea, unit=" Nm")
     by_name = {r["model"]: r for r in _ok(rows) if r["scenario"] == p and r["task"] == "joint_torque"}
-    hybrids = {name: get_row(name).prior for name in by_name if get_row(name).prior in by_name}
+    hybrids = {name: ROWS.lookup(name).prior_row for name in by_name if ROWS.lookup(name).prior_row in by_name}
     if hybrids:
         best = min(hybrids, key=lambda name: float(by_name[name]["rmse"]))
         _ratio_check(out, "issue 29: real-panda: the best hybrid row <= 0.9 x identified-consistent", 0.9,

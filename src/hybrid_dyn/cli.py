@@ -1,7 +1,9 @@
 """``hybrid-dyn``: a thin command-line shell over the library.
 
 Each area registers its own subcommands through a ``register(subparsers)``
-function in its ``cli.py``; this file only wires them together.
+function in its ``cli.py``; this file only wires them together, after the
+installed plugins have declared theirs (``plugins.py``), so that every list
+in the help and every choice knows them.
 """
 from __future__ import annotations
 
@@ -14,6 +16,7 @@ import warnings
 
 from .deprecation import DeprecatedNameWarning
 from .errors import HybridDynError
+from .plugins import load_plugins
 
 # Modules that contribute subcommands; each has register(subparsers).
 SUBCOMMAND_MODULES = [
@@ -28,6 +31,7 @@ SUBCOMMAND_MODULES = [
 
 
 def build_parser() -> argparse.ArgumentParser:
+    load_plugins()  # a plugin's method, row or robot is in the help and the choices built below
     parser = argparse.ArgumentParser(prog="hybrid-dyn", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
     for mod in SUBCOMMAND_MODULES:
@@ -49,7 +53,7 @@ def main(argv=None) -> int:
     traceback); 130/143 interrupted by SIGINT/SIGTERM; any other exception is a bug in the toolkit
     and propagates with its traceback (exit 1)."""
     formatwarning = warnings.formatwarning
-    warnings.formatwarning = _one_line_deprecation(formatwarning)  # old flags warn while parsing, too
+    warnings.formatwarning = _one_line_deprecation(formatwarning)  # an old recipe or estimator name, one line
     try:
         return _run(build_parser().parse_args(argv))
     finally:
@@ -57,7 +61,7 @@ def main(argv=None) -> int:
 
 
 def _one_line_deprecation(formatwarning):
-    """A renamed flag or name is the user's to fix, not a place in the toolkit: ``warning: <message>``."""
+    """A renamed name is the user's to fix, not a place in the toolkit: ``warning: <message>``."""
 
     def one_line(message, category, filename, lineno, line=None):
         if issubclass(category, DeprecatedNameWarning):

@@ -1,22 +1,15 @@
 """The one registry mechanism: every named thing of the toolkit is declared once, in a :class:`Registry`.
 
-Estimator methods, their bandwidth parameters, network kinds, presets, bench rows and families,
-scenarios, robots, profiles, studies and real-log sets each have one registry. A declaration is a
-(frozen) dataclass with a ``name``: its fields are its metadata (what it reads, its family, its
-parameters and their defaults), so that every list, tuple and table a consumer needs is derived from
-the registry instead of being kept by hand beside it.
-
-A registry is a ``dict`` (name -> declaration), so ``keys()`` is a live view of the names, in
-declaration order. What it adds:
-- refusals: a name declared twice, and an unknown name looked up (naming the known ones);
-- aliases: an old name that still resolves, with a :class:`~hybrid_dyn.deprecation.DeprecatedNameWarning`
-  naming the new one (``lookup``, ``canonical``);
-- listeners: a consumer that derives something per declaration (the bench's rows of a method) hears of
-  a declaration made after it was built, and of its removal.
+Each sort of declaration (estimator methods, network kinds, presets, bench rows, families, profiles,
+studies, scenarios, robots, ...) has one module-level plural name holding its registry, completed by
+one catalogue module. A declaration is a frozen dataclass with a ``name``; consumers read the registry
+with its methods only: ``lookup``, ``register``, ``where``, ``names``, iteration. Aliases, listeners
+and the plugin hook on a miss: ``docs/extending.md``.
 """
 from __future__ import annotations
 
-from typing import Callable
+import argparse
+from typing import Callable, Iterable
 
 from .deprecation import warn_renamed
 
@@ -24,12 +17,14 @@ from .deprecation import warn_renamed
 class Registry(dict):
     """Declarations of one sort by their ``name``; ``what`` names the sort in the errors.
 
-    twice: the exception for a name declared twice; unknown: for an unknown name looked up.
+    twice: the exception for a name declared twice; unknown: for an unknown name looked up;
+    check(item) -> str | None: an optional rule every declaration must pass (the reason it is refused).
     """
 
-    def __init__(self, what: str, twice: type[Exception], unknown: type[Exception] | None = None):
+    def __init__(self, what: str, twice: type[Exception], unknown: type[Exception] | None = None,
+                 check: Callable | None = None):
         super().__init__()
-        self.what, self._twice, self._unknown = what, twice, unknown or twice
+        self.what, self._twice, self._unknown, self._check = what, twice, unknown or twice, check
         self.aliases: dict[str, tuple[str, str]] = {}  # old name -> (new name, why it changed)
         self._listeners: list[tuple[Callable, Callable | None]] = []
 
@@ -37,6 +32,9 @@ class Registry(dict):
         """Declare ``item`` (anything with a ``name``): from now on every consumer of the registry knows it."""
         if item.name in self or item.name in self.aliases:
             raise self._twice(f"{self.what} {item.name!r} is declared twice")
+        reason = self._check(item) if self._check is not None else None
+        if reason:
+            raise self._twice(f"{self.what} {item.name!r}: {reason}")
         self[item.name] = item
         for on_register, _ in list(self._listeners):
             on_register(item)
@@ -64,11 +62,26 @@ class Registry(dict):
         return name
 
     def lookup(self, name: str):
-        """The declaration of ``name`` (or of the name an alias stands for), or the error naming the known ones."""
+        """The declaration of ``name`` (or of the name an alias stands for), or the error naming the known ones.
+
+        A name not declared loads the installed plugins first (``plugins.load_plugins``, once per process):
+        a plugin's declaration is found by the first lookup that asks for it."""
         name = self.canonical(name, stacklevel=3)
+        if name not in self:
+            from .plugins import load_plugins
+
+            load_plugins()  # a plugin not imported yet may declare it
         if name not in self:
             raise self._unknown(f"unknown {self.what} {name!r}; known: {', '.join(self)}")
         return self[name]
+
+    def missing(self, names) -> list:
+        """The ``names`` not declared (after loading the installed plugins, as :meth:`lookup` does), in order."""
+        if any(n not in self for n in names):
+            from .plugins import load_plugins
+
+            load_plugins()
+        return [n for n in names if n not in self]
 
     def listen(self, on_register: Callable, on_unregister: Callable | None = None) -> None:
         """Call ``on_register(item)`` for every declaration from now on (and ``on_unregister`` on removal).
@@ -78,3 +91,23 @@ class Registry(dict):
     def where(self, **fields) -> list:
         """The declarations whose metadata has every ``field=value`` given, in declaration order."""
         return [item for item in self.values() if all(getattr(item, k, None) == v for k, v in fields.items())]
+
+    def names(self, **fields) -> tuple:
+        """The names of the declarations :meth:`where` gives, in declaration order (every name with no field)."""
+        return tuple(item.name for item in self.where(**fields))
+
+
+def help_listing(**sources: Callable[[], Iterable[str]]) -> type[argparse.HelpFormatter]:
+    """An argparse ``formatter_class`` whose help texts may name ``{key}``: the names ``sources[key]()`` gives
+    (a registry's, a plugin's included), read when the help is printed, so that no list is kept by hand and
+    a command that prints no help imports nothing for it."""
+
+    class Names(dict):
+        def __missing__(self, key):  # argparse expands %(...)s after us: a name's own % is kept literal
+            return ", ".join(sources[key]()).replace("%", "%%")
+
+    class HelpWithNames(argparse.HelpFormatter):
+        def _get_help_string(self, action):
+            return (action.help or "").format_map(Names())
+
+    return HelpWithNames

@@ -6,18 +6,18 @@ import numpy as np
 import pytest
 
 from hybrid_dyn import TipForceEstimator
+from hybrid_dyn.analytic.method_names import residual_prior_names
 from hybrid_dyn.analytic.methods import TIP_FORCE_METHODS
 from hybrid_dyn.analytic.torque_models import TORQUE_MODELS
 from hybrid_dyn.bench.catalog import ROWS
 from hybrid_dyn.deprecation import DeprecatedNameWarning
-from hybrid_dyn.learn.presets import PRIORS
 from hybrid_dyn.learn.priors import PRIOR_FIELDS
 
 
 def test_the_names_are_the_bench_rows_names():
     estimators = {**{n: "tip_force" for n in TIP_FORCE_METHODS}, **{n: "joint_torque" for n in TORQUE_MODELS}}
     assert len(estimators) == len(TIP_FORCE_METHODS) + len(TORQUE_MODELS)  # one namespace: no name in both
-    assert set(PRIOR_FIELDS) | set(PRIORS[1:]) <= set(estimators)
+    assert set(PRIOR_FIELDS) | set(residual_prior_names()) <= set(estimators)
     for name, task in estimators.items():  # each estimator is a bench row of its task, under that name
         assert ROWS[name].family == "analytic" and ROWS[name].task == task, name
     for registry in (TIP_FORCE_METHODS, TORQUE_MODELS):

@@ -58,12 +58,12 @@ def _toy_gains(rate_hz):
 @pytest.fixture
 def toy():
     """The one place the toy is declared: a new bandwidth parameter, the method, a residual net on it."""
-    from hybrid_dyn.learn.presets import TIP_INPUTS, Preset, register_preset
+    from hybrid_dyn.learn.presets import PRESETS, TIP_INPUTS, Preset
 
     BANDWIDTHS.register(BandwidthParameter("toy_gain", "1/s", "the toy's low-pass gain K", _toy_gains))
     method = TIP_FORCE_METHODS.register(Method("static-base", "a toy", ("base_wrench",), False, False, True, "toy_gain",
                                                StaticBase, residual_prior=True))
-    register_preset(Preset("residual-static-base", "lstm", tuple(TIP_INPUTS), ("tip_force",), window=10,
+    PRESETS.register(Preset("residual-static-base", "lstm", tuple(TIP_INPUTS), ("tip_force",), window=10,
                            front_units=(32,), prior="static-base", family="residual"))
     yield method
     _forget_toy()
@@ -147,7 +147,7 @@ def test_the_bench_rows_of_a_new_method_build_and_run(toy, panda, tmp_path):
     # as a residual prior: the method's declaration and one preset declaration
     assert "static-base" in residual_prior_names() and PRIOR_ROWS["static-base"] == "static-base"
     row = ROWS["residual-static-base"]
-    assert row.family == "residual" and row.prior == "static-base" and row.trains
+    assert row.family == "residual" and row.prior_row == "static-base" and row.trains
 
 
 def test_a_new_method_as_a_residual_prior(toy, panda):
@@ -164,7 +164,6 @@ def test_a_new_method_as_a_residual_prior(toy, panda):
 def test_unregistering_removes_everything_derived(toy):
     from hybrid_dyn.bench.analytic_rows import PRIOR_ROWS
     from hybrid_dyn.bench.catalog import ROWS
-    from hybrid_dyn.bench.learned_rows import PRESET_ROWS
     from hybrid_dyn.learn.presets import PRESETS
     from hybrid_dyn.learn.priors import PRIOR_FIELDS
 
@@ -173,7 +172,6 @@ def test_unregistering_removes_everything_derived(toy):
     BANDWIDTHS.unregister("toy_gain")
     for name in ("static-base", "static-base-val", "residual-static-base"):
         assert name not in ROWS
-    assert "residual-static-base" not in PRESET_ROWS
     assert "static-base" not in PRIOR_ROWS and "static-base" not in PRIOR_FIELDS
     assert "static-base" not in TIP_FORCE_METHODS and "static-base" not in residual_prior_names()
     assert "toy_gain" not in BANDWIDTHS

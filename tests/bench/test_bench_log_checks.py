@@ -1,4 +1,4 @@
-"""Logs that cannot identify or test what the bench's rows claim (issue 39, findings 7-9), through import,
+"""Logs that cannot identify or test what the bench's rows claim, through import,
 bench and report: one tiny bench on three Panda logs whose torques obey the nominal model (RNEA + Gaz
 friction + 0.05 Nm noise, ``helpers.logs.write_physical_log``), each with one defect:
 

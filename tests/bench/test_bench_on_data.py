@@ -1,4 +1,4 @@
-"""The bench on any dataset (issue 15, items 1 and 6): ``hybrid-dyn bench --data DIR`` on a tiny log
+"""The bench on any dataset: ``hybrid-dyn bench --data DIR`` on a tiny log
 imported in the test, the rows that apply run and the rest are skipped with their reason; the report is
 redrawn from its files (``hybrid-dyn report DIR``) byte for byte; a bad ``--robot`` fails before any work.
 
@@ -31,7 +31,7 @@ def test_bench_on_an_imported_log_runs_what_applies_and_says_why_the_rest_does_n
     ran = {r["model"]: r for r in rows}
     assert set(ran) == {"rnea", "seed-tau-mlp", "identified-ols"}
     # The log's torques are white noise (helpers.logs.write_log): no Panda's bodies fit them, and the identified
-    # row says so (issue 39: implausible, scored and named, never headlined); the others are ok.
+    # row says so (implausible, scored and named, never headlined); the others are ok.
     assert {r["model"]: r["status"] for r in rows} == {"rnea": "ok", "seed-tau-mlp": "ok",
                                                        "identified-ols": "implausible"}, \
         [(r["model"], r.get("error")) for r in rows]
@@ -73,7 +73,7 @@ def test_predictions_h5_holds_each_rows_test_predictions_and_their_targets(bench
 
 @pytest.mark.slow  # the shared fixture: a tiny bench, ~25 s on 2 busy cores
 def test_every_row_has_its_cpu_time_and_the_invocation_its_own(bench):
-    """Issue 40: results.csv carries each row's training and scoring CPU seconds, run.json each invocation's.
+    """results.csv carries each row's training and scoring CPU seconds, run.json each invocation's.
     A trained row's figure is the one its model file recorded (not the CPU of loading it again); a row fitted
     in the bench's process (identified-ols: the identification in its build) has that fit's."""
     from hybrid_dyn.learn import load_model

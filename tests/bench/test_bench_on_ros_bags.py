@@ -1,4 +1,4 @@
-"""``hybrid-dyn bench --data`` on ROS bags (issue 41's floor): a ROS 2 MCAP bag and a ROS 1 ``.bag`` with
+"""``hybrid-dyn bench --data`` on ROS bags: a ROS 2 MCAP bag and a ROS 1 ``.bag`` with
 /joint_states and /ft_base at 1 kHz import with a ``[ros]`` spec and bench like any log.
 
 References: the bags hold the exact rigid-body torques and base wrench of a Panda motion with a known

@@ -1,4 +1,4 @@
-"""What the bench refuses before any output exists (issue 28, findings 5 and 7): a robot, parameter set or
+"""What the bench refuses before any output exists: a robot, parameter set or
 rows it cannot score, in one line and with no report folder; an import's warning reaches the report; a
 model another bench is training is waited for; a bench that ran no row does not exit 0."""
 from __future__ import annotations
@@ -38,7 +38,7 @@ def test_the_bench_refuses_what_it_cannot_score_before_the_report_folder_exists(
 
 
 def test_a_bad_parameter_file_is_refused_by_a_named_profile_before_any_data(tmp_path):
-    from hybrid_dyn.bench.profiles import get_profile
+    from hybrid_dyn.bench.profiles import PROFILES
 
     f = tmp_path / "p.json"
     f.write_text(json.dumps({"links": [{"name": "panda_link1", "mass": 2.0, "com": [0, 0, 0],
@@ -46,7 +46,7 @@ def test_a_bad_parameter_file_is_refused_by_a_named_profile_before_any_data(tmp_
     import dataclasses
 
     with pytest.raises(HybridDynError, match="not positive semi-definite"):
-        dataclasses.replace(get_profile("quick"), params=str(f))
+        dataclasses.replace(PROFILES.lookup("quick"), params=str(f))
 
 
 @pytest.mark.slow  # imports a log and runs the bench's rnea row

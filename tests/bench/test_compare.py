@@ -35,7 +35,7 @@ def test_compare_refuses_a_folder_that_is_no_report(tmp_path, capsys):
     assert "holds no bench report" in capsys.readouterr().err
 
 
-# Issue 39: compare reads a folder only as report does (the digests), and writes --out only where it may.
+# Compare reads a folder only as report does (the digests), and writes --out only where it may.
 TWO = [("joint_torque", "rnea", "analytic", 0.25), ("joint_torque", "seed-tau-mlp", "seed-net", 1.568)]
 
 

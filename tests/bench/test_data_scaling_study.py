@@ -1,4 +1,4 @@
-"""Studies over the harness (issue 31): the data-scaling study on a tiny bench."""
+"""Studies over the harness: the data-scaling study on a tiny bench."""
 import dataclasses
 import json
 

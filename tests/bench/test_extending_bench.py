@@ -8,12 +8,13 @@ import numpy as np
 import pytest
 
 from hybrid_dyn.bench import report as report_mod
-from hybrid_dyn.bench.compare import compare_reports, compared_families
-from hybrid_dyn.bench.profiles import PROFILES, BenchProfile
-from hybrid_dyn.bench.rows import FAMILIES, ROWS, Family, Predictor, Row, declare, family_names, study_families
-from hybrid_dyn.bench.studies import learned_study_families
+from hybrid_dyn.bench.catalog import select_rows
+from hybrid_dyn.bench.compare import compare_reports
+from hybrid_dyn.bench.families import FAMILIES, Family
+from hybrid_dyn.bench.plan import BenchPlan
+from hybrid_dyn.bench.profiles import PROFILES, PROFILES_FILE, read_profiles
+from hybrid_dyn.bench.rows import ROWS, Predictor, Row
 from hybrid_dyn.cli import main as cli_main
-from hybrid_dyn.deprecation import DeprecatedNameWarning
 
 
 def _mean_torque(ds, ctx) -> Predictor:
@@ -26,25 +27,46 @@ def _mean_torque(ds, ctx) -> Predictor:
 @pytest.fixture
 def toy_family_and_row():
     """The family and the row, each one declaration; withdrawn after the test."""
-    family = FAMILIES.register(Family("toy-net", "a toy learned family (tests)", learned=True, in_studies=True,
+    family = FAMILIES.register(Family("toy-net", "a toy learned family (tests)", fitted=True, in_studies=True,
                                       figures=("traces",)))
-    row = declare(Row("toy-mean-torque", "joint_torque", "toy-net", needs=("q", "tau_m"), needs_urdf=False,
+    row = ROWS.register(Row("toy-mean-torque", "joint_torque", "toy-net", needs=("q", "tau_m"), needs_urdf=False,
                       build=_mean_torque))
     try:
         yield family, row
     finally:
         ROWS.unregister(row.name)
         FAMILIES.unregister(family.name)
-    assert family.name not in study_families()  # withdrawn: the derived lists forget it
+    assert family.name not in FAMILIES.names(in_studies=True)  # withdrawn: the derived lists forget it
 
 
-def test_a_declared_family_is_in_every_derived_list(toy_family_and_row):
-    assert "toy-net" in study_families() and "toy-net" in learned_study_families()
-    assert "toy-net" in compared_families() and "toy-net" not in family_names(physics_informed=True)
-    assert BenchProfile(name="t", scenarios=("s",)).families[-1] == "toy-net"  # a profile's default families
-    with pytest.warns(DeprecatedNameWarning, match="compared_families"):
-        from hybrid_dyn.bench import compare
-        assert "toy-net" in compare.LEARNED
+def _profile_rows(profiles) -> dict:
+    """Each profile's rows, as its plan selects them (names, in run order)."""
+    return {p.name: [r.name for r in BenchPlan(p).selected_rows()] for p in profiles}
+
+
+def test_a_declared_family_is_in_the_lists_read_from_its_metadata(toy_family_and_row):
+    assert "toy-net" in FAMILIES.names(in_studies=True) and "toy-net" in FAMILIES.names(fitted=True, in_studies=True)
+    assert "toy-net" not in FAMILIES.names(physics_informed=True)
+    assert [r.name for r in select_rows(families=("toy-net",))] == ["toy-mean-torque"]
+
+
+def test_a_new_family_in_the_studies_changes_no_shipped_profile():
+    """A family declared in_studies (and a row in it) before the profiles are read (as a plugin's or a user's
+    module is) leaves every shipped profile's rows and run.json record as they were."""
+    before = _profile_rows(PROFILES.values())
+    recorded = {name: p.to_dict() for name, p in PROFILES.items()}
+    family = FAMILIES.register(Family("toy-extra", "a toy family (tests)", fitted=True, in_studies=True))
+    row = ROWS.register(Row("toy-extra-row", "joint_torque", "toy-extra", needs=("q", "tau_m"), needs_urdf=False,
+                            build=_mean_torque))
+    try:
+        reread = read_profiles(PROFILES_FILE)  # the shipped TOML read again, the toy family now declared
+        assert [p.name for p in reread] == list(PROFILES)
+        assert _profile_rows(reread) == before
+        assert {p.name: p.to_dict() for p in reread} == recorded
+        assert all("toy-extra-row" not in rows for rows in before.values())
+    finally:
+        ROWS.unregister(row.name)
+        FAMILIES.unregister(family.name)
 
 
 def test_a_toy_row_runs_and_reaches_results_report_and_compare(toy_family_and_row, tmp_path, panda, monkeypatch,

@@ -1,4 +1,4 @@
-"""Issue 38 on the bench: the analytic rows on contact-steps-hardware run at the dataset's encoder
+"""The hardware sensor model on the bench: the analytic rows on contact-steps-hardware run at the dataset's encoder
 resolution (0 for the legacy sensor model, so today's rows are unchanged) and report their error
 bar's coverage (``sigma_coverage`` in results.csv, from run_batch's ``with_sigma``)."""
 from types import SimpleNamespace
@@ -12,7 +12,7 @@ from hybrid_dyn.analytic.tare import TARE_SECONDS, tare_samples
 from hybrid_dyn.bench import analytic_rows
 from hybrid_dyn.bench.analytic_rows import refusals_as_nan
 from hybrid_dyn.bench.catalog import ROWS
-from hybrid_dyn.bench.profiles import BenchProfile, get_profile
+from hybrid_dyn.bench.profiles import PROFILES, BenchProfile
 from hybrid_dyn.bench.results import read_results, results_columns, write_results
 from hybrid_dyn.bench.plan import BenchContext
 from hybrid_dyn.bench.scoring import score_row, train_split_stats
@@ -40,7 +40,7 @@ def _ctx(ds, panda, tmp_path, logs):
 
 
 def test_the_default_profile_runs_the_analytic_rows_on_the_hardware_scenario(hardware_ds):
-    prof = get_profile("default")
+    prof = PROFILES.lookup("default")
     assert "contact-steps-hardware" in prof.scenarios
     ds = SimpleNamespace(fields=list(hardware_ds.fields), meta=hardware_ds.meta)
     applied = {s.family for s in BenchPlan(prof).selected_rows() if BenchPlan(prof).applies(s, ds)}

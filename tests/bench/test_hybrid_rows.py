@@ -1,4 +1,4 @@
-"""Hybrid rows and their physics priors in the bench (issue 29): declared priors, the report's lines."""
+"""Hybrid rows and their physics priors in the bench: declared priors, the report's lines."""
 import pytest
 
 from hybrid_dyn.bench.catalog import ROWS
@@ -7,7 +7,7 @@ from hybrid_dyn.bench.rows import prior_kept_text
 
 
 def test_every_declared_prior_is_a_row_of_the_same_task():
-    hybrids = {name: r.prior for name, r in ROWS.items() if r.prior}
+    hybrids = {name: r.prior_row for name, r in ROWS.items() if r.prior_row}
     # The rows the issue names as hybrids on a physics prior all declare it.
     assert hybrids["residual-rnea"] == "rnea"
     assert hybrids["residual-rnea-identified"] == hybrids["gp-residual-identified"] == "identified-consistent"
@@ -50,14 +50,14 @@ def test_report_sets_each_hybrid_against_its_prior_and_says_when_it_kept_it():
 def test_bench_runs_some_scenarios_of_a_profile_and_its_report_says_so(tmp_path, capsys):
     import dataclasses
 
-    from hybrid_dyn.bench.profiles import get_profile
+    from hybrid_dyn.bench.profiles import PROFILES
     from hybrid_dyn.bench.report import _command
     from hybrid_dyn.cli import main as cli_main
 
     assert cli_main(["bench", "--profile", "real", "--scenarios", "real-nope", "--out", str(tmp_path / "r")]) == 2
     assert "not among profile 'real'" in capsys.readouterr().err and not (tmp_path / "r").exists()
-    narrowed = dataclasses.replace(get_profile("real"), scenarios=("real-panda",), families=("identified",),
+    narrowed = dataclasses.replace(PROFILES.lookup("real"), scenarios=("real-panda",), families=("identified",),
                                    rows=("rnea",))
     assert _command(narrowed.to_dict()) == ("hybrid-dyn bench --profile real --scenarios real-panda "
                                             "--families identified --rows rnea")
-    assert _command(get_profile("real").to_dict()) == "hybrid-dyn bench --profile real"
+    assert _command(PROFILES.lookup("real").to_dict()) == "hybrid-dyn bench --profile real"

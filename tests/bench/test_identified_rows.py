@@ -1,4 +1,4 @@
-"""The bench's identified rows on a log (issue 15, item 3): identified on train and val, scored on test.
+"""The bench's identified rows on a log: identified on train and val, scored on test.
 
 The reference is a direct ``identify`` call (what ``hybrid-dyn identify`` runs) on the same log.
 """

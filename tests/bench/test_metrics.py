@@ -99,7 +99,7 @@ def test_base_force_noise_rms_recovers_a_known_white_noise_under_a_bias():
 
 
 def test_nmse_and_loss_over_a_zero_variance_component_are_undefined_not_dropped():
-    """Issue 39, finding 7: a joint whose torque is 0 throughout was dropped from the nMSE in silence (the row
+    """A joint whose torque is 0 throughout was dropped from the nMSE in silence (the row
     was headlined at nMSE 0.015) and its losses, standardised by a floored std, read 4.9e13. Both are undefined
     (NaN) now, and the component is named; with the component live the same errors give the hand-computed
     values."""

@@ -1,4 +1,4 @@
-"""predictions.h5 written in place, one row at a time (issue 40): never a copy of the file per row, and a
+"""predictions.h5 written in place, one row at a time: never a copy of the file per row, and a
 write killed halfway leaves the rows before it readable and no half row to read."""
 from __future__ import annotations
 

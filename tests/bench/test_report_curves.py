@@ -1,4 +1,4 @@
-"""The report shows how each learned row's training ended (issue 14, item 3): results.csv columns,
+"""The report shows how each learned row's training ended: results.csv columns,
 curves.json, a learning-curve figure per scenario, and epoch-capped rows flagged in the tables."""
 import csv
 import json

@@ -1,5 +1,5 @@
 """``hybrid-dyn report DIR`` redraws a bench report from its files alone, byte for byte, and refuses
-what the bench did not write (issue 15, item 6; issue 28: whose folder, whose numbers): a results row
+what the bench did not write (whose folder, whose numbers): a results row
 its predictions or digest contradict, another report's run.json, a hand-edited run.json, a user's
 folder. Every refusal is one line naming the row or field, and writes nothing.
 """
@@ -164,9 +164,9 @@ def test_report_refuses_an_edited_run_json_field(bench, capsys):
 
 @pytest.mark.slow  # the shared fixture: a tiny bench, ~25 s on 2 busy cores
 def test_report_removes_only_the_figures_it_recorded(bench, capsys):
-    """Issue 39, finding 5: stale figures were removed by file-name prefix, and with them a user's
+    """Stale figures were removed by file-name prefix, and with them a user's
     traces_my_experiment.png and rmse_by_family_mine_v2.png. The bench records in run.json the files the
-    report wrote; a figure recorded and no longer drawn (issue 28's stale traces of another dataset; here:
+    report wrote; a figure recorded and no longer drawn (stale traces of another dataset; here:
     its predictions are gone) is removed, and nothing else."""
     tmp, _, _ = bench
     report = _copy_report(tmp, "stale-figures")
@@ -236,7 +236,7 @@ def test_an_interrupted_benchs_rows_stay_checkable_by_report(bench, capsys):
 
 @pytest.mark.slow  # a bench in a child process, killed after its first row: ~20 s on 2 busy cores
 def test_the_report_of_a_bench_killed_with_kill_9_says_so_at_the_top(bench, capsys):
-    """Issue 39, finding 6: after kill -9 the README headlined the rows that ran with no word that the run
+    """After kill -9 the README headlined the rows that ran with no word that the run
     was interrupted or which rows never ran, and said the machine was "not recorded in run.json (a report
     written before it was)", which was not why."""
     tmp, _, _ = bench
@@ -269,7 +269,7 @@ def test_the_report_of_a_bench_killed_with_kill_9_says_so_at_the_top(bench, caps
 
 @pytest.mark.slow  # a bench in a child process, killed once it has claimed the folder: ~15 s
 def test_a_bench_taking_over_another_profiles_folder_clears_its_outputs_first(bench, capsys):
-    """Issue 39, finding 6: a killed bench that was taking over another profile's folder left that profile's
+    """A killed bench that was taking over another profile's folder left that profile's
     README and tables beside its own run.json. Now its outputs go in the step that writes the new run.json;
     what the old report did not record (a user's file) stays."""
     tmp, _, _ = bench

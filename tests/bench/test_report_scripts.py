@@ -43,14 +43,14 @@ def test_acceptance_floors_are_a_benchmark_of_their_own(tmp_path, capsys):
         return lines[0][2:].split(":", 1)[0], lines[0]
 
     # Each floor: its verdict, the rows compared, their RMSE and the ratio against the floor.
-    verdict, line = floor("issue 7", "mismatch-ext", "all samples")
+    verdict, line = floor("mismatch-ext", "all samples")
     assert verdict == "NOT met" and "<= 0.5 x" in line
     assert all(n in line for n in ("identified-consistent 1.2000 Nm", "rnea 2.0000 Nm", "= 0.600"))
-    verdict, line = floor("issue 7", "mismatch-ext", "free motion")
+    verdict, line = floor("mismatch-ext", "free motion")
     assert verdict == "met" and "= 0.400" in line
-    verdict, line = floor("issue 15", "real-panda", "identified-consistent <= 0.4 x")
+    verdict, line = floor("real-panda", "identified-consistent <= 0.4 x")
     assert verdict == "met" and "= 0.200" in line
-    verdict, line = floor("issue 15", "real-panda", "best residual")
+    verdict, line = floor("real-panda", "best residual")
     assert verdict == "met" and "<= 1.0 x" in line
     assert all(n in line for n in ("residual-rnea-identified 0.2880 Nm", "identified-consistent 0.3200 Nm", "= 0.900"))
     (tmp_path / "run.json").write_text(json.dumps({"bench_report": 1, "profile": {"name": "t"}}))
@@ -62,16 +62,16 @@ def test_acceptance_floors_are_a_benchmark_of_their_own(tmp_path, capsys):
 
 
 def test_a_row_stopped_by_its_step_budget_is_never_counted_as_converged():
-    """Issue 14's floor (stopped by patience or lr-floor, not the epoch cap) says nothing of a budgeted
+    """The convergence floor (stopped by patience or lr-floor, not the epoch cap) says nothing of a budgeted
     row, which stops at its budget whether or not it converged: such rows get no verdict."""
     checks = load_script("acceptance")
 
     def verdicts(*stops):
         rows = [{"task": "joint_torque", "scenario": "s", "model": f"m{i}", "family": "seed-net", "status": "ok",
                  "rmse": 1.0, "stopped_by": stop} for i, stop in enumerate(stops)]
-        return {text.split(" (")[0].split(",")[0]: met for text, met, _ in checks.floor_checks(rows)}
+        return {text.split(" (")[0].split(",")[0].split(": ")[-1]: met for text, met, _ in checks.floor_checks(rows)}
 
-    converged = "issue 14: every learned row stopped by patience or lr-floor"
+    converged = "every learned row stopped by patience or lr-floor"
     budgeted = "(no floor) learned rows trained to their step budget"
     assert verdicts("budget", "budget") == {budgeted: None}
     assert verdicts("budget", "epoch-cap") == {converged: False, budgeted: None}
@@ -99,7 +99,7 @@ def test_the_data_control_divides_each_learned_row_by_its_own_reports_physics(tm
 
 
 def test_the_wall_time_floor_sums_recorded_invocations_and_never_certifies_an_unrecorded_one(tmp_path):
-    """Issue 31's wall time: the sum of the invocations run.json recorded as they ran; a run.json of before
+    """The wall-time floor: the sum of the invocations run.json recorded as they ran; a run.json of before
     that (a killed part left no time) is NOT verified, whatever its one number says."""
     checks = load_script("acceptance")
 

@@ -1,4 +1,4 @@
-"""The bench's row registry (issue 15, item 5): a row is declared once and the runner, the report and
+"""The bench's row registry: a row is declared once and the runner, the report and
 the profiles read that declaration; a declaration without what the row reads is refused."""
 import ast
 import csv
@@ -10,7 +10,7 @@ import pytest
 from hybrid_dyn.bench.plan import BenchPlan
 from hybrid_dyn.bench.catalog import ROWS, select_rows
 from hybrid_dyn.bench.profiles import PROFILES, BenchProfile
-from hybrid_dyn.bench.rows import Predictor, Row, declare
+from hybrid_dyn.bench.rows import Predictor, Row
 from hybrid_dyn.errors import UsageError
 
 from helpers import REPO
@@ -19,7 +19,7 @@ from helpers import REPO
 @pytest.fixture
 def toy_row():
     """An analytic 'zero force' row, declared in one statement (and withdrawn after the test)."""
-    row = declare(Row("zero-force", "tip_force", "analytic", needs=("q", "tip_force"), needs_urdf=False,
+    row = ROWS.register(Row("zero-force", "tip_force", "analytic", needs=("q", "tip_force"), needs_urdf=False,
                       build=lambda ds, ctx: Predictor(predict=lambda insts: [np.zeros((len(i), 3)) for i in insts],
                                                       single_call=lambda inst, k: np.zeros(3), inputs="nothing")))
     yield row
@@ -60,7 +60,7 @@ def test_a_row_without_its_needs_is_refused():
     with pytest.raises(UsageError, match="family must be one of"):
         Row("odd", "tip_force", "physics", needs=("tip_force",), needs_urdf=True, build=build)
     with pytest.raises(UsageError, match="declared twice"):
-        declare(ROWS["base-wrench"])
+        ROWS.register(ROWS["base-wrench"])
 
 
 def test_profiles_name_declared_rows_and_families_only():

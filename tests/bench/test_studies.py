@@ -6,7 +6,7 @@ import pytest
 
 from hybrid_dyn.bench.plan import BenchPlan
 from hybrid_dyn.bench import profiles as profiles_mod
-from hybrid_dyn.bench.profiles import get_profile
+from hybrid_dyn.bench.profiles import PROFILES
 from hybrid_dyn.bench.runner import run_bench
 from hybrid_dyn.bench.studies import BASE, STUDIES, Overrides, Study, StudyRun, run_study
 from hybrid_dyn.bench.study_summaries import controls
@@ -69,7 +69,7 @@ def test_a_bad_declaration_is_refused_when_declared():
 
 
 def test_preset_overrides_are_recorded_only_when_set():
-    plain = get_profile("seed-sim")
+    plain = PROFILES.lookup("seed-sim")
     assert "preset_overrides" not in plain.to_dict()  # reports written before the field compare equal
     wide = dataclasses.replace(plain, preset_overrides={"fc_units": 256})
     assert wide.to_dict()["preset_overrides"] == {"fc_units": 256}
@@ -175,7 +175,7 @@ def test_a_real_sets_scenario_overrides_reach_its_import(monkeypatch, tmp_path):
 def test_a_budget_is_scaled_from_the_preset_a_row_trains():
     from hybrid_dyn.bench.studies import _preset
 
-    profile = get_profile("seed-sim")
+    profile = PROFILES.lookup("seed-sim")
     assert _preset(profile, "residual-rnea-identified").name == "residual-rnea"  # the identified residual's net
     assert _preset(profile, "seed-tau-mlp").kind == "mlp"
     with pytest.raises(UsageError, match="no step budget"):
@@ -187,7 +187,7 @@ class _Started(Exception):
 
 
 def test_study_out_refuses_a_users_folder_before_any_work(tmp_path, monkeypatch, capsys):
-    """Issue 39, finding 4: `study --out DIR` on a folder holding the user's README.md started generating."""
+    """`study --out DIR` on a folder holding the user's README.md started generating."""
     from hybrid_dyn.bench import studies as studies_mod
     from hybrid_dyn.cli import main as cli_main
 
@@ -210,7 +210,7 @@ def test_study_out_refuses_a_users_folder_before_any_work(tmp_path, monkeypatch,
 
 
 def test_a_study_writes_its_summary_only_where_it_is_still_its_own(tmp_path, monkeypatch):
-    """Issue 39, finding 4: the summary was written with no ownership check. A folder the study wrote (its
+    """The summary was written with no ownership check. A folder the study wrote (its
     summary JSON names it) is its own on a rerun; a user's file that appears in a new folder while the
     variants run makes the summary a refusal, and the file stays."""
     from hybrid_dyn.bench import studies as studies_mod

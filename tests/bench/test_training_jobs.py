@@ -1,4 +1,4 @@
-"""The bench's training jobs on a Ray cluster (issue 31): the same model files as the local pool, byte for byte."""
+"""The bench's training jobs on a Ray cluster: the same model files as the local pool, byte for byte."""
 import dataclasses
 
 import pytest
@@ -48,7 +48,7 @@ def test_gpus_per_job_needs_a_ray_executor(tmp_path):
 
 @pytest.mark.slow  # two small benches, the second with a worker process
 def test_the_identified_residual_nets_train_in_a_worker_to_the_serial_runs_bytes(panda_log, tmp_path):
-    """Issue 40: with 2 workers the residual nets on the identified model train in a worker process while
+    """With 2 workers the residual nets on the identified model train in a worker process while
     the bench's process fits and scores the rest; the model files and the rows are those of one process."""
     from hybrid_dyn.bench.profiles import profile_for_data
     from hybrid_dyn.bench.results import SCORED_STATUSES
@@ -68,7 +68,7 @@ def test_the_identified_residual_nets_train_in_a_worker_to_the_serial_runs_bytes
     serial, _ = bench(1, "serial")
     parallel, said = bench(2, "parallel")
     assert any("residual-rnea-identified" in m and "in a worker" in m for m in said), said
-    # Scored rows (an identified row on this small log may be "implausible", issue 39), as the serial run's.
+    # Scored rows (an identified row on this small log may be "implausible"), as the serial run's.
     assert [r["status"] for r in parallel] == [r["status"] for r in serial]
     assert all(r["status"] in SCORED_STATUSES for r in parallel), [r["status"] for r in parallel]
     a, b = model_bytes(tmp_path / "runs-serial"), model_bytes(tmp_path / "runs-parallel")

@@ -1,4 +1,4 @@
-"""Kill-and-resume machinery (issue 17): kill `generate` and `train` mid-run, resume, compare the bytes.
+"""Kill-and-resume machinery: kill `generate` and `train` mid-run, resume, compare the bytes.
 
 The test is tests/system/test_fault_injection.py; this module holds what it runs, and what the
 killed commands import (``generate_cli`` runs in the child process, which finds it as

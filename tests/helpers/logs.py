@@ -74,7 +74,7 @@ def write_physical_log(folder: Path, name: str, n: int = 600, hz: float = 100.0,
     """A 6 s Panda log (bare flange) about its home pose whose torques obey the nominal model: RNEA + the Gaz
     friction + white noise [Nm], cut into 10 blocks split in time order (the last 2 test), with its import spec.
 
-    The defects of issue 39, findings 7-9: ``dead_torque`` (1-based joint): its torque 0 throughout;
+    The defects a log can hide: ``dead_torque`` (1-based joint): its torque 0 throughout;
     ``still_joint``: that joint never moves; ``still_from`` [s]: every joint stands still from then on.
     """
     from hybrid_dyn.analytic.robot import load_robot

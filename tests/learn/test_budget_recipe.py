@@ -1,4 +1,4 @@
-"""The budgeted recipe (issue 26): a fixed number of optimizer steps, a warm-up, a cosine decay to zero,
+"""The budgeted recipe: a fixed number of optimizer steps, a warm-up, a cosine decay to zero,
 batches from the whole pool, and a resume that is bit-identical. Tiny synthetic sets, built here."""
 import math
 
@@ -11,7 +11,8 @@ from hybrid_dyn.data.synthetic import make_synthetic_dataset
 from hybrid_dyn.errors import UsageError
 from hybrid_dyn.learn import TrainConfig, train_model
 from hybrid_dyn.learn import train as train_mod
-from hybrid_dyn.learn.presets import KINDS, get_preset
+from hybrid_dyn.learn.kinds import NETWORK_KINDS
+from hybrid_dyn.learn.presets import PRESETS
 
 from helpers.resume import assert_same_weights, killed_then_resumed
 
@@ -75,16 +76,16 @@ def test_a_budgeted_run_spends_its_steps_on_the_whole_pool(tiny, tmp_path, monke
 def test_the_budget_comes_from_the_network_kind_and_is_in_the_fingerprint():
     cfg = TrainConfig.recipe("budget")
     for name in ("seed-tau-mlp", "seed-tau-conv", "seed-tau-lstm", "delan-friction"):
-        preset = get_preset(name)
-        assert cfg.for_preset(preset).budget_steps == train_mod.BUDGET_STEPS[preset.kind]
-    a = cfg.for_preset(get_preset("delan")).fingerprint_fields()
+        preset = PRESETS.lookup(name)
+        assert cfg.for_preset(preset).budget_steps == NETWORK_KINDS[preset.kind].budget_steps
+    a = cfg.for_preset(PRESETS.lookup("delan")).fingerprint_fields()
     b = TrainConfig.recipe("budget", budget_steps=3).fingerprint_fields()
     assert a["budget_steps"] != b["budget_steps"]
     # an epoch recipe's fingerprint does not carry the budget's fields (older runs stay valid)
     assert "budget_steps" not in TrainConfig().fingerprint_fields()
     with pytest.raises(UsageError, match="warmup_fraction"):
         TrainConfig.recipe("budget", warmup_fraction=1.0)
-    assert set(train_mod.BUDGET_STEPS) == set(KINDS)  # a network kind without a budget could not train under it
+    assert all(k.budget_steps > 0 for k in NETWORK_KINDS.values())  # a network kind without a budget could not train under it
 
 
 def test_resume_mid_budget_is_bit_identical(tiny, tmp_path, monkeypatch):

@@ -10,7 +10,7 @@ from hybrid_dyn.data.synthetic import make_synthetic_dataset
 from hybrid_dyn.data.windows import concat_fields
 from hybrid_dyn.errors import UsageError
 from hybrid_dyn.learn import TrainConfig, load_model, train_model
-from hybrid_dyn.learn.kinds import KINDS, NetworkKind, network_kind, register, search_fc, single_net, unregister
+from hybrid_dyn.learn.kinds import NETWORK_KINDS, NetworkKind, search_fc, single_net
 from hybrid_dyn.learn.nets import fc_head
 from hybrid_dyn.learn.presets import Preset
 
@@ -36,10 +36,10 @@ WINDOW_MEAN = NetworkKind(
 
 @pytest.fixture
 def window_mean():
-    kind = register(WINDOW_MEAN)
+    kind = NETWORK_KINDS.register(WINDOW_MEAN)
     yield kind
-    unregister(kind.name)
-    assert kind.name not in KINDS
+    NETWORK_KINDS.unregister(kind.name)
+    assert kind.name not in NETWORK_KINDS
 
 
 def test_a_new_kind_trains_saves_and_loads_with_the_same_predictions(window_mean, panda, tmp_path):
@@ -65,7 +65,25 @@ def test_a_new_kind_trains_saves_and_loads_with_the_same_predictions(window_mean
 
 def test_an_unknown_kind_is_refused_naming_the_known_ones(window_mean):
     with pytest.raises(UsageError, match="unknown network kind 'gru'; known: mlp, conv, lstm, delan, window-mean"):
-        network_kind("gru")
+        NETWORK_KINDS.lookup("gru")
     with pytest.raises(ValueError, match="kind must be one of") as err:  # a preset of it, refused when made
         Preset("toy", "gru", ("q",), ("tau_m",))
     assert all(repr(name) in str(err.value) for name in ("mlp", "conv", "lstm", "delan", "window-mean"))
+
+
+def test_a_preset_of_a_plugins_kind_loads_the_plugin_first(monkeypatch):
+    """A model file's preset naming a kind a plugin declares (a fresh process: nothing loaded it yet)."""
+    from types import SimpleNamespace
+
+    from hybrid_dyn import plugins
+
+    entry = SimpleNamespace(name="kinds", value="pkg.kinds", load=lambda: NETWORK_KINDS.register(WINDOW_MEAN))
+    monkeypatch.setattr(plugins.importlib.metadata, "entry_points", lambda group: [entry])
+    monkeypatch.setattr(plugins, "LOADED", {})
+    monkeypatch.setitem(plugins._state, "scanned", False)
+    try:
+        preset = Preset("toy", "window-mean", ("q",), ("tau_m",), window=5)  # as a model file's preset is read
+        assert preset.kind == "window-mean" and plugins.LOADED == {"kinds": "pkg.kinds"}
+    finally:
+        if "window-mean" in NETWORK_KINDS:
+            NETWORK_KINDS.unregister("window-mean")

@@ -65,7 +65,7 @@ def test_the_loaded_model_predicts_what_sklearn_predicts(ds, fitted):
     """One GP per joint, conditioned by scikit-learn directly on the standardized training split with the
     fitted hyperparameters, predicts the test split as the toolkit's loaded file does, to 1e-8 Nm; and the
     fitted hyperparameters are a maximum of the marginal likelihood at least as high as scikit-learn's own
-    optimizer reaches from its start (issue 40: gp_marginal keeps the better of that start and l = sqrt(d))."""
+    optimizer reaches from its start (gp_marginal keeps the better of that start and l = sqrt(d))."""
     x, y = _xy(ds.split("train"))
     xte, _ = _xy(ds.split("test"))
     mx, sx = x.mean(0), x.std(0) + 1e-9  # the documented standardization (GPConfig)
@@ -90,7 +90,7 @@ def test_the_loaded_model_predicts_what_sklearn_predicts(ds, fitted):
 
 
 def test_the_marginal_likelihood_and_its_gradient_are_sklearns(ds):
-    """gp_marginal's objective (issue 40) is scikit-learn's log marginal likelihood and gradient for the GP
+    """gp_marginal's objective is scikit-learn's log marginal likelihood and gradient for the GP
     family's kernel, at the start, at random points within the bounds and on standardized targets."""
     from hybrid_dyn.learn.gp_marginal import log_marginal_likelihood
 
@@ -166,7 +166,7 @@ def test_a_corrupt_edited_or_foreign_file_is_refused(fitted, tmp_path):
 
 @pytest.mark.parametrize("version", ["1", None, True])
 def test_a_non_integer_format_version_is_one_error_not_a_traceback(fitted, tmp_path, version):
-    """Issue 28, finding 6: format_version "1" or null in config.json was a TypeError."""
+    """A format_version of "1" or null in config.json was a TypeError."""
     import shutil
 
     d = tmp_path / "gp"
@@ -178,7 +178,7 @@ def test_a_non_integer_format_version_is_one_error_not_a_traceback(fitted, tmp_p
 
 
 def test_timing_json_of_another_gp_is_not_read_as_this_ones(fitted, ds, tmp_path):
-    """Issue 28, finding 7: a GP's timing.json is bound to its config, as the nets' is: another fit's
+    """A GP's timing.json is bound to its config, as the nets' is: another fit's
     timing file copied in gives no training time, not the other fit's."""
     import shutil
 

@@ -1,4 +1,4 @@
-"""The semiparametric GP (issue 29): an identified model plus a sparse GP on its residual.
+"""The semiparametric GP: an identified model plus a sparse GP on its residual.
 
 The logs are built here: Panda joint sines whose torque is an identified model's prediction
 plus a residual written down in closed form, so the residual the GP must find is known. The

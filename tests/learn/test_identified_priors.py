@@ -1,4 +1,4 @@
-"""Physics priors on an identified model (issue 15, item 2): the residual nets' analytic part built
+"""Physics priors on an identified model: the residual nets' analytic part built
 from an identified parameter file (the bench's rows on it: bench/test_identified_rows.py).
 
 References are independent of the code under test: ``IdentifiedModel.predict_torque``

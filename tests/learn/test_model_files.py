@@ -1,4 +1,4 @@
-"""Model files and training runs (issue 17): tensor digest, reproducible bytes, dropout resume,
+"""Model files and training runs: tensor digest, reproducible bytes, dropout resume,
 train's arguments, robot and width checks before training, one run per folder, foreign folders.
 
 Tiny synthetic Panda sets built here; every training run is one or a few epochs of a few batches.

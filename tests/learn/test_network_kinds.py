@@ -1,4 +1,4 @@
-"""Network kinds declared once (issue 30): a kind's pieces live in one declaration
+"""Network kinds declared once: a kind's pieces live in one declaration
 (learn/kinds.py), a kind missing one is refused there, and a toy kind declared in
 this file alone trains, resumes its budget, runs its fast path and is tuned."""
 import numpy as np
@@ -16,7 +16,7 @@ from hybrid_dyn.learn import kinds
 from hybrid_dyn.learn import train as train_mod
 from hybrid_dyn.learn.kinds import NetworkKind, search_fc, single_net
 from hybrid_dyn.learn.nets import fc_head
-from hybrid_dyn.learn.presets import KINDS, PRESETS, Preset
+from hybrid_dyn.learn.presets import PRESETS, Preset
 from hybrid_dyn.learn.tune import suggest_preset
 
 
@@ -43,9 +43,9 @@ FLAT = dict(description="the window flattened into FC layers (a test's toy)", bu
 
 @pytest.fixture
 def flat_kind():
-    kind = kinds.register(NetworkKind("flat", **FLAT))
+    kind = kinds.NETWORK_KINDS.register(NetworkKind("flat", **FLAT))
     yield kind
-    kinds.unregister("flat")
+    kinds.NETWORK_KINDS.unregister("flat")
 
 
 @pytest.fixture(scope="module")
@@ -59,7 +59,7 @@ def tiny(tmp_path_factory, panda):
 def test_a_kind_missing_a_piece_is_refused_when_declared(piece):
     with pytest.raises(ValueError, match=f"network kind 'flat' lacks: {piece} "):
         NetworkKind("flat", **{**FLAT, piece: None})
-    assert "flat" not in KINDS
+    assert "flat" not in kinds.NETWORK_KINDS
 
 
 def test_a_piece_of_the_wrong_sort_is_refused_when_declared():
@@ -68,12 +68,12 @@ def test_a_piece_of_the_wrong_sort_is_refused_when_declared():
     with pytest.raises(ValueError, match="clips_gradients must be"):
         NetworkKind("flat", **{**FLAT, "clips_gradients": "yes"})
     with pytest.raises(ValueError, match="declared twice"):
-        kinds.register(NetworkKind("lstm", **FLAT))
+        kinds.NETWORK_KINDS.register(NetworkKind("lstm", **FLAT))
 
 
 def test_every_consumer_reads_the_declaration(flat_kind):
     preset = Preset("toy-flat", "flat", ("q", "qd", "qdd"), ("tau_m",), window=4, fc_units=8)
-    assert "flat" in KINDS and train_mod.BUDGET_STEPS["flat"] == 300
+    assert "flat" in kinds.NETWORK_KINDS
     assert TrainConfig.recipe("budget").for_preset(preset).budget_steps == 300
     assert train_mod._is_recurrent(preset)  # clips_gradients=True: training clips it
     assert epoch_cost_rank(preset)[0] == -5  # queued before DeLaN (rank 2)
@@ -88,7 +88,7 @@ def test_every_consumer_reads_the_declaration(flat_kind):
 def test_a_preset_is_held_to_its_kinds_declared_rules():
     with pytest.raises(ValueError, match="kind must be one of"):
         Preset("toy", "gru", ("q",), ("tau_m",))
-    kinds.register(NetworkKind("flat-front", **{**FLAT, "needs_front": True, "sequence": False}))
+    kinds.NETWORK_KINDS.register(NetworkKind("flat-front", **{**FLAT, "needs_front": True, "sequence": False}))
     try:
         with pytest.raises(ValueError, match="flat-front needs front_units"):
             Preset("toy", "flat-front", ("q",), ("tau_m",), front_units=())
@@ -97,7 +97,7 @@ def test_a_preset_is_held_to_its_kinds_declared_rules():
         with pytest.raises(ValueError, match="residual_kind must be one of"):
             Preset("toy", "delan", ("q", "qd", "qdd"), ("tau_m",), window=4, residual_kind="delan")
     finally:
-        kinds.unregister("flat-front")
+        kinds.NETWORK_KINDS.unregister("flat-front")
 
 
 def test_a_declared_kind_trains_and_runs_its_fast_path(flat_kind, tiny, tmp_path):

@@ -1,5 +1,5 @@
-"""Older spellings of the analytic priors (issue 15, item 5): accepted where presets and saved model
-files give them, with a warning (issue 30); model files write the canonical names, training fingerprints
+"""Older spellings of the analytic priors: accepted where presets and saved model
+files give them, with a warning; model files write the canonical names, training fingerprints
 keep the older spellings, and a format-2 model file loads, is reused and upgrades."""
 import json
 import warnings
@@ -9,10 +9,10 @@ import pytest
 
 from hybrid_dyn.analytic.method_names import estimator_name, residual_prior_names
 from hybrid_dyn.deprecation import DeprecatedNameWarning
-from hybrid_dyn.learn.presets import PRESETS, PRIOR_FINGERPRINT_SPELLING, Preset
+from hybrid_dyn.learn.presets import PRESETS, PRIOR_FINGERPRINT_SPELLING, Preset, prior_fingerprint_spelling
 from hybrid_dyn.learn.priors import PRIOR_FIELDS, AnalyticPrior
 
-# run_fingerprint of two presets on dataset checksum "0" * 64, by the code before issue 30 (commit cbc35cb).
+# run_fingerprint of two presets on dataset checksum "0" * 64, by the code before the rename (commit cbc35cb).
 FINGERPRINT_RESIDUAL_BASEWRENCH_BUDGET = "fb30e3664d773567556a7f5052ef5b81b5da713cdc814440f28f3cb333724462"
 FINGERPRINT_RESIDUAL_RNEA_BW_PLATEAU = "80fecbb86c5ca00189d2694f3feec06e17031b06b1e08017bc00fa6ec74b08f1"
 
@@ -36,7 +36,7 @@ def test_old_prior_spellings_warn_and_model_files_write_the_canonical_names(pand
 
 
 def test_fingerprints_keep_the_spellings_every_cached_run_was_keyed_by():
-    """Training fingerprints hash the preset with the older spellings, so a model trained before issue 30 is
+    """Training fingerprints hash the preset with the older spellings, so a model trained before the rename is
     still this run's. The hex digests were computed by the code before the rename."""
     from hybrid_dyn.learn.train import TrainConfig, run_fingerprint
 
@@ -80,26 +80,24 @@ def _as_format_2(src, dst):
     model = __import__("hybrid_dyn.learn", fromlist=["load_model"]).load_model(dst)
     config = json.loads((dst / "config.json").read_text())
     config["format_version"] = 2
-    config["preset"]["prior"] = PRIOR_FINGERPRINT_SPELLING[config["preset"]["prior"]]
-    config["prior"]["kind"] = PRIOR_FINGERPRINT_SPELLING[config["prior"]["kind"]]
+    config["preset"]["prior"] = prior_fingerprint_spelling(config["preset"]["prior"])
+    config["prior"]["kind"] = prior_fingerprint_spelling(config["prior"]["kind"])
     save_model(model.module, config, dst, train_seconds=1.5)
     return config
 
 
 @pytest.mark.slow  # a tiny training run: ~5 s
-def test_a_format_2_model_loads_with_a_warning_is_reused_and_upgrades(panda, tmp_path):
+def test_a_format_2_model_loads_with_a_warning_and_is_reused(panda, tmp_path):
     from hybrid_dyn.data import load_dataset
     from hybrid_dyn.data.synthetic import make_synthetic_dataset
     from hybrid_dyn.learn import TrainConfig, load_model, train_model
-    from hybrid_dyn.learn.model_upgrade import upgrade_model
 
     ds = load_dataset(make_synthetic_dataset(tmp_path / "d", panda, n_instances=3, n_samples=60, seed=2))
     cfg = TrainConfig(max_epochs=1, max_batches_per_epoch=2, batch_size=64, progress=False)
     fresh = train_model(ds, "residual-momentum", tmp_path / "m", cfg)
     old = _as_format_2(tmp_path / "m", tmp_path / "old")
     assert old["preset"]["prior"] == "momentum" and old["prior"]["kind"] == "momentum"
-    with pytest.warns(DeprecatedNameWarning, match=r"model format 2.*preset.prior 'momentum' \(now "
-                                                   r"'momentum-observer'\).*upgrade_model"):
+    with pytest.warns(DeprecatedNameWarning, match=r"'momentum'.*'momentum-observer'"):
         loaded = load_model(tmp_path / "old")
     assert loaded.preset.prior == "momentum-observer" and loaded.prior.kind == "momentum-observer"
     test = ds.split("test")
@@ -109,15 +107,3 @@ def test_a_format_2_model_loads_with_a_warning_is_reused_and_upgrades(panda, tmp
     with pytest.warns(DeprecatedNameWarning):
         assert train_model(ds, "residual-momentum", tmp_path / "old", cfg).config["fingerprint"] == \
             fresh.config["fingerprint"]
-    # The upgrade rewrites it in format 3: canonical names, the same weights, loads without a warning.
-    assert upgrade_model(tmp_path / "old") is True
-    upgraded = json.loads((tmp_path / "old" / "config.json").read_text())
-    assert upgraded["format_version"] == 3 and upgraded["preset"]["prior"] == "momentum-observer"
-    assert upgraded["prior"]["kind"] == "momentum-observer" and upgraded["fingerprint"] == old["fingerprint"]
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", DeprecatedNameWarning)
-        again = load_model(tmp_path / "old")
-    assert again.train_seconds == 1.5  # timing.json rewritten for the new config digest
-    for a, b in zip(fresh.predict(test), again.predict(test)):
-        np.testing.assert_array_equal(a, b)
-    assert upgrade_model(tmp_path / "old") is False  # nothing left to upgrade

@@ -166,13 +166,13 @@ def test_analytic_part_is_cached_per_dataset(friction_set, panda, tmp_path):
     prior = AnalyticPrior("base-wrench", panda)
     insts = friction_set.split("val")
     first = prior.compute_instances(insts, tmp_path, friction_set.checksum)
-    files = list(tmp_path.glob("prior-base-wrench-*.h5"))  # the canonical name (issue 30)
+    files = list(tmp_path.glob("prior-base-wrench-*.h5"))  # the canonical name
     assert len(files) == 1 and not list(tmp_path.glob("prior-basewrench-*"))
     prior.compute = None  # a second call must not compute: it reads the cache
     second = prior.compute_instances(insts, tmp_path, friction_set.checksum)
     for a, b in zip(first, second):
         assert np.array_equal(a, b)
-    # A cache written before issue 30 (the older spelling in its name, the same key) is found, renamed.
+    # A cache written before model format 3 (the older spelling in its name, the same key) is found, renamed.
     older = files[0].with_name(files[0].name.replace("prior-base-wrench-", "prior-basewrench-"))
     files[0].rename(older)
     third = prior.compute_instances(insts, tmp_path, friction_set.checksum)  # prior.compute is None: read, not made

@@ -1,4 +1,4 @@
-"""The training recipe (issue 14): the tared sensor reaches the nets, the learning-rate schedule,
+"""The training recipe: the tared sensor reaches the nets, the learning-rate schedule,
 and why a run stopped. Tiny synthetic sets with exact physics, built here."""
 import numpy as np
 import pytest
@@ -10,7 +10,7 @@ from hybrid_dyn.data import load_dataset
 from hybrid_dyn.data.synthetic import make_synthetic_dataset
 from hybrid_dyn.learn import TrainConfig, train_model
 from hybrid_dyn.learn import train as train_mod
-from hybrid_dyn.learn.presets import get_preset
+from hybrid_dyn.learn.presets import PRESETS
 
 from helpers.resume import assert_same_weights, killed_then_resumed
 
@@ -35,7 +35,7 @@ def test_the_tare_reaches_the_learned_inputs(clean_and_biased, tmp_path):
     offsets = [b.base_wrench[0] - c.base_wrench[0] for b, c in zip(biased.split("train"), clean.split("train"))]
     assert np.abs(offsets).max() > 0.5  # the two sets do differ by a per-run offset
     cfg = TrainConfig(max_epochs=4, **QUICK)
-    raw = get_preset("seed-tip-1").replace(name="seed-tip-1-raw", raw_sensor=True)
+    raw = PRESETS.lookup("seed-tip-1").replace(name="seed-tip-1-raw", raw_sensor=True)
     rms = {}
     for label, preset in (("tared", "seed-tip-1"), ("raw", raw)):
         a = train_model(clean, preset, tmp_path / "clean" / label, cfg)

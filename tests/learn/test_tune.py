@@ -1,4 +1,4 @@
-"""Distributed tuning (issue 9): workers share one Optuna storage, a killed worker's trial is failed and
+"""Distributed tuning: workers share one Optuna storage, a killed worker's trial is failed and
 retried, an interrupted trial is retried by the next run, a storage without heartbeats is refused."""
 import json
 import os

@@ -69,9 +69,9 @@ def test_generated_instance_records_the_drawn_contacts_at_1khz(tmp_path):
 def test_default_profile_runs_only_the_analytic_rows_on_contact_steps():
     from types import SimpleNamespace
 
-    from hybrid_dyn.bench.profiles import get_profile
+    from hybrid_dyn.bench.profiles import PROFILES
 
-    prof = get_profile("default")
+    prof = PROFILES.lookup("default")
     cfg = scenario_config("contact-steps", "default")
     ds = SimpleNamespace(fields=["t", "q", "qd", "qdd", "tau_m", "tau_J", "base_wrench", "tip_force"],
                          meta={"scenario": "contact-steps", "robot": "panda", "config": cfg.to_dict(),

@@ -4,7 +4,7 @@ import dataclasses
 
 import pytest
 
-from hybrid_dyn.bench.catalog import get_row
+from hybrid_dyn.bench.catalog import ROWS
 from hybrid_dyn.bench.profiles import PROFILES
 from hybrid_dyn.bench.results import COLUMNS
 from hybrid_dyn.bench.runner import run_bench
@@ -49,7 +49,7 @@ def test_tiny_bench_writes_every_row_and_column(tmp_path):
             assert r[col] != "" and float(r[col]) >= 0.0, (r["model"], col)
         assert r["inputs"], r["model"]
         # A trained net (residuals on identified models included); the residual GP has parameters but no epochs.
-        learned = get_row(r["model"]).trains
+        learned = ROWS.lookup(r["model"]).trains
         assert learned == (int(r["n_params"] or 0) > 0 and r["model"] != "gp-residual-identified"), r["model"]
         assert (r["stopped_by"] == "budget") == learned, (r["model"], r["stopped_by"])
     for name in ("README.md", "tip_force.md", "joint_torque.md", "tip_force.tex", "joint_torque.tex",

@@ -38,14 +38,14 @@ def test_a_user_error_is_one_line_and_exit_2(argv, says, tiny, tmp_path, capsys)
 
 def test_user_input_errors_are_the_toolkits_own(tmp_path):
     """The library paths the CLI calls raise HybridDynError subclasses for bad input, not bare ValueError."""
-    from hybrid_dyn.bench.profiles import get_profile
+    from hybrid_dyn.bench.profiles import PROFILES
     from hybrid_dyn.data.derivatives import DerivativeFilter
     from hybrid_dyn.data.store import fetch_dataset
-    from hybrid_dyn.learn.presets import get_preset
+    from hybrid_dyn.learn.presets import PRESETS
     from hybrid_dyn.sim.executors import ProcessExecutor, make_executor
     from hybrid_dyn.sim.scenarios import scenario_config
 
-    for call in (lambda: get_profile("nope"), lambda: get_preset("nope"), lambda: make_executor(1, "dask"),
+    for call in (lambda: PROFILES.lookup("nope"), lambda: PRESETS.lookup("nope"), lambda: make_executor(1, "dask"),
                  lambda: make_executor(1, "local", address="auto"), lambda: ProcessExecutor(0),
                  lambda: DerivativeFilter(method="spline"), lambda: DerivativeFilter(window_s=-1.0),
                  lambda: fetch_dataset(str(tmp_path), tmp_path / "copy"), lambda: scenario_config("nope")):

@@ -1,4 +1,4 @@
-"""The committed reports/ (issue 30): every folder indexed with its command, bench folders hold only what the
+"""The committed reports/: every folder indexed with its command, bench folders hold only what the
 bench writes, and no committed report or document names a folder of the machine that wrote it."""
 import re
 from pathlib import Path
@@ -19,7 +19,7 @@ COMMAND = re.compile(r"`(hybrid-dyn (bench|study|report|compare)\b[^`]*|python (
 MACHINE_PATH = re.compile(r"(?:^|(?<=[\s`'\"(\[=,:]))/(?:work|home|tmp|Users|root|mnt|scratch|private|var/folders)/")
 TEXT = (".md", ".json", ".csv", ".tex", ".txt", ".toml")
 # Bench files written before run.json recorded relative dataset paths, awaiting their regeneration (every
-# committed report has been regenerated since: issue 31). The list only shrinks: a file here that no longer
+# committed report has been regenerated since). The list only shrinks: a file here that no longer
 # holds a machine path fails the test until it is taken off.
 AWAITING_REGENERATION = set()
 

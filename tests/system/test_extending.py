@@ -18,16 +18,14 @@ from torch import nn
 from hybrid_dyn.analytic.bandwidth import BANDWIDTHS, BandwidthParameter
 from hybrid_dyn.analytic.method_declaration import Method, MethodStream
 from hybrid_dyn.analytic.methods import TIP_FORCE_METHODS
-from hybrid_dyn.bench import learned_rows
 from hybrid_dyn.bench import report as report_mod
-from hybrid_dyn.bench.compare import compare_reports, compared_families
-from hybrid_dyn.bench.learned_rows import PRESET_ROWS, preset_families
-from hybrid_dyn.bench.profiles import BenchProfile
-from hybrid_dyn.bench.rows import FAMILIES, ROWS, Family, Predictor, Row, declare, figure_families, study_families
-from hybrid_dyn.deprecation import DeprecatedNameWarning
+from hybrid_dyn.bench.compare import compare_reports
+from hybrid_dyn.bench.families import FAMILIES, Family
+from hybrid_dyn.bench.profiles import PROFILES, BenchProfile
+from hybrid_dyn.bench.rows import ROWS, Predictor, Row
 from hybrid_dyn.learn import kinds
 from hybrid_dyn.learn.nets import fc_head
-from hybrid_dyn.learn.presets import PRESETS, TIP_INPUTS, Preset, register_preset
+from hybrid_dyn.learn.presets import PRESETS, TIP_INPUTS, Preset
 
 pytestmark = pytest.mark.system
 
@@ -89,16 +87,16 @@ def toys():
     TIP_FORCE_METHODS.register(Method(TOYS["method"], "a toy: the base sensor's force less the arm's weight",
                                       reads=("base_wrench",), any_of=False, needs_qdd=False, tares=True,
                                       parameter=TOYS["parameter"], make=StaticBase))
-    kinds.register(kinds.NetworkKind(
+    kinds.NETWORK_KINDS.register(kinds.NetworkKind(
         TOYS["kind"], "the window's mean over time, then FC layers (a toy)",
         build=kinds.single_net(lambda p, n_in, n_out: WindowMeanNet(n_in, n_out, p)),
         fast=lambda parts: (lambda x: x.mean(0)), clips_gradients=False, cost_rank=0, search=kinds.search_fc,
         budget_steps=200, sequence=True, needs_front=False))
-    FAMILIES.register(Family(TOYS["family"], "a toy learned family (tests)", learned=True, in_studies=True,
+    FAMILIES.register(Family(TOYS["family"], "a toy learned family (tests)", fitted=True, in_studies=True,
                              figures=("traces",)))
-    declare(Row(TOYS["row"], "tip_force", TOYS["family"], needs=("q", "tip_force"), needs_urdf=False,
+    ROWS.register(Row(TOYS["row"], "tip_force", TOYS["family"], needs=("q", "tip_force"), needs_urdf=False,
                 build=_mean_force))
-    register_preset(Preset(TOYS["preset"], TOYS["kind"], tuple(TIP_INPUTS), ("tip_force",), window=5, fc_layers=1,
+    PRESETS.register(Preset(TOYS["preset"], TOYS["kind"], tuple(TIP_INPUTS), ("tip_force",), window=5, fc_layers=1,
                            fc_units=8, family=TOYS["family"]))
     try:
         yield TOYS
@@ -118,12 +116,11 @@ def _assert_nothing_left():
     """Nothing the toys declared, nor anything derived from them, is left in a registry or a derived list."""
     m, fam = TOYS["method"], TOYS["family"]
     assert TOYS["parameter"] not in BANDWIDTHS and m not in TIP_FORCE_METHODS
-    assert TOYS["kind"] not in kinds.KINDS and TOYS["preset"] not in PRESETS
+    assert TOYS["kind"] not in kinds.NETWORK_KINDS and TOYS["preset"] not in PRESETS
     for row in (m, f"{m}-val", TOYS["preset"], TOYS["row"]):
         assert row not in ROWS, row
-    assert TOYS["preset"] not in PRESET_ROWS and fam not in preset_families()
-    assert fam not in FAMILIES and fam not in study_families() and fam not in compared_families()
-    assert fam not in figure_families("traces") and fam not in BenchProfile(name="t", scenarios=("s",)).families
+    assert fam not in FAMILIES
+    assert not any(fam in p.families for p in PROFILES.values())
 
 
 def _results(folder) -> dict:
@@ -140,11 +137,10 @@ def test_toys_declared_once_reach_estimator_bench_report_and_compare(toys, panda
     m, fam, preset = toys["method"], toys["family"], toys["preset"]
     # Declared, derived: the method's two bench rows, the preset's row, the family in every list read from it.
     assert ROWS[m].family == "analytic" and ROWS[f"{m}-val"].reference
-    assert ROWS[preset].family == fam and ROWS[preset].trains and preset in PRESET_ROWS
-    assert preset_families()[fam] == (preset,)
-    with pytest.warns(DeprecatedNameWarning, match="preset_families"):  # the old constant, derived afresh
-        assert learned_rows.PRESET_FAMILIES[fam] == (preset,)
-    assert fam in study_families() and fam in compared_families() and fam in figure_families("traces")
+    assert ROWS[preset].family == fam and ROWS[preset].trains
+    assert [p.name for p in PRESETS.where(family=fam)] == [preset]
+    assert fam in FAMILIES.names(fitted=True, in_studies=True)  # a study's and compare's families
+    assert not any(fam in p.families for p in PROFILES.values())  # a shipped profile names its own
 
     # 11 s runs: the estimator refuses its 0.5 s window, and a row answering under 95 % is no best row.
     ds = load_dataset(make_synthetic_dataset(tmp_path / "d", panda, n_instances=6, n_samples=1100, record_hz=HZ,

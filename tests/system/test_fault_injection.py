@@ -1,4 +1,4 @@
-"""Kill-and-resume matrix (issue 17): `generate` and `train` killed mid-run by SIGKILL, SIGINT or SIGTERM,
+"""Kill-and-resume matrix: `generate` and `train` killed mid-run by SIGKILL, SIGINT or SIGTERM,
 then run again, must resume to the uninterrupted run's bytes with no orphan process and no temporary
 file left (the checks and the commands: helpers/fault_injection.py).
 

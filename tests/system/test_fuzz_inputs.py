@@ -1,9 +1,9 @@
-"""Fuzz of the import spec and the URDF reader (issue 28): seeded random structural mutations of a
+"""Fuzz of the import spec and the URDF reader: seeded random structural mutations of a
 valid spec (and of its log file) and of a valid URDF. Every case must end, within its time limit, in a
 HybridDynError that names the problem, or in a dataset that loads (a robot that computes); never in
 another exception (a traceback) or a hang, and a refused import leaves no output behind.
 
-Issue 39 adds the bench's folders: ``report`` and ``compare`` (with ``--out``) on report folders changed at
+The bench's folders too: ``report`` and ``compare`` (with ``--out``) on report folders changed at
 random, and ``study --out`` on folders holding a mix of the study's files and a user's. They must end in
 a report, comparison or summary showing only what the bench wrote, or in one error; and no file of the
 user's, in the folder or at ``--out``, is ever written over or deleted.
@@ -413,7 +413,7 @@ def test_fuzzed_run_json_ends_in_a_report_or_one_error(tmp_path, monkeypatch):
     print(f"run.json fuzz: {counts}")
 
 
-# ------------------------------------------------------------------ report folders (issue 39)
+# ------------------------------------------------------------------ report folders
 # A user's files in and beside the report folders: whatever a command does, they stay as they are.
 USER_FILES = {"notes.txt": b"my notes", "traces_my_experiment.png": b"\x89PNG mine", "rmse_by_family_mine_v2.png": b"mine"}
 MLP_RMSE = "1.568"  # seed-tau-mlp's RMSE as the bench wrote it: the only figure compare may print for it
@@ -529,7 +529,7 @@ def _user_files_kept(here: Path, what: str) -> None:
 def test_fuzzed_report_folders_end_in_a_report_or_one_error(tmp_path, monkeypatch, capsys):
     """``hybrid-dyn report`` and ``compare`` (with ``--out``) on report folders changed at random: a README or
     a comparison showing only what the bench wrote, or one HybridDynError; never a traceback, and the user's
-    files in the folder and at ``--out`` are never written over or deleted (issue 39)."""
+    files in the folder and at ``--out`` are never written over or deleted."""
     from hybrid_dyn.bench import report as report_mod
     from hybrid_dyn.cli import main as cli_main
     from hybrid_dyn.outputs import write_own_text
@@ -601,7 +601,7 @@ def _snapshot(root: Path) -> dict:
 def test_fuzzed_study_folders_end_in_a_summary_or_one_error(tmp_path, monkeypatch):
     """``study --out`` on folders holding a random mix of the study's own files and a user's: a summary where
     the folder is the study's (its summary JSON names it, or it holds only the variants' bench reports),
-    else one OutputPathError before any work; the user's files are never written over or deleted (issue 39)."""
+    else one OutputPathError before any work; the user's files are never written over or deleted."""
     import json
 
     from hybrid_dyn.bench import studies as studies_mod

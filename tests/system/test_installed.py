@@ -1,4 +1,4 @@
-"""An installed toolkit works outside the checkout (issue 30, item 7): the robot descriptions and the
+"""An installed toolkit works outside the checkout: the robot descriptions and the
 real-log import specs ship in the wheel as package data, and are found there, not through the checkout.
 
 The wheel is built from a copy of the checkout's sources (pip builds in-tree otherwise, leaving build/

@@ -125,11 +125,12 @@ def test_no_two_modules_share_a_file_name():
     assert {n: ps for n, ps in seen.items() if len(ps) > 1} == {}
 
 
-def test_the_source_cites_no_issue_numbers():
+def test_the_source_and_the_tests_cite_no_issue_numbers():
     """The code says what it is; how it came to be so is in CHANGELOG.md."""
     import re
 
+    tests = Path(__file__).resolve().parents[1]
     cite = re.compile(r"\bissues? \d+", re.IGNORECASE)
-    found = [f"{p.relative_to(PACKAGE)}:{i}" for p in PACKAGE.rglob("*.py")
-             for i, line in enumerate(p.read_text().splitlines(), 1) if cite.search(line)]
+    files = [*PACKAGE.rglob("*.py"), *tests.rglob("*.py")]
+    found = [f"{p}:{i}" for p in files for i, line in enumerate(p.read_text().splitlines(), 1) if cite.search(line)]
     assert found == []

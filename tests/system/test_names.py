@@ -1,8 +1,7 @@
-"""One name per concept (issue 30, item 4): a generator *size* is not a bench *profile*, the training
+"""One name per concept: a generator *size* is not a bench *profile*, the training
 recipes have names of their own, ``train`` takes ``--params`` and ``--max-epochs`` as ``bench`` and
 TrainConfig say. Every old name still works, with a DeprecatedNameWarning naming the new one, and
 nothing a cache or a report is keyed by moves: config hashes, fingerprints, run.json's profile."""
-import dataclasses
 import json
 import subprocess
 import sys
@@ -11,10 +10,10 @@ import warnings
 import pytest
 
 from hybrid_dyn.bench.integrity import recorded_profile
-from hybrid_dyn.bench.profiles import PROFILES, BenchProfile
+from hybrid_dyn.bench.profiles import PROFILES
 from hybrid_dyn.cli import build_parser
 from hybrid_dyn.deprecation import DeprecatedNameWarning
-from hybrid_dyn.learn.train import RECIPE_ALIASES, RECIPES, TrainConfig
+from hybrid_dyn.learn.recipes import RECIPE_ALIASES, RECIPES, TrainConfig
 from hybrid_dyn.sim.generator_config import SIZES, GeneratorConfig
 from hybrid_dyn.sim.scenarios import scenario_config
 from helpers.legacy_sensors import legacy
@@ -73,15 +72,6 @@ def test_a_bench_profile_names_its_generator_size_and_run_json_keeps_the_key(no_
     assert list(d)[:3] == ["name", "scenarios", "generator_profile"]
 
 
-def test_the_old_generator_profile_field_warns():
-    with pytest.warns(DeprecatedNameWarning, match="BenchProfile field 'generator_profile'.*'generator_size'"):
-        old = BenchProfile(name="t", scenarios=("paper-ext",), generator_profile="default", families=("analytic",))
-    assert old.generator_size == "default" and old.to_dict()["generator_profile"] == "default"
-    with pytest.warns(DeprecatedNameWarning):
-        assert old.generator_profile == "default"
-    assert dataclasses.replace(old, seed=1).generator_size == "default"  # replace() goes by the new name
-
-
 # --------------------------------------------------------------------------- training recipes
 def test_recipes_have_names_of_their_own_and_the_old_ones_warn(no_deprecation):
     assert set(RECIPES) == {"plateau", "long", "seed-study", "budget"}
@@ -122,26 +112,20 @@ def test_train_takes_params_and_max_epochs(no_deprecation):
     assert _train_config(["--recipe", "seed-study"]) == TrainConfig.recipe("seed-study", progress=True)
 
 
-def test_the_old_train_flags_warn_and_set_the_same_fields():
-    with pytest.warns(DeprecatedNameWarning) as caught:
-        cfg = _train_config(["--analytic-params", "franka_official", "--epochs", "7", "--recipe", "default"])
-    said = sorted(str(w.message) for w in caught)
-    assert said == ["flag '--analytic-params' is deprecated: use '--params'",
-                    "flag '--epochs' is deprecated: use '--max-epochs'",
-                    "training recipe 'default' is deprecated: use 'plateau'"]
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", DeprecatedNameWarning)
-        assert cfg == _train_config(["--params", "franka_official", "--max-epochs", "7", "--recipe", "plateau"])
+def test_an_old_recipe_name_warns_and_sets_the_same_fields():
+    with pytest.warns(DeprecatedNameWarning, match="training recipe 'default' is deprecated: use 'plateau'"):
+        cfg = _train_config(["--recipe", "default"])
+    assert cfg == _train_config(["--recipe", "plateau"])
 
 
 def test_the_command_line_prints_a_deprecation_as_one_line(tmp_path):
-    """From a shell: the warning is one ``warning:`` line naming the new flag, and the command goes on."""
+    """From a shell: the warning is one ``warning:`` line naming the new name, and the command goes on."""
     run = subprocess.run([sys.executable, "-m", "hybrid_dyn.cli", "train", "--data", str(tmp_path / "none"),
-                          "--preset", "seed-tip-1", "--out", str(tmp_path / "m"), "--epochs", "0"],
-                         capture_output=True, text=True)
+                          "--preset", "seed-tip-1", "--out", str(tmp_path / "m"), "--recipe", "default",
+                          "--max-epochs", "0"], capture_output=True, text=True)
     assert run.returncode == 2
     lines = run.stderr.strip().splitlines()
-    assert lines[0] == "warning: flag '--epochs' is deprecated: use '--max-epochs'"
+    assert lines[0] == "warning: training recipe 'default' is deprecated: use 'plateau'"
     assert lines[-1].startswith("error: TrainConfig.max_epochs (--max-epochs) must be an integer >= 1")
 
 

@@ -1,4 +1,4 @@
-"""Output paths (issue 17): concurrent runs, and the rule that the toolkit replaces only what it wrote.
+"""Output paths: concurrent runs, and the rule that the toolkit replaces only what it wrote.
 
 Each test builds its own tiny data. The concurrency tests are deterministic: the
 second run starts while the first is provably inside its run (it waits on an
@@ -277,28 +277,28 @@ def _no_data(scenario, profile):
 
 @pytest.mark.parametrize("name", ["README.md", "results.csv"])
 def test_bench_refuses_a_folder_with_a_users_file(tmp_path, name):
-    from hybrid_dyn.bench.profiles import get_profile
+    from hybrid_dyn.bench.profiles import PROFILES
     from hybrid_dyn.bench.runner import run_bench
 
     out = tmp_path / "report"
     out.mkdir()
     (out / name).write_text("the user's own")
     with pytest.raises(OutputPathError) as err:
-        run_bench(get_profile("quick"), out, dataset_provider=_no_data, log=quiet)
+        run_bench(PROFILES.lookup("quick"), out, dataset_provider=_no_data, log=quiet)
     assert says(err.value, "refusing", out, name, "run.json"), err.value
     assert sorted(p.name for p in out.iterdir()) == [name] and (out / name).read_text() == "the user's own"
 
 
 def test_bench_claims_a_new_folder_and_reuses_its_own(tmp_path):
-    from hybrid_dyn.bench.profiles import get_profile
+    from hybrid_dyn.bench.profiles import PROFILES
     from hybrid_dyn.bench.runner import run_bench
 
     out = tmp_path / "report"
     for _ in range(2):  # new folder, then the folder it claimed (a killed run's)
         with pytest.raises(Sentinel):
-            run_bench(get_profile("quick"), out, dataset_provider=_no_data, log=quiet)
+            run_bench(PROFILES.lookup("quick"), out, dataset_provider=_no_data, log=quiet)
     meta = json.loads((out / "run.json").read_text())
-    assert meta["profile"] == get_profile("quick").to_dict()
+    assert meta["profile"] == PROFILES.lookup("quick").to_dict()
     # the marker, and what a killed run's report needs: the rows requested and those found not to apply
     assert set(meta) == {"bench_report", "invocations", "profile", "requested", "skipped"}
     assert "mismatch-ext / joint_torque / rnea" in meta["requested"] and meta["skipped"] == []
@@ -306,12 +306,12 @@ def test_bench_claims_a_new_folder_and_reuses_its_own(tmp_path):
     assert [i["finished"] for i in meta["invocations"]] == [None, None]
     (out / "run.json").write_text('{"something": "else"}')
     with pytest.raises(OutputPathError, match="it is not a run.json of hybrid-dyn bench"):
-        run_bench(get_profile("quick"), out, dataset_provider=_no_data, log=quiet)
+        run_bench(PROFILES.lookup("quick"), out, dataset_provider=_no_data, log=quiet)
 
 
 # ---------------------------------------------------------------- every command
 def test_every_command_leaves_a_users_folder_alone(panda_log, tmp_path, capsys):
-    """Ownership by proof (issue 28): a folder holding a user's files that happen to carry the toolkit's
+    """Ownership by proof: a folder holding a user's files that happen to carry the toolkit's
     file names (run.json with a 'profile' key, config.json, generator.json, manifest.json) is refused by
     bench, report, generate, train and import alike, and every file is left as it was."""
     from hybrid_dyn.cli import main as cli_main

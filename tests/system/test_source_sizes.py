@@ -1,4 +1,4 @@
-"""Files by concept (issue 30): no source file over FILE_LINES lines, no function over FUNCTION_LINES
+"""Files by concept: no source file over FILE_LINES lines, no function over FUNCTION_LINES
 outside compiled (numba) kernels, except the allow-listed ones (none now).
 
 A test rather than a script to remember: every run of the suite refuses a new oversized file or
@@ -16,7 +16,7 @@ pytestmark = pytest.mark.system
 SRC = REPO / "src" / "hybrid_dyn"
 FILE_LINES = 500
 FUNCTION_LINES = 80
-# Exceptions to the limits, each with why: none since issue 30, item 6 split the last ones by concept
+# Exceptions to the limits, each with why: none since the last ones were split by concept
 # (learn/train.py, bench/report.py, sim/generator.py and the long functions). Remove an entry once its file
 # or function is within the limits (the test warns when one is).
 ALLOWED_FILES: dict[str, str] = {}

@@ -1,6 +1,6 @@
 """The analytic rows of the benchmark: physics on the nominal model, nothing trained.
 
-Each row is declared once, here (``rows.declare``): its name, task, the fields it
+Each row is declared once, here (``ROWS.register``): its name, task, the fields it
 reads, and how it predicts a run (batch) and one sample (the call a user makes in a
 control loop: the same library functions, an observer or filter stepped once per
 call). Adding an analytic row is one ``_analytic(...)`` call in this file.
@@ -23,7 +23,7 @@ from ..analytic.methods import TIP_FORCE_METHODS
 from ..analytic.tare import TARE_SECONDS, tare_samples, tared_base_wrench
 from ..analytic.tip_force import contact_joint_torques, tip_force_from_base_wrench, tip_force_from_torques
 from ..estimator import EstimatorConfig, TipForceEstimator
-from .rows import ROWS, Predictor, Row, declare
+from .rows import ROWS, Predictor, Row
 
 TARED = "(tared on the first 0.5 s)"  # how the inputs column says a row reads the tared base sensor
 # A residual preset's prior -> the analytic row that computes it as the preset reads it (the base wrench
@@ -50,7 +50,7 @@ def _analytic(name: str, task: str, needs: tuple, inputs, batch_fn, single_fn=No
             sigma_coverage=None if sigma_coverage is None else sigma_coverage(ctx),
         )
 
-    return declare(Row(name, task, "analytic", needs=needs, needs_urdf=True, build=build, reference=reference))
+    return ROWS.register(Row(name, task, "analytic", needs=needs, needs_urdf=True, build=build, reference=reference))
 
 
 # The registry's methods (analytic/methods.py): two rows each. ``name`` is what TipForceEstimator does
@@ -108,9 +108,9 @@ def refusals_as_nan(forces: np.ndarray) -> np.ndarray:
     ``metrics.answered``): it gives exactly 0 N up to the end of the noise window it trusts, and over the
     whole run when it trusts none, where the estimator itself declines to answer (its status is not ``ok``);
     scored as a zero force, a method that declines read as one that errs. run_batch does not return where it
-    started, so a first answer of exactly 0 N on every axis counts as refused too: the observers'
-    (momentum-observer, base-momentum, kalman-fusion) first output after the window is their initial state,
-    0 N, one sample per run more than the window."""
+    started, so a first answer of exactly 0 N on every axis counts as refused too: a stateful method's
+    (``Method.stateful``) first output after the window is its initial state, 0 N, one sample per run more
+    than the window."""
     forces = np.array(forces, dtype=float)
     started = np.flatnonzero(np.any(forces != 0.0, axis=1))
     forces[: started[0] if len(started) else len(forces)] = np.nan

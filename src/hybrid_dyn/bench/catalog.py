@@ -7,14 +7,10 @@ elsewhere (a test's toy row, a user's own) is appended after them.
 from __future__ import annotations
 
 from . import analytic_rows, learned_rows, identified_rows  # noqa: F401  (they declare the rows)
-from .rows import FAMILIES, ROWS, Row
+from .families import FAMILIES
+from .rows import ROWS, Row
 
-__all__ = ["FAMILIES", "ROWS", "get_row", "reference_label", "select_rows"]
-
-
-def get_row(name: str) -> Row:
-    """The row declared as ``name`` (or under an alias of it), or the error naming the known ones."""
-    return ROWS.lookup(name)
+__all__ = ["ROWS", "reference_label", "select_rows"]
 
 
 def select_rows(names=(), families=()) -> list[Row]:
@@ -22,10 +18,10 @@ def select_rows(names=(), families=()) -> list[Row]:
     (an unknown name or family is refused, naming it)."""
     from ..errors import UsageError
 
-    unknown = [n for n in names if n not in ROWS]
+    unknown = ROWS.missing(names)
     if unknown:
         raise UsageError(f"unknown bench rows {unknown}; known: {', '.join(ROWS)}")
-    bad = [f for f in families if f not in FAMILIES]
+    bad = FAMILIES.missing(families)
     if bad:
         raise UsageError(f"unknown bench families {bad}; known: {', '.join(FAMILIES)}")
     return [r for r in ROWS.values() if r.name in names or r.family in families]

@@ -1,6 +1,42 @@
 """CLI: hybrid-dyn bench (a built-in profile, or any datasets: --data DIR ...), study NAME, compare A B and report DIR."""
 from __future__ import annotations
 
+from ..registry import help_listing
+
+
+def _profiles():
+    from .profiles import PROFILES
+
+    return PROFILES
+
+
+def _families():
+    from .families import FAMILIES
+
+    return FAMILIES
+
+
+def _rows():  # the rows' modules import torch: only when the help is printed
+    from .catalog import ROWS
+
+    return ROWS
+
+
+def _studies():
+    from .studies import STUDIES
+
+    return STUDIES
+
+
+def _recipes():
+    from ..learn.recipes import RECIPES
+
+    return RECIPES
+
+
+# Help texts name {profiles}, {families}, {rows}, {studies}, {recipes}: read from the registries when printed.
+_HELP = help_listing(profiles=_profiles, families=_families, rows=_rows, studies=_studies, recipes=_recipes)
+
 
 # The bench's text options that change or narrow its profile (each None when not given), in --help's order.
 _PROFILE_CHANGES = (
@@ -9,12 +45,9 @@ _PROFILE_CHANGES = (
     ("--params", "nominal parameter set of the analytic rows and residual priors (a name such as franka_official, "
                  "or a parameter JSON path)"),
     ("--tool", "the robot's tool: none (the bare flange) or a tool .urdf path"),
-    ("--recipe", "training recipe of the learned rows: budget, plateau, long or seed-study "
-                 "(hybrid_dyn.learn.train.RECIPES; default: the profile's, budget for all but real and paper)"),
-    ("--families", "comma-separated row families to run instead of the profile's (e.g. analytic,identified; "
-                   "see hybrid_dyn.bench.rows.FAMILIES)"),
-    ("--rows", "comma-separated row names to run instead of the profile's (with --families: both; "
-               "see hybrid_dyn.bench.rows.ROWS)"),
+    ("--recipe", "training recipe of the learned rows: {recipes} (default: the profile's)"),
+    ("--families", "comma-separated row families to run instead of the profile's: {families}"),
+    ("--rows", "comma-separated row names to run instead of the profile's (with --families: both): {rows}"),
     ("--scenarios", "comma-separated scenarios of the profile to run, instead of all of them "
                     "(e.g. --profile real --scenarios real-panda)"),
     ("--out", "report folder (default: reports/<profile>)"),
@@ -22,8 +55,9 @@ _PROFILE_CHANGES = (
 
 
 def register(sub) -> None:
-    p = sub.add_parser("bench", help="every model family on the same data; writes results.csv, tables, figures")
-    p.add_argument("--profile", default=None, help="quick | default | seed-sim | paper | real (default: quick, "
+    p = sub.add_parser("bench", help="every model family on the same data; writes results.csv, tables, figures",
+                       formatter_class=_HELP)
+    p.add_argument("--profile", default=None, help="a declared profile: {profiles} (default: quick, "
                    "or the datasets of --data)")
     p.add_argument("--data", action="append", default=None, metavar="DIR",
                    help="a dataset in the toolkit's format, simulated or imported (repeat for more): every row that "
@@ -38,10 +72,9 @@ def register(sub) -> None:
     p.set_defaults(func=cmd_bench)
 
     st = sub.add_parser("study", help="a bench profile rerun with overrides declared as data (e.g. data-scaling: "
-                        "the learned rows on fewer training instances), summarised against the profile's report")
-    st.add_argument("name", help="a study of hybrid_dyn.bench.studies.STUDIES (e.g. data-scaling, "
-                    "convergence-seed-sim, controls-default, data-control; reports/README.md lists them; an unknown "
-                    "name is refused with the list)")
+                        "the learned rows on fewer training instances), summarised against the profile's report",
+                        formatter_class=_HELP)
+    st.add_argument("name", help="a declared study: {studies}")
     st.add_argument("--report", default=None, help="the profile's own report, the study's reference point "
                     "(default: reports/<profile>)")
     st.add_argument("--out", default=None, help="summary folder (default: the study's, reports/studies/<study>; data-scaling: "
@@ -87,7 +120,7 @@ def cmd_bench(args) -> int:
     import dataclasses
 
     from ..errors import UsageError
-    from .profiles import get_profile, profile_for_data
+    from .profiles import PROFILES, profile_for_data
     from .runner import run_bench
 
     if args.data and args.profile:
@@ -95,7 +128,7 @@ def cmd_bench(args) -> int:
     if args.data:
         profile = profile_for_data(args.data, robot=args.robot, params=args.params, tool=args.tool)
     else:
-        profile = get_profile(args.profile or "quick")
+        profile = PROFILES.lookup(args.profile or "quick")
         if args.robot or args.params or args.tool:
             profile = dataclasses.replace(profile, robot=args.robot, params=args.params, tool=args.tool)
     if args.workers:
@@ -146,12 +179,12 @@ def _names(text: str | None) -> tuple:
 def cmd_study(args) -> int:
     from pathlib import Path
 
-    from .profiles import get_profile
+    from .profiles import PROFILES
     from .runner import default_work_root
-    from .studies import get_study, run_study
+    from .studies import STUDIES, run_study
 
-    study = get_study(args.name)
-    workers = args.workers or get_profile(study.profile).workers
+    study = STUDIES.lookup(args.name)
+    workers = args.workers or PROFILES.lookup(study.profile).workers
     report = Path(args.report or f"reports/{study.profile}")
     out = Path(args.out) if args.out else study.default_out()
     run_study(study, report, out, work_root=default_work_root(args.work_root), data_root=args.data_root,

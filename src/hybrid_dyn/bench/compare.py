@@ -18,12 +18,7 @@ from pathlib import Path
 
 from .integrity import read_checked_report
 from .report_tables import best_row
-from .rows import derived_names, family_names
-
-
-def compared_families() -> tuple:
-    """The families a comparison reads: learned, run by the studies, no identified fit (:class:`rows.Family`)."""
-    return family_names(learned=True, in_studies=True, identifies_parameters=False)
+from .families import FAMILIES
 
 
 UNITS = {"tip_force": "N", "joint_torque": "Nm"}
@@ -72,14 +67,14 @@ def compare_reports(small: Path, large: Path, command: str | None = None, labels
             "Ratio: a row's test RMSE over the best analytic row's in the same report, scenario and task (the two "
             "reports test on different instances; physics needs no data). A ratio that falls with more data is "
             "data-limited.", ""]
-    learned = compared_families()
+    fitted = FAMILIES.names(fitted=True, in_studies=True, identifies_parameters=False)  # no identified fit
     for scenario, task in sorted({k[:2] for k in b} & {k[:2] for k in a}):
         if (scenario, task) not in pa or (scenario, task) not in pb:
             continue
         (ma, ra), (mb, rb) = pa[(scenario, task)], pb[(scenario, task)]
         table = []
         for (s, t, model), rl in b.items():
-            if (s, t) != (scenario, task) or rl["family"] not in learned or (s, t, model) not in a:
+            if (s, t) != (scenario, task) or rl["family"] not in fitted or (s, t, model) not in a:
                 continue
             rs = a[(s, t, model)]
             xs, xl = float(rs["rmse"]) / ra, float(rl["rmse"]) / rb
@@ -96,7 +91,3 @@ def compare_reports(small: Path, large: Path, command: str | None = None, labels
                 "|---|---|---|---|---|---|---|---|---|", *table, ""]
     return "\n".join(out)
 
-
-
-# LEARNED: the tuple kept by hand before the families carried their metadata, still served (with a warning).
-__getattr__ = derived_names(__name__, {"LEARNED": ("hybrid_dyn.bench.compare.compared_families()", compared_families)})

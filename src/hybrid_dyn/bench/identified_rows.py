@@ -1,33 +1,7 @@
 """Identified-model rows of the benchmark: the strongest analytic
 baseline, and the residual nets on it.
 
-Where the parameters are identified from, per scenario:
-- a simulated scenario (:func:`has_simulated_plant`): as on a real robot, an
-  excitation trajectory (Fourier series designed for the regressor's condition
-  number, once per robot) is run on the scenario's own plant with the external
-  pulses off, and the parameters are identified from that run alone;
-- any other dataset (an imported log, which has no plant to run): its own train
-  and val splits, through the code of ``hybrid-dyn identify`` with its defaults
-  (``identify(ds, method, robot)``: the logged qdd); its test split stays held out.
-Either way the rows are scored on the scenario's test split like every other row.
-The design and the identification run are cached in the data root; each fit is
-written once to the bench's work dir as ``identified/<method>-<digest>.json``
-(named by a digest of what it was fitted on: robot names such as
-``panda[tool=none]`` hold brackets) and read back on a rerun.
-
-Rows:
-  joint torque  identified-ols, identified-consistent, identified-sigmoid-friction,
-                rnea+identified-friction (nominal RNEA + the Gaz law fitted jointly)
-                identified-bw-tared (identified-sigmoid-friction minus J_v^T F, F from
-                base-wrench-identified-tared: the contact torque removed with the base sensor)
-  tip force     base-wrench-identified (the base-wrench method on the consistent set),
-                base-wrench-identified-tared (the same on a base sensor tared per run)
-  residual      residual-rnea-identified, residual-rnea-bw-identified: the presets residual-rnea
-                and residual-rnea-bw with their prior on the consistent model, its inertials and
-                its friction (TrainConfig.analytic_params = its file; learn/priors.py); untrained,
-                residual-rnea-identified is identified-consistent
-                gp-residual-identified: a sparse GP on the consistent model's residual
-                (learn/gp_residual.py): hyperparameters by marginal likelihood on train, chosen on val
+The design in full: ``docs/design/bench.md`` (identified_rows.py).
 """
 from __future__ import annotations
 
@@ -45,7 +19,7 @@ from ..analytic.tip_force import contact_joint_torques, tip_force_from_base_wren
 from ..data import DatasetError, load_dataset
 from ..outputs import unique_temp
 from .learned_rows import gp_predictor, learned_predictor
-from .rows import Predictor, Row, declare, prior_kept_text
+from .rows import ROWS, Predictor, Row, prior_kept_text
 
 EXCITATION_ITERATIONS = {"quick": 30, "default": 150, "paper": 150}
 LOG_SPLITS = ("train", "val")  # what an imported log's identification sees; never its test split
@@ -191,7 +165,7 @@ def _row(task, name, needs, predict_instance, inputs, single=None, methods=("con
                          single_call=(lambda inst, k: single(models, ctx, inst, k)) if single else None,
                          inputs=inputs, review=lambda: review(ctx, methods), train_cpu_seconds=cpu)
 
-    return declare(Row(name, task, "identified", needs=needs, needs_urdf=True, build=build, more_needs=fit_needs))
+    return ROWS.register(Row(name, task, "identified", needs=needs, needs_urdf=True, build=build, more_needs=fit_needs))
 
 
 def _identified_robot(models, ctx):
@@ -252,7 +226,7 @@ def residual_training(ctx, name: str, base_config) -> tuple:
 
 def _residual_row(name: str, preset: str) -> Row:
     """A residual net (``preset``) on the identified model, inertials and friction, trained like the learned rows."""
-    from ..learn.presets import get_preset
+    from ..learn.presets import PRESETS
 
     def build(ds, ctx):
         from ..learn import train_model
@@ -268,12 +242,12 @@ def _residual_row(name: str, preset: str) -> Row:
         pred.review = lambda: review(ctx, (RESIDUAL_PRIOR_METHOD,))  # a net on absurd parameters is marked too
         return pred
 
-    p = get_preset(preset)
-    return declare(Row(name, "joint_torque", "identified", needs=tuple(p.inputs) + tuple(p.targets), needs_urdf=True,
+    p = PRESETS.lookup(preset)
+    return ROWS.register(Row(name, "joint_torque", "identified", needs=tuple(p.inputs) + tuple(p.targets), needs_urdf=True,
                        build=build, trains=True, more_needs=fit_needs,
                        # No row is the rnea-bw prior on the consistent set (identified-bw-tared sits on
                        # sigmoid-friction): the report compares only rows whose prior is a row.
-                       prior=f"identified-{RESIDUAL_PRIOR_METHOD}" if p.prior == "rnea" else None))
+                       prior_row=f"identified-{RESIDUAL_PRIOR_METHOD}" if p.prior == "rnea" else None))
 
 
 def _gp_residual_row(name: str) -> Row:
@@ -295,8 +269,8 @@ def _gp_residual_row(name: str) -> Row:
                             inputs=f"q, qd, qdd; prior on identified-{RESIDUAL_PRIOR_METHOD} (inertials + friction)",
                             review=lambda: review(ctx, (RESIDUAL_PRIOR_METHOD,)))
 
-    return declare(Row(name, "joint_torque", "identified", needs=TORQUE_NEEDS, needs_urdf=True, build=build,
-                       more_needs=fit_needs, prior=f"identified-{RESIDUAL_PRIOR_METHOD}"))
+    return ROWS.register(Row(name, "joint_torque", "identified", needs=TORQUE_NEEDS, needs_urdf=True, build=build,
+                       more_needs=fit_needs, prior_row=f"identified-{RESIDUAL_PRIOR_METHOD}"))
 
 
 # ------------------------------------------------------------------ the rows

@@ -2,8 +2,7 @@
 
 A preset already says what a row reads (its inputs and targets), whether it
 needs a URDF (an analytic prior) and, by ``raw_sensor``, whether it is a
-reference row; its family is declared with it (``Preset.family``, ``learn.presets.register_preset``;
-:func:`preset_families` is read from the declarations). The family is the preset's, not its network
+reference row; its family is declared with it (``Preset.family``). The family is the preset's, not its network
 kind's (an MLP is ``seed-net`` or ``learned``, an LSTM ``seed-net`` or ``residual``). A preset declared
 later gets its row too (this module listens to ``PRESETS``).
 
@@ -27,28 +26,10 @@ from ..errors import UsageError
 from ..learn.trained_model import recorded_train_cpu
 from ..learn.presets import PRESETS
 from .analytic_rows import PRIOR_ROWS  # noqa: F401  (re-exported: read from here before)
-from .rows import ROWS, Predictor, Row, declare, derived_names, prior_kept_text
+from .rows import ROWS, Predictor, Row, prior_kept_text
 
 RAW_SENSOR_LABEL = "raw sensor, untared: reference"  # a preset with raw_sensor=True (what the offset costs)
 TASK_OF_TARGETS = {("tip_force",): "tip_force", ("tau_m",): "joint_torque"}
-PRESET_ROWS: set = set()  # the rows declared here, one per preset (the runner trains them in parallel first)
-
-
-def preset_families() -> dict:
-    """family -> the names of its presets, read from their declarations (``Preset.family``) when asked, so a
-    preset declared later (``learn.presets.register_preset``) is in it and an unregistered one is not."""
-    return {family: tuple(p.name for p in PRESETS.values() if p.family == family)
-            for family in dict.fromkeys(p.family for p in PRESETS.values())}
-
-
-# PRESET_FAMILIES: the dict computed once at import before, blind to a preset declared later; still served.
-__getattr__ = derived_names(__name__, {"PRESET_FAMILIES": ("hybrid_dyn.bench.learned_rows.preset_families()",
-                                                           preset_families)})
-
-
-def preset_family(name: str) -> str:
-    """The family preset ``name`` is declared with."""
-    return PRESETS.lookup(name).family
 
 
 def training_summary(config: dict) -> dict:
@@ -158,20 +139,18 @@ def _build(preset: str):
 
 
 def declare_preset_row(p) -> None:
-    """The row of preset ``p`` (``learn.presets.register_preset`` tells this module of a later one)."""
+    """The row of preset ``p`` (``PRESETS.register`` tells this module of a later one)."""
     task = TASK_OF_TARGETS.get(tuple(p.targets))
     if task is None:
         raise UsageError(f"preset {p.name!r} predicts neither the tip force nor tau_m: no bench task for it")
-    declare(Row(p.name, task, p.family, needs=tuple(p.inputs) + tuple(p.targets),
+    ROWS.register(Row(p.name, task, p.family, needs=tuple(p.inputs) + tuple(p.targets),
                 needs_urdf=p.prior is not None, build=_build(p.name), trains=True,
                 reference=RAW_SENSOR_LABEL if p.raw_sensor else None,
-                prior=None if p.raw_sensor else PRIOR_ROWS.get(p.prior)))
-    PRESET_ROWS.add(p.name)
+                prior_row=None if p.raw_sensor else PRIOR_ROWS.get(p.prior)))
 
 
 def forget_preset_row(p) -> None:
     ROWS.pop(p.name, None)
-    PRESET_ROWS.discard(p.name)
 
 
 def _declare_presets() -> None:
@@ -219,4 +198,4 @@ def gp_predictor(model, t0: float, **fields) -> Predictor:
                      **{"inputs": ", ".join(model.inputs), **fields})
 
 
-declare(Row("gp", "joint_torque", "gp", needs=("q", "qd", "qdd", "tau_m"), needs_urdf=False, build=_build_gp))
+ROWS.register(Row("gp", "joint_torque", "gp", needs=("q", "qd", "qdd", "tau_m"), needs_urdf=False, build=_build_gp))

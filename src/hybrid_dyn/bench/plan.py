@@ -56,9 +56,9 @@ class BenchPlan:
         :class:`~hybrid_dyn.learn.presets.Preset`; the name stays, the fields and so the fingerprint change)."""
         if not self.profile.preset_overrides:
             return name
-        from ..learn.presets import get_preset
+        from ..learn.presets import PRESETS
 
-        return get_preset(name).replace(**self.profile.preset_overrides)
+        return PRESETS.lookup(name).replace(**self.profile.preset_overrides)
 
     def train_config(self):
         from ..learn import TrainConfig

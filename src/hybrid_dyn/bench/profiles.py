@@ -1,20 +1,10 @@
-"""Benchmark profiles: which scenarios, which rows, how long to train.
+"""Benchmark profiles: which scenarios, which rows, how long to train (``hybrid-dyn bench --profile NAME``).
 
-quick    every family on one small scenario (``make demo``), minutes on 2 cores
-default  every row on paper-noext, paper-ext and mismatch-ext; the analytic rows on contact-steps (1 kHz),
-         contact-steps-quiet (its base sensor at 0.05 N) and contact-steps-hardware (hardware sensors)
-paper    the study's scale (1000 instances per scenario)
-real     the joint-torque models that need no URDF on the three real-robot logs
-         (KUKA and Baxter split by trajectory; SARCOS, one test file of 4,449
-         rows, split by contiguous blocks: see src/hybrid_dyn/resources/real/sarcos.toml)
-
-The profiles are declared in ``hybrid_dyn/resources/bench/profiles.toml`` (read into :data:`PROFILES`).
-A profile is data: it names datasets (``scenarios``) and rows. A scenario is a
-name (a simulated scenario of ``sim/scenarios.py``, generated and cached, or a
-real set of ``data/logs/real_logs.py``, imported and cached) or the path of any dataset
-in the toolkit's format, which is read as it is (:func:`profile_for_data`:
-``hybrid-dyn bench --data DIR``). Each row runs where it applies; every other
-row is skipped with its reason (:meth:`plan.BenchPlan.skip_reason`).
+The profiles are data, declared in ``hybrid_dyn/resources/bench/profiles.toml`` and read into
+:data:`PROFILES` (this module is their catalogue; ``hybrid-dyn bench --help`` lists them with their
+scenarios). A profile names its datasets (``scenarios``: simulated scenarios, real sets or dataset paths)
+and its rows, by family and by name, explicitly: a family or row declared later changes no shipped profile.
+Each row runs where it applies; every other row is skipped with its reason (:class:`plan.BenchPlan`).
 """
 from __future__ import annotations
 
@@ -24,25 +14,18 @@ import tomllib
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from ..deprecation import renamed_field, warn_renamed
 from ..errors import UsageError
 from ..registry import Registry
 from ..resources import resource_dir
-from .plan import BenchPlan, is_dataset_path, scenario_label  # noqa: F401  (served here as before)
-from .rows import derived_names, study_families
-
-# The methods BenchProfile had before the planner took them (still served, with a warning).
-_PLANNED = ("preset", "train_config", "selected_rows", "applies", "skip_reason", "resolve_robot", "robot_ref",
-            "dataset", "dataset_path", "generator_config", "scenario_config")
+from .plan import BenchPlan
+from .families import FAMILIES
 
 
-
-@renamed_field("generator_profile", "generator_size", why="a generator size (sim.scenarios.SIZES), not a bench profile")
 @dataclass(frozen=True)
 class BenchProfile:
     """A benchmark: scenarios, the rows to run on them, how to train.
 
-    Rows are named by family (``families``, keys of ``rows.FAMILIES``) and by name
+    Rows are named by family (``families``, names in ``FAMILIES``: none unless named) and by name
     (``rows``, rows declared in ``rows.ROWS``); they run in declaration order, each
     where it applies (:meth:`plan.BenchPlan.applies`: what a run does with a profile is its plan's).
     """
@@ -50,7 +33,7 @@ class BenchProfile:
     name: str
     scenarios: tuple
     generator_size: str = "quick"
-    families: tuple = field(default_factory=study_families)
+    families: tuple = ()
     rows: tuple = ()
     recipe: str = "budget"  # learn.recipes.RECIPES: the budgeted recipe unless a profile says otherwise
     train: dict = field(default_factory=dict)  # TrainConfig fields on top of the recipe
@@ -74,13 +57,6 @@ class BenchProfile:
     def __post_init__(self):
         BenchPlan(self).check()  # an unknown row, family, recipe, robot or field is refused now, not after the data
 
-    def __getattr__(self, name):
-        # What a run does with a profile was its methods once; they are the planner's now (plan.BenchPlan).
-        if name in _PLANNED:
-            warn_renamed("BenchProfile method", name, f"hybrid_dyn.bench.plan.BenchPlan(profile).{name}", stacklevel=2)
-            return getattr(BenchPlan(self), name)
-        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
-
     def to_dict(self) -> dict:
         """The profile as run.json records it (JSON types: lists for tuples), so that a profile and a
         report's ``run.json["profile"]`` compare equal exactly when they are the same profile. The generator
@@ -98,8 +74,6 @@ def profile_for_data(paths, robot: str | None = None, params: str | None = None,
     """The profile of ``hybrid-dyn bench --data DIR ...``: every declared row on the datasets at ``paths``,
     each where it applies. ``robot``, ``params``, ``tool``, ``recipe``: see :class:`BenchProfile`;
     ``fields``: any other of its fields (``train``, ``workers``, ``families``, ...)."""
-    from .rows import FAMILIES
-
     paths = tuple(str(p) for p in ([paths] if isinstance(paths, (str, os.PathLike)) else paths))
     if not paths:
         raise UsageError("give at least one dataset (--data DIR)")
@@ -132,18 +106,10 @@ def read_profiles(path: Path) -> list[BenchProfile]:
     return profiles
 
 
-PROFILES_FILE = resource_dir("bench") / "profiles.toml"  # quick, default, real, seed-sim, paper
+PROFILES_FILE = resource_dir("bench") / "profiles.toml"
 PROFILES = Registry("bench profile", UsageError)
 for _profile in read_profiles(PROFILES_FILE):
     PROFILES.register(_profile)
 # The method note of every profile under the budgeted recipe (one text, naming the recipes as learn/recipes.py does).
 BUDGET_RECIPE_NOTE = tomllib.loads(PROFILES_FILE.read_text())["notes"]["budget-recipe"]
 
-
-def get_profile(name: str) -> BenchProfile:
-    """The profile declared as ``name``, or the error naming the known ones."""
-    return PROFILES.lookup(name)
-
-
-# STUDY_FAMILIES: the tuple kept by hand before the families carried their metadata.
-__getattr__ = derived_names(__name__, {"STUDY_FAMILIES": ("hybrid_dyn.bench.rows.study_families()", study_families)})

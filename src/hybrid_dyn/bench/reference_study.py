@@ -1,23 +1,7 @@
 """The reference study (Kružić et al. 2021, whose nets the ``seed-*`` rows rebuild): its published
 tables, and the report's section that sets a bench report's rows beside them.
 
-"The seed" in the report's text and the rows' names is this paper; in code it is "the reference study",
-so that "seed" means the random seed. Its figures come from CoppeliaSim/Newton at 50 ms steps and a real
-Panda, not from this toolkit's data: every table labels them as figures from another simulator.
-
-The comparison section (``seed_comparison.md``, written by the bench and redrawn by ``hybrid-dyn report``),
-per scenario that holds the reference study's nets:
-
-- Table 2: every tip-force net of the reference study (Table 1 #1-#11), our test RMSE [N] beside
-  its, and the ratio; then the best and the median of each architecture (MLP #1-3, conv #4-6,
-  LSTM #7-11) here and there, and the ordering each gives.
-- Table 3: its torque nets and DeLaN, our test RMSE [Nm] beside its
-  (its ``sim-ext`` figures; DeLaN also beside its ``sim-noext`` one).
-- The best analytic rows of each task, which on noise-free data with exact states are
-  nearly exact: the bar its nets never had to clear.
-- Beside each net, its training and validation loss at the kept round (from the report's
-  ``curves.json``): a validation loss many times the training loss is a net that fits the
-  training instances and does not carry over to others (overfitting), not one that cannot fit.
+The design in full: ``docs/design/bench.md`` (reference_study.py).
 """
 from __future__ import annotations
 

@@ -92,23 +92,23 @@ def _headline_notes(rows, ranked, scenario, task) -> list[str]:
 
 def convergence_lines(rows, curve_figures: list[str]) -> list[str]:
     """The README's convergence section: how each learned row stopped, the capped rows named."""
-    learned = [r for r in _ok(rows) if r.get("stopped_by") not in (None, "")]
-    if not learned:
+    trained = [r for r in _ok(rows) if r.get("stopped_by") not in (None, "")]
+    if not trained:
         return []
     counts = {}
-    for r in learned:
+    for r in trained:
         counts[r["stopped_by"]] = counts.get(r["stopped_by"], 0) + 1
     lines = ["", "## Convergence of the learned rows", "",
-             f"- stopped by: {', '.join(f'{k} {v}' for k, v in sorted(counts.items()))} (of {len(learned)} learned rows); "
+             f"- stopped by: {', '.join(f'{k} {v}' for k, v in sorted(counts.items()))} (of {len(trained)} learned rows); "
              "the `epochs (stop)` column of each table and `epochs`, `stopped_by`, `best_epoch` in results.csv"]
     if curve_figures:
         lines.append("- learning curves, train and validation loss per epoch with the kept epoch marked (from "
                      "`curves.json`): " + ", ".join(f"`{f}`" for f in curve_figures))
-    capped = [r for r in learned if _is_capped(r)]
+    capped = [r for r in trained if _is_capped(r)]
     if capped:
         lines.append(f"- {CAP_MARK} stopped by the epoch cap while still improving, so they may not have converged: "
                      + ", ".join(f"{r['scenario']} `{r['model']}` ({r.get('epochs')} epochs)" for r in capped))
-    refs = sorted({r["model"] for r in learned if reference_label(r["model"])})
+    refs = sorted({r["model"] for r in trained if reference_label(r["model"])})
     if refs:
         lines.append("- reference rows, in the tables but never a family's best here: "
                      + ", ".join(f"`{m}` ({reference_label(m)})" for m in refs))
@@ -124,7 +124,7 @@ def machine_info() -> dict:
 
 def _command(prof: dict) -> str:
     """The command line that wrote a report, from its profile (run.json)."""
-    from .profiles import is_dataset_path
+    from .plan import is_dataset_path
 
     scenarios = prof.get("scenarios") or []
     if prof.get("name") == "data" and scenarios and all(is_dataset_path(s) for s in scenarios):

@@ -14,7 +14,7 @@ import numpy as np
 from .catalog import reference_label
 from .predictions import Predictions
 from .report_tables import CAP_MARK, _best, _contenders
-from .rows import figure_families
+from .families import FAMILIES
 
 
 def _save(fig, out_dir: Path, name: str, dpi: int) -> str:
@@ -84,7 +84,7 @@ def _traces(out_dir: Path, ok, preds: Predictions, scenario: str, test, k: int) 
         if not models or target not in inst:
             continue
         picks = {}
-        for fam in figure_families("traces"):
+        for fam in (f.name for f in FAMILIES.values() if "traces" in f.figures):
             b = _best(models, task, scenario, lambda r, fam=fam: r["family"] == fam)
             if b:
                 picks[b["model"]] = preds.get(scenario, task, b["model"])
@@ -115,7 +115,7 @@ def _error_vs_force(out_dir: Path, ok, preds: Predictions, scenario: str, test) 
     bins = np.array([0, 1, 5, 10, 15, 20, np.inf])
     which = np.digitize(mag, bins) - 1
     fig, ax = plt.subplots(figsize=(6.5, 3.8))
-    for fam in figure_families("error-vs-force"):
+    for fam in (f.name for f in FAMILIES.values() if "error-vs-force" in f.figures):
         b = _best(ok, "tip_force", scenario, lambda r, fam=fam: r["family"] == fam)
         fam_preds = preds.get(scenario, "tip_force", b["model"]) if b else None
         if fam_preds is None:

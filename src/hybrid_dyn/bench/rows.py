@@ -1,19 +1,9 @@
-"""The bench's rows, each declared once: what it is, what it needs, how it is built.
+"""The bench's rows, each declared once with ``ROWS.register(Row(...))``: what it is, what it needs, how it is built.
 
-A :class:`Row` is everything the harness, the report and the tests know about
-one model row: its name (the ``model`` column of results.csv), its task, its
-family, the dataset fields it reads, whether it needs a URDF of the dataset's
-robot, whether it trains, whether it is a labelled reference (never a family's
-best), and ``build(ds, ctx) -> Predictor``. Rows are declared with
-:func:`declare` into :data:`ROWS`, in the order the results list them:
-
-- ``analytic_rows.py``   physics on the nominal model (nothing trained)
-- ``learned_rows.py``    one row per preset of ``learn/presets.py`` (its family declared there)
-- ``identified_rows.py`` physics on identified parameters, and residual nets on them
-
-``catalog.py`` imports the three, so that :data:`ROWS` is complete; profiles
-name rows by name or by family (``profiles.py``). There are no defaults for
-what a row reads: a row declared without its fields is refused here.
+A :class:`Row` is everything the harness, the report and the tests know about one model row. The
+rows that ship are declared by ``analytic_rows.py``, ``learned_rows.py`` (one per preset) and
+``identified_rows.py``, in the order results.csv lists them; ``catalog.py`` imports the three, so
+that :data:`ROWS` is complete. A row declared without the fields it reads is refused here.
 """
 from __future__ import annotations
 
@@ -23,87 +13,12 @@ from typing import Callable
 import numpy as np
 
 from ..data.dataset import FIELD_UNITS
-from ..deprecation import warn_renamed
 from ..errors import UsageError
 from ..registry import Registry
+from .families import FAMILIES
 
 # task -> the logged field its rows are scored against (PROTOCOL 4: the commanded motor torque).
 TASK_TARGET = {"tip_force": "tip_force", "joint_torque": "tau_m"}
-
-@dataclass(frozen=True)
-class Family:
-    """A family of bench rows, declared once in :data:`FAMILIES`; every list of families is derived from it.
-
-    learned: its rows are fitted to data (networks, or parameters identified from data); physics_informed:
-    a learned family with physics inside (the report's torque floor); identifies_parameters: its rows fit
-    the robot's physical parameters (``compare`` leaves them out: their ratio to physics is no network's
-    data limit); in_studies: a profile runs it unless it names its families, and a study picks its best
-    trained row; figures: the report's figures that draw its best row ("traces", "error-vs-force").
-    """
-
-    name: str
-    description: str
-    learned: bool
-    physics_informed: bool = False
-    identifies_parameters: bool = False
-    in_studies: bool = False
-    figures: tuple = ()
-
-
-# The families, in the order the report's figures list them; a row belongs to exactly one.
-FAMILIES = Registry("bench family", UsageError)
-for _family in (
-    Family("analytic", "physics on the nominal model, nothing trained", learned=False, in_studies=True,
-           figures=("traces", "error-vs-force")),
-    Family("seed-net", "the seed's networks (Kruzic et al. 2021, Tables 1 and 3)", learned=True, in_studies=True,
-           figures=("traces", "error-vs-force")),
-    Family("residual", "a network that corrects an analytic part (physics-informed)", learned=True,
-           physics_informed=True, in_studies=True, figures=("traces", "error-vs-force")),
-    Family("delan", "Deep Lagrangian networks (physics-informed)", learned=True, physics_informed=True,
-           in_studies=True, figures=("traces",)),
-    Family("identified", "physics on parameters identified from data, and the residual nets on them", learned=True,
-           identifies_parameters=True, in_studies=True, figures=("traces",)),
-    Family("learned", "other black-box networks", learned=True),
-    Family("gp", "Gaussian-process regression (scikit-learn fit, numpy predictions; not PyTorch)", learned=True),
-):
-    FAMILIES.register(_family)
-
-
-def family_names(**fields) -> tuple:
-    """The names of the families whose metadata has every ``field=value`` given, in declaration order
-    (``family_names(physics_informed=True)``); read when needed, so that a family declared later counts."""
-    return tuple(f.name for f in FAMILIES.where(**fields))
-
-
-def study_families() -> tuple:
-    """The families a profile runs unless it names its own, and whose best trained rows a study picks."""
-    return family_names(in_studies=True)
-
-
-def figure_families(figure: str) -> tuple:
-    """The families whose best row the report's ``figure`` ("traces", "error-vs-force") draws."""
-    return tuple(f.name for f in FAMILIES.values() if figure in f.figures)
-
-
-def derived_names(module_name: str, derived: dict):
-    """A module ``__getattr__`` serving old constants now derived from the declarations: ``{old: (what to
-    write instead, in full; a function deriving the value)}``; each read warns and derives the value afresh."""
-
-    def __getattr__(name):
-        if name in derived:
-            new, derive = derived[name]
-            warn_renamed("name", f"{module_name}.{name}", new,
-                         stacklevel=2, why="derived from the family declarations")
-            return derive()
-        raise AttributeError(f"module {module_name!r} has no attribute {name!r}")
-
-    return __getattr__
-
-
-# The tuple kept by hand before the families carried their metadata.
-__getattr__ = derived_names(__name__, {"PHYSICS_INFORMED": ("hybrid_dyn.bench.rows.family_names(physics_informed=True)",
-                                                             lambda: family_names(physics_informed=True))})
-
 
 @dataclass
 class Predictor:
@@ -120,7 +35,7 @@ class Predictor:
     train_cpu_seconds: float | None = None
     n_params: int = 0
     inputs: str = ""
-    training: dict | None = None  # learned rows: ``training_summary`` of the model's config
+    training: dict | None = None  # trained rows: ``training_summary`` of the model's config
     # A hybrid row (a correction on a physics prior): whether validation kept the prior, from
     # prior_kept_text ("all", "none", "joints 2, 5"); None for a row with no prior.
     prior_kept: str | None = None
@@ -140,10 +55,10 @@ class Row:
     name: the row's name in results.csv and the tables. task: a key of :data:`TASK_TARGET`.
     family: a key of :data:`FAMILIES`. needs: the dataset fields the row reads, its target
     included (no default: a row must say). needs_urdf: whether it needs a description of the
-    dataset's robot. build(ds, ctx) -> :class:`Predictor`. trains: a learned row (trained, with
+    dataset's robot. build(ds, ctx) -> :class:`Predictor`. trains: a trained row (with
     a loss curve). reference: the label of a reference row (in the tables, never a family's
     best), None for a contender. more_needs(ds) -> fields: what it needs beyond ``needs`` on that
-    dataset (identified rows fit on an imported log's own torques). prior: the row that is this
+    dataset (identified rows fit on an imported log's own torques). prior_row: the row that is this
     hybrid row's physics prior exactly (residual-rnea: rnea), so that the report can set one
     against the other; None for a row with no such row.
     """
@@ -157,13 +72,13 @@ class Row:
     trains: bool = False
     reference: str | None = None
     more_needs: Callable | None = None
-    prior: str | None = None
+    prior_row: str | None = None
 
     def __post_init__(self):
         where = f"bench row {self.name!r}"
         if self.task not in TASK_TARGET:
             raise UsageError(f"{where}: task must be one of {', '.join(TASK_TARGET)}, got {self.task!r}")
-        if self.family not in FAMILIES:
+        if FAMILIES.missing([self.family]):
             raise UsageError(f"{where}: family must be one of {', '.join(FAMILIES)}, got {self.family!r}")
         if not isinstance(self.needs, (tuple, list)) or not self.needs:
             raise UsageError(f"{where}: declare the dataset fields it reads (needs), got {self.needs!r}")
@@ -188,8 +103,8 @@ def is_physics_result(result: dict) -> bool:
     row = ROWS.get(result["model"])
     if row is None:
         return False
-    family = FAMILIES[row.family]  # physics: nothing learned, or parameters identified from data
-    return (not family.learned or family.identifies_parameters) and not row.trains \
+    family = FAMILIES[row.family]  # physics: nothing fitted, or parameters identified from data
+    return (not family.fitted or family.identifies_parameters) and not row.trains \
         and row.reference is None and not float(result.get("n_params") or 0)
 
 
@@ -208,7 +123,3 @@ def prior_kept_text(kept) -> str:
         return "none"
     return "joints " + ", ".join(str(j + 1) for j, k in enumerate(kept) if k)
 
-
-def declare(row: Row) -> Row:
-    """Add ``row`` to :data:`ROWS` (results list rows in declaration order); a name is declared once."""
-    return ROWS.register(row)

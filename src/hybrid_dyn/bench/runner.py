@@ -30,7 +30,7 @@ from ..data.logs.real_logs import RealLogMissingError
 from ..errors import UsageError
 from ..outputs import output_lock
 from .integrity import row_key
-from .learned_rows import PRESET_ROWS
+from ..learn.presets import PRESETS
 from .predictions import PREDICTIONS_FILE, PredictionWriter
 from .plan import BenchContext, BenchPlan, is_dataset_path, scenario_label
 from .profiles import BenchProfile
@@ -196,7 +196,7 @@ def _bench_scenario(plan: BenchPlan, out_dir, ctx: BenchContext, ref, prediction
         tcfg = dataclasses.replace(tcfg, device=device)
     # The presets' rows train in parallel first (the identified residuals need their fit first).
     jobs = [(str(ds.path), ref.name, plan.preset(s.name), str(ctx.work_dir / "models" / s.name), tcfg,
-             profile.torch_threads) for s in specs if s.name in PRESET_ROWS]
+             profile.torch_threads) for s in specs if s.name in PRESETS]
     log(f"[bench] {scenario}: training {len(jobs)} learned models on {profile.workers} workers")
     pretrain(jobs, profile.workers, log=log, executor=executor)
     clock.record(out_dir, rows)

@@ -1,25 +1,6 @@
 """Studies: a bench profile run again with overrides declared as data, and what changed.
 
-A study (:class:`Study`) is a bench profile plus named *variants*, each an :class:`Overrides` of the
-profile's
-
-- data: GeneratorConfig fields for every simulated scenario (``data``) or one scenario
-  (``scenario_data``; for a real set, fields of its import spec: another split of the same log);
-- training: TrainConfig fields (``train``), the recipe (``recipe``), or each row's own step budget
-  scaled (``budget_factor``: every row then runs as a bench of its own);
-- presets: Preset fields of every trained preset row (``preset``, e.g. a wider net);
-
-which rows the variants rerun (named, or ``"best"``: the best learned row of each family and task, chosen
-on the full report's *validation* loss, never its test figures), and the kind of summary it writes
-(:data:`SUMMARY_KINDS`, in ``study_summaries.py``). Every variant runs through the harness
-(``run_bench``: the same data caches, resume, test split and scoring). The study's reference point is
-the profile's own report (``hybrid-dyn bench --profile P`` first), or, when the study changes the
-profile under every variant (``base``), that changed profile, run as the variant ``base``.
-
-The studies are declared in ``hybrid_dyn/resources/bench/studies.toml`` (read into :data:`STUDIES`).
-``hybrid-dyn study NAME`` runs one of :data:`STUDIES` (variants' bench reports under
-``runs/studies/NAME/``, or beside the summary for a study that keeps them; the summary in
-``reports/studies/NAME/``). ``reports/README.md`` lists what each committed study folder holds.
+The design in full: ``docs/design/bench.md`` (studies.py).
 """
 from __future__ import annotations
 
@@ -32,12 +13,13 @@ from ..errors import UsageError
 from ..outputs import json_marker, output_lock, refuse_foreign_files
 from ..registry import Registry
 from ..resources import resource_dir
-from .catalog import get_row, select_rows
+from .catalog import ROWS, select_rows
 from .integrity import is_bench_meta, read_run_json, same_profile, verify_results
 from .plan import BenchPlan
-from .profiles import BenchProfile, as_tuples, get_profile
+from .families import FAMILIES
+from .profiles import PROFILES, BenchProfile, as_tuples
 from .results import read_results
-from .rows import TASK_TARGET, derived_names, family_names, is_physics_family, is_physics_result
+from .rows import TASK_TARGET, is_physics_family, is_physics_result
 
 UNITS = {"tip_force": "N", "joint_torque": "Nm"}
 BASE = "base"  # the variant name of a study's reference point when it changes the profile (Study.base)
@@ -149,7 +131,7 @@ class Study:
 
     def base_profile(self) -> BenchProfile:
         """The bench profile this study varies (``profiles.PROFILES``)."""
-        return get_profile(self.profile)
+        return PROFILES.lookup(self.profile)
 
     def overrides(self, variant: str) -> Overrides:
         """What ``variant`` changes in the profile (the base's changes included)."""
@@ -187,19 +169,6 @@ for _study in read_studies(STUDIES_FILE):
     STUDIES.register(_study)
 
 
-def get_study(name: str) -> Study:
-    """The study declared as ``name``, or the error naming the known ones."""
-    return STUDIES.lookup(name)
-
-
-def learned_study_families() -> tuple:
-    """The families whose best trained row a study picks (:class:`rows.Family`: learned, in the studies)."""
-    return family_names(learned=True, in_studies=True)
-
-
-# LEARNED_FAMILIES: the tuple kept by hand before the families carried their metadata.
-__getattr__ = derived_names(__name__, {"LEARNED_FAMILIES": ("hybrid_dyn.bench.studies.learned_study_families()",
-                                                               learned_study_families)})
 
 
 def _ok(rows) -> list[dict]:
@@ -217,12 +186,12 @@ def choose_rows(full: list[dict]) -> dict:
     (scenario, task, "physics on <inputs>"), where that row is another."""
     best = {}
     physics = []
-    learned = learned_study_families()
+    fitted = FAMILIES.names(fitted=True, in_studies=True)  # a study picks their best trained rows
     for r in _ok(full):
-        row = get_row(r["model"])
+        row = ROWS.lookup(r["model"])
         if row.reference is not None:
             continue
-        if row.trains and row.family in learned:
+        if row.trains and row.family in fitted:
             key = (r["scenario"], r["task"], row.family)
         elif is_physics_result(r):
             key = (r["scenario"], r["task"], "physics")
@@ -234,14 +203,14 @@ def choose_rows(full: list[dict]) -> dict:
     for (scenario, task, family), r in list(best.items()):
         if is_physics_family(family):
             continue
-        inputs = set(get_row(r["model"]).needs)
+        inputs = set(ROWS.lookup(r["model"]).needs)
         same = [p for p in physics if (p["scenario"], p["task"]) == (scenario, task)
-                and set(get_row(p["model"]).needs) <= inputs]
+                and set(ROWS.lookup(p["model"]).needs) <= inputs]
         if same:
             fair = min(same, key=lambda p: float(p["val_loss"]))
             if fair["model"] != best[(scenario, task, "physics")]["model"]:
                 target = TASK_TARGET[task]
-                label = "physics on " + ", ".join(f for f in get_row(fair["model"]).needs if f != target)
+                label = "physics on " + ", ".join(f for f in ROWS.lookup(fair["model"]).needs if f != target)
                 best.setdefault((scenario, task, label), fair)
     return best
 
@@ -374,14 +343,14 @@ def _run_variant(study: Study, variant: str, rows: tuple, where: Path, reference
 
 def _preset(profile: BenchProfile, row: str):
     """The preset a row trains (a residual on the identified model: its preset), for its step budget."""
-    from ..learn.presets import get_preset
+    from ..learn.presets import PRESETS
     from .identified_rows import RESIDUAL_ROWS
-    from .learned_rows import PRESET_ROWS
 
     name = RESIDUAL_ROWS.get(row, row)
-    if name not in PRESET_ROWS:
+    if name not in PRESETS:  # a preset's row, trained by the runner
         raise UsageError(f"row {row!r} trains no network preset: it has no step budget to scale (budget_factor)")
-    return get_preset(BenchPlan(profile).preset(name))
+    preset = BenchPlan(profile).preset(name)
+    return PRESETS.lookup(preset) if isinstance(preset, str) else preset
 
 
 def train_instances_of(report: Path, scenarios: tuple = ()) -> int:

@@ -42,9 +42,9 @@ def epoch_cost_rank(preset) -> tuple:
     1.1-1.6, MLPs 0.45-1.05.
     """
     from ..learn.kinds import cost_rank
-    from ..learn.presets import get_preset
+    from ..learn.presets import PRESETS
 
-    p = get_preset(preset)
+    p = PRESETS.lookup(preset) if isinstance(preset, str) else preset
     kind = cost_rank(p)  # declared with the network kind (learn/kinds.py)
     return (-kind, -sum(p.front_units), -p.window, -p.fc_units)
 

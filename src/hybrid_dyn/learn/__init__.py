@@ -6,9 +6,9 @@ Entry points: :func:`train_model`, :func:`load_model`, the preset registry
 """
 from .gp import GPConfig, GPModel, load_gp, train_gp
 from .trained_model import HybridModel, ModelError, TrainedModel, load_model
-from .presets import PRESETS, Preset, get_preset
+from .presets import PRESETS, Preset
 from .recipes import TrainConfig
 from .train import train_model
 
 __all__ = ["PRESETS", "GPConfig", "GPModel", "HybridModel", "ModelError", "Preset", "TrainConfig", "TrainedModel",
-           "get_preset", "load_gp", "load_model", "train_gp", "train_model"]
+           "load_gp", "load_model", "train_gp", "train_model"]

@@ -1,17 +1,34 @@
 """CLI: train, predict, tune, and the list of presets."""
 from __future__ import annotations
 
-import argparse
 import json
+
+from ..registry import help_listing
+
+
+def _presets():  # the presets' module imports torch: only when the help is printed
+    from .presets import PRESETS
+
+    return PRESETS
+
+
+def _recipes():
+    from .recipes import RECIPES
+
+    return RECIPES
+
+
+# Help texts name {presets} and {recipes}: read from the registries when printed.
+_HELP = help_listing(presets=_presets, recipes=_recipes)
 
 
 def register(sub) -> None:
     p = sub.add_parser("presets", help="list the learned-model presets")
     p.set_defaults(func=cmd_presets)
 
-    p = sub.add_parser("train", help="train a learned model on a dataset")
+    p = sub.add_parser("train", help="train a learned model on a dataset", formatter_class=_HELP)
     p.add_argument("--data", required=True, help="dataset directory")
-    p.add_argument("--preset", required=True, help="preset name (hybrid-dyn presets)")
+    p.add_argument("--preset", required=True, help="a declared preset (hybrid-dyn presets): {presets}")
     p.add_argument("--out", required=True, help="model directory (a rerun resumes or reuses it)")
     _train_options(p)
     p.set_defaults(func=cmd_train)
@@ -25,9 +42,10 @@ def register(sub) -> None:
                    help="replace an existing --save file (only a predictions file written by hybrid-dyn predict)")
     p.set_defaults(func=cmd_predict)
 
-    p = sub.add_parser("tune", help="hyperparameter search with Optuna (the seed's search space)")
+    p = sub.add_parser("tune", help="hyperparameter search with Optuna (the seed's search space)",
+                       formatter_class=_HELP)
     p.add_argument("--data", required=True)
-    p.add_argument("--preset", required=True, help="base preset whose architecture is searched")
+    p.add_argument("--preset", required=True, help="base preset whose architecture is searched: {presets}")
     p.add_argument("--trials", type=int, required=True, help="number of trials to add to the study")
     p.add_argument("--out", default=None, help="directory for trial models (default runs/tune/<preset>)")
     p.add_argument("--storage", default=None,
@@ -42,18 +60,11 @@ def register(sub) -> None:
 
 
 def _train_options(p) -> None:
-    from ..deprecation import DeprecatedFlag
-
-    p.add_argument("--recipe", default="plateau", help="training recipe: budget (a fixed number of steps "
-                   "per network kind, warm-up and cosine decay; the bench's), plateau (the default: reduce-on-plateau "
-                   "after 3 epochs, patience 10, LSTM gradients clipped), long (plateau after 10, patience 20, weight "
-                   "decay 0.1) or seed-study (the seed study's: constant rate, patience 5); the options below override "
-                   "it. The old names default and seed still work, with a warning")
+    p.add_argument("--recipe", default="plateau", help="training recipe: {recipes} (default plateau; what each "
+                   "does: docs/models.md); the options below override it")
     p.add_argument("--seed", type=int, default=0, help="random seed of the weights and the shuffling")
     p.add_argument("--max-epochs", type=int, default=None,
                    help="maximum epochs (early stopping ends sooner; default 200)")
-    p.add_argument("--epochs", dest="max_epochs", type=int, action=DeprecatedFlag, new="--max-epochs",
-                   help=argparse.SUPPRESS)  # its old name
     p.add_argument("--patience", type=int, default=None, help="epochs without validation improvement before stopping")
     p.add_argument("--batch-size", type=int, default=None)
     p.add_argument("--lr", type=float, default=None, help="initial learning rate (default 1e-3)")
@@ -67,8 +78,6 @@ def _train_options(p) -> None:
                    help="learn from the first N train instances (val cut in proportion; default: all)")
     p.add_argument("--params", default=None, help="parameter set (a name such as franka_official) or parameter JSON "
                    "of the residual models' analytic part, as bench --params (default: the robot's nominal set)")
-    p.add_argument("--analytic-params", dest="params", action=DeprecatedFlag, new="--params",
-                   help=argparse.SUPPRESS)  # its old name
     p.add_argument("--device", default="auto", help="auto, cpu or cuda")
     p.add_argument("--threads", type=int, default=None, help="PyTorch CPU threads")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -114,7 +123,10 @@ def cmd_predict(args) -> int:
         _check_save_path(args.save, args.overwrite)  # before the work, not after it
     ds = load_dataset(args.data)
     model = load_model(args.model, robot=ds.meta.get("robot"))
-    if model.preset.prior in ("momentum-observer", "base-momentum") and ds.meta.get("record_hz") != model.config.get("record_hz"):
+    from ..analytic.methods import TIP_FORCE_METHODS
+
+    prior = TIP_FORCE_METHODS.get(model.preset.prior)  # an observer's prior depends on the rate (dt = 1 / rate)
+    if prior is not None and prior.stateful and ds.meta.get("record_hz") != model.config.get("record_hz"):
         raise ModelError(f"model was trained at {model.config.get('record_hz')} Hz, data is at {ds.meta.get('record_hz')} Hz")
     instances = ds.split(args.split)
     preds = model.predict(instances)

@@ -1,37 +1,6 @@
 """Deep Lagrangian Networks (Lutter, Ritter & Peters 2019), written for this toolkit.
 
-The Lagrangian of a rigid-body system is L = T - V with kinetic energy
-T = 1/2 qd^T H(q) qd and potential energy V(q). The Euler-Lagrange equations
-give the inverse dynamics
-
-    tau = H(q) qdd + c(q, qd) + g(q),
-    c   = dH/dt qd - 1/2 d(qd^T H qd)/dq,   dH/dt = sum_k dH/dq_k qd_k,
-    g   = dV/dq.
-
-DeLaN learns H and V with two networks of q, so every prediction obeys the
-structure: H is symmetric positive
-definite by construction (H = L L^T + eps I with L lower-triangular and a
-softplus-positive diagonal), and the learned system conserves its own energy
-T + V when no torque acts. Activations are smooth (tanh) since c needs second
-derivatives of the networks.
-
-How c and g are computed (:meth:`DeepLagrangianNetwork.terms`): as the reference
-implementation does (Lutter et al., ``DeLaN_model.py``), each layer carries the
-Jacobian of its output with respect to q forward beside the output itself
-(a Linear layer maps it by W, a tanh scales its rows by 1 - tanh^2). dL/dq then
-comes out of one forward pass, and training needs one first-order backward,
-where differentiating the networks by autograd (:meth:`terms_autograd`: a
-``torch.func.jvp`` for dH/dt, a ``grad`` of the kinetic and of the potential
-energy) makes the training backward differentiate through those derivatives
-again. The autograd form is kept as the oracle of the tests and of
-``benchmarks/learn_speed.py``.
-
-Friction, which the Lagrangian cannot hold, is a separate term: the Gaz et al.
-(2019) sigmoid law with learnable per-joint parameters kept positive by
-softplus (:class:`LearnedGazFriction`).
-
-The network kind ``delan`` (DeLaN, its friction, and an optional residual branch of a net kind) is
-declared at the end of this module, in the kind registry (``learn/kind_registry.py``).
+The design in full: ``docs/design/learn.md`` (delan.py).
 """
 from __future__ import annotations
 
@@ -41,7 +10,7 @@ import torch
 from torch import nn
 from torch.func import grad, jvp
 
-from .kind_registry import DELAN_PARTS, SPACE, NetworkKind, build_net, register
+from .kind_registry import DELAN_PARTS, NETWORK_KINDS, SPACE, NetworkKind, build_net
 from .nets import fast_path, glorot_init
 
 
@@ -257,6 +226,6 @@ def _search_delan(trial, base) -> dict:
 
 # Budgeted steps and cost rank: see the note above the net kinds (``nets.py``); a DeLaN with a
 # residual net counts as DeLaN.
-register(NetworkKind("delan", "Deep Lagrangian Network: H = L L^T + eps I, V(q); c, g by autograd",
+NETWORK_KINDS.register(NetworkKind("delan", "Deep Lagrangian Network: H = L L^T + eps I, V(q); c, g by autograd",
                      build=_build_delan, fast=fast_path("delan_fast"), clips_gradients=False, cost_rank=2,
                      search=_search_delan, budget_steps=16000, sequence=False, needs_front=False, parts=DELAN_PARTS))

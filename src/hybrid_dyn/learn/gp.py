@@ -1,35 +1,6 @@
 """Gaussian-process regression of the joint torques: the first model family that is not PyTorch.
 
-One exact GP per joint maps the state x = [q, qd, qdd] to that joint's torque tau_m
-(Rasmussen & Williams 2006, ch. 2; ch. 8 uses it on the SARCOS arm). The choices are
-those of the real-log baselines (``reports/studies/interpolation-control``), where it beat every bench model on
-SARCOS:
-
-- inputs standardized by the training split's mean and standard deviation;
-- kernel k(x, x') = c * exp(-|(x - x') / l|^2 / 2) + s * [x == x'], an ARD squared
-  exponential (one length scale l_i per input; a large l_i switches input i off) plus
-  white noise s, with c in [1e-2, 1e2], l_i in [1e-2, 1e3], s in [1e-6, 1], on targets
-  standardized per joint (scikit-learn's ``normalize_y``);
-- hyperparameters (c, l, s) by maximum marginal likelihood on ``hyper_rows`` random
-  training rows (scikit-learn's objective and L-BFGS, from c = 1, s = 1e-2 and l = 1 or sqrt(d), the
-  better optimum kept, by ``gp_marginal``);
-- the GP then conditioned on at most ``rows`` random training rows (a subset-of-data GP:
-  the cost is O(rows^3) to fit, O(rows) per predicted sample).
-
-The posterior mean at x is  y_mean + y_std * k(x, Z)^T alpha,  alpha = (K(Z, Z) + s I)^-1 y_std_train
-(scikit-learn's ``alpha_``, jitter 1e-10 included). A model file stores exactly the arrays
-that formula needs, so prediction rebuilds the kernel from them with numpy and SciPy; no
-scikit-learn object is ever serialized. scikit-learn is needed to fit, not to predict.
-
-On disk (``model_dir``): ``config.json`` (the :class:`GPConfig`, robot, fields, widths,
-the fitted kernels in words, dataset checksum) and ``model.safetensors`` (the tensors,
-float64: ``x_mean``, ``x_std`` (d,); ``z_train`` (n, d), the standardized conditioning
-inputs; ``alpha`` (nv, n); ``constant`` (nv,), ``length_scale`` (nv, d), ``noise_level``
-(nv,); ``y_mean``, ``y_std`` (nv,)), whose metadata holds the sha256 of the canonical
-config and of the tensors, as for the PyTorch models (both written by ``learn/model_file.py``); ``timing.json``
-holds the wall-clock training time outside both digests. Loading refuses a file that does
-not match its digests, a model of another family, or arrays of inconsistent shapes.
-Nothing is unpickled.
+The design in full: ``docs/design/learn.md`` (gp.py).
 """
 from __future__ import annotations
 

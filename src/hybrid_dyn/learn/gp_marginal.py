@@ -1,24 +1,6 @@
 """The exact GP's log marginal likelihood and its gradient, for the hyperparameter fit.
 
-The same objective scikit-learn's ``GaussianProcessRegressor`` maximises for the GP family's kernel
-(``gp.py``: c * RBF(l) + WhiteKernel(s), jitter 1e-10 on the diagonal, targets standardized), with the
-same optimizer (scipy's L-BFGS-B on log-hyperparameters within the same bounds, from scikit-learn's
-start c = 1, l = 1, s = ``noise_init`` and from l = sqrt(d), the better optimum kept: see
-:func:`fit_hyperparameters`), written for this kernel alone, so that an evaluation costs one Cholesky
-factor and its inverse (LAPACK potri), O(n^3), plus O(n^2 d) for the gradient:
-
-    lml = -1/2 y^T a - sum log diag L - n/2 log 2 pi,   K = L L^T,  a = K^-1 y
-    d lml / d theta_k = 1/2 tr(W dK/d theta_k),          W = a a^T - K^-1
-
-with, on inputs z divided by the length scales and Kf = c exp(-|z_i - z_j|^2 / 2) (M = W o Kf):
-d/d log c = 1/2 sum M; d/d log s = 1/2 s tr W; d/d log l_d = 1/2 sum_ij M_ij (z_id - z_jd)^2, computed
-as (z_d^2)^T M 1 - z_d^T M z_d (two matrix products), where scikit-learn builds the (n, n, d) gradient
-tensor (66 MB at n = 600, d = 21) and reduces it.
-
-Why one BLAS thread (:func:`one_blas_thread`): in a process that has imported torch, on a 2-core machine,
-a 600 x 600 Cholesky factor by scipy took 0.1-2 s on the BLAS libraries' own threads against 3-10 ms on
-one (measured when this module was written; the threads of two OpenBLAS copies and torch's OpenMP spin against
-each other). ``benchmarks/gp_hyper.py`` measures the whole fit before and after on the real Panda.
+The design in full: ``docs/design/learn.md`` (gp_marginal.py).
 """
 from __future__ import annotations
 

@@ -1,33 +1,6 @@
 """The semiparametric GP: an identified model plus a sparse GP on its residual.
 
-tau_m(x) = identified(q, qd, qdd) + r(x),  x = [q, qd, qdd]  [Nm]
-
-The prior is an identified parameter file (``hybrid-dyn identify``: inertials and the friction
-law fitted with them, :class:`~hybrid_dyn.identify.identified_model.IdentifiedModel`); the residual
-r = tau_m - prior is one GP per joint (Nguyen-Tuong & Peters, ICRA 2010: the rigid-body model
-as the GP's mean). So that 20 k samples fit on a laptop the GP is sparse: the subset-of-
-regressors / DTC posterior mean on M inducing inputs Z, chosen at random among the training rows
-(Quinonero-Candela & Rasmussen, JMLR 2005),
-
-    r(x) = y_mean + y_std * k(x, Z) w,   w = (s K(Z, Z) + K(Z, X) K(X, Z))^-1 K(Z, X) y_std_train,
-
-costing O(N M^2) to fit and O(M) per predicted sample; k is the GP family's ARD squared
-exponential (``learn/gp.py``). How it is fitted:
-
-1. the kernel hyperparameters (c, l, s) per joint by maximum marginal likelihood on
-   ``hyper_rows`` random training rows (``gp.fit_gp_hyperparameters``, on the residual);
-2. candidates around them, l x ``length_scale_factors`` and s x ``noise_factors`` (s regularizes
-   the sparse fit, whose effective noise the exact fit on few rows does not see), each fitted on
-   the whole train split; the one of least validation MSE is chosen per joint;
-3. a joint whose best candidate does not lower the validation MSE of the prior alone keeps
-   the prior: its residual is exactly zero (``kept_prior`` in the config).
-
-Untrained (every joint keeping its prior), the model is the identified model, sample for sample.
-
-On disk: a GP model folder (``gp.save_gp``: ``model.safetensors`` + ``config.json``, digests,
-no pickle) whose arrays are the residual's (``z_train`` = Z, ``alpha`` = w) and whose config has
-family ``gp-residual``, the prior file's path and sha256 (a changed file is refused on load), and
-the per-joint choice with its validation figures.
+The design in full: ``docs/design/learn.md`` (gp_residual.py).
 """
 from __future__ import annotations
 

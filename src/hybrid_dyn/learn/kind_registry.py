@@ -1,34 +1,13 @@
-"""The network-kind registry: what a network kind is (:class:`NetworkKind`) and the registry that holds them.
+"""What a network kind is (:class:`NetworkKind`) and its registry, :data:`NETWORK_KINDS`.
 
 The bottom of ``learn/``: it imports no network module, so every module that declares a kind
-(``nets.py``: mlp, conv, lstm; ``delan.py``: delan) imports it, and nothing circles. Whoever needs
-every kind declared imports the catalogue, ``learn/kinds.py``, which imports the declaring modules.
-
-A preset's ``kind`` (``learn/presets.py``) names one :class:`NetworkKind`. Its
-declaration holds, together:
-
-- ``build``: the torch modules of a model of this kind (``HybridModel`` holds them);
-- ``fast``: their float64 single-call form (``learn/fastpath.py``), which the
-  streaming estimator and ``TrainedModel.predict_window`` run;
-- ``clips_gradients``: whether training clips the gradient norm
-  (``TrainConfig.grad_clip``; the recurrent nets, whose gradients can explode);
-- ``cost_rank``: its place in the bench's training queue (dearest per epoch first);
-- ``search``: its hyperparameter search space (``learn/tune.py``);
-- ``budget_steps``: the budgeted recipe's optimizer steps (``learn/recipes.py``);
-- ``sequence`` and ``needs_front``: what a preset of it must give (a window longer
-  than one sample; ``front_units``).
-
-Every piece is required: a kind missing one is refused when it is declared
-(:func:`register`), so no consumer falls back on a default for a kind it was
-not told about. A new kind is one module with one ``register(NetworkKind(...))`` call, imported
-by ``learn/kinds.py``; see ``docs/extending.md`` and ``tests/learn/test_extending_kind.py``.
-
-Importing this module loads neither torch nor numba: the pieces import them
-when they run.
+(``nets.py``: mlp, conv, lstm; ``delan.py``: delan) imports it, and nothing circles. The catalogue,
+``learn/kinds.py``, imports the declaring modules. A kind missing a piece (``_PIECES``) is refused when
+it is declared, so no consumer falls back on a default. Importing this module loads neither torch nor
+numba. A new kind: ``docs/extending.md``.
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import Callable
@@ -99,36 +78,13 @@ class NetworkKind:
         return tuple(self.parts) == NET_PARTS
 
 
-NETWORK_KINDS = Registry("network kind", ValueError, UsageError)  # name -> NetworkKind
-KINDS = NETWORK_KINDS.keys()  # the kinds' names, a live view (a kind registered later is in it)
-register = NETWORK_KINDS.register  # declare a kind: presets, training, the fast path, the bench and tuning know it
-unregister = NETWORK_KINDS.unregister  # remove one (a test's toy)
-network_kind = NETWORK_KINDS.lookup  # a kind by name; an unknown one is refused, naming the known ones
-
-
-class _BudgetSteps(Mapping):
-    """kind -> budgeted steps, read from the declarations (``recipes.BUDGET_STEPS``)."""
-
-    def __getitem__(self, kind):
-        return NETWORK_KINDS[kind].budget_steps
-
-    def __iter__(self):
-        return iter(NETWORK_KINDS)
-
-    def __len__(self):
-        return len(NETWORK_KINDS)
-
-    def __repr__(self):
-        return repr(dict(self))
-
-
-BUDGET_STEPS = _BudgetSteps()
+NETWORK_KINDS = Registry("network kind", ValueError, UsageError)  # name -> NetworkKind; catalogue: learn/kinds.py
 
 
 # --------------------------------------------------------------- what presets ask
 def build_parts(preset, n_in: int, n_out: int, widths: dict) -> dict:
     """The modules of a model of ``preset``'s kind, by HybridModel attribute (every declared part)."""
-    kind = network_kind(preset.kind)
+    kind = NETWORK_KINDS.lookup(preset.kind)
     parts = kind.build(preset, n_in, n_out, widths)
     if set(parts) - set(kind.parts):
         raise ValueError(f"network kind {kind.name!r} built {sorted(parts)}; it declares {kind.parts}")
@@ -138,7 +94,7 @@ def build_parts(preset, n_in: int, n_out: int, widths: dict) -> dict:
 def build_net(kind: str, n_in: int, n_out: int, window: int, front_units: tuple, fc_layers: int,
               fc_units: int, activation: str, conv_kernel: int = 3, dropout: float = 0.0):
     """One network of a net kind from its layer sizes (a preset's plain net, or DeLaN's residual branch)."""
-    k = network_kind(kind)
+    k = NETWORK_KINDS.lookup(kind)
     if not k.is_net:
         raise ValueError(f"network kind {kind!r} is not a single network (its parts: {k.parts})")
     shape = SimpleNamespace(kind=kind, window=window, front_units=tuple(front_units), fc_layers=fc_layers,
@@ -148,25 +104,25 @@ def build_net(kind: str, n_in: int, n_out: int, window: int, front_units: tuple,
 
 def fast_net_front(net):
     """The float64 front of a net built by a net kind (``net.kind``): window (L, F) -> the head's input."""
-    return network_kind(net.kind).fast({"net": net})
+    return NETWORK_KINDS.lookup(net.kind).fast({"net": net})
 
 
 def clips_gradients(preset) -> bool:
     """Whether training clips the gradient norm of ``preset``'s model (its kind's, or its residual branch's)."""
-    if network_kind(preset.kind).clips_gradients:
+    if NETWORK_KINDS.lookup(preset.kind).clips_gradients:
         return True
-    return preset.residual_kind is not None and network_kind(preset.residual_kind).clips_gradients
+    return preset.residual_kind is not None and NETWORK_KINDS.lookup(preset.residual_kind).clips_gradients
 
 
 def cost_rank(preset) -> int:
     """The kind's epoch-cost rank, one higher with a residual branch (DeLaN + LSTM: the dearest)."""
-    return network_kind(preset.kind).cost_rank + (1 if preset.residual_kind else 0)
+    return NETWORK_KINDS.lookup(preset.kind).cost_rank + (1 if preset.residual_kind else 0)
 
 
 def preset_problems(preset) -> list[str]:
     """What ``preset``'s kind refuses in its fields (``Preset.__post_init__`` raises them)."""
-    if preset.kind not in NETWORK_KINDS:
-        return [f"kind must be one of {', '.join(KINDS)}, got {preset.kind!r}"]
+    if NETWORK_KINDS.missing([preset.kind]):
+        return [f"kind must be one of {', '.join(NETWORK_KINDS)}, got {preset.kind!r}"]
     kind = NETWORK_KINDS[preset.kind]
     out = []
     if not kind.sequence and preset.window != 1 and preset.residual_kind is None:
@@ -174,7 +130,7 @@ def preset_problems(preset) -> list[str]:
     if kind.needs_front and not preset.front_units:
         out.append(f"{kind.name} needs front_units")
     if preset.residual_kind is not None:
-        if preset.residual_kind not in NETWORK_KINDS or not NETWORK_KINDS[preset.residual_kind].is_net:
+        if NETWORK_KINDS.missing([preset.residual_kind]) or not NETWORK_KINDS[preset.residual_kind].is_net:
             nets = [k.name for k in NETWORK_KINDS.values() if k.is_net]
             out.append(f"residual_kind must be one of {', '.join(nets)}, got {preset.residual_kind!r}")
     reason = kind.check(preset) if kind.check is not None else None
@@ -203,6 +159,5 @@ def search_fc(trial, base) -> dict:
             "activation": trial.suggest_categorical("activation", SPACE["activation"])}
 
 
-__all__ = ["BUDGET_STEPS", "DELAN_PARTS", "KINDS", "NETWORK_KINDS", "NET_PARTS", "NetworkKind", "SPACE",
-           "build_net", "build_parts", "clips_gradients", "cost_rank", "fast_net_front", "network_kind",
-           "preset_problems", "register", "search_fc", "unregister"]
+__all__ = ["DELAN_PARTS", "NETWORK_KINDS", "NET_PARTS", "NetworkKind", "SPACE", "build_net", "build_parts",
+           "clips_gradients", "cost_rank", "fast_net_front", "preset_problems", "search_fc"]

@@ -17,7 +17,7 @@ from typing import Callable
 import torch
 from torch import nn
 
-from .kind_registry import SPACE, NetworkKind, register, search_fc
+from .kind_registry import NETWORK_KINDS, SPACE, NetworkKind, search_fc
 from .kind_registry import build_net  # noqa: F401  (re-exported: the network of a kind, by its layer sizes)
 
 ACTIVATIONS = {"relu": nn.ReLU, "tanh": nn.Tanh}
@@ -169,12 +169,12 @@ def _conv_window(preset) -> str | None:
 # measured on one thread on a default-profile scenario (144 k training windows, s per epoch): DeLaN 6.4
 # (with an LSTM residual 10.7), LSTMs 1.4-5.9, conv 1.1-1.6, MLPs 0.45-1.05; conv and MLP share a rank
 # (the runner orders them by their front's width, conv first).
-register(NetworkKind("mlp", "fully connected layers on the current sample", build=single_net(_mlp),
+NETWORK_KINDS.register(NetworkKind("mlp", "fully connected layers on the current sample", build=single_net(_mlp),
                      fast=fast_path("mlp_front"), clips_gradients=False, cost_rank=0, search=search_fc,
                      budget_steps=8000, sequence=False, needs_front=False))
-register(NetworkKind("conv", "one Conv1d front layer ('valid', ReLU), flattened, then FC layers",
+NETWORK_KINDS.register(NetworkKind("conv", "one Conv1d front layer ('valid', ReLU), flattened, then FC layers",
                      build=single_net(_conv), fast=fast_path("conv_front"), clips_gradients=False, cost_rank=0,
                      search=_search_conv, budget_steps=16000, sequence=True, needs_front=True, check=_conv_window))
-register(NetworkKind("lstm", "stacked LSTM layers, the last step's state, then FC layers",
+NETWORK_KINDS.register(NetworkKind("lstm", "stacked LSTM layers, the last step's state, then FC layers",
                      build=single_net(_lstm), fast=fast_path("lstm_front"), clips_gradients=True, cost_rank=1,
                      search=_search_lstm, budget_steps=4000, sequence=True, needs_front=True))

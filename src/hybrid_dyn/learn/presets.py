@@ -21,47 +21,32 @@ from dataclasses import asdict, dataclass, field, replace
 
 from ..analytic import methods  # noqa: F401  (registers the tip-force methods: their names are read below)
 from ..analytic.method_names import estimator_name, residual_prior_names
-from ..analytic.methods import TIP_FORCE_METHODS
-from ..analytic.torque_models import TORQUE_MODELS
-from ..deprecation import module_aliases
 from ..errors import UsageError
+from ..plugins import load_plugins
 from ..registry import Registry
-from .kinds import KINDS, preset_problems  # noqa: F401  (KINDS re-exported: the network kinds' names)
+from .kinds import NETWORK_KINDS, preset_problems
 
 STATE = ["q", "qd", "qdd"]
 TIP_INPUTS = ["base_wrench", "q", "qd", "qdd"]
 TIP_INPUTS_TAU = TIP_INPUTS + ["tau_J"]
 
-# The analytic estimators a residual can sit on, by their one name (analytic/method_names.py): the two
-# torque models, and the tip-force methods declared with residual_prior=True (analytic/methods.py).
-TORQUE_PRIORS = tuple(e.name for e in TORQUE_MODELS.where(residual_prior=True))
-PRIORS = (None,) + residual_prior_names()  # at import; residual_prior_names() for a method registered later
-# How training fingerprints (and the keys of the prior caches) spell each prior: the spellings model
-# files wrote until format 3, each an older spelling of the estimator's name
-# (the registries' ``aliases``). Frozen: every trained model and every cached training run is keyed by
-# them, so a run of today finds the models trained before. Files write the canonical names
+# How training fingerprints (and the keys of the prior caches) spell a prior: the spellings model files
+# wrote until format 3. Frozen data, not names: every trained model and every cached training run is
+# keyed by them, so a run of today finds the models trained before. Files write the estimators' names
 # (:meth:`Preset.to_dict`); only these digests keep the old ones. A prior not listed is spelled by its name.
-_FINGERPRINT_SPELLINGS = ("rnea-basewrench", "basewrench", "momentum")
+PRIOR_FINGERPRINT_SPELLING = {"rnea-bw": "rnea-basewrench", "base-wrench": "basewrench", "momentum-observer": "momentum"}
 
 
 def prior_fingerprint_spelling(name: str) -> str:
-    """The prior ``name`` (a canonical name) as fingerprints and cache keys spell it."""
-    for old in _FINGERPRINT_SPELLINGS:
-        if (TIP_FORCE_METHODS.aliases.get(old) or TORQUE_MODELS.aliases[old])[0] == name:
-            return old
-    return name
-
-
-PRIOR_FINGERPRINT_SPELLING = {name: prior_fingerprint_spelling(name) for name in PRIORS[1:]}  # read from the above
+    """The prior ``name`` (an estimator's name) as fingerprints and cache keys spell it."""
+    return PRIOR_FINGERPRINT_SPELLING.get(name, name)
 
 
 @dataclass(frozen=True)
 class Preset:
     """A model architecture with its inputs and outputs.
 
-    kind: a network kind of ``learn/kinds.py``: "mlp" (current sample only), "conv" (one
-    Conv1d front layer), "lstm" (stacked LSTM front layers) or "delan" (Lagrangian
-    structure, current sample), or one registered there later.
+    kind: the name of a declared network kind (``NETWORK_KINDS``; each says what it is).
     inputs / targets: dataset field names (see ``hybrid_dyn.data.FIELD_UNITS``).
     window: samples per input window (1 for MLP and DeLaN).
     front_units: units of each conv/LSTM front layer (conv uses the first only).
@@ -69,20 +54,17 @@ class Preset:
     linear output layer. activation: of the FC layers ("relu" or "tanh").
     dropout: probability of dropping an FC hidden unit in training (0: none;
     inference never drops).
-    prior: the analytic part the network corrects (None: a plain network), by the estimator's
-    one name (older spellings, in brackets, are accepted with a warning and mean the same):
-      "rnea"              tau = RNEA(q, qd, qdd)
-      "rnea-bw"           tau = RNEA(q, qd, qdd) - J_v^T F_bw (F_bw: base-wrench method) ("rnea-basewrench")
-      "base-wrench"       F = tip_force_from_base_wrench(q, qd, qdd, base_wrench) ("basewrench")
-      "momentum-observer" F = MomentumObserver(q, qd, tau_J) at dt = 1 / record_hz ("momentum")
-      "base-momentum"     F = base momentum observer(q, qd, tared base_wrench) at dt = 1 / record_hz
+    prior: the analytic part the network corrects (None: a plain network), by its estimator's name: a
+    torque model of ``TORQUE_MODELS`` or a tip-force method of ``TIP_FORCE_METHODS`` declared with
+    ``residual_prior=True`` (an older spelling, a registry alias, is read with a warning); a stateful
+    method runs at dt = 1 / record_hz.
     raw_sensor: read the base wrench untared (a labelled reference row: what the
     sensor's per-run offset costs); by default every preset reads it tared, as
     every analytic row does (``learn/train.py``).
     delan_*: DeLaN's hidden layers for L(q) and V(q); friction: learn a Gaz
     sigmoid friction per joint; residual: add a residual network of the other
     fields (kind of the residual net: residual_kind, with its own window).
-    family: the bench family of its row ("seed-net", "residual", "delan", "learned"; ``bench/learned_rows.py``),
+    family: the bench family of its row (a name in ``bench.families.FAMILIES``; ``bench/learned_rows.py``),
     metadata of a declared preset, not of the model: files and fingerprints leave it out, equality ignores it.
     """
 
@@ -109,9 +91,11 @@ class Preset:
     family: str | None = field(default=None, compare=False)
 
     def __post_init__(self):
-        if self.kind not in KINDS:
-            raise ValueError(f"preset {self.name!r}: kind must be one of {tuple(KINDS)}, got {self.kind!r}")
+        if NETWORK_KINDS.missing([self.kind]):  # a plugin's kind (a model file of it) loads the plugins first
+            raise ValueError(f"preset {self.name!r}: kind must be one of {tuple(NETWORK_KINDS)}, got {self.kind!r}")
         if self.prior is not None:  # one name per estimator; a saved model's older spelling is read as it
+            if self.prior not in residual_prior_names():
+                load_plugins()  # a plugin's method as the prior (a model file of it): declared once its plugin loads
             object.__setattr__(self, "prior",
                                estimator_name(self.prior, residual_prior_names(), f"prior of preset {self.name!r}"))
         if self.activation not in ("relu", "tanh"):
@@ -174,15 +158,10 @@ def _tip(no, kind, torques, fc_units, window, front=(16,), activation="relu"):
     )
 
 
-PRESETS = Registry("preset", UsageError)  # name -> Preset: training, the CLI and the bench's rows read it
-
-
-def register_preset(preset: Preset) -> Preset:
-    """Declare a preset (with its bench ``family``): from now on ``train_model``, the CLI and the bench's rows
-    (``bench/learned_rows.py``, which listens) know it by its name."""
-    if preset.family is None:
-        raise UsageError(f"preset {preset.name!r} has no bench family: declare it with family=...")
-    return PRESETS.register(preset)
+# name -> Preset: training, the CLI and the bench's rows (bench/learned_rows.py, which listens) read it.
+# A declared preset names its bench family (a tuned preset, read from a model file, has none).
+PRESETS = Registry("preset", UsageError,
+                   check=lambda p: None if p.family is not None else "has no bench family: declare it with family=...")
 
 
 for _preset in (
@@ -241,16 +220,4 @@ for _preset in (
            residual_kind="lstm", front_units=(32,),
            family="residual", description="DeLaN + learned friction + LSTM residual on the window of q, qd, qdd"),
 ):
-    register_preset(_preset)
-
-
-def get_preset(name_or_preset) -> Preset:
-    """A preset by name (see :data:`PRESETS`), or the preset itself."""
-    if isinstance(name_or_preset, Preset):
-        return name_or_preset
-    return PRESETS.lookup(name_or_preset)
-
-
-# prior_kinds: the residual priors' names were called "kinds", as the networks' are.
-__getattr__ = module_aliases(__name__, {"prior_kinds": "residual_prior_names"}, globals(),
-                             why="a prior is an estimator, not a kind")
+    PRESETS.register(_preset)

@@ -1,50 +1,6 @@
 """The analytic part of a residual (hybrid) model: computed, cached, never trained.
 
-A residual model predicts ``prior + network``; the prior is one of the
-toolkit's analytic models on the *nominal* robot (or another parameter set, e.g.
-an identified one):
-
-- ``rnea``              tau = RNEA(q, qd, qdd) [+ tau_f(qd)]           [Nm] (nv)
-- ``rnea-bw``           tau = RNEA(q, qd, qdd) [+ tau_f(qd)] - J_v^T F_bw [Nm] (nv)
-  with F_bw the base-wrench tip-force estimate: physics-informed torque models
-  may use the base sensor (PROTOCOL 4), which sees the external force.
-- ``base-wrench``       F = tip_force_from_base_wrench(q, qd, qdd, w)  [N] (3)
-- ``momentum-observer`` F = MomentumObserver(q, qd, tau_J), dt = 1 / record_hz [N] (3)
-- ``base-momentum``     F = the base momentum observer (q, qd, tared base wrench) [N] (3),
-  0 in the tare window and started after it
-- any tip-force method registered with ``residual_prior=True`` (``analytic/methods.py``): its
-  batch run from its one definition, at the bandwidth ``observer_gain`` (the training config's name
-  for the prior method's bandwidth, in that method's unit: kept, as model files and cache keys hold it)
-
-A prior is named by its estimator's one name (``analytic/method_names.py``; the model files'
-``kind`` key holds it, hence ``AnalyticPrior.kind``); the older
-spellings ``rnea-basewrench``, ``basewrench`` and ``momentum`` are accepted with a
-warning. Model files (from format 3) and cache file names write the canonical names;
-the cache keys and training fingerprints keep hashing the older spellings
-(``presets.PRIOR_FINGERPRINT_SPELLING``), so every saved model and cache is found, and
-predicts, as before.
-
-On an identified parameter file (``hybrid-dyn identify``; ``TrainConfig.analytic_params``)
-the two torque priors are the identified model itself: its inertials and the
-friction tau_f fitted with them, so that the motor torque tau_m is predicted as
-``IdentifiedModel.predict_torque`` does (an untrained residual equals it). A nominal
-set (a name, or a file that ``identify`` did not write, with or without a friction
-section) is rigid body only, as the nominal prior has always been. The tip-force
-priors take the file's inertials and no friction: the base sensor sees the whole
-robot, in which joint friction is internal, and the momentum observer reads tau_J,
-the torque after friction.
-
-The two observers are filters with state, so their value at a sample depends
-on the whole instance before it; the others are per sample.
-
-The two base-wrench priors tare the sensor first (``analytic/tare.py``): the
-offset is estimated on each instance's first ``tare_seconds`` (contact-free)
-and removed. Offline (``compute``) that is done per instance; on a stream the
-caller tares and passes the tared wrench to ``single``.
-
-Priors are computed once per dataset and cached in an HDF5 file (one array per
-instance) whose name holds a digest of the dataset checksum, the prior, the
-robot and its parameter set: a changed dataset or robot never reads a stale cache.
+The design in full: ``docs/design/learn.md`` (priors.py).
 """
 from __future__ import annotations
 
@@ -59,29 +15,23 @@ import pinocchio as pin
 
 from ..analytic.method_names import estimator_name
 from ..analytic.methods import TIP_FORCE_METHODS
-from ..analytic.torque_models import TORQUE_MODELS
 from ..analytic.tare import tare_samples, tared_base_wrench
 from ..analytic.tip_force import base_wrench_force_core, contact_joint_torques, tip_force_from_base_wrench
-from .presets import TORQUE_PRIORS, prior_fingerprint_spelling
+from ..analytic.torque_models import TORQUE_MODELS
+from .presets import prior_fingerprint_spelling
 
 # The fields each prior reads: the two torque models here, every tip-force method registered as a prior
 # from its one definition (analytic/methods.py; base-momentum reads qdd only for the tare).
 PRIOR_FIELDS = {m.name: m.fields for m in TORQUE_MODELS.values()}
-STATEFUL_PRIORS: list = []  # the filters among them (the registry's stateful methods)
-FRICTION_PRIORS = TORQUE_PRIORS  # predict the motor torque: rigid body + friction
 
 
 def _on_register(method) -> None:
     if method.residual_prior:
         PRIOR_FIELDS[method.name] = method.fields
-        if method.stateful:
-            STATEFUL_PRIORS.append(method.name)
 
 
 def _on_unregister(method) -> None:
     PRIOR_FIELDS.pop(method.name, None)
-    if method.name in STATEFUL_PRIORS:
-        STATEFUL_PRIORS.remove(method.name)
 
 
 for _method in TIP_FORCE_METHODS.values():
@@ -107,7 +57,7 @@ class AnalyticPrior:
     def __init__(self, kind: str, robot, record_hz: float | None = None, observer_gain: float = 20.0,
                  tare_seconds: float = 0.0, friction: dict | str | None = "auto"):
         kind = estimator_name(kind, among=PRIOR_FIELDS, what="analytic prior")
-        if kind in STATEFUL_PRIORS and not record_hz:
+        if kind in TIP_FORCE_METHODS and TIP_FORCE_METHODS[kind].stateful and not record_hz:  # a filter's dt
             raise ValueError(f"the {kind} prior needs the dataset's record_hz")
         self.tare_seconds = float(tare_seconds) if "base_wrench" in PRIOR_FIELDS[kind] else 0.0
         if self.tare_seconds > 0 and not record_hz:
@@ -125,9 +75,9 @@ class AnalyticPrior:
         # would let a file rewritten in place serve a stale cache or a mismatched loaded model.
         self.params_sha256 = identified[1] if identified else None
         if isinstance(friction, str) and friction == "auto":
-            friction = identified[0]["friction"] if identified and kind in FRICTION_PRIORS else None
-        if friction is not None and kind not in FRICTION_PRIORS:
-            raise ValueError(f"the {kind} prior takes no joint friction (only {', '.join(FRICTION_PRIORS)} do)")
+            friction = identified[0]["friction"] if identified and kind in TORQUE_MODELS else None
+        if friction is not None and kind not in TORQUE_MODELS:  # a torque model: rigid body + friction
+            raise ValueError(f"the {kind} prior takes no joint friction (only {', '.join(TORQUE_MODELS)} do)")
         if friction is not None and not isinstance(friction, dict):
             raise ValueError(f"friction must be a parameter file's friction section (dict), 'auto' or None, "
                              f"got {friction!r}")
@@ -135,7 +85,7 @@ class AnalyticPrior:
         self._friction = friction_from_dict(friction, f"the {kind} prior's friction") if friction else None
         # The identified file's declared springs (Baxter's shoulder), joint-local like its friction.
         self.springs = springs_from_dict(identified[0], robot.joint_names, str(robot.params_name)) \
-            if identified and kind in FRICTION_PRIORS else {}
+            if identified and kind in TORQUE_MODELS else {}
 
     def describe(self) -> dict:
         """What identifies this prior's values (the model config; the cache key hashes it with the kind's
@@ -202,7 +152,7 @@ class AnalyticPrior:
         overhead); it computes exactly what :meth:`compute` does (tested).
         A tared prior expects ``sample["base_wrench"]`` already tared.
         """
-        if self.kind in STATEFUL_PRIORS:
+        if self.kind in TIP_FORCE_METHODS and TIP_FORCE_METHODS[self.kind].stateful:
             raise ValueError(f"the {self.kind} prior is a filter with state: pass its current estimate "
                              "(the observer's step_force) as `prior`")
         if self._single is None:

@@ -1,38 +1,7 @@
 """What a training run is: :class:`TrainConfig` (each field checked, named with its CLI flag), the
 named recipes and the budgeted recipe's schedule.
 
-Apart from the loop (``train.py``) because the bench, the CLI and the studies read a config and
-its recipes without training anything, and because a config's fields enter the run's
-fingerprint: this module decides what a run is, ``train.py`` how it is run.
-
-Four recipes (:data:`RECIPES`, ``--recipe``):
-
-- ``budget`` (the bench's): a fixed budget of optimizer steps per network kind
-  (:data:`BUDGET_STEPS`, from the budget study in ``docs/models.md``; ``hybrid-dyn
-  study budget`` reruns it), a linear warm-up over the first ``warmup_fraction`` of the
-  budget, then a cosine decay of the rate to zero at the last step (Li, Yumer &
-  Ramanan, "Budgeted Training", ICLR 2020), batch 1024 at lr 2e-3 (the rate scaled
-  as the square root of the batch from 1e-3 at 256, Malladi et al. 2022 for Adam).
-  Batches are drawn from the whole training pool, epoch after epoch, so more data
-  means more distinct trajectories seen at the same cost, not more time; the
-  validation loss is measured ``budget_evals`` times over the budget and the best
-  weights are kept. The cost of a run is known before it starts.
-
-- ``seed-study`` (the seed study's 3.2, exactly; formerly ``seed``): Glorot-uniform initialization, Adam at lr 1e-3,
-  MSE loss on standardized targets, a constant learning rate, and training
-  until the validation loss has not improved for 5 consecutive epochs.
-- ``plateau`` (this toolkit's, ``TrainConfig()``'s; formerly ``default``): the same, plus what an expert adds so that a
-  net is trained to convergence rather than to its first plateau: the
-  learning rate is cut by ``lr_factor`` after ``lr_patience`` epochs without
-  improvement (reduce-on-plateau) down to a floor ``min_lr``; early stopping
-  waits ``patience`` = 10 epochs, so a cut rate gets time to pay off; the
-  gradient norm of recurrent nets is clipped at ``grad_clip`` (LSTMs on
-  standardized inputs can take an exploding step early on). Batch size: see
-  ``docs/models.md`` (a measured sweep; ``hybrid-dyn study batch-size`` for the budget).
-- ``long``: ``plateau`` with the plateau's patience 10, early stopping's 20 and
-  decoupled weight decay 0.1 of the weight matrices (AdamW): it trains the nets that
-  ``plateau`` stops early, and regularizes the ones that overfit a small set, at 1.8-3.7x the
-  epochs on paper-noext's torque rows (``reports/studies/controls-default`` measures what it buys).
+The design in full: ``docs/design/learn.md`` (recipes.py).
 """
 from __future__ import annotations
 
@@ -44,7 +13,7 @@ from dataclasses import asdict, dataclass, replace
 
 from ..analytic.tare import TARE_SECONDS
 from ..errors import UsageError
-from .kinds import BUDGET_STEPS  # per network kind, declared with the kind
+from .kinds import NETWORK_KINDS  # each kind declares its step budget
 from .presets import Preset
 
 
@@ -68,7 +37,7 @@ class TrainConfig:
     (its 3.2).
     max_batches_per_epoch: cap an epoch's batches (quick runs, tuning); None = all.
     budget_steps: optimizer steps of a budgeted run (lr_schedule "cosine"); None: the
-    preset's network kind's budget, :data:`BUDGET_STEPS` (resolved by :meth:`for_preset`).
+    preset's network kind's ``budget_steps`` (resolved by :meth:`for_preset`).
     warmup_fraction: share of the budget over which the rate rises linearly to lr.
     budget_evals: validation rounds over the budget (each keeps the weights if best).
     train_instances: learn from the first N instances of the train split, and the first
@@ -199,15 +168,12 @@ class TrainConfig:
 LR_SCHEDULES = ("plateau", "none", "cosine")
 
 # Optimizer steps of the budgeted recipe per network kind: declared with each kind (learn/nets.py,
-# where the budget study's numbers are explained, and learn/delan.py); BUDGET_STEPS reads them (kind -> steps).
+# where the budget study's numbers are explained, and learn/delan.py).
 
 
 def budget_steps_of(preset: Preset) -> int:
-    """The budgeted recipe's step count for ``preset`` (:data:`BUDGET_STEPS` by its network kind)."""
-    if preset.kind not in BUDGET_STEPS:
-        raise UsageError(f"no step budget for network kind {preset.kind!r} (preset {preset.name!r}); "
-                         f"declare one in BUDGET_STEPS ({', '.join(BUDGET_STEPS)})")
-    return BUDGET_STEPS[preset.kind]
+    """The budgeted recipe's step count for ``preset``: its network kind's ``budget_steps``."""
+    return NETWORK_KINDS.lookup(preset.kind).budget_steps
 
 
 def budget_lr(config: TrainConfig, step: int) -> float:

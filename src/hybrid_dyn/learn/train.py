@@ -1,42 +1,6 @@
 """Training: Adam on standardized MSE, a learning-rate schedule, early stopping; deterministic and resumable.
 
-The loop, and its public entry :func:`train_model`. What a run is (:class:`TrainConfig`), the
-four named recipes and the budgeted schedule are in ``recipes.py``; the checkpoint files in
-``checkpoints.py``; what a model folder may hold in ``model_folder.py``; the dataset's checks and
-the batches in ``training_data.py``.
-
-All recipes keep the weights of the best validation epoch (as Keras'
-``restore_best_weights``); the untrained model counts as epoch "-1", so a
-residual model that never beats its physics part on validation stays it.
-A run ends for one of four reasons, recorded as ``stopped_by`` in the model's
-config with ``best_epoch``: ``patience`` (no improvement for ``patience``
-epochs), ``lr-floor`` (the rate sits at its floor and has plateaued there),
-``epoch-cap`` (``max_epochs`` ran out first: the net may not have converged) or
-``budget`` (the budgeted recipe's steps are spent, its rate decayed to zero).
-Under the budget, an "epoch" of the history is one validation round of
-``budget_steps / budget_evals`` steps, and ``best_epoch`` counts rounds.
-
-Inputs: a preset that reads the base wrench reads it *tared* (``analytic/tare.py``:
-the sensor offset estimated on each run's contact-free first ``tare_seconds``
-and removed), as every analytic row does: taring is a sensor step, not a model
-feature. A preset with ``raw_sensor=True`` (the labelled reference rows, e.g.
-``seed-tip-11-raw``) reads the untared sensor. The model's config records it
-(``sensor_tare_seconds``), and prediction and the streaming estimator apply the
-same tare.
-
-Determinism: the initial weights come from ``torch.manual_seed(seed)``, the
-shuffling of epoch e from a generator seeded with (seed, e), and PyTorch runs
-with deterministic algorithms; a run resumed from its checkpoint continues
-exactly as if it had never stopped (the schedule's state is in the checkpoint).
-
-Checkpoints (every epoch, atomically): ``checkpoint.safetensors`` (weights,
-best weights, Adam state, torch's generator state for dropout) and ``checkpoint.json`` (epoch, history, counters,
-fingerprint). The fingerprint (preset + training config + dataset checksum)
-decides whether an existing checkpoint or model in ``out_dir`` is this run's.
-
-One run per ``out_dir``: training holds ``output_lock(out_dir)`` throughout, and a
-folder holding files training did not write (no config.json, and not a killed
-run's checkpoint) is refused, never overwritten.
+The design in full: ``docs/design/learn.md`` (train.py).
 """
 from __future__ import annotations
 
@@ -61,10 +25,9 @@ from .trained_model import (MODEL_FORMAT, MODEL_FORMAT_VERSION, HybridModel, Mod
                     check_instances, load_model, save_model)
 from .kinds import clips_gradients  # declared with the network kind
 from .model_folder import _refuse_foreign_files, _reuse
-from .presets import Preset, get_preset
+from .presets import PRESETS, Preset
 from .priors import AnalyticPrior
 from .recipes import TrainConfig, _option, budget_lr, improvement_needed
-from .recipes import BUDGET_STEPS, RECIPE_ALIASES, RECIPES  # noqa: F401  (re-exported: imported from here before recipes.py)
 from .training_data import _batches, _check_robot_and_widths, _stats, evaluate_split, field_widths
 
 STOP_REASONS = ("patience", "lr-floor", "epoch-cap", "budget")
@@ -115,7 +78,7 @@ def train_model(dataset, preset, out_dir, config: TrainConfig | None = None, wai
     config = config or TrainConfig()
     config.validate()  # a caller may have changed a field since construction
     device = _device(config.device)
-    preset = get_preset(preset)
+    preset = PRESETS.lookup(preset) if isinstance(preset, str) else preset
     config = config.for_preset(preset)  # the budget the run will spend is part of its fingerprint
     ds: Dataset = dataset if isinstance(dataset, Dataset) else load_dataset(dataset)
     out_dir = Path(out_dir)

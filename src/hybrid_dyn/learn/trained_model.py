@@ -1,29 +1,6 @@
 """A trained model: the network, its standardization, its analytic part, its files.
 
-Every model, whatever its family, computes
-
-    y = y_mean + y_std * net(x_std)              plain networks (the seed's)
-    y = prior  + y_std * net(x_std)              residual (hybrid) networks
-    y = DeLaN(q, qd, qdd) [+ friction(qd)] [+ y_std * net(x_std)]
-
-with x_std = (x - x_mean) / x_std the standardized input window and x, y in
-physical units. The statistics come from the training split only and live in
-the model file. A residual net's output is scaled by the target's standard
-deviation (not the residual's), so "the net adds little" means small compared
-with the signal; a residual branch's output layer starts at zero, so an
-untrained hybrid model is exactly its physics part.
-
-On disk (``model_dir``): ``config.json`` (preset, robot, fields, widths,
-normalization, dataset checksum, training history), ``model.safetensors``
-(every tensor; its metadata holds the sha256 of the canonical config JSON and
-the sha256 of the tensors' names, dtypes, shapes and bytes) and ``timing.json``
-(wall-clock figures, outside both digests, so that two identical runs write
-byte-identical config and weights). Loading refuses a config or tensors that do
-not match their digests, a file older than the tensor digest, a robot the model
-needs a description of and the toolkit lacks, or a robot other than the one
-asked for. Nothing is unpickled. A file of an older format that spells its prior the
-old way loads with one warning (``model_spellings.py``; ``model_upgrade.py`` upgrades it).
-The file handling every model family shares is ``model_file.py``.
+The design in full: ``docs/design/learn.md`` (trained_model.py).
 """
 from __future__ import annotations
 
@@ -36,18 +13,17 @@ from safetensors.torch import save_file
 from torch import nn
 
 from ..data.windows import concat_fields, window_index
-from .kinds import build_parts, network_kind
+from .kinds import NETWORK_KINDS, build_parts
 from .model_file import (METADATA_KEY, TIMING_FORMAT, ModelError, ModelFiles, SavedModel, canonical_json,  # noqa: F401
                          config_digest, partial, read_file_metadata, read_model_config, read_timing,
                          recorded_train_cpu, tensors_digest, timing_doc)  # (re-exported: imported from here before)
-from .model_spellings import read_older_spellings
 from .presets import Preset
 from ..analytic.tare import tared_runs
 from .priors import AnalyticPrior
 
 MODEL_FORMAT = "hybrid_dyn.model"
 # 2: tensor digest in the metadata, wall-clock figures in timing.json; 3: the analytic prior by its
-# canonical estimator name (older spellings are read with a warning, model_spellings.py).
+# canonical estimator name (a file of 1-2 spells it the old way: read as the estimator's alias, with a warning).
 MODEL_FORMAT_VERSION = 3
 # What training writes into a model folder besides the model's files: checkpoints (``checkpoints.py``).
 _OWN_TEMPORARY = re.compile(r"(model\.safetensors|config\.json|timing\.json|checkpoint\.safetensors|checkpoint\.json)"
@@ -283,7 +259,7 @@ class TrainedModel(SavedModel):
         if self._fast is None:
             from .fastpath import FastNet
 
-            m, kind = self.module, network_kind(self.preset.kind)
+            m, kind = self.module, NETWORK_KINDS.lookup(self.preset.kind)
             # A net kind's net through FastNet; a structured kind (DeLaN) through its own declared fast path.
             structured = None if kind.is_net else kind.fast({p: getattr(m, p) for p in kind.parts})
             self._fast = (None if m.net is None else FastNet(m.net), m.x_mean.double().numpy(), m.x_std.double().numpy(),
@@ -347,7 +323,6 @@ def load_model(model_dir, robot=None, device: str = "cpu") -> TrainedModel:
 
     from ..description import ROBOTS, has_description
 
-    config = read_older_spellings(config, model_dir)  # formats 1-2: older estimator spellings, one warning
     # The analytic part, and the base sensor's tare, need the robot's model.
     if Preset.from_dict(config["preset"]).prior is not None or config.get("sensor_tare_seconds", 0) > 0:
         if not has_description(config["robot"]):

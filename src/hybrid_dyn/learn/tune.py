@@ -1,30 +1,6 @@
 """Hyperparameter search with Optuna (standing in for the seed's Keras Tuner).
 
-The search space is the seed's (3.3): the number of LSTM layers and their
-units, the number of fully connected layers and their units, and the
-activation. Conv presets search the conv width instead of the LSTM layers,
-MLPs only the FC part; DeLaN searches the depth and width of its networks.
-Each network kind declares its own (``learn/kinds.py``, ``search``).
-Each trial trains a full model with early stopping and reports its best
-validation loss (standardized MSE).
-
-Storage and scale-out: a local SQLite file by default (``<out>/optuna.db``);
-any Optuna RDB URL (``postgresql://...``, ``mysql://...``) works, so several
-processes or machines run trials of one study at once (docs/cluster.md).
-``workers=N`` starts N local worker processes on that storage; each runs its
-share of the trials with its own sampler seed. Re-running the same command
-continues the study.
-
-Interrupted trials are failed and retried, not lost:
-- a worker that dies (killed, machine lost) stops its trial's heartbeat; the
-  next trial any worker starts marks it FAIL after ``grace`` seconds, and
-  Optuna's ``RetryHeartbeatStaleTrialCallback`` enqueues the same parameters again;
-- a trial stopped by Ctrl-C is marked FAIL by Optuna at once; the next
-  ``tune`` call enqueues it again before any new trial.
-A trial's model lives in a directory named after a digest of its
-architecture, so a retried trial resumes from its checkpoint, finished
-architectures are not retrained, and two workers that draw the same
-architecture take turns (a file lock) instead of writing one directory at once.
+The design in full: ``docs/design/learn.md`` (tune.py).
 """
 from __future__ import annotations
 
@@ -45,15 +21,15 @@ import optuna
 from ..data import Dataset, load_dataset
 from ..errors import UsageError
 from .trained_model import canonical_json
-from .kinds import SPACE, network_kind  # noqa: F401  (SPACE re-exported: the searched values)
-from .presets import Preset, get_preset
+from .kinds import NETWORK_KINDS, SPACE  # noqa: F401  (SPACE re-exported: the searched values)
+from .presets import PRESETS, Preset
 from .recipes import TrainConfig
 from .train import train_model
 
 def suggest_preset(trial: optuna.Trial, base: Preset) -> Preset:
     """The base preset with the searched hyperparameters replaced by the trial's choice (the search
     space is its network kind's, declared with the kind: ``learn/kinds.py``, :data:`SPACE`)."""
-    p = network_kind(base.kind).search(trial, base)
+    p = NETWORK_KINDS.lookup(base.kind).search(trial, base)
     arch = replace(base, **p)
     # The fingerprint's form (older prior spellings): the tuned preset's name, and so its trials, stay as before.
     digest = hashlib.sha256(canonical_json(arch.fingerprint_dict()).encode()).hexdigest()[:10]
@@ -136,7 +112,8 @@ def _run_worker(dataset_path: str, preset: str, out_dir: str, storage: str, stud
     torch.set_num_threads(config.get("num_threads") or 1)  # N workers share the machine's cores
     study = optuna.load_study(study_name=study_name, storage=open_storage(storage, heartbeat_s),
                               sampler=optuna.samplers.TPESampler(seed=seed))
-    objective = _objective(load_dataset(dataset_path), get_preset(preset), Path(out_dir), TrainConfig(**config), worker)
+    base = PRESETS.lookup(preset) if isinstance(preset, str) else preset
+    objective = _objective(load_dataset(dataset_path), base, Path(out_dir), TrainConfig(**config), worker)
     study.optimize(objective, n_trials=n_trials, catch=())
 
 
@@ -151,7 +128,7 @@ def tune(dataset, preset, out_dir, n_trials: int, storage: str | None = None, st
     """
     if n_trials < 1 or workers < 1:
         raise UsageError(f"need n_trials >= 1 and workers >= 1, got {n_trials} and {workers}")
-    base = get_preset(preset)
+    base = PRESETS.lookup(preset) if isinstance(preset, str) else preset
     ds: Dataset = dataset if isinstance(dataset, Dataset) else load_dataset(dataset)
     config = config or TrainConfig(progress=False)
     out_dir = Path(out_dir)

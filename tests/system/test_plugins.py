@@ -1,0 +1,139 @@
+"""A third-party plugin (plugins.py): an installed distribution with a ``hybrid_dyn.plugins`` entry point adds
+a tip-force method, a family and a bench row through the public registries, with no edit of the toolkit.
+
+The plugin is installed for real: a module and its ``*.dist-info`` (METADATA, entry_points.txt) in a folder
+on the path of a fresh interpreter, which is what pip leaves in site-packages. In that interpreter the
+estimator finds the method by its name before anything loaded plugins (a registry's miss loads them), the
+bench's help lists the method's rows and the plugin's row and family, and the bench runs both into its
+report on a tiny dataset.
+"""
+import csv
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.system
+
+SRC = Path(__file__).resolve().parents[2] / "src"
+
+PLUGIN = '''
+"""A toy hybrid_dyn plugin: a method (the base momentum observer at half its gain), a family and a row."""
+import numpy as np
+
+from hybrid_dyn.analytic.method_declaration import TIP_FORCE_METHODS, Method
+from hybrid_dyn.analytic.observer_methods import BaseMomentumMethod
+from hybrid_dyn.bench.families import FAMILIES, Family
+from hybrid_dyn.bench.rows import ROWS, Predictor, Row
+
+
+class HalfGain(BaseMomentumMethod):
+    def choose(self, noise):
+        return 0.5 * super().choose(noise)
+
+
+TIP_FORCE_METHODS.register(Method("toy-half-momentum", "the base momentum observer at half its gain (a plugin's)",
+                                  ("base_wrench",), False, False, True, "momentum_gain", HalfGain))
+FAMILIES.register(Family("toy-baseline", "a plugin's baselines", fitted=True))
+
+
+def build(ds, ctx):
+    mean = np.concatenate([i["tau_m"] for i in ds.split("train")]).mean(axis=0)
+    return Predictor(predict=lambda insts: [np.tile(mean, (len(i), 1)) for i in insts],
+                     single_call=lambda inst, k: mean, inputs="nothing")
+
+
+ROWS.register(Row("toy-tau-mean", "joint_torque", "toy-baseline", needs=("q", "tau_m"), needs_urdf=False,
+                  build=build))
+'''
+
+# What the fresh interpreter runs: the estimator first (nothing has loaded the plugin yet), then the CLI.
+SCRIPT = '''
+import contextlib, io, json, sys
+import numpy as np
+from hybrid_dyn import TipForceEstimator, load_robot
+from hybrid_dyn.data import load_dataset
+from hybrid_dyn.plugins import LOADED
+
+data, out = sys.argv[1], sys.argv[2]
+assert not LOADED, LOADED
+run = load_dataset(data).split("test")[0]
+rate = 100.0
+est = TipForceEstimator.analytic(load_robot("panda"), "toy-half-momentum", call_hz=rate, encoder_resolution=0.0)
+base = TipForceEstimator.analytic(load_robot("panda"), "base-momentum", call_hz=rate, encoder_resolution=0.0)
+for e in (est, base):
+    for k in range(len(run)):
+        e.estimate_tip_force(run.q[k], run.qd[k], base_wrench=run.base_wrench[k], t=k / rate)
+from hybrid_dyn.cli import main
+helps = {}
+for command in ("bench", "study"):
+    text = io.StringIO()
+    with contextlib.redirect_stdout(text):
+        try:
+            main([command, "--help"])
+        except SystemExit:
+            pass
+    helps[command] = "".join(text.getvalue().split())  # argparse wraps at hyphens
+code = main(["bench", "--data", data, "--rows", "toy-half-momentum,toy-tau-mean", "--out", out, "--workers", "1"])
+print(json.dumps({"loaded": LOADED, "method": est.method, "gain": float(est.bandwidth),
+                  "base_gain": float(base.bandwidth), "help": helps, "code": code}))
+'''
+
+
+def _install(site: Path) -> None:
+    """The plugin as pip installs it: its module, and a dist-info naming its entry point."""
+    (site / "hd_toy_plugin.py").write_text(textwrap.dedent(PLUGIN))
+    info = site / "hd_toy_plugin-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: hd-toy-plugin\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text("[hybrid_dyn.plugins]\ntoy = hd_toy_plugin\n")
+    (info / "RECORD").write_text("")
+
+
+def test_an_installed_plugin_adds_a_method_and_a_row_to_the_estimator_the_help_and_the_report(tmp_path, panda):
+    from hybrid_dyn.data.synthetic import make_synthetic_dataset
+
+    data = make_synthetic_dataset(tmp_path / "d", panda, n_instances=4, n_samples=300, seed=3, noise=0.01,
+                                  contact_free_s=0.6)
+    site = tmp_path / "site"
+    site.mkdir()
+    _install(site)
+    out = tmp_path / "report"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), str(SRC)])}
+    done = subprocess.run([sys.executable, "-c", SCRIPT, str(data), str(out)], env=env, capture_output=True,
+                          text=True, timeout=600, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr[-3000:]
+    got = json.loads(done.stdout.strip().splitlines()[-1])
+
+    assert got["loaded"] == {"toy": "hd_toy_plugin"}  # imported once, by the estimator's lookup
+    assert got["method"] == "toy-half-momentum"
+    assert got["gain"] == pytest.approx(0.5 * got["base_gain"])  # the plugin's rule, run by the estimator
+    bench_help = got["help"]["bench"]
+    for name in ("toy-half-momentum", "toy-half-momentum-val", "toy-tau-mean", "toy-baseline"):
+        assert name in bench_help, name
+    assert got["code"] == 0
+    with open(out / "results.csv", newline="") as f:
+        results = {r["model"]: r for r in csv.DictReader(f)}
+    assert {name: (r["family"], r["status"]) for name, r in results.items()} == {
+        "toy-half-momentum": ("analytic", "ok"), "toy-tau-mean": ("toy-baseline", "ok")}
+    assert "toy-tau-mean" in (out / "joint_torque.md").read_text()
+    assert "toy-half-momentum" in (out / "tip_force.md").read_text()
+
+
+def test_a_plugin_that_fails_to_import_is_named_and_left_out(tmp_path):
+    site = tmp_path / "site"
+    site.mkdir()
+    (site / "hd_broken.py").write_text("raise ImportError('needs a package that is not installed')\n")
+    info = site / "hd_broken-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: hd-broken\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text("[hybrid_dyn.plugins]\nbroken = hd_broken\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), str(SRC)])}
+    done = subprocess.run([sys.executable, "-m", "hybrid_dyn.cli", "bench", "--help"], env=env, capture_output=True,
+                          text=True, timeout=300, cwd=tmp_path)
+    assert done.returncode == 0 and "--rows" in done.stdout
+    assert "plugin 'broken' (hd_broken) failed to load: ImportError: needs a package" in done.stderr
