@@ -149,7 +149,7 @@ def floor_checks(rows) -> list[tuple[str, bool | str | None, str]]:
             _ratio_check(out, f"issue 46: {scenario}: best physics-informed row <= 0.75 x the best black box", 0.75,
                          min(physics, key=lambda r: float(r["rmse"])), min(black, key=lambda r: float(r["rmse"])),
                          unit=" Nm")
-        hybrids = [by_name[name] for name in by_name if get_row(name).prior in by_name]
+        hybrids = [by_name[name] for name in by_name if ROWS.lookup(name).prior_row in by_name]
         if hybrids and ident:
             _ratio_check(out, f"issue 46: {scenario}: the best hybrid row <= 0.9 x identified-consistent", 0.9,
                          min(hybrids, key=lambda r: float(r["rmse"])), ident, unit=" Nm")

@@ -37,7 +37,7 @@ def test_every_shipped_description_is_declared_and_no_declaration_lacks_its_file
     described = {r.name: r.toml for r in ROBOTS.where(data_only=False)}
     assert {"panda", "ur5", "xarm7", "kuka-lwr", "baxter"} <= set(shipped)
     assert {n: p.resolve() for n, p in shipped.items()} == {n: p.resolve() for n, p in described.items()}
-    assert {"sarcos", "unknown"} <= {r.name for r in ROBOTS.where(data_only=True)}
+    assert {"sarcos", "unknown"} <= set(ROBOTS.names(data_only=True))
     assert all(r.toml is None and not has_description(r.name) for r in ROBOTS.where(data_only=True))
 
 
@@ -48,7 +48,7 @@ def test_a_registered_robot_loads_by_name_and_is_listed_until_unregistered(toy_r
     # Its TOML is the UR5's: the same URDF and frames make the same model.
     assert robot.name == "toy-arm" and robot.nv == ur5.nv == 6
     assert robot.total_mass == pytest.approx(ur5.total_mass, abs=0, rel=0)
-    assert "toy-arm" in [r.name for r in ROBOTS.where(data_only=False)] and has_description("toy-arm")
+    assert "toy-arm" in list(ROBOTS.names(data_only=False)) and has_description("toy-arm")
     assert hd.load_robot("toy-arm[payload=1.0@0,0,0]").total_mass == pytest.approx(ur5.total_mass + 1.0)
     assert cmd_robots(None) == 0
     assert "toy-arm " in capsys.readouterr().out

@@ -30,8 +30,8 @@ spec = read_spec(real_spec_path("real-panda"))
 official = hd.load_robot("panda", params="franka_official")
 mass = lambda r: sum(i.mass for i in r.model.inertias)  # kg, every body of the model
 print(json.dumps({"file": hd.__file__, "nv": robot.nv, "tool_frame": load_spec("panda").tool_frame,
-                  "robots": [r.name for r in ROBOTS.where(data_only=False)],
-                  "data_only": [r.name for r in ROBOTS.where(data_only=True)],
+                  "robots": list(ROBOTS.names(data_only=False)),
+                  "data_only": list(ROBOTS.names(data_only=True)),
                   "spec_robot": spec.robot, "spec_split": spec.split_by,
                   "specs": sorted(n for n in REAL_SETS if real_spec_path(n).is_file()),
                   "logs_missing": {n: missing_real_log(n) is not None for n in REAL_SETS},

@@ -111,9 +111,9 @@ def as_payload(payload) -> Payload | None:
 def _unknown_robot(base: str) -> RobotDescriptionError:
     return RobotDescriptionError(
         f"unknown robot {base!r}. A robot name is: a declared description "
-        f"({', '.join(r.name for r in ROBOTS.where(data_only=False)) or 'none'}); an arm of example-robot-data "
+        f"({', '.join(ROBOTS.names(data_only=False)) or 'none'}); an arm of example-robot-data "
         f"({', '.join(example_robot_data_arms()) or 'none'}); a name known for data only "
-        f"({', '.join(r.name for r in ROBOTS.where(data_only=True)) or 'none'}; declare yours in ROBOTS, "
+        f"({', '.join(ROBOTS.names(data_only=True)) or 'none'}; declare yours in ROBOTS, "
         f"description/robots.py); or the path of a .urdf "
         f"or .toml file. A variant: {ROBOT_NAME_HELP}"
     )

@@ -118,7 +118,7 @@ def _train_locked(ds: Dataset, preset: Preset, out_dir: Path, config: TrainConfi
         robot = load_robot(robot_name, params=config.analytic_params)
     elif preset.prior is not None:
         raise ModelError(f"preset {preset.name!r} needs a description of robot {robot_name!r} (dataset {ds.path}) "
-                         f"for its analytic part, and there is none (available: {', '.join(r.name for r in ROBOTS.where(data_only=False))}); "
+                         f"for its analytic part, and there is none (available: {', '.join(ROBOTS.names(data_only=False))}); "
                          f"a data-only preset (seed nets, DeLaN) needs none")
     elif sensor_tare > 0:
         raise ModelError(f"preset {preset.name!r} reads the base wrench, tared with the model of robot "

@@ -328,7 +328,7 @@ def load_model(model_dir, robot=None, device: str = "cpu") -> TrainedModel:
         if not has_description(config["robot"]):
             raise ModelError(f"model {model_dir} needs a description of robot {config['robot']!r} for its analytic "
                              f"part or its sensor tare, and this toolkit has none "
-                             f"(available: {', '.join(r.name for r in ROBOTS.where(data_only=False))})")
+                             f"(available: {', '.join(ROBOTS.names(data_only=False))})")
     if robot is not None:
         name = robot if isinstance(robot, str) else robot.name
         if name != config["robot"]:
