@@ -40,6 +40,12 @@ class Registry(dict):
             on_register(item)
         return item
 
+    def register_all(self, items) -> "Registry":
+        """Declare every item of ``items`` in order (a catalogue read from a file); returns the registry."""
+        for item in items:
+            self.register(item)
+        return self
+
     def unregister(self, name: str) -> None:
         """Remove a declaration (a test's toy), and tell the listeners."""
         item = self.pop(name)

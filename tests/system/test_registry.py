@@ -33,6 +33,14 @@ def test_declarations_queries_and_refusals():
     assert "d" not in things
 
 
+def test_register_all_declares_in_order_and_stops_at_a_refusal():
+    things = _things().register_all([Thing("x"), Thing("y", "blue")])
+    assert things.names() == ("x", "y")
+    with pytest.raises(KeyError, match="'x' is declared twice"):
+        things.register_all([Thing("z"), Thing("x")])
+    assert things.names() == ("x", "y", "z")
+
+
 def test_a_miss_loads_the_plugins_once_and_finds_what_they_declare(monkeypatch):
     things = _things()
     loads = []

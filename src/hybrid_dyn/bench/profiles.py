@@ -107,9 +107,7 @@ def read_profiles(path: Path) -> list[BenchProfile]:
 
 
 PROFILES_FILE = resource_dir("bench") / "profiles.toml"
-PROFILES = Registry("bench profile", UsageError)
-for _profile in read_profiles(PROFILES_FILE):
-    PROFILES.register(_profile)
+PROFILES = Registry("bench profile", UsageError).register_all(read_profiles(PROFILES_FILE))
 # The method note of every profile under the budgeted recipe (one text, naming the recipes as learn/recipes.py does).
 BUDGET_RECIPE_NOTE = tomllib.loads(PROFILES_FILE.read_text())["notes"]["budget-recipe"]
 

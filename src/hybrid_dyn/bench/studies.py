@@ -164,9 +164,7 @@ def read_studies(path: Path) -> list[Study]:
 
 
 STUDIES_FILE = resource_dir("bench") / "studies.toml"
-STUDIES = Registry("study", UsageError)
-for _study in read_studies(STUDIES_FILE):
-    STUDIES.register(_study)
+STUDIES = Registry("study", UsageError).register_all(read_studies(STUDIES_FILE))
 
 
 
