@@ -11,7 +11,7 @@ from hybrid_dyn.bench.profiles import PROFILES, BenchProfile
 from hybrid_dyn.bench.rows import TASK_TARGET
 from hybrid_dyn.bench.studies import STUDIES
 from hybrid_dyn.data import FIELD_UNITS
-from hybrid_dyn.description import data_only_robots
+from hybrid_dyn.description import ROBOTS
 
 FIGURES = ("traces", "error-vs-force")  # what report_figures.py draws per family
 ANY = BenchProfile(name="t", scenarios=("s",))  # a plan with no scenario restrictions
@@ -33,7 +33,7 @@ def test_a_row_runs_where_its_fields_are_and_is_skipped_naming_a_missing_one(nam
     for field in row.needs:
         reason = plan.skip_reason(row, _data(f for f in FIELD_UNITS if f != field))
         assert reason is not None and field in reason, (field, reason)
-    reason = plan.skip_reason(row, _data(FIELD_UNITS, robot=data_only_robots()[0]))
+    reason = plan.skip_reason(row, _data(FIELD_UNITS, robot=ROBOTS.names(data_only=True)[0]))
     assert (reason is not None and "URDF" in reason) == row.needs_urdf, reason
 
 
