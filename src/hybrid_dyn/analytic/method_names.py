@@ -2,8 +2,8 @@
 (``methods.TIP_FORCE_METHODS``) and the joint-torque models (``torque_models.TORQUE_MODELS``).
 
 The residual priors and the model files name an estimator of either sort (``learn/priors.py``,
-``learn/model_spellings.py``); these two functions read both registries (their older spellings too:
-each registry's ``aliases``). Everything else reads one registry directly.
+``learn/presets.py``); these two functions read both registries (the older spellings a model file may
+hold too: each registry's ``aliases``). Everything else reads one registry directly.
 """
 from __future__ import annotations
 
