@@ -1,5 +1,5 @@
 """A third-party plugin (plugins.py): an installed distribution with a ``hybrid_dyn.plugins`` entry point adds
-a tip-force method, a family and a bench row through the public registries, with no edit of the toolkit.
+a tip-force method, a family, a bench row and a robot through the public registries, with no edit of the toolkit.
 
 The plugin is installed for real: a module and its ``*.dist-info`` (METADATA, entry_points.txt) in a folder
 on the path of a fresh interpreter, which is what pip leaves in site-packages. In that interpreter the
@@ -22,13 +22,16 @@ pytestmark = pytest.mark.system
 SRC = Path(__file__).resolve().parents[2] / "src"
 
 PLUGIN = '''
-"""A toy hybrid_dyn plugin: a method (the base momentum observer at half its gain), a family and a row."""
+"""A toy hybrid_dyn plugin: a method (the base momentum observer at half its gain), a family, a row, a robot."""
+from pathlib import Path
+
 import numpy as np
 
 from hybrid_dyn.analytic.method_declaration import TIP_FORCE_METHODS, Method
 from hybrid_dyn.analytic.observer_methods import BaseMomentumMethod
 from hybrid_dyn.bench.families import FAMILIES, Family
 from hybrid_dyn.bench.rows import ROWS, Predictor, Row
+from hybrid_dyn.description.robots import ROBOTS, RobotDeclaration
 
 
 class HalfGain(BaseMomentumMethod):
@@ -49,6 +52,7 @@ def build(ds, ctx):
 
 ROWS.register(Row("toy-tau-mean", "joint_torque", "toy-baseline", needs=("q", "tau_m"), needs_urdf=False,
                   build=build))
+ROBOTS.register(RobotDeclaration("toy-ur5", Path(__file__).with_name("toy-ur5.toml")))
 '''
 
 # What the fresh interpreter runs: the estimator first (nothing has loaded the plugin yet), then the CLI.
@@ -79,7 +83,9 @@ for command in ("bench", "study"):
             pass
     helps[command] = "".join(text.getvalue().split())  # argparse wraps at hyphens
 code = main(["bench", "--data", data, "--rows", "toy-half-momentum,toy-tau-mean", "--out", out, "--workers", "1"])
+toy_robot = load_robot("toy-ur5")
 print(json.dumps({"loaded": LOADED, "method": est.method, "gain": float(est.bandwidth),
+                  "robot": [toy_robot.name, toy_robot.nv],
                   "base_gain": float(base.bandwidth), "help": helps, "code": code}))
 '''
 
@@ -92,6 +98,11 @@ def _install(site: Path) -> None:
     (info / "METADATA").write_text("Metadata-Version: 2.1\nName: hd-toy-plugin\nVersion: 0.1\n")
     (info / "entry_points.txt").write_text("[hybrid_dyn.plugins]\ntoy = hd_toy_plugin\n")
     (info / "RECORD").write_text("")
+    # The plugin's robot: the UR5's description under another name (its URDF from example-robot-data).
+    from hybrid_dyn.description.locations import robots_dir
+
+    toml = (robots_dir() / "ur5.toml").read_text()
+    (site / "toy-ur5.toml").write_text(toml.replace('name = "ur5"', 'name = "toy-ur5"', 1))
 
 
 def test_an_installed_plugin_adds_a_method_and_a_row_to_the_estimator_the_help_and_the_report(tmp_path, panda):
@@ -111,6 +122,7 @@ def test_an_installed_plugin_adds_a_method_and_a_row_to_the_estimator_the_help_a
 
     assert got["loaded"] == {"toy": "hd_toy_plugin"}  # imported once, by the estimator's lookup
     assert got["method"] == "toy-half-momentum"
+    assert got["robot"] == ["toy-ur5", 6]  # declared by the plugin, loaded by name
     assert got["gain"] == pytest.approx(0.5 * got["base_gain"])  # the plugin's rule, run by the estimator
     bench_help = got["help"]["bench"]
     for name in ("toy-half-momentum", "toy-half-momentum-val", "toy-tau-mean", "toy-baseline"):
