@@ -121,42 +121,39 @@ def kuka_hypotheses(trajs) -> None:
         print(f"  {name} {lengths}: test RMSE {total:.3f} Nm, per joint {per_joint} (condition number {cond:.3g})")
 
 
-def ols_fit(rob, train, test, extra: bool, n_every: int = 1):
-    """Test RMSE per joint [Nm] of OLS on the base regressor (+ friction, + the declared extra terms)."""
-    bp = base_parameters(rob, friction=True)
-
-    def stack(parts):
-        q, qd, qdd, tau = (np.concatenate([p[k][::n_every] for p in parts]) for k in range(4))
-        W = bp.reduce(full_regressor(rob, q, qd, qdd, friction=True))
-        if extra:
-            E = extra_regressor(rob.spec, q, rob.joint_names)
-            if E is not None:
-                W = np.concatenate([W, E], axis=-1)
-        return W, tau
-
-    Wtr, ttr = stack(train)
-    Wte, tte = stack(test)
-    A = Wtr.reshape(-1, Wtr.shape[-1])
-    beta, *_ = np.linalg.lstsq(A, ttr.reshape(-1), rcond=None)
-    pred = Wte.reshape(-1, Wte.shape[-1]) @ beta
-    err = pred.reshape(tte.shape) - tte
-    s = np.linalg.svd(A / np.maximum(np.linalg.norm(A, axis=0), 1e-12), compute_uv=False)
-    return np.sqrt(np.mean(err ** 2, axis=0)), np.sqrt(np.mean(err ** 2)), s[0] / s[-1]
-
-
-def _ols_beta(rob, parts):
-    """OLS coefficients of the base regressor + friction + declared terms on ``parts``, and its stacker."""
+def regressor_of(rob, extra: bool):
+    """(q, qd, qdd) -> the base regressor of rigid body and friction (+ the declared extra terms)."""
     bp = base_parameters(rob, friction=True)
 
     def regressor(q, qd, qdd):
         W = bp.reduce(full_regressor(rob, q, qd, qdd, friction=True))
-        E = extra_regressor(rob.spec, q, rob.joint_names)
+        E = extra_regressor(rob.spec, q, rob.joint_names) if extra else None
         return W if E is None else np.concatenate([W, E], axis=-1)
 
-    A = np.concatenate([regressor(*p[:3]) for p in parts])
-    tau = np.concatenate([p[3] for p in parts])
-    beta, *_ = np.linalg.lstsq(A.reshape(-1, A.shape[-1]), tau.reshape(-1), rcond=None)
-    return beta, regressor
+    return regressor
+
+
+def least_squares(W: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """OLS coefficients of stacked regressors W (n, nv, p) against torques tau (n, nv)."""
+    beta, *_ = np.linalg.lstsq(W.reshape(-1, W.shape[-1]), tau.reshape(-1), rcond=None)
+    return beta
+
+
+def ols_fit(rob, train, test, extra: bool, n_every: int = 1):
+    """Test RMSE per joint [Nm] of OLS on the base regressor (+ friction, + the declared extra terms)."""
+    regressor = regressor_of(rob, extra)
+
+    def stack(parts):
+        q, qd, qdd, tau = (np.concatenate([p[k][::n_every] for p in parts]) for k in range(4))
+        return regressor(q, qd, qdd), tau
+
+    Wtr, ttr = stack(train)
+    Wte, tte = stack(test)
+    beta = least_squares(Wtr, ttr)
+    err = (Wte.reshape(-1, Wte.shape[-1]) @ beta).reshape(tte.shape) - tte
+    A = Wtr.reshape(-1, Wtr.shape[-1])
+    s = np.linalg.svd(A / np.maximum(np.linalg.norm(A, axis=0), 1e-12), compute_uv=False)
+    return np.sqrt(np.mean(err ** 2, axis=0)), np.sqrt(np.mean(err ** 2)), s[0] / s[-1]
 
 
 def residual_structure(rob, parts) -> None:
@@ -164,17 +161,20 @@ def residual_structure(rob, parts) -> None:
     function of the state explains it (least squares on state features, fitted on the residuals of
     trajectories 1-8 and scored on 9-10): if it does not, no correction of (q, qd, qdd) can learn it."""
     print("\n-- what OLS + declared terms leaves, per trajectory (fitted on the other nine), RMSE per joint [Nm]:")
+    regressor = regressor_of(rob, extra=True)
+    W = [regressor(*p[:3]) for p in parts]  # each trajectory's regressor once, for all the fits below
+    tau = [p[3] for p in parts]
     for k, p in enumerate(parts):
-        beta, regressor = _ols_beta(rob, parts[:k] + parts[k + 1:])
-        err = regressor(*p[:3]) @ beta - p[3]
+        beta = least_squares(np.concatenate(W[:k] + W[k + 1:]), np.concatenate(tau[:k] + tau[k + 1:]))
+        err = W[k] @ beta - p[3]
         print(f"  trajectory {k + 1:2d}: |qd| max {np.abs(p[1]).max():.2f} rad/s, |tau| max per joint "
               f"{np.abs(p[3]).max(0).round(1)}; RMSE {np.sqrt(np.mean(err ** 2, axis=0))}")
 
     def features(q, qd):
         return np.column_stack([np.ones(len(q)), q, np.sin(q), np.cos(q), np.tanh(qd / 0.02), qd])
 
-    beta, regressor = _ols_beta(rob, parts[:8])
-    res = [p[3] - regressor(*p[:3]) @ beta for p in parts]
+    beta = least_squares(np.concatenate(W[:8]), np.concatenate(tau[:8]))
+    res = [t - w @ beta for w, t in zip(W, tau)]
     X = np.concatenate([features(p[0], p[1]) for p in parts[:8]])
     Xt = np.concatenate([features(p[0], p[1]) for p in parts[8:]])
     rt = np.concatenate(res[8:])
