@@ -49,9 +49,8 @@ class StreamingTare:
         self.n_calls = int(n_calls)
         self.residuals = np.zeros((self.n_calls, 3))  # per window call: measured - model force [N]
         self.moments = np.zeros((self.n_calls, 3))  # and moment [Nm]
-        # The moment residual about the root origin in root coordinates, and the tool point [m] there:
-        # what ``held_force`` reads (a force at the tool moves the moment with the tool).
-        self.root_moments = np.zeros((self.n_calls, 3))
+        # The tool point [m] per window call, in root coordinates: with the residual's moment there, what
+        # ``held_force`` reads (a force at the tool moves the moment with the tool).
         self.positions = np.zeros((self.n_calls, 3))
         self.reset()
 
@@ -70,7 +69,6 @@ class StreamingTare:
             residual = base_wrench - self.robot.base_wrench_single(q, qd, qdd)
             self.residuals[self.count] = residual[:3]
             self.moments[self.count] = residual[3:]
-            self.root_moments[self.count] = (self.robot._root_from_sensor[3:] @ residual)
             self.positions[self.count] = self.robot.tip_position_single(q)
             self.count += 1
             self.offset += (residual - self.offset) / self.count
@@ -103,7 +101,8 @@ class StreamingTare:
         """``held_tool_force`` of the full window: a force held at the tool while it moved."""
         if not self.done:
             return None
-        return held_tool_force(self.positions, self.root_moments, threshold)
+        root_moments = self.robot.base_wrench_to_root(np.hstack([self.residuals, self.moments]))[:, 3:]
+        return held_tool_force(self.positions, root_moments, threshold)
 
     def set_offset(self, offset) -> None:
         """Use a known offset (e.g. from a tare done elsewhere) and skip the tare window."""
@@ -123,6 +122,14 @@ def window_force(forces: np.ndarray, threshold: float) -> float | None:
     return seen if seen > threshold else None
 
 
+def robust_sigma(x: np.ndarray) -> np.ndarray:
+    """Per column of x (n, k), its white noise's standard deviation from the median absolute deviation
+    (1.4826 MAD): medians by partial sort (the upper one of an even count), as a control cycle runs this."""
+    half = len(x) // 2
+    center = np.partition(x, half, axis=0)[half]
+    return 1.4826 * np.partition(np.abs(x - center), half, axis=0)[half]
+
+
 def residual_change(residuals: np.ndarray, threshold: float, segments: int = 5) -> float | None:
     """The largest change [N] of a window's force residual (measured - model, (n, 3)) between its segments
     when it exceeds ``threshold`` [N], else None: a contact that began or ended inside the window, or a
@@ -140,8 +147,7 @@ def residual_change(residuals: np.ndarray, threshold: float, segments: int = 5) 
     spread = float(np.sqrt((gaps * gaps).sum(axis=2).max()))
     # The residual's own noise (MAD, per axis) moves a segment's median by ~1.25 sigma / sqrt(n): a
     # change within six such (of a difference of two medians) is no evidence of a contact.
-    center = np.partition(r, len(r) // 2, axis=0)[len(r) // 2]
-    sigma = 1.4826 * np.partition(np.abs(r - center), len(r) // 2, axis=0)[len(r) // 2]
+    sigma = robust_sigma(r)
     noise_limit = 6.0 * 1.25 * math.sqrt(2.0) * float(np.linalg.norm(sigma)) / math.sqrt(len(parts[-1]))
     return spread if spread > max(threshold, noise_limit) else None
 
@@ -175,11 +181,7 @@ def held_tool_force(positions: np.ndarray, moments: np.ndarray, threshold: float
     coef = np.where(excited, (vec.T @ rhs) / np.where(excited, lam, 1.0), 0.0)
     # The moment's white noise from its sample-to-sample differences (MAD): a contact's edge inside the
     # window (a step) would inflate the fit's own residual and hide the force it leaves behind.
-    diff = m[1:] - m[:-1]
-    half = len(diff) // 2  # medians by partial sort (the upper one of an even count): a control cycle runs this
-    center = np.partition(diff, half, axis=0)[half]
-    mad = np.partition(np.abs(diff - center), half, axis=0)[half]
-    sigma = float(np.sqrt(np.mean((1.4826 * mad) ** 2) / 2.0))
+    sigma = float(np.sqrt(np.mean(robust_sigma(m[1:] - m[:-1]) ** 2) / 2.0))
     se = sigma / np.sqrt(np.where(excited, lam, np.inf))
     seen = excited & (np.abs(coef) > threshold) & (np.abs(coef) > significance * se)
     size = float(np.sqrt((coef[seen] ** 2).sum()))
