@@ -73,11 +73,7 @@ class Registry(dict):
         A name not declared loads the installed plugins first (``plugins.load_plugins``, once per process):
         a plugin's declaration is found by the first lookup that asks for it."""
         name = self.canonical(name, stacklevel=3)
-        if name not in self:
-            from .plugins import load_plugins
-
-            load_plugins()  # a plugin not imported yet may declare it
-        if name not in self:
+        if self.missing([name]):  # after the plugins not imported yet, which may declare it
             raise self._unknown(f"unknown {self.what} {name!r}; known: {', '.join(self)}")
         return self[name]
 
