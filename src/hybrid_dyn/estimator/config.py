@@ -65,9 +65,10 @@ class EstimatorConfig:
     cannot tell from its offset, is seen in motion by its moment (p x F moves with the tool,
     ``tare.held_tool_force``); a window whose moments reveal one above this [N] is refused too. Higher
     than tare_contact_force: in motion the model's wrench errs with the window's filtered qdd, and that
-    error's moment follows the motion as well (1.25 N on the tests' sine motion). Only directions across
-    which the tool moved 3 mm RMS in the window count: over less motion a slow drift of the moment fits
-    any force, so a press held through a window that still stays undecidable, as at a standstill.
+    error's moment follows the motion as well: at 1 N it refused clean windows of the tests' sine motion
+    (``tests/analytic/test_methods.py``). Only directions across which the tool moved 3 mm RMS in the
+    window count: over less motion a slow drift of the moment fits any force, so a press held through a
+    window that still stays undecidable, as at a standstill.
     encoder_resolution: the joint encoders' resolution [rad per count]; "auto" takes the robot
     description's (1e-5 rad on the Panda). Above 0, q (quantized) becomes q, qd and qdd through the
     joint-state Kalman filter (``analytic/joint_state.py``) that every method reads; the reported qd is
