@@ -65,8 +65,8 @@ class EstimatorConfig:
     cannot tell from its offset, is seen in motion by its moment (p x F moves with the tool,
     ``tare.held_tool_force``); a window whose moments reveal one above this [N] is refused too. Higher
     than tare_contact_force: in motion the model's wrench errs with the window's filtered qdd, and that
-    error's moment follows the motion as well: at 1 N it refused clean windows of the tests' sine motion
-    (``tests/analytic/test_methods.py``). Only directions across which the tool moved 3 mm RMS in the
+    error's moment follows the motion as well: at 1 N it refused the contact-free start-up window of a bag
+    replayed with the default joint filter (``tests/estimator/test_estimate_from_bag.py``). Only directions across which the tool moved 3 mm RMS in the
     window count: over less motion a slow drift of the moment fits any force, so a press held through a
     window that still stays undecidable, as at a standstill.
     encoder_resolution: the joint encoders' resolution [rad per count]; "auto" takes the robot
