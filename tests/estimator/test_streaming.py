@@ -274,22 +274,40 @@ def test_kalman_fusion_needs_one_sensor_at_least(panda):
         est.estimate_tip_force(panda.spec.home, np.zeros(7))
 
 
-def test_a_gap_in_a_timed_stream_costs_one_sample_and_a_warm_up(recorded):
-    """A sample late by a lost tick is refused; the stream resumes one period after it and warms up anew."""
-    est = TipForceEstimator.analytic("panda", "momentum-observer", call_hz=RATE, momentum_gain=50.0, on_bad_input="hold",
-                                     encoder_resolution=0.0, max_sigma=1e3)  # statuses of the warm-up, not of the error bar
+def test_a_short_gap_is_bridged_and_a_long_one_warms_up_anew(recorded):
+    """Two lost ticks: the sample after them is refused (a gap, or a stray stamp?), the next one confirms the
+    gap, which is bridged: no warm-up, and the estimate goes on within a hair of the stream that lost nothing.
+    A gap beyond bridge_seconds restarts the method: the resumed stream equals a new one started there."""
+    def make():
+        return TipForceEstimator.analytic("panda", "momentum-observer", call_hz=RATE, momentum_gain=50.0,
+                                          on_bad_input="hold", encoder_resolution=0.0, max_sigma=1e3,
+                                          bridge_seconds=0.05)
     tau = recorded.tau_J
+    whole, est = make(), make()
+    f_whole = [whole.estimate_tip_force(recorded.q[k], recorded.qd[k], tau_J=tau[k], t=recorded.t[k]) for k in range(80)]
     for k in range(40):
         est.estimate_tip_force(recorded.q[k], recorded.qd[k], tau_J=tau[k], t=recorded.t[k])
     assert est.last_status is EstimatorStatus.OK
     est.estimate_tip_force(recorded.q[42], recorded.qd[42], tau_J=tau[42], t=recorded.t[42])  # ticks 40, 41 lost
     assert est.last_status is EstimatorStatus.INPUT_REJECTED
-    est.estimate_tip_force(recorded.q[43], recorded.qd[43], tau_J=tau[43], t=recorded.t[43])
+    for k in range(43, 80):  # the interpolated ticks' error decays at the observer's rate, 50 /s
+        f = est.estimate_tip_force(recorded.q[k], recorded.qd[k], tau_J=tau[k], t=recorded.t[k])
+        assert est.last_status is EstimatorStatus.OK
+        if k >= 70:
+            np.testing.assert_allclose(f, f_whole[k], atol=0.05)
+    gap = int(0.05 * RATE) + 2  # beyond bridge_seconds
+    assert 43 + gap + 30 < len(recorded.t)
+    est = make()
+    for k in range(40):
+        est.estimate_tip_force(recorded.q[k], recorded.qd[k], tau_J=tau[k], t=recorded.t[k])
+    k0 = 40 + gap
+    est.estimate_tip_force(recorded.q[k0], recorded.qd[k0], tau_J=tau[k0], t=recorded.t[k0])
+    assert est.last_status is EstimatorStatus.INPUT_REJECTED
+    est.estimate_tip_force(recorded.q[k0 + 1], recorded.qd[k0 + 1], tau_J=tau[k0 + 1], t=recorded.t[k0 + 1])
     assert est.last_status is EstimatorStatus.WARMING_UP
-    fresh = TipForceEstimator.analytic("panda", "momentum-observer", call_hz=RATE, momentum_gain=50.0, encoder_resolution=0.0,
-                                       max_sigma=1e3)
-    for k in range(43, 80):  # the resumed stream equals a new one started at tick 43
-        a = est.estimate_tip_force(recorded.q[k], recorded.qd[k], tau_J=tau[k], t=recorded.t[k]) if k > 43 else None
+    fresh = make()
+    for k in range(k0 + 1, k0 + 30):  # the resumed stream equals a new one started at tick k0 + 1
+        a = est.estimate_tip_force(recorded.q[k], recorded.qd[k], tau_J=tau[k], t=recorded.t[k]) if k > k0 + 1 else None
         b = fresh.estimate_tip_force(recorded.q[k], recorded.qd[k], tau_J=tau[k], t=recorded.t[k])
         if a is not None:
             np.testing.assert_array_equal(a, b)

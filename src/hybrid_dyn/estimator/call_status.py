@@ -36,15 +36,16 @@ def within(x, bound) -> bool:  # pragma: no cover (compiled)
 class CallStatus:
     """The estimator's per-call status steps (a mixin of ``TipForceEstimator``)."""
 
-    def _judge(self, q, qd, qdd, w_in, base_wrench, tau_J) -> None:
+    def _judge(self, q, qd, qdd, w_in, base_wrench, tau_J, tau_raw=None) -> None:
         """This call's consistency status (``estimator/consistency.py``), first match: an implausible tare,
-        a frozen sensor, a contact off the tool."""
+        a frozen sensor (on the sensor's own reading ``tau_raw``), a contact off the tool (on tau_J less the
+        torque model's terms beyond the rigid body)."""
         check, fault = self._check, None
         if w_in is not None and self._tare is not None:
             o = self._tare.offset
             if o[0] * o[0] + o[1] * o[1] + o[2] * o[2] > self.config.max_tare_offset ** 2:
                 fault = _IMPLAUSIBLE_TARE
-        if check.frozen(base_wrench, tau_J) and fault is None:
+        if check.frozen(base_wrench, tau_J if tau_raw is None else tau_raw) and fault is None:
             fault = _FROZEN_SENSOR
         if check.check_off_tool(q, qd, qdd, w_in, tau_J) and fault is None:
             fault = _OFF_TOOL
@@ -77,11 +78,13 @@ class CallStatus:
             if self._tared_at is not None:
                 since = (self._calls - self._tared_at) / self.config.call_hz
             self.last_sigma = self._error_bar.update(f, self._motion, since)
+            if self._model_sigma is not None:  # the model's error, independent of the sensors'
+                self.last_sigma = np.sqrt(self.last_sigma * self.last_sigma + self._model_sigma * self._model_sigma)
         else:
             self.last_sigma = NO_SIGMA.copy()
         status = _OK if in_range else _OUT_OF_RANGE
         s0, s1, s2 = self.last_sigma.tolist()  # floats: a numpy max costs a microsecond; NaN still fails
-        limit = self.config.max_sigma
+        limit = self.max_sigma
         if status is _OK and not (s0 <= limit and s1 <= limit and s2 <= limit):
             status = _UNCERTAIN
         if self._calls < self._warmup_calls:

@@ -76,12 +76,16 @@ class EstimatorConfig:
     as given (a simulation's, or a dataset whose sensor model says so).
     joint_filter_bandwidth: that filter's bandwidth [rad/s] ("auto": ``joint_state.DEFAULT_OMEGA``).
     stamp_jitter: how far a timed stream's stamps may stray from the robot's sample clock [s]: a stamp
-    is accepted within max(rate_tolerance / call_hz, 1.5 stamp_jitter) of the clock (the stamps' own
-    grid, followed slowly), never 0.9 periods or more off it (a lost tick, or another rate). The filters
-    run on the nominal period (the robot samples on its own clock; the stamps carry the PC's jitter).
+    whose step from the last accepted one lies within max(rate_tolerance / call_hz, 1.5 stamp_jitter) of the
+    period (never 0.9 periods or more) is the next tick; a longer step is a gap of
+    round(step / period) ticks. The filters run on the nominal period (the robot samples on its own clock; the
+    stamps carry the PC's jitter).
+    bridge_seconds: a gap up to this long [s] is bridged (its samples interpolated between the two it lies
+    between; no new warm-up); a longer one restarts the filters and the method (a warm-up).
 
     max_sigma: a call is ``ok`` only while its predicted 1-sigma error (``last_sigma``) is below this on
-    every axis [N]; above it the status is "uncertain". motion_sigma_gain [N per rad/s^2] and
+    every axis [N]; above it the status is "uncertain". "auto": a calibration's (``estimator/calibration.py``:
+    1.5 times the 99th percentile of sigma on the user's own log), else MAX_SIGMA (0.8 N). motion_sigma_gain [N per rad/s^2] and
     base_drift_rate [N/s, the base sensor's bias drift after its tare]: the error model's motion and
     drift terms (``analytic/error_bar.py``).
 
@@ -131,7 +135,8 @@ class EstimatorConfig:
     encoder_resolution: float | str = "auto"
     joint_filter_bandwidth: float | str = "auto"
     stamp_jitter: float = 5e-4
-    max_sigma: float = 0.8
+    bridge_seconds: float = 0.02
+    max_sigma: float | str = "auto"
     motion_sigma_gain: float = MOTION_GAIN
     base_drift_rate: float = DRIFT_RATE
     standstill_speed: float = 5e-3
@@ -178,9 +183,7 @@ class EstimatorConfig:
                 raise UsageError(f"{name} must be >= 0, got {getattr(self, name)!r}")
         if not self.max_tip_force > 0:
             raise UsageError(f"max_tip_force must be > 0 [N], got {self.max_tip_force!r}")
-        for name in ("max_sigma",):
-            if not (isinstance(getattr(self, name), (int, float)) and getattr(self, name) > 0):
-                raise UsageError(f"{name} must be > 0 [N], got {getattr(self, name)!r}")
+        _auto_or_positive("max_sigma", self.max_sigma, "N")
         for name in ("standstill_speed", "standstill_seconds", "retare_seconds"):
             if not (isinstance(getattr(self, name), (int, float)) and getattr(self, name) > 0):
                 raise UsageError(f"{name} must be > 0, got {getattr(self, name)!r}")
@@ -197,6 +200,8 @@ class EstimatorConfig:
                                                       and 0 <= self.encoder_resolution < 0.01):
             raise UsageError(f"encoder_resolution must be 'auto' or lie in [0, 0.01) [rad], got {self.encoder_resolution!r}")
         _auto_or_positive("joint_filter_bandwidth", self.joint_filter_bandwidth, "rad/s")
+        if not (isinstance(self.bridge_seconds, (int, float)) and 0 <= self.bridge_seconds <= 1.0):
+            raise UsageError(f"bridge_seconds must lie in [0, 1] [s], got {self.bridge_seconds!r}")
         if not (isinstance(self.stamp_jitter, (int, float)) and 0 <= self.stamp_jitter < 1.0):
             raise UsageError(f"stamp_jitter must lie in [0, 1) [s], got {self.stamp_jitter!r}")
         _auto_or_positive("rated_payload_kg", self.rated_payload_kg, "kg")
@@ -205,6 +210,7 @@ class EstimatorConfig:
 
 
 _FIELDS = frozenset(EstimatorConfig.__dataclass_fields__) - {"bandwidths"}
+MAX_SIGMA = 0.8  # [N]: max_sigma's value with no calibration
 MAX_PAYLOAD_KG = 50.0  # no arm this toolkit models lifts more; a larger figure is a unit slip (g for kg)
 
 

@@ -47,8 +47,9 @@ def _repeat(prev, x) -> bool:  # pragma: no cover (compiled)
 class Consistency:
     """Per-stream state of the checks; ``fault`` holds the status name of the current fault, or None."""
 
-    def __init__(self, robot, config, stream, method: str, reads_base: bool, reads_tau: bool):
+    def __init__(self, robot, config, stream, method: str, reads_base: bool, reads_tau: bool, model_error=None):
         self.robot, self.config, self._stream, self.method = robot, config, stream, method
+        self._model_error = model_error  # a calibrated model term: its part outside range(J_v^T) widens the bound
         self._reads_base, self._reads_tau = reads_base, reads_tau
         self._prev_w, self._prev_tau = np.full(6, np.nan), np.full(robot.nv, np.nan)
         self._frozen_calls = config.frozen_calls
@@ -118,9 +119,9 @@ class Consistency:
         elif m == "base-wrench" and w_tared is not None:
             wrench = r._root_from_sensor @ w_tared - r.rnea_ff_single(q, qd, qdd)[:6]
         elif m == "momentum-observer":
-            return self._torque_part(q, self._stream.observer.residual), c.off_tool_torque
+            return self._torque_part(q, self._stream.observer.residual), self._torque_bound()
         elif m == "torques-pinv" and tau is not None:
-            return self._torque_part(q, r.rnea_ff_single(q, qd, qdd)[6:] - tau), c.off_tool_torque
+            return self._torque_part(q, r.rnea_ff_single(q, qd, qdd)[6:] - tau), self._torque_bound()
         elif self._observer is not None and self._observer.settled:
             wrench = self._observer.wrench
         else:
@@ -130,6 +131,14 @@ class Consistency:
         fx, fy, fz, mx, my, mz = wrench.tolist()
         ex, ey, ez = mx - (py * fz - pz * fy), my - (pz * fx - px * fz), mz - (px * fy - py * fx)
         return math.sqrt(ex * ex + ey * ey + ez * ez), c.off_tool_moment
+
+    def _torque_bound(self) -> float:
+        """The off-tool bound on the joint torques [Nm]: the config's, or the calibrated model error's part
+        outside range(J_v^T) where that is larger (the model's own misfit is no contact)."""
+        bound = self.config.off_tool_torque
+        if self._model_error is not None:
+            bound = max(bound, self._model_error.off_tool_bound)
+        return bound
 
     def _torque_part(self, q, residual) -> float:
         """|r - J_v^T pinv(J_v^T) r| [Nm]: the external joint torques no tool force explains."""

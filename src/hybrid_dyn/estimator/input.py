@@ -65,11 +65,11 @@ class InputGate:
     def reset(self) -> None:
         """A new stream: untimed until its first call with t."""
         self.last_t = None  # set by the first call with t: from then on the stream is timed
-        self._gap_tick = None  # the tick of a sample refused for a gap: the stream resumes at the next one
-        self._t0 = None  # the robot's sample clock as the stamps show it: the stamp of tick 0 [s]
-        self._tick = 0  # the tick of the last accepted sample
-        self._stamps = 0  # accepted stamps that estimate the clock
-        self.lost_ticks = 0  # ticks lost before the latest resumed sample
+        self._seen_t = None  # the latest stamp ahead of the stream's: accepted, or of a call refused since
+        self._calls_since = 0  # calls since the last accepted sample, this one included (each a tick)
+        self._stamps = 0  # accepted stamps
+        self._clock = None  # the robot's clock as the stamps show it: the stamp of the last accepted tick [s]
+        self.lost_ticks = 0  # ticks lost before the latest accepted sample
 
     def model_changed(self) -> None:
         """The robot's model changed in place (a payload): its weight bounds the base wrench anew (the
@@ -140,7 +140,7 @@ class InputGate:
         self._views = tuple(views)
         self._unused = np.zeros(0)  # the gate's argument for an input this estimator does not read
         self._period = 1.0 / c.call_hz
-        # Stamps jitter about the robot's clock (the PC's); a lost tick (one period off) is never jitter.
+        # A step this far from the period is the stamps' jitter (a PC's), never a lost tick.
         self._period_tol = min(max(c.rate_tolerance * self._period, 1.5 * c.stamp_jitter), 0.9 * self._period)
         self._jitter = c.stamp_jitter
         self._max_force_sq = c.max_tip_force ** 2
@@ -148,14 +148,15 @@ class InputGate:
     def accept(self, q, qd, base_wrench, tau_J, t):
         """Check one sample before it touches any state (every method passes here).
 
-        Returns (q, qd, base_wrench, tau_J, t, resumed): the arrays as float views of the
+        Returns (q, qd, base_wrench, tau_J, t, lost): the arrays as float views of the
         preallocated sample vector (None where this estimator does not use them),
-        t as a float or None, resumed: the first sample after a gap. Raises
+        t as a float or None, lost: the ticks lost before this sample (a gap). Raises
         EstimatorInputError naming the argument. ``last_t`` is the caller's to advance.
         """
         # The fast path: float64 1-D arrays go straight into the compiled gate (copy-in and box check in
         # one call); anything else (lists, other dtypes, wrong shapes, None) is converted and named by
         # _converted, then gated the same way. An input the estimator does not read is never looked at.
+        self._calls_since += 1  # every call is a tick of the caller's loop, refused or not
         w = base_wrench if self._needs_wrench else self._unused
         tau = tau_J if self._needs_tau else self._unused
         if self._optional:
@@ -169,10 +170,12 @@ class InputGate:
             code = _gate(self._sample, self._box_lo, self._box_inv_width, self._gate_slots,
                          *self._converted(q, qd, base_wrench, tau_J))
         if code != GATE_INSIDE:  # NaN and inf fail the box too
+            self.saw_stamp(t)
             raise EstimatorInputError(self._implausible())
         if self._optional and base_wrench is None and tau_J is None:
+            self.saw_stamp(t)
             raise EstimatorInputError("kalman-fusion needs base_wrench (6,) [N, Nm], tau_J (nv,) [Nm] or both")
-        resumed = False
+        lost = 0
         if t is None:
             if self.last_t is not None:
                 raise EstimatorInputError(f"t is missing, but this stream gave t before (last t = {self.last_t} s): "
@@ -184,56 +187,65 @@ class InputGate:
                 raise EstimatorInputError(f"t must be a number [s], got a {type(t).__name__}: {t!r:.60}") from None
             if not math.isfinite(t):
                 raise EstimatorInputError(f"t must be finite, got {t}")
-            resumed = self._on_clock(t)
+            lost = self._on_clock(t)
+        self._calls_since = 0
         q, qd, views_w, views_tau = self._views
         if self._optional:  # an absent sensor stays None
-            return q, qd, None if base_wrench is None else views_w, None if tau_J is None else views_tau, t, resumed
-        return q, qd, views_w, views_tau, t, resumed
+            return q, qd, None if base_wrench is None else views_w, None if tau_J is None else views_tau, t, lost
+        return q, qd, views_w, views_tau, t, lost
 
-    def _on_clock(self, t: float) -> bool:
-        """Place stamp t on the robot's sample clock; returns whether it resumes the stream after a gap.
+    def _on_clock(self, t: float) -> int:
+        """Place stamp t on the stream; returns the ticks lost before it (0: the next tick).
 
-        The clock (the stamp of tick 0) is the clipped mean of the accepted stamps' offsets from their ticks,
-        so that no one stamp anchors it: each moves it by at most ``_period_tol`` / n (1 % once 100 are in,
-        which follows a slow drift between the PC's and the robot's clocks). A stamp belongs to the next tick
-        when it lies within ``_period_tol`` of it, widened by the clock's own uncertainty while few stamps
-        are in (``stamp_jitter`` / sqrt(n)): equal or slightly reversed stamps within the jitter are the next
-        tick. A stamp a whole tick or more ahead is a gap (refused; the next stamp, one tick after it on the
-        clock, resumes: the samples lost are counted by the stamps), and a stream whose every stamp lies
-        ticks apart (a wrong rate) never resumes."""
+        Stamps come in two kinds, and both are accepted. A simulator's or a driver's jitter about the robot's
+        clock: the stamp lies within ``_period_tol`` of the next tick of a clock that follows the stamps
+        slowly (each moves it by 1 / n, at least 1 %). A logging PC's, as on a real Panda's 1 kHz log: steps of
+        0.7-1.8 ms that wander by milliseconds about any fixed clock, where the step from the last accepted
+        stamp lies within ``_period_tol`` of the period. Either makes the stamp the next tick.
+
+        A longer step spans round(step / period) ticks. It is accepted when what came
+        between explains it: the stamp of the call before lies one period before it (that call was refused
+        for its values, or was a gap's end), or no call between brought a stamp ahead and there were as many
+        calls as ticks (a sample refused for a stamp of its own). One bad sample costs one sample. Else it is
+        refused: a stray stamp, a gap's end (the next call confirms it), or a stream at another rate than
+        call_hz, whose every step spans several ticks and which so never goes on. A stamp before the last
+        accepted one, or too early for the next tick, is refused. The estimator bridges the ticks lost in a
+        short gap (``bridge_seconds``) and restarts after a long one."""
         if self.last_t is None:
-            self._t0, self._tick, self._stamps, self._gap_tick = t, 0, 1, None
-            return False
-        T = self._period
-        off = t - (self._t0 + (self._tick + 1) * T)
-        young = self._jitter / math.sqrt(self._stamps)
-        if -min(self._period_tol + young, T) <= off <= min(self._period_tol + young, 0.9 * T):
-            self._advance(1, off)
-            self._gap_tick = None
-            return False
-        if t <= self.last_t - 2.0 * self._jitter or (self._jitter == 0 and t <= self.last_t):
+            self._stamps, self._clock, self._seen_t = 1, t, t
+            return 0
+        T, tol = self._period, self._period_tol
+        step = t - self.last_t
+        off = t - (self._clock + T)  # from the clock's next tick
+        if abs(step - T) <= tol or abs(off) <= tol:
+            ticks = 1
+        elif step <= -2.0 * self._jitter or (self._jitter == 0 and step <= 0):
             raise EstimatorInputError(f"time must increase: t={t} after t={self.last_t}")
-        ahead = round(off / T)  # the whole ticks beyond the next one
-        near = abs(off - ahead * T) <= self._period_tol
-        tick = self._tick + 1 + ahead
-        if near and ahead >= 1 and self._gap_tick is not None and tick == self._gap_tick + 1:
-            self.lost_ticks = tick - self._tick - 1
-            self._advance(tick - self._tick, off - ahead * T)
-            self._gap_tick = None
-            return True
-        self._gap_tick = tick if near and ahead >= 1 else None
-        raise EstimatorInputError(
-            f"t={t} s lies {off:+.3g} s off the stream's clock (it steps {t - self.last_t:.6g} s from the last "
-            f"accepted sample, and call_hz={self.config.call_hz:g} expects {T:.6g} s, "
-            f"stamps within +-{self._period_tol:.3g} s): a wrong call_hz, or a gap in the stream "
-            "(it resumes one period after this sample)")
-
-    def _advance(self, ticks: int, off: float) -> None:
-        """Accept a stamp ``ticks`` after the last one, ``off`` [s] from its tick: the clock moves toward it."""
-        self._tick += ticks
+        elif step < T:
+            raise EstimatorInputError(
+                f"t={t} s steps {step:.6g} s from the last accepted sample, and call_hz={self.config.call_hz:g} "
+                f"expects {T:.6g} s (stamps within +-{tol:.3g} s): a stamp too early for the next tick")
+        else:
+            ticks = max(2, round(step / T))  # by the step: a PC's stamps wander off any slow clock
+            seen, self._seen_t = self._seen_t, t
+            between = (0 < t - seen <= T + tol) if seen != self.last_t else ticks <= self._calls_since
+            if not between:
+                raise EstimatorInputError(
+                    f"t={t} s steps {step:.6g} s from the last accepted sample, and call_hz={self.config.call_hz:g} "
+                    f"expects {T:.6g} s (stamps within +-{tol:.3g} s): a wrong call_hz, a stray stamp, or a gap "
+                    "(the stream goes on when the next stamp lies one period after this one)")
+        self._seen_t = t
         self._stamps += 1
-        gain = max(1.0 / self._stamps, 0.01)
-        self._t0 += gain * min(max(off, -self._period_tol), self._period_tol)
+        self._clock += ticks * T
+        self._clock += max(1.0 / self._stamps, 0.01) * min(max(t - self._clock, -tol), tol)
+        self.lost_ticks = ticks - 1
+        return ticks - 1
+
+    def saw_stamp(self, t) -> None:
+        """A call refused for its values brought stamp t: when it lies ahead of the last accepted one, the next
+        stamp one period after it is the next tick (that sample was lost, not the clock)."""
+        if self.last_t is not None and isinstance(t, (int, float)) and math.isfinite(t) and t > self.last_t:
+            self._seen_t = float(t)
 
     def _converted(self, q, qd, base_wrench, tau_J) -> list:
         """_accept's slow path: each input this estimator reads as a fresh float64 array of its shape

@@ -44,12 +44,14 @@ class NoiseWindow:
             if self.check_torques:
                 self.force[k] = tip_force_from_torques(self.robot, q, qd, qdd, tau)
 
-    def contact(self, tare, limit: float, moment_limit: float = np.inf, held_limit: float = np.inf) -> str | None:
+    def contact(self, tare, limit: float, moment_limit: float = np.inf, held_limit: float = np.inf,
+                torque_limit: float | None = None) -> str | None:
         """Why this window must not be trusted (a contact in it), or None. The base sensor's residual must
         not change between the window's parts (a contact that began or ended in it, a trend:
         ``StreamingTare.residual_change``); the joint torques, where kept, must see no force above ``limit``
         [N] (a contact held through the whole window, which the base sensor alone cannot tell from its
         offset); its moment residual must reveal no force above ``held_limit`` [N] held at the moving tool.
+        torque_limit [N]: the joint torques' own limit where the model's calibrated error is larger (else ``limit``).
         """
         if tare is not None and tare.done:
             step = tare.residual_change(limit)
@@ -64,10 +66,11 @@ class NoiseWindow:
                 return (f"the base sensor's moment residual followed the tool's motion as a force held at the tool "
                         f"would (fitted: {seen:.2f} N, limit {held_limit:g} N): a contact, or a tool load the model lacks")
         has = self.has[:, 1]
+        limit = limit if torque_limit is None else max(limit, torque_limit)
         seen = window_force(self.force[has], limit) if self.check_torques and has.sum() >= 8 else None
         if seen is not None:
             return (f"the joint torques saw {seen:.2f} N at the tool during the noise window "
-                    f"(limit {limit:g} N): a contact, or a tool load other than the model's (payload= missing, "
+                    f"(limit {limit:.3g} N): a contact, or a tool load other than the model's (payload= missing, "
                     "or declared but not carried)")
         return None
 

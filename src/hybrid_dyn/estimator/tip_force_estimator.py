@@ -20,17 +20,20 @@ from ..analytic.tare import StreamingTare, tare_samples
 from ..description.spec import resolve_encoder_resolution
 from ..errors import UsageError
 from .call_status import NO_SIGMA, CallStatus, within
-from .config import EstimatorConfig, EstimatorStatus, check_rating, checked_payload, rated_payload
+from .config import MAX_SIGMA, EstimatorConfig, EstimatorStatus, check_rating, checked_payload, rated_payload
+from .calibration import Calibration, ModelError
 from .consistency import Consistency
 from .input import EstimatorInputError, InputGate, RateCheck
 from .noise_window import NoiseWindow
 from .stream_starts import StreamStarts
+from .torque_model import JointTorqueModel
 
 
 class TipForceEstimator(CallStatus, StreamStarts):
     """Streaming tip-force estimator: what one call does, docs/estimator.md."""
 
-    def __init__(self, robot: Robot, method: str, config: EstimatorConfig | None = None, model=None):
+    def __init__(self, robot: Robot, method: str, config: EstimatorConfig | None = None, model=None,
+                 torque_model: JointTorqueModel | None = None, calibration: Calibration | None = None):
         self.config = c = config or EstimatorConfig()
         if model is None:  # its own model: set_payload changes it in place, and no one else's
             robot = robot.copy()
@@ -50,16 +53,34 @@ class TipForceEstimator(CallStatus, StreamStarts):
             sensors, self._needs_qdd = self.spec.reads, self.spec.needs_qdd
             self._optional = frozenset(sensors) if self.spec.any_of else frozenset()
         self.method = method
+        # The torque model beyond the rigid body (friction, springs, a learned residual), taken from tau_J, and
+        # the error bar's model term calibrated on the user's log (``estimator/calibration.py``).
+        self.torque_model = torque_model
+        self.calibration = calibration
+        self._model_error, max_sigma, calibrated = None, c.max_sigma, None
+        if calibration is not None:
+            if self.spec is None or "tau_J" not in self.spec.reads:
+                raise UsageError(f"a calibration applies to the joint-torque methods, not {method!r}")
+            calibrated = calibration.check_for(robot, None if torque_model is None else torque_model.digest, method)
+            self._model_error = ModelError(robot, calibrated)
+            max_sigma = calibrated.max_sigma if max_sigma == "auto" else max_sigma
+        self.max_sigma = MAX_SIGMA if max_sigma == "auto" else float(max_sigma)
+        self._model_qdd = self._model_error is not None or (torque_model is not None and torque_model.needs_qdd)
         self._gate = InputGate(robot, c, "base_wrench" in sensors, "tau_J" in sensors, self._optional)
         self._rate = RateCheck(nv, float(c.call_hz), c.rate_tolerance)
+        self._bridge_ticks = int(c.bridge_seconds * c.call_hz)  # the longest gap bridged [ticks]
+        self._prev_arrays = (np.zeros(nv), np.zeros(nv), np.zeros(6), np.zeros(nv))
         # Quantized encoders: q becomes q, qd (and qdd) through one Kalman filter every method reads
         # (analytic methods only: a learned model reads what its training data recorded).
         self.encoder_resolution = resolve_encoder_resolution(c.encoder_resolution, robot.spec)
         self._joint = None if model is not None else joint_filter_for(
             robot, c.call_hz, self.encoder_resolution, c.joint_filter_bandwidth)
-        self._error_bar = ErrorBar(c.call_hz, c.motion_sigma_gain, c.base_drift_rate)
-        # The bandwidth: a number in the config, or None for the rule at the window's end.
+        # The motion term stands in for the model's error; a calibrated model term replaces it.
+        self._error_bar = ErrorBar(c.call_hz, 0.0 if calibrated else c.motion_sigma_gain, c.base_drift_rate)
+        # The bandwidth: a number in the config (or the calibration's), or None for the rule at the window's end.
         value = "auto" if self.spec is None else c.bandwidth(self.spec.parameter)  # by its declaration's name
+        if value == "auto" and calibrated is not None:
+            value = calibrated.bandwidth
         self._fixed = None if value == "auto" else float(value)
         if model is not None and c.qdd_cutoff_hz == "auto":
             # The network saw qdd through its training filter: the stream runs it too, a fixed number the
@@ -81,7 +102,7 @@ class TipForceEstimator(CallStatus, StreamStarts):
         check_torques = self.spec is not None and self.spec.tares and "tau_J" in self.spec.reads
         self._window = NoiseWindow(robot, n_window, check_torques)
         self._check = None if self.spec is None else Consistency(
-            robot, c, self._stream, method, "base_wrench" in sensors, "tau_J" in sensors)
+            robot, c, self._stream, method, "base_wrench" in sensors, "tau_J" in sensors, self._model_error)
         drift = c.base_drift_rate / c.call_hz  # the follower's largest step per call [N], and [Nm] at 0.2 m
         self._follow_step = np.r_[np.full(3, drift), np.full(3, 0.2 * drift)]
         within(self._follow_step, 1.0)  # compiled (or loaded from numba's cache) now, not in a control cycle
@@ -90,19 +111,26 @@ class TipForceEstimator(CallStatus, StreamStarts):
     # ------------------------------------------------------------ factories
     @classmethod
     def analytic(cls, robot: str | Robot = "panda", method: str = "base-wrench", params=None, payload=None,
-                 **config) -> "TipForceEstimator":
+                 calibration=None, **config) -> "TipForceEstimator":
         """A model-free estimator: ``method`` is a name of ``analytic.methods.TIP_FORCE_METHODS`` (what each reads:
         its declaration's ``reads``), or an older spelling of one (the registry's ``aliases``, with a warning).
         payload: the tool's load, ``(mass_kg, (x, y, z))`` with its centre of mass [m] in the tool frame (as
         libfranka's ``setLoad``): part of the model every method subtracts (``set_payload`` changes it).
+        params: a parameter set's name, or a file; an identified file (``hybrid-dyn identify``) gives its
+        inertials, and its friction and declared springs, which are taken from tau_J (``torque_model.py``).
+        calibration: a :class:`Calibration` or its file (``hybrid-dyn calibrate``): the error bar's model term,
+        the bandwidth and max_sigma calibrated on the user's own log for this torque model.
         config: ``EstimatorConfig`` settings, a method's bandwidth parameter by its name (``momentum_gain=50.0``)."""
         method = TIP_FORCE_METHODS.lookup(method).name
         config = EstimatorConfig.from_settings(**config)
         if not isinstance(robot, Robot):
             robot = load_robot(robot, params=params, num_threads=1)
+        torque_model = None if params is None else JointTorqueModel.from_params(params, robot)
         if payload is not None:
             robot = with_payload(robot, checked_payload(payload, rated_payload(robot.spec, config), robot.base_name))
-        return cls(robot, method, config)
+        if calibration is not None and not isinstance(calibration, Calibration):
+            calibration = Calibration.load(calibration)
+        return cls(robot, method, config, torque_model=torque_model, calibration=calibration)
 
     @classmethod
     def load(cls, model_dir, robot: str | None = None, runtime: str = "auto", payload=None,
@@ -152,6 +180,9 @@ class TipForceEstimator(CallStatus, StreamStarts):
         # a tare (or a window check) on them before that absorbs the transient. The window waits for it.
         self._joint_wait = 0 if self._joint is None or self._tare is None else self._joint.settle_calls()
         self._error_bar.reset()
+        self._model_sigma = None  # the error bar's model term at this call [N], where calibrated
+        if self._model_error is not None:
+            self._model_error.reset()
         self.last_sigma = NO_SIGMA.copy()
         self._motion = 0.0  # this call's joint-acceleration norm [rad/s^2], for the error bar
         self._tared_at = None  # the call at which the base sensor's offset was last set
@@ -183,6 +214,7 @@ class TipForceEstimator(CallStatus, StreamStarts):
             self._warmup_calls = self._window_calls + 1
         self._window_noise = None  # measured by the window's last call, applied by the next
         self._last_good = np.zeros(3)
+        self._prev = None  # the last accepted sample (q, qd, base_wrench, tau_J, t): a short gap's start
         self.fusion_noise = None
         self.last_status = EstimatorStatus.WARMING_UP
         self.last_rejection = None  # why the latest rejected sample was refused (hold mode)
@@ -210,15 +242,48 @@ class TipForceEstimator(CallStatus, StreamStarts):
     def estimate_tip_force(self, q, qd, base_wrench=None, tau_J=None, t=None) -> np.ndarray:
         """One sample in, the tip force (3,) [N] in the base frame out; see ``last_status``."""
         try:
-            q, qd, base_wrench, tau_J, t, resumed = self._gate.accept(q, qd, base_wrench, tau_J, t)
+            q, qd, base_wrench, tau_J, t, lost = self._gate.accept(q, qd, base_wrench, tau_J, t)
         except EstimatorInputError as err:
             if self.config.on_bad_input == "raise":
                 raise
             self.last_status = EstimatorStatus.INPUT_REJECTED
             self.last_rejection = str(err)
             return self._last_good.copy()
-        if resumed:  # the samples lost, counted on the stream's clock (not by the stamps' own jitter)
-            self._restart_dynamics((self._gate.lost_ticks + 1) / self.config.call_hz)
+        if lost:  # a gap: bridged when short (its samples interpolated), else the dynamics restart
+            if lost <= self._bridge_ticks and self._prev is not None:
+                self._bridge(lost, q, qd, base_wrench, tau_J, t)
+            else:
+                self._restart_dynamics((lost + 1) / self.config.call_hz)
+        f = self._step(q, qd, base_wrench, tau_J, t)
+        self._keep_sample(q, qd, base_wrench, tau_J, t)
+        return f
+
+    def _keep_sample(self, q, qd, base_wrench, tau_J, t) -> None:
+        """Copy the accepted sample (the gate's arrays are overwritten by the next call): a gap's start."""
+        q0, qd0, w0, tau0 = self._prev_arrays
+        q0[:], qd0[:] = q, qd
+        if base_wrench is not None:
+            w0[:] = base_wrench
+        if tau_J is not None:
+            tau0[:] = tau_J
+        self._prev = (q0, qd0, None if base_wrench is None else w0, None if tau_J is None else tau0, t)
+
+    def _bridge(self, lost: int, q, qd, base_wrench, tau_J, t) -> None:
+        """The ``lost`` ticks of a short gap, as the straight line from the last accepted sample to this one,
+        through every step a sample takes (their estimates unseen): the filters and observers run on as
+        though nothing were lost, with no new warm-up. A sensor absent at either end stays absent."""
+        q0, qd0, w0, tau0, t0 = self._prev
+        status = self.last_status
+        for i in range(1, lost + 1):
+            a = i / (lost + 1)
+            self._step(q0 + a * (q - q0), qd0 + a * (qd - qd0),
+                       None if w0 is None or base_wrench is None else w0 + a * (base_wrench - w0),
+                       None if tau0 is None or tau_J is None else tau0 + a * (tau_J - tau0),
+                       None if t is None else t0 + a * (t - t0))
+        self.last_status = status
+
+    def _step(self, q, qd, base_wrench, tau_J, t) -> np.ndarray:
+        """One accepted sample through the joint filter, the window and the method: the estimate, its status."""
         wrong_rate = False
         if t is not None:
             self._gate.last_t = t
@@ -234,8 +299,13 @@ class TipForceEstimator(CallStatus, StreamStarts):
         in_window = k < self._window_calls
         tare = self._tare
         taring = tare is not None and not tare.done
-        # qdd only where the method (or the window's tare) needs it: the observers need none.
-        qdd = self._qdd_filter.step(qd) if (self._needs_qdd or taring) else None
+        # qdd only where the method (the window's tare, the model term) needs it: the observers need none.
+        qdd = self._qdd_filter.step(qd) if (self._needs_qdd or taring or self._model_qdd) else None
+        tau_raw = tau_J
+        if tau_J is not None and self.torque_model is not None:  # what the rigid body and a force explain
+            tau_J = tau_J - self.torque_model.extra_torque(q, qd, qdd)
+        if self._model_error is not None:
+            self._model_sigma = self._model_error.update(q, qd, qdd)
         self._calls += 1
         if self.spec is None:
             return self._finish(*self.model.step(q, qd, qdd, base_wrench, tau_J, t), wrong_rate, True)
@@ -247,7 +317,10 @@ class TipForceEstimator(CallStatus, StreamStarts):
             self._stream.window_step(q, qd, qdd, base_wrench, tau_J)
             if self._calls == self._window_calls:  # the window's last call checks it and measures its noise...
                 c = self.config
-                problem = self._window.contact(self._tare, c.tare_contact_force, c.off_tool_moment, c.tare_held_force)
+                # The model's calibrated error is no contact: twice its sigma bounds what the torques may show.
+                model = None if self._model_sigma is None else 2.0 * float(np.linalg.norm(self._model_sigma))
+                problem = self._window.contact(self._tare, c.tare_contact_force, c.off_tool_moment, c.tare_held_force,
+                                               torque_limit=model)
                 if problem is not None:
                     self._restart_window(problem)
                 else:
@@ -270,5 +343,5 @@ class TipForceEstimator(CallStatus, StreamStarts):
         f = self._stream.step(q, qd, qdd, w_in, tau_J)
         if w_in is not None:
             self._follow_drift(q, qd, base_wrench, f)
-        self._judge(q, qd, qdd, w_in, base_wrench, tau_J)
+        self._judge(q, qd, qdd, w_in, base_wrench, tau_J, tau_raw)
         return self._finish(f, True, wrong_rate, usable)
