@@ -89,7 +89,7 @@ class TipForceEstimator(CallStatus, StreamStarts):
 
     # ------------------------------------------------------------ factories
     @classmethod
-    def analytic(cls, robot: str | Robot = "panda", method: str = "base-wrench", params=None, payload=None,
+    def analytic(cls, robot: str | Robot = "panda", method: str = "momentum-observer", params=None, payload=None,
                  **config) -> "TipForceEstimator":
         """A model-free estimator: ``method`` is a name of ``analytic.methods.TIP_FORCE_METHODS`` (what each reads:
         its declaration's ``reads``), or an older spelling of one (the registry's ``aliases``, with a warning).
