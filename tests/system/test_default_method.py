@@ -1,5 +1,5 @@
 """One default tip-force method: the API, ``hybrid-dyn estimate``, the example and the docs all name
-``analytic.methods.DEFAULT_METHOD`` (issue 56 found five defaults for one method)."""
+``analytic.methods.DEFAULT_METHOD`` (there were four defaults for one method)."""
 from __future__ import annotations
 
 import argparse
