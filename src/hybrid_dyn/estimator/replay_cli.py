@@ -10,8 +10,7 @@ def resolution(text: str):
 def register(sub) -> None:
     from ..analytic.methods import DEFAULT_METHOD, TIP_FORCE_METHODS
 
-    p = sub.add_parser("estimate", help="replay a recorded log (a ROS bag, CSV, ...) through the streaming tip-force "
-                                        "estimator; write /tip_force to an MCAP bag or a CSV")
+    p = sub.add_parser("estimate")
     p.add_argument("spec", help="the log's import spec (TOML; a ROS bag's names its topics in [ros]: "
                                 "docs/from_a_ros_bag.md)")
     p.add_argument("--method", default=DEFAULT_METHOD,
