@@ -66,7 +66,7 @@ def main() -> None:
             size = sum(p.stat().st_size for p in (folder / "run").rglob("*") if p.is_file())
             print(f"{minutes:g} min bag: {size / 1e9:.2f} GB written in {time.perf_counter() - t0:.0f} s", flush=True)
             imp = timed([*cli, "import", "--spec", str(spec), "--out", str(folder / "ds")])
-            est = timed([*cli, "estimate", str(spec), "--out", str(folder / "tip.csv")])
+            est = timed([*cli, "estimate", str(spec), "--method", "base-momentum", "--out", str(folder / "tip.csv")])
             for name, r in (("import", imp), ("estimate", est)):
                 print(f"{name}: {r['wall_s']:.1f} s, {r['peak_mb']:.0f} MB peak", flush=True)
                 rows.append((minutes, size, name, r))

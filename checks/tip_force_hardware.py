@@ -30,9 +30,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from tip_force_stream import DECLARED_PAYLOAD, METHODS, PATTERNS, run_method, score  # noqa: E402
 
 import hybrid_dyn as hd  # noqa: E402
+from hybrid_dyn.analytic.methods import DEFAULT_METHOD  # noqa: E402
 from hybrid_dyn.sim.stream import simulate_stream  # noqa: E402
 
-RECOMMENDED = "momentum-observer"  # the README's method (it wins on contact-steps-hardware)
+RECOMMENDED = DEFAULT_METHOD  # the default method (it wins on contact-steps-hardware)
 BASE_SENSOR = ("base-wrench", "base-momentum", "kalman-fusion")
 LATE_PATTERNS = ("hardware", "press-at-start", "touch-in-window", "step-15", "drift", "jitter")
 

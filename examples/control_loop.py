@@ -11,8 +11,8 @@ with what the sensors read; the script prints the estimate against the true forc
 latency of that call. (The run is simulated first and then replayed tick by tick: the estimate does
 not feed back into the controller, so the calls see exactly what they would inside the loop.)
 
-    .venv/bin/python examples/control_loop.py                              # base-wrench
-    .venv/bin/python examples/control_loop.py --method momentum-observer   # joint torques only
+    .venv/bin/python examples/control_loop.py                              # momentum-observer (the default)
+    .venv/bin/python examples/control_loop.py --method base-momentum       # the base sensor only
     .venv/bin/python examples/control_loop.py --method kalman-fusion       # base sensor and joint torques fused
     .venv/bin/python examples/control_loop.py --model runs/.../models/residual-basewrench
 """
@@ -24,7 +24,7 @@ import time
 import numpy as np
 
 import hybrid_dyn as hd
-from hybrid_dyn.analytic.methods import TIP_FORCE_METHODS
+from hybrid_dyn.analytic.methods import DEFAULT_METHOD, TIP_FORCE_METHODS
 from hybrid_dyn.estimator import TipForceEstimator
 from hybrid_dyn.sim.stream import StreamConfig, Touch, simulate_stream
 
@@ -34,7 +34,7 @@ PUSH = Touch(start=3.0, amplitude=15.0, plateau=2.0, rise=1.0, direction=(0.0, 0
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--method", default="base-wrench", choices=list(TIP_FORCE_METHODS), help=", ".join(TIP_FORCE_METHODS))
+    ap.add_argument("--method", default=DEFAULT_METHOD, choices=list(TIP_FORCE_METHODS), help=", ".join(TIP_FORCE_METHODS))
     ap.add_argument("--model", default=None, help="a trained tip-force model directory instead of an analytic method")
     ap.add_argument("--seconds", type=float, default=10.0)
     args = ap.parse_args(argv)

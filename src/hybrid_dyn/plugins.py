@@ -4,7 +4,8 @@ A plugin is an installed distribution with an entry point in the group ``hybrid_
 (``pyproject.toml``: ``[project.entry-points."hybrid_dyn.plugins"] my-name = "my_package.module"``).
 Its module is imported once per process, and its import registers what it brings through the public
 registries (``METHODS.register(...)``, ``ROWS.register(...)``, ...). Plugins are loaded by the CLI
-before it builds its help, and by :meth:`registry.Registry.lookup` the first time a name is missing.
+before it builds its help, by :meth:`registry.Registry.lookup` the first time a name is missing, and by the
+first listing of any registry (iteration, ``where``, ``names``), so that a plugin's names are everywhere.
 """
 from __future__ import annotations
 
@@ -14,6 +15,11 @@ import warnings
 GROUP = "hybrid_dyn.plugins"
 LOADED: dict[str, str] = {}  # entry-point name -> the module it imported (or the error that stopped it)
 _state = {"scanned": False}
+
+
+def scanned() -> bool:
+    """Whether this process has looked for its plugins already (:func:`load_plugins` ran)."""
+    return _state["scanned"]
 
 
 def load_plugins() -> bool:

@@ -4,11 +4,12 @@ Each sort of declaration (estimator methods, network kinds, presets, bench rows,
 studies, scenarios, robots, ...) has one module-level plural name holding its registry, completed by
 one catalogue module. A declaration is a frozen dataclass with a ``name``; consumers read the registry
 with its methods only: ``lookup``, ``register``, ``where``, ``names``, iteration. Aliases, listeners
-and the plugin hook on a miss: ``docs/extending.md``.
+and the plugin hook (a miss or a listing loads the installed plugins): ``docs/extending.md``.
 """
 from __future__ import annotations
 
 import argparse
+import sys
 from typing import Callable, Iterable
 
 from .deprecation import warn_renamed
@@ -70,8 +71,8 @@ class Registry(dict):
     def lookup(self, name: str):
         """The declaration of ``name`` (or of the name an alias stands for), or the error naming the known ones.
 
-        A name not declared loads the installed plugins first (``plugins.load_plugins``, once per process):
-        a plugin's declaration is found by the first lookup that asks for it."""
+        A name not declared loads the installed plugins first (``plugins.load_plugins``, once per process), as
+        a listing does: a plugin's declaration is found by the first lookup that asks for it."""
         name = self.canonical(name, stacklevel=3)
         if self.missing([name]):  # after the plugins not imported yet, which may declare it
             raise self._unknown(f"unknown {self.what} {name!r}; known: {', '.join(self)}")
@@ -80,10 +81,30 @@ class Registry(dict):
     def missing(self, names) -> list:
         """The ``names`` not declared (after loading the installed plugins, as :meth:`lookup` does), in order."""
         if any(n not in self for n in names):
-            from .plugins import load_plugins
-
-            load_plugins()
+            _load_plugins()
         return [n for n in names if n not in self]
+
+    # A listing shows the installed plugins' declarations too: every way of reading the whole registry loads
+    # them first (once per process), so that --help, choices and contract tests see what a lookup would find.
+    def __iter__(self):
+        _load_plugins()
+        return super().__iter__()
+
+    def keys(self):
+        _load_plugins()
+        return super().keys()
+
+    def values(self):
+        _load_plugins()
+        return super().values()
+
+    def items(self):
+        _load_plugins()
+        return super().items()
+
+    def __len__(self):
+        _load_plugins()
+        return super().__len__()
 
     def listen(self, on_register: Callable, on_unregister: Callable | None = None) -> None:
         """Call ``on_register(item)`` for every declaration from now on (and ``on_unregister`` on removal).
@@ -97,6 +118,23 @@ class Registry(dict):
     def names(self, **fields) -> tuple:
         """The names of the declarations :meth:`where` gives, in declaration order (every name with no field)."""
         return tuple(item.name for item in self.where(**fields))
+
+
+def _load_plugins() -> None:
+    """The installed plugins, for a listing; not while a toolkit module is still being imported: a catalogue
+    that reads its registry at import (``bench/analytic_rows.py``) would hand a plugin half-built modules. The
+    listing after the import loads them."""
+    from .plugins import load_plugins, scanned  # here, not at the top: plugins.py may one day read a registry
+
+    if scanned() or _importing_the_toolkit():
+        return
+    load_plugins()
+
+
+def _importing_the_toolkit() -> bool:
+    # importlib marks a module's spec ``_initializing`` while its code runs.
+    return any(getattr(getattr(m, "__spec__", None), "_initializing", False)
+               for name, m in list(sys.modules.items()) if name.partition(".")[0] == "hybrid_dyn")
 
 
 def help_listing(**sources: Callable[[], Iterable[str]]) -> type[argparse.HelpFormatter]:

@@ -1,9 +1,7 @@
 """The reference study's (the seed paper's) Tables 2 and 3 as a report section: our figure, its, and their ratio,
 row by row."""
-import pytest
 
 from hybrid_dyn.bench.reference_study import REFERENCE_TABLE2, REFERENCE_TABLE3, reference_comparison_text
-from hybrid_dyn.deprecation import DeprecatedNameWarning
 
 
 def _row(model, task, rmse, family="seed-net"):
@@ -26,12 +24,3 @@ def test_each_seed_net_beside_the_seeds_figure_with_the_ratio():
     tau_line = next(line for line in text.splitlines() if line.startswith("| seed-tau-mlp |"))
     assert "| 3.00 |" in tau_line
     assert "`rnea` 0.5000 Nm" in text  # the physics bar on the same test split
-
-
-def test_the_old_module_names_still_import_with_a_warning():
-    from hybrid_dyn.bench import seed_comparison, seed_reference
-
-    with pytest.warns(DeprecatedNameWarning, match="reference_study.REFERENCE_TABLE2"):
-        assert seed_reference.SEED_TABLE2 is REFERENCE_TABLE2
-    with pytest.warns(DeprecatedNameWarning, match="reference_study.reference_comparison_text"):
-        assert seed_comparison.seed_comparison_text is reference_comparison_text

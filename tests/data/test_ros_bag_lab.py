@@ -142,7 +142,7 @@ def test_a_damaged_bag_is_one_line_and_keep_partial_keeps_what_came_before(kind,
     spec = ros_spec(tmp_path / "spec", bags[kind], tip=False)
     out = tmp_path / ("ds" if command == "import" else "tip.csv")
     args = ["import", "--spec", str(spec), "--out", str(out)] if command == "import" else \
-        ["estimate", str(spec), "--out", str(out)]
+        ["estimate", str(spec), "--method", "base-momentum", "--out", str(out)]
     assert cli_main(args) == 2
     err = capsys.readouterr().err
     assert says(err, str(bags[kind]), "damaged", "cannot be read", "--keep-partial"), err
@@ -193,9 +193,9 @@ def test_an_estimate_streamed_in_chunks_is_the_estimate_of_the_whole_bag(panda, 
     bag = write_bag(tmp_path / "run", s, gripper=True, js_stamps=jittered(s["stamps"], seed=9),
                     empty=lambda k: {"velocity"} if k % 9 == 0 else ())
     spec = ros_spec(tmp_path / "spec", bag)
-    whole, _ = replay_log(read_spec(spec))
+    whole, _ = replay_log(read_spec(spec), method="base-momentum")
     monkeypatch.setattr(bag_stream, "CHUNK_ROWS", 97)
-    chunked, report = replay_log(read_spec(spec))
+    chunked, report = replay_log(read_spec(spec), method="base-momentum")
     assert report.rows_kept == 1500 and chunked.status == whole.status
     np.testing.assert_array_equal(chunked.stamps_ns, whole.stamps_ns)
     np.testing.assert_array_equal(chunked.force, whole.force)
@@ -214,6 +214,6 @@ def test_a_ten_minute_bag_imports_and_estimates_in_chunks(panda, tmp_path, capsy
     np.testing.assert_array_equal(inst.q[[0, 65_535, 65_536, n - 1]], s["q"][[0, 65_535, 65_536, n - 1]])
     np.testing.assert_array_equal(inst["base_wrench"], s["base_wrench"])  # across every chunk boundary
     out = tmp_path / "tip.csv"
-    assert cli_main(["estimate", str(spec), "--out", str(out)]) == 0
+    assert cli_main(["estimate", str(spec), "--method", "base-momentum", "--out", str(out)]) == 0
     with out.open() as fh:
         assert sum(1 for _ in fh) == n + 1

@@ -4,6 +4,7 @@ import os
 import re
 import subprocess
 import sys
+import warnings
 
 import pytest
 
@@ -122,3 +123,64 @@ def test_the_dart_contract_runs_on_a_robot_declared_with_no_test_edit(tmp_path):
                          cwd=REPO, env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stdout[-2000:] + out.stderr[-2000:]
     assert re.search(r"\b3 passed", out.stdout), out.stdout[-2000:]
+
+
+UR10 = """name = "ur10"
+urdf = "ur_description/urdf/{urdf}"
+tool_frame = "tool0"
+flange = "tool0"
+base_sensor_frame = "base_link"
+home = [0.0, -1.2, 1.5, -1.9, -1.57, 0.0]
+encoder_resolution = 2.4e-5
+rated_payload_kg = 10.0
+"""
+
+
+def test_a_toml_dropped_in_the_shipped_folder_is_a_robot_with_no_list_to_edit(tmp_path):
+    """In a copy of the package: ``resources/robots/ur10.toml`` is declared by its file alone, and ``ur10`` is then
+    that description (base_link, its encoders, its rated payload), not example-robot-data's bare URDF."""
+    import shutil
+
+    shutil.copytree(REPO / "src" / "hybrid_dyn", tmp_path / "hybrid_dyn",
+                    ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+    (tmp_path / "hybrid_dyn" / "resources" / "robots" / "ur10.toml").write_text(UR10.format(urdf="ur10_robot.urdf"))
+    code = ("import json, warnings; warnings.simplefilter('error')\n"
+            "import hybrid_dyn as hd; from hybrid_dyn.description import ROBOTS\n"
+            "s = hd.load_robot('ur10').spec\n"
+            "print(json.dumps([hd.__file__, list(ROBOTS.names(data_only=False)), s.base_sensor_frame,"
+            " s.encoder_resolution, s.rated_payload_kg]))")
+    env = {k: v for k, v in os.environ.items() if k != "HYBRID_DYN_ROBOTS"}
+    env["PYTHONPATH"] = str(tmp_path)
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120,
+                         cwd=tmp_path)
+    assert out.returncode == 0, out.stderr[-2000:]
+    where, names, frame, resolution, payload = json.loads(out.stdout)
+    assert where.startswith(str(tmp_path)) and "ur10" in names
+    assert (frame, resolution, payload) == ("base_link", 2.4e-5, 10.0)
+
+
+def test_a_robot_shadowing_an_example_robot_data_arm_warns_once(tmp_path, monkeypatch):
+    """``ur10`` declared on the UR5's URDF means another arm than example-robot-data's ``ur10``: said, once; the
+    same name on the UR10's own URDF (a fuller description of that arm) says nothing."""
+    from hybrid_dyn.description import names
+
+    monkeypatch.setattr(names, "_SHADOWS_CHECKED", set())
+    (tmp_path / "ur10.toml").write_text(UR10.format(urdf="ur5_robot.urdf"))
+    ROBOTS.register(RobotDeclaration("ur10", tmp_path / "ur10.toml"))
+    try:
+        with pytest.warns(UserWarning, match=r"robot 'ur10' .* shadows example-robot-data's 'ur10'"):
+            assert hd.load_robot("ur10").nv == 6
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            hd.load_robot("ur10")  # once per name
+    finally:
+        ROBOTS.unregister("ur10")
+    monkeypatch.setattr(names, "_SHADOWS_CHECKED", set())
+    (tmp_path / "ur10.toml").write_text(UR10.format(urdf="ur10_robot.urdf"))
+    ROBOTS.register(RobotDeclaration("ur10", tmp_path / "ur10.toml"))
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            assert hd.load_robot("ur10").spec.rated_payload_kg == 10.0
+    finally:
+        ROBOTS.unregister("ur10")

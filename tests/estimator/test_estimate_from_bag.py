@@ -84,7 +84,7 @@ def test_the_tip_force_topic_is_within_half_a_newton_of_the_truth_at_the_inputs_
 def test_a_csv_out_holds_the_same_estimate_and_nothing_existing_is_overwritten(recording, capsys):
     tmp, sig, spec = recording
     out = tmp / "tip-csv.csv"  # its own stem: tip.png is the MCAP test's figure
-    assert cli_main(["estimate", str(spec), "--encoder-resolution", "0", "--out", str(out)]) == 0
+    assert cli_main(["estimate", str(spec), "--method", "base-momentum", "--encoder-resolution", "0", "--out", str(out)]) == 0
     rows = list(csv.DictReader(out.open()))
     assert [int(r["stamp_ns"]) for r in rows] == sig["stamps"].tolist()
     f = np.array([[float(r[k]) for k in ("fx", "fy", "fz")] for r in rows])
@@ -96,7 +96,7 @@ def test_a_csv_out_holds_the_same_estimate_and_nothing_existing_is_overwritten(r
     before = out.read_bytes()
     capsys.readouterr()
     for taken, out_arg in ((out, out), (figure, figure.with_suffix(".csv"))):
-        assert cli_main(["estimate", str(spec), "--out", str(out_arg)]) == 2
+        assert cli_main(["estimate", str(spec), "--method", "base-momentum", "--out", str(out_arg)]) == 2
         err = capsys.readouterr().err
         assert says(err, str(taken), "already exists"), err
     assert out.read_bytes() == before and figure.read_bytes() == b"not ours"
@@ -159,7 +159,7 @@ def test_a_bag_with_a_stamp_going_backwards_and_its_own_frame_name_replays_what_
     stamps[600] = stamps[598]  # message 601 goes back in time: the import's rule drops its row
     bag = write_bag(tmp_path / "run", sig, js_stamps=stamps, base_frame="ft_sensor_link")
     spec = ros_spec(tmp_path / "spec", bag, extra='frame = "ft_sensor_link"\n')
-    assert cli_main(["estimate", str(spec), "--out", str(tmp_path / "tip.mcap")]) == 0
+    assert cli_main(["estimate", str(spec), "--method", "base-momentum", "--out", str(tmp_path / "tip.mcap")]) == 0
     topics = read_topics(tmp_path / "tip.mcap")
     got = [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for _, m in topics["/tip_force"]]
     assert got == np.delete(sig["stamps"], 600).tolist()  # every kept sample at its own stamp

@@ -1,6 +1,6 @@
 """The package's layers: each module imports only from its own layer or those below, and no import circles.
 
-The layers, from the bottom up, as the README's layout table lists them. Every ``import`` of a
+The layers, from the bottom up, as `docs/layout.md` lists them. Every ``import`` of a
 ``hybrid_dyn`` module counts, those inside functions too (a lazy import still ties the two modules).
 """
 from __future__ import annotations

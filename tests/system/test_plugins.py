@@ -1,11 +1,12 @@
 """A third-party plugin (plugins.py): an installed distribution with a ``hybrid_dyn.plugins`` entry point adds
 a tip-force method, a family, a bench row and a robot through the public registries, with no edit of the toolkit.
 
-The plugin is installed for real: a module and its ``*.dist-info`` (METADATA, entry_points.txt) in a folder
-on the path of a fresh interpreter, which is what pip leaves in site-packages. In that interpreter the
-estimator finds the method by its name before anything loaded plugins (a registry's miss loads them), the
-bench's help lists the method's rows and the plugin's row and family, and the bench runs both into its
-report on a tiny dataset.
+The plugin is installed for real: a package of its own (``pyproject.toml`` with the entry point, its module and
+its robot's TOML as package data), built and installed by pip into a folder on the path of a fresh interpreter.
+In that interpreter ``load_robot`` finds the plugin's robot by its name before anything loaded plugins (a
+registry's miss loads them), the estimator runs the plugin's method, the bench's help lists the method's rows
+and the plugin's row and family, the bench runs both into its report on a tiny dataset, and the control-loop
+example takes the plugin's method.
 """
 import csv
 import json
@@ -55,7 +56,27 @@ ROWS.register(Row("toy-tau-mean", "joint_torque", "toy-baseline", needs=("q", "t
 ROBOTS.register(RobotDeclaration("toy-ur5", Path(__file__).with_name("toy-ur5.toml")))
 '''
 
-# What the fresh interpreter runs: the estimator first (nothing has loaded the plugin yet), then the CLI.
+PYPROJECT = '''
+[build-system]
+requires = ["setuptools"]
+build-backend = "setuptools.build_meta"
+
+[project]
+name = "hd-toy-plugin"
+version = "0.1"
+
+[project.entry-points."hybrid_dyn.plugins"]
+toy = "hd_toy_plugin"
+
+[tool.setuptools]
+packages = ["hd_toy_plugin"]
+
+[tool.setuptools.package-data]
+hd_toy_plugin = ["*.toml"]
+'''
+
+# What the fresh interpreter runs: load_robot first (nothing has loaded the plugin yet), then the estimator and
+# the CLI.
 SCRIPT = '''
 import contextlib, io, json, sys
 import numpy as np
@@ -64,7 +85,9 @@ from hybrid_dyn.data import load_dataset
 from hybrid_dyn.plugins import LOADED
 
 data, out = sys.argv[1], sys.argv[2]
-assert not LOADED, LOADED
+assert not LOADED, LOADED  # importing the toolkit loads no plugin
+toy_robot = load_robot("toy-ur5")
+first = dict(LOADED)
 run = load_dataset(data).split("test")[0]
 rate = 100.0
 est = TipForceEstimator.analytic(load_robot("panda"), "toy-half-momentum", call_hz=rate, encoder_resolution=0.0)
@@ -83,26 +106,29 @@ for command in ("bench", "study"):
             pass
     helps[command] = "".join(text.getvalue().split())  # argparse wraps at hyphens
 code = main(["bench", "--data", data, "--rows", "toy-half-momentum,toy-tau-mean", "--out", out, "--workers", "1"])
-toy_robot = load_robot("toy-ur5")
-print(json.dumps({"loaded": LOADED, "method": est.method, "gain": float(est.bandwidth),
+print(json.dumps({"loaded": first, "method": est.method, "gain": float(est.bandwidth),
                   "robot": [toy_robot.name, toy_robot.nv],
                   "base_gain": float(base.bandwidth), "help": helps, "code": code}))
 '''
 
 
-def _install(site: Path) -> None:
-    """The plugin as pip installs it: its module, and a dist-info naming its entry point."""
-    (site / "hd_toy_plugin.py").write_text(textwrap.dedent(PLUGIN))
-    info = site / "hd_toy_plugin-0.1.dist-info"
-    info.mkdir()
-    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: hd-toy-plugin\nVersion: 0.1\n")
-    (info / "entry_points.txt").write_text("[hybrid_dyn.plugins]\ntoy = hd_toy_plugin\n")
-    (info / "RECORD").write_text("")
-    # The plugin's robot: the UR5's description under another name (its URDF from example-robot-data).
-    from hybrid_dyn.description.locations import robots_dir
+def _install(site: Path, tmp: Path) -> None:
+    """The plugin as a user makes it: a package with its pyproject.toml, built and installed by pip (no index:
+    setuptools is the toolkit's environment's) into ``site``."""
+    from hybrid_dyn.description.robots import shipped
 
-    toml = (robots_dir() / "ur5.toml").read_text()
-    (site / "toy-ur5.toml").write_text(toml.replace('name = "ur5"', 'name = "toy-ur5"', 1))
+    package = tmp / "hd-toy-plugin"
+    (package / "hd_toy_plugin").mkdir(parents=True)
+    (package / "pyproject.toml").write_text(PYPROJECT)
+    (package / "hd_toy_plugin" / "__init__.py").write_text(textwrap.dedent(PLUGIN))
+    # The plugin's robot: the UR5's description under another name (its URDF from example-robot-data).
+    toml = (shipped() / "ur5.toml").read_text()
+    (package / "hd_toy_plugin" / "toy-ur5.toml").write_text(toml.replace('name = "ur5"', 'name = "toy-ur5"', 1))
+    subprocess.run([sys.executable, "-m", "pip", "--disable-pip-version-check", "-q", "install", "--no-deps",
+                    "--no-build-isolation", "--no-index", "--target", str(site), str(package)],
+                   check=True, cwd=tmp, capture_output=True, timeout=300)
+    assert (site / "hd_toy_plugin" / "toy-ur5.toml").is_file()
+    assert next(site.glob("hd_toy_plugin-0.1.dist-info/entry_points.txt")).read_text().count("hd_toy_plugin") == 1
 
 
 def test_an_installed_plugin_adds_a_method_and_a_row_to_the_estimator_the_help_and_the_report(tmp_path, panda):
@@ -112,7 +138,7 @@ def test_an_installed_plugin_adds_a_method_and_a_row_to_the_estimator_the_help_a
                                   contact_free_s=0.6)
     site = tmp_path / "site"
     site.mkdir()
-    _install(site)
+    _install(site, tmp_path)
     out = tmp_path / "report"
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), str(SRC)])}
     done = subprocess.run([sys.executable, "-c", SCRIPT, str(data), str(out)], env=env, capture_output=True,
@@ -120,7 +146,7 @@ def test_an_installed_plugin_adds_a_method_and_a_row_to_the_estimator_the_help_a
     assert done.returncode == 0, done.stderr[-3000:]
     got = json.loads(done.stdout.strip().splitlines()[-1])
 
-    assert got["loaded"] == {"toy": "hd_toy_plugin"}  # imported once, by the estimator's lookup
+    assert got["loaded"] == {"toy": "hd_toy_plugin"}  # imported once, by load_robot's lookup of its robot
     assert got["method"] == "toy-half-momentum"
     assert got["robot"] == ["toy-ur5", 6]  # declared by the plugin, loaded by name
     assert got["gain"] == pytest.approx(0.5 * got["base_gain"])  # the plugin's rule, run by the estimator
@@ -134,6 +160,12 @@ def test_an_installed_plugin_adds_a_method_and_a_row_to_the_estimator_the_help_a
         "toy-half-momentum": ("analytic", "ok"), "toy-tau-mean": ("toy-baseline", "ok")}
     assert "toy-tau-mean" in (out / "joint_torque.md").read_text()
     assert "toy-half-momentum" in (out / "tip_force.md").read_text()
+    # The example's --method choices are the registry's, plugins included (a fresh interpreter again).
+    example = subprocess.run([sys.executable, str(SRC.parent / "examples" / "control_loop.py"), "--method",
+                              "toy-half-momentum", "--seconds", "4"], env=env, capture_output=True, text=True,
+                             timeout=600, cwd=tmp_path)
+    assert example.returncode == 0, example.stderr[-3000:]
+    assert "estimator: toy-half-momentum;" in example.stdout
 
 
 def test_a_plugin_that_fails_to_import_is_named_and_left_out(tmp_path):

@@ -67,3 +67,34 @@ def test_help_lists_are_read_when_printed():
     things.register(Thing("late"))  # declared after the parser was built
     things.register(Thing("100%"))
     assert "one of late, 100%" in " ".join(parser.format_help().split())
+
+
+@pytest.mark.parametrize("listing", [list, len, lambda r: r.names(), lambda r: r.where(), lambda r: list(r.values()),
+                                     lambda r: list(r.items()), lambda r: list(r.keys())])
+def test_every_listing_loads_the_plugins_first(monkeypatch, listing):
+    """A listing (a --help, a choice, a contract test's parameters) shows a plugin's declarations, as a lookup finds them."""
+    things = _things()
+
+    def entry_points(group):
+        return [SimpleNamespace(name="p", value="pkg.mod", load=lambda: things.register(Thing("from-plugin")))]
+
+    monkeypatch.setattr(plugins.importlib.metadata, "entry_points", entry_points)
+    monkeypatch.setattr(plugins, "LOADED", {})
+    monkeypatch.setitem(plugins._state, "scanned", False)
+    assert "from-plugin" not in dict.keys(things)  # a plain dict read loads nothing
+    listing(things)
+    assert "from-plugin" in dict.keys(things) and plugins.LOADED == {"p": "pkg.mod"}
+
+
+def test_a_listing_while_the_toolkit_imports_waits_for_the_import(monkeypatch):
+    """A catalogue that reads its registry at import time must not hand a plugin half-built modules."""
+    import sys
+
+    from hybrid_dyn import registry
+
+    monkeypatch.setattr(plugins, "load_plugins", lambda: pytest.fail("plugins loaded during the toolkit's import"))
+    monkeypatch.setitem(plugins._state, "scanned", False)
+    importing = SimpleNamespace(__spec__=SimpleNamespace(_initializing=True))
+    monkeypatch.setitem(sys.modules, "hybrid_dyn.toy_catalogue", importing)
+    list(_things())
+    assert registry._importing_the_toolkit()

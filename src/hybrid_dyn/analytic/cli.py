@@ -5,9 +5,9 @@ import numpy as np
 
 
 def register(sub) -> None:
-    p = sub.add_parser("robots", help="list the robot descriptions and their parameter sets")
+    p = sub.add_parser("robots")
     p.set_defaults(func=cmd_robots)
-    p = sub.add_parser("analytic-demo", help="the analytic tip-force baselines on a small synthetic set")
+    p = sub.add_parser("analytic-demo")
     p.set_defaults(func=cmd_demo)
 
 

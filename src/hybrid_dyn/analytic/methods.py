@@ -10,4 +10,9 @@ bench's rows ``name`` and ``name-val`` (``bench/analytic_rows.py``), the residua
 from . import qdd_methods, observer_methods, kalman_method  # noqa: F401  (each declares its methods)
 from .method_declaration import TIP_FORCE_METHODS
 
-__all__ = ["TIP_FORCE_METHODS"]
+# The method every consumer defaults to (``TipForceEstimator.analytic``, ``hybrid-dyn estimate``,
+# ``examples/control_loop.py``, docs/estimator.md): the one that leads on sensors as a robot has them
+# (docs/estimator.md, "Which method"). tests/system/test_default_method.py keeps them agreeing.
+DEFAULT_METHOD = "momentum-observer"
+
+__all__ = ["DEFAULT_METHOD", "TIP_FORCE_METHODS"]

@@ -55,8 +55,7 @@ _PROFILE_CHANGES = (
 
 
 def register(sub) -> None:
-    p = sub.add_parser("bench", help="every model family on the same data; writes results.csv, tables, figures",
-                       formatter_class=_HELP)
+    p = sub.add_parser("bench", formatter_class=_HELP)
     p.add_argument("--profile", default=None, help="a declared profile: {profiles} (default: quick, "
                    "or the datasets of --data)")
     p.add_argument("--data", action="append", default=None, metavar="DIR",
@@ -71,9 +70,7 @@ def register(sub) -> None:
                    help="with --executor ray: GPUs each training job reserves (fractions share one GPU)")
     p.set_defaults(func=cmd_bench)
 
-    st = sub.add_parser("study", help="a bench profile rerun with overrides declared as data (e.g. data-scaling: "
-                        "the learned rows on fewer training instances), summarised against the profile's report",
-                        formatter_class=_HELP)
+    st = sub.add_parser("study", formatter_class=_HELP)
     st.add_argument("name", help="a declared study: {studies}")
     st.add_argument("--report", default=None, help="the profile's own report, the study's reference point "
                     "(default: reports/<profile>)")
@@ -82,15 +79,14 @@ def register(sub) -> None:
     _where_options(st)
     st.set_defaults(func=cmd_study)
 
-    cmp = sub.add_parser("compare", help="two bench reports side by side: each learned row against its own "
-                         "report's best analytic row (reports on different data test on different samples)")
+    cmp = sub.add_parser("compare")
     cmp.add_argument("a", help="a report folder (e.g. on less data)")
     cmp.add_argument("b", help="another report folder (e.g. on more data)")
     cmp.add_argument("--out", default=None, help="also write the comparison to this markdown file (a new file, "
                      "or one an earlier compare wrote and nobody edited since: anything else is refused)")
     cmp.set_defaults(func=cmd_compare)
 
-    r = sub.add_parser("report", help="redraw a bench report's tables and figures from its files (no training)")
+    r = sub.add_parser("report")
     r.add_argument("dir", help="a report folder written by hybrid-dyn bench (run.json, results.csv, ...)")
     r.set_defaults(func=cmd_report)
 

@@ -159,18 +159,3 @@ def reference_comparison_text(rows: list[dict], curves: dict | None = None) -> s
         return None
     return "# The seed's Tables 2 and 3 beside this report\n\n" + "\n".join(comparison(rows, s, curves)
                                                                           for s in scenarios)
-
-
-def old_module_names(module_name: str, names: dict):
-    """The ``__getattr__`` of a module this one replaced (``seed_reference``, ``seed_comparison``): its names
-    (``{old: name here}``) served from here, each read warning with the new module and name."""
-    from ..deprecation import warn_renamed
-
-    def __getattr__(name):
-        if name in names:
-            warn_renamed("name", f"{module_name}.{name}", f"{__name__}.{names[name]}", stacklevel=2,
-                         why="'seed' is the random seed; the 2021 paper is the reference study")
-            return globals()[names[name]]
-        raise AttributeError(f"module {module_name!r} has no attribute {name!r}")
-
-    return __getattr__

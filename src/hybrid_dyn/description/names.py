@@ -4,12 +4,14 @@ from __future__ import annotations
 import math
 import os
 import re
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 from .base import RobotDescriptionError
 from .discovery import _example_robot_data_urdfs, describe_urdf, example_robot_data_arms
-from .robots import ROBOTS
+from .locations import example_robot_data_dir
+from .robots import ROBOTS, shipped
 from .spec import Payload, RobotSpec, load_spec
 from .tools import with_tool
 
@@ -113,10 +115,28 @@ def _unknown_robot(base: str) -> RobotDescriptionError:
         f"unknown robot {base!r}. A robot name is: a declared description "
         f"({', '.join(ROBOTS.names(data_only=False)) or 'none'}); an arm of example-robot-data "
         f"({', '.join(example_robot_data_arms()) or 'none'}); a name known for data only "
-        f"({', '.join(ROBOTS.names(data_only=True)) or 'none'}; declare yours in ROBOTS, "
-        f"description/robots.py); or the path of a .urdf "
-        f"or .toml file. A variant: {ROBOT_NAME_HELP}"
+        f"({', '.join(ROBOTS.names(data_only=True)) or 'none'}); or the path of a .urdf or .toml file. "
+        f"A robot of your own is a NAME.toml in the folder $HYBRID_DYN_ROBOTS names (docs/extending.md, "
+        f"\"A robot\"), or a plugin's. A variant: {ROBOT_NAME_HELP}"
     )
+
+
+_SHADOWS_CHECKED: set[str] = set()
+
+
+def _warn_if_shadowing(name: str, spec: RobotSpec) -> None:
+    """A user's or a plugin's robot named as an arm of example-robot-data whose URDF is another: ``name`` then
+    means that declaration's arm, not example-robot-data's, which may well be a mistake; warned once per name.
+    A declaration of the same URDF (a description with frames, encoders and a rated payload) says nothing."""
+    if name in _SHADOWS_CHECKED or ROBOTS[name].toml.parent == shipped():
+        return
+    _SHADOWS_CHECKED.add(name)
+    root = example_robot_data_dir()
+    theirs = [f for file in (f"{name}.urdf", f"{name}_robot.urdf") for f in sorted(root.rglob(file))]
+    if theirs and spec.urdf_path.resolve() not in {f.resolve() for f in theirs}:
+        warnings.warn(f"robot {name!r} ({ROBOTS[name].toml}) shadows example-robot-data's {name!r} "
+                      f"({theirs[0]}): load_robot({name!r}) is the declared arm, on {spec.urdf_path}",
+                      UserWarning, stacklevel=3)
 
 
 def resolve_robot(name: str | os.PathLike, tool=None, payload=None) -> RobotRef:
@@ -141,15 +161,18 @@ def resolve_robot(name: str | os.PathLike, tool=None, payload=None) -> RobotRef:
     payload = payload if payload is not None else name_payload
 
     p = Path(base)
+    # Declared: by the shipped folder, $HYBRID_DYN_ROBOTS or an installed plugin (a miss loads the plugins).
+    declared = p.suffix not in (".toml", ".urdf") and not ROBOTS.missing([base])
     if p.suffix == ".toml":
         source, spec = "robots", load_spec(p)
     elif p.suffix == ".urdf":
         if not p.is_file():
             raise RobotDescriptionError(f"robot URDF not found: {p.resolve()}")
         source, spec = "urdf", describe_urdf(p)
-    elif base in ROBOTS and not ROBOTS[base].data_only:
+    elif declared and not ROBOTS[base].data_only:
         source, spec = "robots", load_spec(base)
-    elif base in ROBOTS:
+        _warn_if_shadowing(base, spec)
+    elif declared:
         if tool is not None or payload is not None:
             raise RobotDescriptionError(f"robot {base!r} is known for data only (no URDF): it takes no tool or payload")
         return RobotRef(base, RobotVariant(), None, "data-only")

@@ -62,10 +62,13 @@ def declare_robot_folder(folder: str | os.PathLike) -> list[RobotDeclaration]:
     return found
 
 
-# The shipped robots (package data, ``hybrid_dyn/resources/robots``), in the order listings give them.
-_SHIPPED = resource_dir("robots")
-for _name in ("baxter", "kuka-lwr", "panda", "ur5", "xarm7"):
-    ROBOTS.register(RobotDeclaration(_name, _SHIPPED / f"{_name}.toml"))
+def shipped() -> Path:
+    """The folder of the shipped robots (package data, ``hybrid_dyn/resources/robots``)."""
+    return resource_dir("robots")
+
+
+# The shipped robots: every TOML of their folder, by name (a new ``NAME.toml`` there is a robot, no list to edit).
+declare_robot_folder(shipped())
 ROBOTS.register(RobotDeclaration("sarcos", None, "SARCOS anthropomorphic arm, 7 joints: the real-sarcos import spec "
                                  "(resources/real/sarcos.toml); its kinematics are not published, so it stays "
                                  "data-only"))
@@ -73,5 +76,5 @@ ROBOTS.register(RobotDeclaration("unknown", None, "an arm the log does not name 
 
 # The folder ``$HYBRID_DYN_ROBOTS`` names (a user's own descriptions): read once, when the catalogue is first
 # imported; a folder named later is declared with declare_robot_folder.
-if robots_dir() != _SHIPPED:
+if robots_dir() != shipped():
     declare_robot_folder(robots_dir())

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..analytic.methods import DEFAULT_METHOD
 from ..errors import OutputPathError, UsageError
 from ..outputs import unique_temp
 from .replay_sinks import CsvSink, McapSink, Summary, write_figure
@@ -64,7 +65,7 @@ class Replay:
         return float(np.sqrt(np.mean(np.sum(err**2, axis=1)))), int(ok.sum())
 
 
-def replay_log(spec, method: str = "base-momentum", model=None, encoder_resolution="auto",
+def replay_log(spec, method: str = DEFAULT_METHOD, model=None, encoder_resolution="auto",
                keep_partial: bool = False) -> tuple[Replay, object]:
     """Replay the log of ``spec`` (a ``LogSpec``) through a ``TipForceEstimator`` (the analytic ``method``,
     or the trained model in folder ``model``); returns the :class:`Replay` in memory and the import report.
@@ -75,7 +76,7 @@ def replay_log(spec, method: str = "base-momentum", model=None, encoder_resoluti
     return keep.replay(summary, info), report
 
 
-def estimate_to(spec, out, method: str = "base-momentum", model=None, encoder_resolution="auto",
+def estimate_to(spec, out, method: str = DEFAULT_METHOD, model=None, encoder_resolution="auto",
                 keep_partial: bool = False, progress: bool = True):
     """Replay the log of ``spec`` and write the estimate to ``out`` (.mcap or .csv) as it is made, and the
     figure ``out`` .png where the log has a tip sensor: memory is bounded by a chunk of the log (a bag's

@@ -8,14 +8,14 @@ def resolution(text: str):
 
 
 def register(sub) -> None:
-    from ..analytic.methods import TIP_FORCE_METHODS
+    from ..analytic.methods import DEFAULT_METHOD, TIP_FORCE_METHODS
 
-    p = sub.add_parser("estimate", help="replay a recorded log (a ROS bag, CSV, ...) through the streaming tip-force "
-                                        "estimator; write /tip_force to an MCAP bag or a CSV")
+    p = sub.add_parser("estimate")
     p.add_argument("spec", help="the log's import spec (TOML; a ROS bag's names its topics in [ros]: "
                                 "docs/from_a_ros_bag.md)")
-    p.add_argument("--method", default="base-momentum",
-                   help=f"the analytic estimator ({', '.join(TIP_FORCE_METHODS)}); default base-momentum")
+    p.add_argument("--method", default=DEFAULT_METHOD,
+                   help=f"the analytic estimator ({', '.join(TIP_FORCE_METHODS)}); default {DEFAULT_METHOD} (joint "
+                        "torques; a log with a base sensor only: base-momentum)")
     p.add_argument("--model", default=None, help="a trained tip-force model folder instead of --method")
     p.add_argument("--encoder-resolution", type=resolution, default="auto",
                    help="the log's joint-encoder resolution [rad]; default auto: the robot description's (1e-5 on "

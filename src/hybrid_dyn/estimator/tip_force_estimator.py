@@ -14,7 +14,7 @@ from ..analytic.acceleration import CausalAccelerationFilter, cutoff_grid, defau
 from ..analytic.error_bar import ErrorBar, qdd_norm
 from ..analytic.joint_state import joint_filter_for, with_joint_state_noise
 from ..analytic.method_declaration import spec_noise
-from ..analytic.methods import TIP_FORCE_METHODS
+from ..analytic.methods import DEFAULT_METHOD, TIP_FORCE_METHODS
 from ..analytic.robot import Robot, load_robot, with_payload
 from ..analytic.tare import StreamingTare, tare_samples
 from ..description.spec import resolve_encoder_resolution
@@ -110,7 +110,7 @@ class TipForceEstimator(CallStatus, StreamStarts):
 
     # ------------------------------------------------------------ factories
     @classmethod
-    def analytic(cls, robot: str | Robot = "panda", method: str = "base-wrench", params=None, payload=None,
+    def analytic(cls, robot: str | Robot = "panda", method: str = DEFAULT_METHOD, params=None, payload=None,
                  calibration=None, **config) -> "TipForceEstimator":
         """A model-free estimator: ``method`` is a name of ``analytic.methods.TIP_FORCE_METHODS`` (what each reads:
         its declaration's ``reads``), or an older spelling of one (the registry's ``aliases``, with a warning).

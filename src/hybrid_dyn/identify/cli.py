@@ -7,7 +7,7 @@ import numpy as np
 def register(sub) -> None:
     from .identification_methods import IDENTIFICATION_METHODS
 
-    p = sub.add_parser("identify", help="identify inertial and friction parameters from a dataset")
+    p = sub.add_parser("identify")
     p.add_argument("--data", required=True, help="dataset directory (toolkit format)")
     p.add_argument("--fit", choices=list(IDENTIFICATION_METHODS), default="consistent",
                    help="the identification method (default consistent): "
@@ -20,7 +20,7 @@ def register(sub) -> None:
                    help="use the dataset's qdd or re-estimate it offline without delay")
     p.set_defaults(func=cmd_identify)
 
-    p = sub.add_parser("excitation", help="design an excitation trajectory and record identification data on the plant")
+    p = sub.add_parser("excitation")
     p.add_argument("--out", required=True, help="dataset directory to write")
     p.add_argument("--scenario", default="mismatch-ext", help="plant of this scenario (its pulses are switched off)")
     p.add_argument("--runs", type=int, default=2, help="runs (instances) of the trajectory, independent noise")

@@ -23,17 +23,17 @@ _HELP = help_listing(presets=_presets, recipes=_recipes)
 
 
 def register(sub) -> None:
-    p = sub.add_parser("presets", help="list the learned-model presets")
+    p = sub.add_parser("presets")
     p.set_defaults(func=cmd_presets)
 
-    p = sub.add_parser("train", help="train a learned model on a dataset", formatter_class=_HELP)
+    p = sub.add_parser("train", formatter_class=_HELP)
     p.add_argument("--data", required=True, help="dataset directory")
     p.add_argument("--preset", required=True, help="a declared preset (hybrid-dyn presets): {presets}")
     p.add_argument("--out", required=True, help="model directory (a rerun resumes or reuses it)")
     _train_options(p)
     p.set_defaults(func=cmd_train)
 
-    p = sub.add_parser("predict", help="evaluate a trained model on a dataset split")
+    p = sub.add_parser("predict")
     p.add_argument("--model", required=True, help="model directory")
     p.add_argument("--data", required=True, help="dataset directory")
     p.add_argument("--split", default="test", choices=["train", "val", "test"])
@@ -42,8 +42,7 @@ def register(sub) -> None:
                    help="replace an existing --save file (only a predictions file written by hybrid-dyn predict)")
     p.set_defaults(func=cmd_predict)
 
-    p = sub.add_parser("tune", help="hyperparameter search with Optuna (the seed's search space)",
-                       formatter_class=_HELP)
+    p = sub.add_parser("tune", formatter_class=_HELP)
     p.add_argument("--data", required=True)
     p.add_argument("--preset", required=True, help="base preset whose architecture is searched: {presets}")
     p.add_argument("--trials", type=int, required=True, help="number of trials to add to the study")

@@ -108,10 +108,6 @@ class Preset:
         if problems:
             raise ValueError(f"preset {self.name!r}: {'; '.join(problems)}")
 
-    @property
-    def is_sequence(self) -> bool:
-        return self.window > 1
-
     def to_dict(self) -> dict:
         """The preset as model files store it (JSON types; the prior by its canonical name; not its family)."""
         d = asdict(self)

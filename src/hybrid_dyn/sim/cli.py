@@ -8,7 +8,7 @@ def register(sub) -> None:
     from .generator_config import SIZES
     from .scenarios import SCENARIOS
 
-    p = sub.add_parser("generate", help="simulate a dataset of a named scenario (DART, 1 kHz)")
+    p = sub.add_parser("generate")
     p.add_argument("--scenario", choices=list(SCENARIOS), default="paper-ext",
                    help=". ".join(f"{s.name}: {s.description}" for s in SCENARIOS.values()))
     p.add_argument("--size", choices=SIZES, default="quick",

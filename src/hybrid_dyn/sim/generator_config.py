@@ -181,10 +181,6 @@ class GeneratorConfig:
         quantized), else the hardware encoder's (its own, or the robot description's, resolved when made)."""
         return 0.0 if self.sensors is None else float(self.sensors.encoder.resolution)
 
-    @property
-    def has_external_force(self) -> bool:
-        return self.pulses is not None or self.contact_steps is not None
-
     @classmethod
     def from_dict(cls, d: dict) -> "GeneratorConfig":
         """The config of :meth:`to_dict` (a manifest's ``config``): the stored key ``profile`` is the size."""

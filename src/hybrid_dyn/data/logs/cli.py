@@ -6,7 +6,7 @@ from pathlib import Path
 
 
 def register(sub) -> None:
-    p = sub.add_parser("import", help="import a robot log (CSV, npz, .mat, Parquet, ROS bag) described by a TOML spec")
+    p = sub.add_parser("import")
     p.add_argument("--spec", required=True, help="the import spec (TOML; see docs/bring_your_own_log.md), or the name "
                    "of a real set whose spec ships with the package (real-kuka, real-baxter, real-sarcos, real-panda)")
     p.add_argument("--out", required=True, help="the dataset directory to write")
