@@ -31,6 +31,9 @@ COMMANDS = {
     "estimate": ("hybrid_dyn.estimator.replay_cli",
                  "replay a recorded log (a ROS bag, CSV, ...) through the streaming tip-force estimator; "
                  "write /tip_force to an MCAP bag or a CSV"),
+    "calibrate": ("hybrid_dyn.estimator.replay_cli",
+                  "calibrate the estimator's error bars, bandwidth and max_sigma on a free-motion log of your arm "
+                  "for a torque model (its validation part)"),
     "bench": ("hybrid_dyn.bench.cli", "every model family on the same data; writes results.csv, tables, figures"),
     "study": ("hybrid_dyn.bench.cli",
               "a bench profile rerun with overrides declared as data (e.g. data-scaling: the learned "

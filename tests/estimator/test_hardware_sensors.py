@@ -219,7 +219,7 @@ def test_the_error_bar_covers_the_ok_calls(panda):
     err = np.abs(f - s.tip_force)
     assert ok.mean() > 0.7
     assert np.all(err[ok] <= 2 * sig[ok], axis=1).mean() >= 0.9
-    assert np.all(sig[ok].max(axis=1) <= est.config.max_sigma)
+    assert np.all(sig[ok].max(axis=1) <= est.max_sigma)
     assert np.isinf(sig[:500]).all()  # the window: no estimate, no error bar
 
 

@@ -40,12 +40,7 @@ from ..errors import UsageError
 from ..outputs import unique_temp
 
 FILE_FORMAT = "hybrid_dyn.estimator_calibration"
-COVERAGE = 0.99       # the share of the calibration part's calls whose phantom |F| lies within 2 |sigma|
-MAX_SIGMA_QUANTILE = 0.99  # max_sigma: MAX_SIGMA_MARGIN times this quantile of the part's largest per-axis sigma
-MAX_SIGMA_MARGIN = 1.5  # a call whose error bar lies well beyond this arm's usual is "uncertain", not its usual
 OFF_TOOL_SIGMAS = 4.0  # the off-tool bound: this many sigmas of the model error outside range(J_v^T)
-MIN_SETTLED = 0.5  # a bandwidth must leave at least this share of the calibration part's calls settled
-UNSETTLED = ("warming up", "contact at start-up", "input rejected")  # the statuses of no settled estimate
 CHECK_EVERY = 8       # calls between two Jacobians of the model term (as the off-tool check)
 
 
@@ -168,8 +163,9 @@ class Calibration:
                 f"{str(self.params_digest)[:12]}), not the one given (digest {str(params_digest)[:12]}): calibrate "
                 "the model you run")
         if method not in self.methods:
+            why = self.source.get("not_calibrated", {}).get(method)
             raise CalibrationError(f"the calibration has no settings for method {method!r} "
-                                   f"(it calibrated {', '.join(self.methods) or 'none'})")
+                                   + (f"({why})" if why else f"(it calibrated {', '.join(self.methods) or 'none'})"))
         return self.methods[method]
 
 
@@ -228,160 +224,5 @@ def fit_torque_error(residual, qd, qdd) -> tuple[np.ndarray, np.ndarray]:
     return sig, corr
 
 
-
-
-
-def stream_instances(est, instances, tau_key: str = "tau_m", model_sigma: bool = False):
-    """Every sample of ``instances`` (a dataset split, with t) through estimator ``est``, in order: one stream
-    while an instance starts where the last one ended (a log cut into blocks), a new one (``reset``) when
-    its time starts anew. Returns (forces (N, 3) [N], sigma (N, 3) [N], statuses (N,) str), and with
-    ``model_sigma`` the error bar's model term (N, 3) [N] (inf where there is none)."""
-    forces, sigmas, statuses, models = [], [], [], []
-    end = None
-    gap = est.config.bridge_seconds + 1.5 / est.config.call_hz
-    for inst in instances:
-        q, qd, t = (np.asarray(inst[k], float) for k in ("q", "qd", "t"))
-        tau = np.asarray(inst[tau_key], float)
-        if end is None or not (0 < t[0] - end <= gap):
-            est.reset()
-        for k in range(len(t)):
-            forces.append(est.estimate_tip_force(q[k], qd[k], tau_J=tau[k], t=t[k]))
-            sigmas.append(est.last_sigma.copy())
-            statuses.append(est.last_status.value)
-            if model_sigma:
-                m = est._model_sigma
-                models.append(np.full(3, np.inf) if m is None else m.copy())
-        end = t[-1]
-    out = np.array(forces), np.array(sigmas), np.array(statuses)
-    return out + (np.array(models),) if model_sigma else out
-
-
-def torque_residual(robot, torque_model, instances, tau_key: str = "tau_m", lowpass: float | None = None) -> tuple:
-    """(residual, qd, qdd) (N, nv) of the torque model on ``instances`` (their logged qdd: the import's
-    zero-phase derivative): tau - ID(q, qd, qdd) - the terms beyond the rigid body [Nm]. lowpass [1/s]: the
-    residual as an observer of that gain sees it (a first-order low-pass per instance), else as it is."""
-    parts = []
-    for inst in instances:
-        q, qd, qdd, tau = (np.asarray(inst[k], float) for k in ("q", "qd", "qdd", tau_key))
-        e = tau - robot.inverse_dynamics(q, qd, qdd)
-        if torque_model is not None:
-            e = e - np.array([torque_model.extra_torque(*x) for x in zip(q, qd, qdd)])
-        if lowpass is not None:
-            e = first_order_lowpass(e, lowpass, np.diff(np.asarray(inst["t"], float)))
-        parts.append((e, qd, qdd))
-    return tuple(np.concatenate([p[i] for p in parts]) for i in range(3))
-
-
-def first_order_lowpass(x, gain: float, steps) -> np.ndarray:
-    """y' = gain (x - y) from y(0) = 0, by the exact step of each interval ``steps`` [s]: what a momentum
-    observer of that gain [1/s] makes of a torque error x (N, nv) (it starts from 0, as the observer)."""
-    y, out = np.zeros(x.shape[1]), np.empty_like(x)
-    out[0] = y
-    for k in range(1, len(x)):
-        a = 1.0 - np.exp(-gain * steps[k - 1])
-        y = y + a * (x[k] - y)
-        out[k] = y
-    return out
-
-
-def bandwidth_grid(method, rate_hz: float) -> tuple:
-    """The values of ``method``'s bandwidth parameter a calibration chooses from at rate_hz [Hz]: its
-    ``-val`` grid, or the qdd-filter designs where it has none."""
-    grid = method.val_grid(rate_hz)
-    if not grid:
-        from ..analytic.acceleration import cutoff_grid
-
-        designs = cutoff_grid(float(rate_hz))[0]
-        grid = tuple(float(x) for x in designs[::6]) + (float(designs[-1]),)  # eight of its 48 designs
-    return tuple(grid)
-
-
-def phantom(forces, statuses=None) -> np.ndarray:
-    """|F| (N,) [N] of free-motion estimates: every newton is a phantom."""
-    return np.linalg.norm(np.asarray(forces, float), axis=1)
-
-
-def calibrate(robot, methods, instances, rate_hz: float, torque_model=None, tau_key: str = "tau_m",
-              source: dict | None = None, progress=None, **config) -> Calibration:
-    """The :class:`Calibration` of ``methods`` (joint-torque method names) on ``robot`` with ``torque_model``
-    (None: the rigid body alone) from free-motion ``instances`` (a log's validation part, with q, qd, qdd, t
-    and the joint torques ``tau_key``); the steps of the module docstring. config: other estimator settings
-    (``encoder_resolution`` as the log's). progress(text): told each step."""
-    from ..analytic.methods import TIP_FORCE_METHODS
-    from .tip_force_estimator import TipForceEstimator
-
-    say = progress or (lambda text: None)
-    residual, qd, qdd = torque_residual(robot, torque_model, instances, tau_key)
-    sig, corr = fit_torque_error(residual, qd, qdd)
-    digest = None if torque_model is None else torque_model.digest
-    name = "rigid body" if torque_model is None else torque_model.name
-    cal = Calibration(robot.name, name, digest, sig, corr, {}, dict(source or {}, samples=int(len(residual)),
-                                                                      rate_hz=float(rate_hz)))
-    per_method = {}
-    for m in methods:
-        spec = TIP_FORCE_METHODS.lookup(m)
-        if "tau_J" not in spec.reads:
-            raise UsageError(f"calibrate: {spec.name!r} reads no joint torques; a calibration is for the "
-                             "joint-torque methods")
-        settings = dict(config, call_hz=rate_hz, on_bad_input="hold")
-
-        def run(calibration=None, **extra):
-            est = TipForceEstimator(robot, spec.name, _config(settings, extra), torque_model=torque_model,
-                                    calibration=calibration)
-            return stream_instances(est, instances, tau_key)
-
-        best = None
-        for value in bandwidth_grid(spec, rate_hz):  # the model's error in motion decides, not the sensors' noise
-            f, _, status = run(**{spec.parameter: value})
-            settled = ~np.isin(status, UNSETTLED)
-            rms = float(np.sqrt(np.mean(phantom(f[settled]) ** 2))) if settled.any() else np.inf
-            say(f"{spec.name}: {spec.parameter} = {value:g}: phantom {rms:.3f} N RMS on {100 * settled.mean():.0f} % "
-                "of the calls (the others warming up)")
-            # A bandwidth so slow that its warm-up takes half the part is no answer: it would say nothing.
-            if settled.mean() >= MIN_SETTLED and (best is None or rms < best[1]):
-                best = (value, rms)
-        if best is None:
-            raise CalibrationError(f"calibrate {spec.name}: no bandwidth of {bandwidth_grid(spec, rate_hz)} settled "
-                                   f"on {100 * MIN_SETTLED:.0f} % of the log's calls: give a longer log")
-        value, rms = best
-        # An observer sees the model's error through its low-pass: the error law is fitted on what it sees.
-        if spec.parameter == "momentum_gain":
-            per_method[spec.name] = fit_torque_error(*torque_residual(robot, torque_model, instances, tau_key, value))
-        else:
-            per_method[spec.name] = (sig, corr)
-        law = per_method[spec.name]
-        # One run with the model term at scale 1 splits each call's sigma into the sensors' part and the
-        # model's; the scale is then the least s whose error bar covers the phantom on COVERAGE of the calls.
-        cal.methods[spec.name] = MethodCalibration(value, *law, 1.0, np.inf, rms)
-        est = TipForceEstimator(robot, spec.name, _config(settings, {}), torque_model=torque_model, calibration=cal)
-        f, sigma, status, model = stream_instances(est, instances, tau_key, model_sigma=True)
-        keep = np.isfinite(sigma).all(axis=1) & np.isfinite(model).all(axis=1)
-        if keep.sum() < 10:
-            raise CalibrationError(f"calibrate {spec.name}: fewer than 10 settled calls with an error bar")
-        size = phantom(f[keep])
-        sensors2 = np.clip((sigma[keep] ** 2 - model[keep] ** 2).sum(axis=1), 0.0, None)
-        model2 = (model[keep] ** 2).sum(axis=1)
-
-        def covered(scale):
-            return np.mean(size <= 2.0 * np.sqrt(sensors2 + scale * scale * model2))
-
-        lo, hi = 1e-3, 1e3
-        while hi / lo > 1.01:
-            mid = np.sqrt(lo * hi)
-            lo, hi = (lo, mid) if covered(mid) >= COVERAGE else (mid, hi)
-        per_axis = np.sqrt(np.clip(sigma[keep] ** 2 - model[keep] ** 2, 0.0, None) + hi * hi * model[keep] ** 2)
-        max_sigma = MAX_SIGMA_MARGIN * float(np.quantile(per_axis.max(axis=1), MAX_SIGMA_QUANTILE))
-        cal.methods[spec.name] = MethodCalibration(value, *law, hi, max_sigma, rms)
-        say(f"{spec.name}: {spec.parameter} = {value:g}, sigma scale {hi:.3g}, max_sigma {max_sigma:.3g} N")
-    return cal
-
-
-def _config(settings: dict, extra: dict):
-    from .config import EstimatorConfig
-
-    return EstimatorConfig.from_settings(**dict(settings, **extra))
-
-
-
-__all__ = ["COVERAGE", "Calibration", "CalibrationError", "MethodCalibration", "ModelError", "calibrate",
-           "fit_torque_error", "stream_instances", "torque_residual"]
+__all__ = ["Calibration", "CalibrationError", "MethodCalibration", "ModelError", "fit_torque_error",
+           "joint_sigma"]

@@ -43,7 +43,8 @@ class Replay:
     stamps_ns: the input samples' stamps [ns] (a bag's header stamps; else t in ns); t [s]; force (n, 3)
     [N] in the base-sensor frame named ``frame``; status: the estimator's status per sample; sigma: its
     error bar per sample (n, k) where it reports one, else None; truth (n, 3) [N]: the log's tip sensor,
-    or None; method: the estimator's name; call_hz [Hz]: the rate it ran at (the log's median step)."""
+    or None; method: the estimator's name; call_hz [Hz]: the rate it ran at (the log's median step);
+    recording: each row's recording's name (a log's table, as its dataset's instances are named after it)."""
 
     stamps_ns: np.ndarray
     t: np.ndarray
@@ -54,6 +55,7 @@ class Replay:
     frame: str
     method: str
     call_hz: float
+    recording: np.ndarray | None = None  # (n,) the name of each row's recording (a log's table, a bag's file)
 
     def rms_against_truth(self) -> tuple[float, int] | None:
         """RMS [N] of the estimate's error against the tip sensor over the samples with status "ok", and
@@ -65,19 +67,23 @@ class Replay:
         return float(np.sqrt(np.mean(np.sum(err**2, axis=1)))), int(ok.sum())
 
 
-def replay_log(spec, method: str = DEFAULT_METHOD, model=None, encoder_resolution="auto",
-               keep_partial: bool = False) -> tuple[Replay, object]:
+def replay_log(spec, method: str = DEFAULT_METHOD, model=None, encoder_resolution=None,
+               keep_partial: bool = False, params=None, calibration=None, torque_model="params") -> tuple[Replay, object]:
     """Replay the log of ``spec`` (a ``LogSpec``) through a ``TipForceEstimator`` (the analytic ``method``,
     or the trained model in folder ``model``); returns the :class:`Replay` in memory and the import report.
-    encoder_resolution [rad]: the log's encoders ("auto": the robot description's; 0: exact q and qd).
+    encoder_resolution [rad]: the log's encoders (None: the spec's ``[encoders]``; "auto": the robot
+    description's; 0: q and qd as the arm gives them). params, calibration: the torque model (an identified
+    parameter file) and its calibration on this arm (``TipForceEstimator.analytic``); torque_model: what tau_J holds
+    beyond the rigid body, where not the params file's (a ``JointTorqueModel``, or None: nothing).
     A long log is better replayed by :func:`estimate_to`, which writes as it goes."""
     keep = _Collect()
-    summary, report, info = _replay(spec, [keep], method, model, encoder_resolution, keep_partial)
+    summary, report, info = _replay(spec, [keep], method, model, encoder_resolution, keep_partial,
+                                    params=params, calibration=calibration, torque_model=torque_model)
     return keep.replay(summary, info), report
 
 
-def estimate_to(spec, out, method: str = DEFAULT_METHOD, model=None, encoder_resolution="auto",
-                keep_partial: bool = False, progress: bool = True):
+def estimate_to(spec, out, method: str = DEFAULT_METHOD, model=None, encoder_resolution=None,
+                keep_partial: bool = False, progress: bool = True, params=None, calibration=None):
     """Replay the log of ``spec`` and write the estimate to ``out`` (.mcap or .csv) as it is made, and the
     figure ``out`` .png where the log has a tip sensor: memory is bounded by a chunk of the log (a bag's
     rows, ``data/logs/bag_checks.py``), not by its length. Returns (:class:`Summary`, the import report,
@@ -89,7 +95,8 @@ def estimate_to(spec, out, method: str = DEFAULT_METHOD, model=None, encoder_res
     try:
         info_frame = _frame(spec)
         sink = McapSink(tmp, info_frame) if out.suffix == ".mcap" else CsvSink(tmp)
-        summary, report, info = _replay(spec, [sink], method, model, encoder_resolution, keep_partial, progress)
+        summary, report, info = _replay(spec, [sink], method, model, encoder_resolution, keep_partial, progress,
+                                        params=params, calibration=calibration)
         sink.close()
         sink = None
         _link_new(tmp / f"{tmp.name}.mcap" if out.suffix == ".mcap" else tmp, out)
@@ -119,7 +126,8 @@ def _frame(spec) -> str:
     return ref.spec.base_sensor_frame if ref.described else "base"
 
 
-def _replay(spec, sinks, method, model, encoder_resolution, keep_partial, progress=False):
+def _replay(spec, sinks, method, model, encoder_resolution, keep_partial, progress=False, params=None,
+            calibration=None, torque_model="params"):
     """Every kept row of the log through one estimator, block by block, into ``sinks``."""
     from ..analytic.robot import load_robot
     from ..data.logs.import_report import ImportReport
@@ -133,11 +141,15 @@ def _replay(spec, sinks, method, model, encoder_resolution, keep_partial, progre
     try:
         for src, stamps, f, starts, hz in blocks:
             if est is None:
-                robot = load_robot(spec.robot)
+                if params is not None and model is not None:
+                    raise UsageError("params= is the analytic methods' torque model; a trained model brings its own")
+                robot = load_robot(spec.robot, params=params, num_threads=1)
                 # A bad sample is named in its status, never a stop.
-                opts = dict(call_hz=hz, on_bad_input="hold", encoder_resolution=encoder_resolution)
+                res = spec.encoder_resolution if encoder_resolution is None else encoder_resolution
+                opts = dict(call_hz=hz, on_bad_input="hold", encoder_resolution=res)
                 est = (TipForceEstimator.load(model, robot=spec.robot, **opts) if model is not None
-                       else TipForceEstimator.analytic(robot, method, **opts))
+                       else TipForceEstimator.analytic(robot, method, params=params, calibration=calibration,
+                                                       torque_model=torque_model, **opts))
                 _check_sensors(est, f, spec.name)
                 info = {"method": est.method if model is None else f"learned model {Path(model).name}",
                         "call_hz": hz, "frame": _frame(spec)}
@@ -147,6 +159,8 @@ def _replay(spec, sinks, method, model, encoder_resolution, keep_partial, progre
             carry = _fill_qd(f, starts, carry)
             force, status, sigma = _run(est, f)
             for sink in sinks:
+                if isinstance(sink, _Collect):
+                    sink.recording.append(np.full(len(stamps), src[-1] if isinstance(src, tuple) else str(src)))
                 sink.write(stamps, f["t"], force, status, sigma, f.get("tip_force"))
             summary.add(f["t"], force, status, f.get("tip_force"))
             bar.update(len(stamps))
@@ -263,6 +277,7 @@ class _Collect:
 
     def __init__(self):
         self.parts = {k: [] for k in ("stamps", "t", "force", "status", "sigma", "truth")}
+        self.recording = []  # the name of the recording (a log's table, a bag) of each row
 
     def write(self, stamps_ns, t, force, status, sigma, truth=None) -> None:
         for k, v in (("stamps", stamps_ns), ("t", t), ("force", force), ("sigma", sigma), ("truth", truth)):
@@ -274,7 +289,7 @@ class _Collect:
         sigma = np.concatenate(p["sigma"]) if p["sigma"] and all(s is not None for s in p["sigma"]) else None
         truth = np.concatenate(p["truth"]) if all(x is not None for x in p["truth"]) else None
         return Replay(np.concatenate(p["stamps"]), np.concatenate(p["t"]), np.concatenate(p["force"]), p["status"],
-                      sigma, truth, info["frame"], info["method"], info["call_hz"])
+                      sigma, truth, info["frame"], info["method"], info["call_hz"], np.concatenate(self.recording))
 
 
 def _check_sensors(est, fields: dict, name: str) -> None:

@@ -1,4 +1,5 @@
-"""CLI: ``hybrid-dyn estimate SPEC --method M [--model DIR] --out OUT.mcap|OUT.csv`` (``estimator/replay.py``)."""
+"""CLI: ``hybrid-dyn estimate SPEC --method M [--model DIR] --out OUT.mcap|OUT.csv`` (``estimator/replay.py``) and
+``hybrid-dyn calibrate DATASET --params FILE --out CAL.json`` (``estimator/calibrate.py``)."""
 from __future__ import annotations
 
 
@@ -17,15 +18,35 @@ def register(sub) -> None:
                    help=f"the analytic estimator ({', '.join(TIP_FORCE_METHODS)}); default {DEFAULT_METHOD} (joint "
                         "torques; a log with a base sensor only: base-momentum)")
     p.add_argument("--model", default=None, help="a trained tip-force model folder instead of --method")
-    p.add_argument("--encoder-resolution", type=resolution, default="auto",
-                   help="the log's joint-encoder resolution [rad]; default auto: the robot description's (1e-5 on "
-                        "the Panda); 0 for exact q and qd (a simulation's)")
+    p.add_argument("--encoder-resolution", type=resolution, default=None,
+                   help="the log's joint-encoder resolution [rad]; default: the spec's [encoders] (0 on the shipped "
+                        "real logs: the arm's own qd), else auto: the robot description's (1e-5 on the Panda); 0 "
+                        "for q and qd as given")
+    p.add_argument("--params", default=None,
+                   help="the torque model: a parameter set or an identified file (hybrid-dyn identify): its inertials, "
+                        "friction and declared springs")
+    p.add_argument("--calibration", default=None,
+                   help="error bars, bandwidth and max_sigma calibrated on this arm for that model "
+                        "(hybrid-dyn calibrate; docs/estimator.md)")
     p.add_argument("--out", required=True, help="OUT.mcap (a ROS 2 bag: /tip_force, /tip_force/status) or OUT.csv; "
                                                 "never overwritten; OUT.png beside it where the log has a tip sensor")
     p.add_argument("--keep-partial", action="store_true",
                    help="a damaged ROS bag: estimate from the rows read before the damage (the report says where "
                         "it stopped) instead of refusing it")
     p.set_defaults(func=cmd_estimate)
+
+    p = sub.add_parser("calibrate")
+    p.add_argument("data", help="an imported free-motion log of your arm (hybrid-dyn import; nothing touches the tool)")
+    p.add_argument("--params", default=None, help="the torque model to calibrate: an identified file (hybrid-dyn "
+                                                  "identify, fitted on other splits) or a parameter set; default the "
+                                                  "description's own")
+    p.add_argument("--methods", default="torques-pinv,momentum-observer,kalman-fusion",
+                   help="the joint-torque methods to calibrate, comma-separated")
+    p.add_argument("--split", default="val", help="the dataset's split to calibrate on (default val)")
+    p.add_argument("--encoder-resolution", type=resolution, default=0.0,
+                   help="the log's encoders, as the estimator will read them [rad]; default 0: q and qd as logged")
+    p.add_argument("--out", required=True, help="the calibration file to write (JSON; never overwritten)")
+    p.set_defaults(func=cmd_calibrate)
 
 
 def cmd_estimate(args) -> int:
@@ -35,7 +56,8 @@ def cmd_estimate(args) -> int:
     check_outputs(args.out)  # before the log is read: a taken name costs nothing
     summary, report, written, info = estimate_to(read_spec(args.spec), args.out, method=args.method,
                                                  model=args.model, encoder_resolution=args.encoder_resolution,
-                                                 keep_partial=args.keep_partial)
+                                                 keep_partial=args.keep_partial, params=args.params,
+                                                 calibration=args.calibration)
     print(report.text(max_per_kind=5))
     print(f"{info['method']}: {summary.n} samples estimated at {info['call_hz']:.6g} Hz; status {summary.statuses}")
     rms = summary.rms()
@@ -43,4 +65,34 @@ def cmd_estimate(args) -> int:
         print(f"against the tip sensor: {rms[0]:.4f} N RMS over the {rms[1]} samples with status ok")
     for path in written:
         print(f"written: {path}")
+    return 0
+
+
+def cmd_calibrate(args) -> int:
+    from pathlib import Path
+
+    import numpy as np
+
+    from ..analytic.robot import load_robot
+    from ..data import load_dataset
+    from .calibrate import calibrate
+    from .calibration import CalibrationError
+    from .torque_model import JointTorqueModel
+
+    if Path(args.out).exists():
+        raise CalibrationError(f"{args.out} exists: calibrate to a new file")
+    ds = load_dataset(args.data)
+    parts = ds.split(args.split)
+    if not parts:
+        raise CalibrationError(f"{args.data} has no {args.split!r} split to calibrate on")
+    robot = load_robot(ds.meta.get("robot", "panda"), params=args.params, num_threads=1)
+    model = None if args.params is None else JointTorqueModel.from_params(args.params, robot)
+    rate = 1.0 / float(np.median(np.concatenate([np.diff(np.asarray(i["t"], float)) for i in parts])))
+    methods = [m for m in args.methods.split(",") if m]
+    before = [i for s in ("train", "val", "test") if s != args.split for i in ds.split(s)]
+    cal = calibrate(robot, methods, parts, rate, torque_model=model, progress=print, before=before,
+                    source={"data": str(args.data), "split": args.split, "params": args.params},
+                    encoder_resolution=args.encoder_resolution)
+    cal.save(args.out)
+    print(f"wrote {args.out}")
     return 0

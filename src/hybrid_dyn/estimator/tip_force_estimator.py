@@ -111,7 +111,7 @@ class TipForceEstimator(CallStatus, StreamStarts):
     # ------------------------------------------------------------ factories
     @classmethod
     def analytic(cls, robot: str | Robot = "panda", method: str = DEFAULT_METHOD, params=None, payload=None,
-                 calibration=None, **config) -> "TipForceEstimator":
+                 calibration=None, torque_model="params", **config) -> "TipForceEstimator":
         """A model-free estimator: ``method`` is a name of ``analytic.methods.TIP_FORCE_METHODS`` (what each reads:
         its declaration's ``reads``), or an older spelling of one (the registry's ``aliases``, with a warning).
         payload: the tool's load, ``(mass_kg, (x, y, z))`` with its centre of mass [m] in the tool frame (as
@@ -120,12 +120,15 @@ class TipForceEstimator(CallStatus, StreamStarts):
         inertials, and its friction and declared springs, which are taken from tau_J (``torque_model.py``).
         calibration: a :class:`Calibration` or its file (``hybrid-dyn calibrate``): the error bar's model term,
         the bandwidth and max_sigma calibrated on the user's own log for this torque model.
+        torque_model: what tau_J holds beyond the rigid body, where not the params file's: a
+        :class:`JointTorqueModel` (a hybrid's learned residual, say), or None for nothing.
         config: ``EstimatorConfig`` settings, a method's bandwidth parameter by its name (``momentum_gain=50.0``)."""
         method = TIP_FORCE_METHODS.lookup(method).name
         config = EstimatorConfig.from_settings(**config)
         if not isinstance(robot, Robot):
             robot = load_robot(robot, params=params, num_threads=1)
-        torque_model = None if params is None else JointTorqueModel.from_params(params, robot)
+        if isinstance(torque_model, str) and torque_model == "params":
+            torque_model = None if params is None else JointTorqueModel.from_params(params, robot)
         if payload is not None:
             robot = with_payload(robot, checked_payload(payload, rated_payload(robot.spec, config), robot.base_name))
         if calibration is not None and not isinstance(calibration, Calibration):

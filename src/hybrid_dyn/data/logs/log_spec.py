@@ -169,6 +169,10 @@ class LogSpec:
     split_by: str = "random"  # splits.SPLIT_MODES: "random", "time" (in time order) or "list"
     split_lists: dict = field(default_factory=dict)  # by = "list": split -> trajectory names
     notes: str = ""
+    # How the arm's interface delivers q and qd, for the streaming estimator ([encoders] resolution): "auto" the
+    # robot description's encoder model (q quantized, qd its difference); 0: q and qd as the arm gives them (a
+    # Panda's libfranka dq, KUKA's FRI, Baxter's joint_states: the robot's own velocity, no difference of q).
+    encoder_resolution: float | str = "auto"
     spec_file: str | None = None
     ros: object = None  # a ROS bag's topics (ros_bag.RosTopics, the TOML's [ros]): they set columns and time
 
@@ -262,7 +266,8 @@ class LogSpec:
 # The TOML spec
 _SPEC_LAYOUT = {
     "": {"name", "robot", "tool", "payload", "notes", "source", "env_defaults", "time", "columns", "trajectories", "units",
-         "derivatives", "checks", "split", "ros"},
+         "derivatives", "checks", "split", "ros", "encoders"},
+    "encoders": {"resolution"},
     "source": {"files", "format", "variables", "delimiter"},
     "time": {"column", "unit", "sample_rate_hz"},
     "trajectories": {"from", "n_blocks", "column"},
@@ -351,6 +356,7 @@ def spec_from_dict(doc: dict, base_dir=".", spec_file=None) -> LogSpec:
             split_by=split.get("by", "list" if lists else "random"), split_lists=lists,
             spec_file=str(spec_file) if spec_file else None,
             ros=dict(doc["ros"]) if "ros" in doc else None,
+            encoder_resolution=doc.get("encoders", {}).get("resolution", "auto"),
         )
     except TypeError as err:  # unknown keys in [derivatives] or [checks]
         raise LogSpecError(f"invalid import spec{where}: {err}") from err

@@ -26,6 +26,9 @@ def _is_ref(x) -> bool:
 def spec_type_problems(spec) -> list[str]:
     """Fields of a ``LogSpec`` whose type no later step can use."""
     out = []
+    res = spec.encoder_resolution
+    if not (res == "auto" or (isinstance(res, (int, float)) and not isinstance(res, bool) and 0 <= res < 0.01)):
+        out.append(f"[encoders] resolution must be \"auto\" or a number in [0, 0.01) [rad], got {res!r}")
     if not isinstance(spec.name, str):
         out.append(f"name must be text, got {spec.name!r}")
     if not isinstance(spec.notes, str):

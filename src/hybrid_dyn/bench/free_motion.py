@@ -1,0 +1,168 @@
+"""Tip force in free motion on the real arms: the streaming estimator on each real log, per torque model.
+
+Nothing touches the tool in the shipped real logs (Panda, KUKA LWR, Baxter), so the true tip force is about
+zero and every newton the estimator reads is a phantom. For each log and each torque model:
+
+1. the model is identified on the log's **training** part (``identify``, physically consistent);
+2. the estimator is **calibrated** on its **validation** part (``estimator/calibrate.py``: error bars,
+   bandwidth, max_sigma), for each joint-torque method;
+3. the whole log is replayed through ``hybrid-dyn estimate``'s own code path (``estimator/replay.py``: the
+   log's stamps, the spec's encoder model), and the calls on the **test** part are scored: phantom |F| RMS
+   and 95th percentile, the share ``ok``, the share of ``ok`` calls whose |F| lies within 2 |sigma|;
+4. beside each, the **offline floor**: pinv(J_v^T) of the torque model's residual on the test part (with the
+   log's zero-phase qdd), the phantom a joint-torque estimate cannot beat with that model.
+
+Torque models: ``nominal`` (the description's parameters), ``identified`` (the identified inertials alone),
+``identified + friction`` (and the declared springs, Baxter's shoulder). :func:`free_motion_rows` returns
+the table; ``benchmarks/free_motion.py`` writes it into ``reports/real``.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+# The logs (import specs shipped in resources/real) and the joint-torque methods scored on each.
+LOGS = ("real-panda", "real-kuka", "real-baxter")
+METHODS = ("torques-pinv", "momentum-observer", "kalman-fusion")
+TORQUE_MODELS = ("nominal", "identified", "identified + friction")
+
+
+@dataclass
+class FreeMotionRow:
+    """One row of the table: phantom forces [N] on the log's test part."""
+
+    robot: str
+    torque_model: str
+    method: str
+    bandwidth: float
+    phantom_rms_N: float
+    phantom_p95_N: float
+    share_ok: float
+    ok_within_2sigma: float
+    offline_floor_N: float
+    test_calls: int
+
+
+def test_rows(replay, test_instances) -> np.ndarray:
+    """Which rows of ``replay`` (``replay_log``'s) lie in the test part: a row of recording r at time t belongs
+    to a test instance named r (a trajectory) or r_... (a block of it) whose time span holds t."""
+    keep = np.zeros(len(replay.t), bool)
+    for inst in test_instances:
+        t = np.asarray(inst["t"], float)
+        rec = np.array([inst.name == r or inst.name.startswith(f"{r}_") for r in replay.recording])
+        keep |= rec & (replay.t >= t[0] - 1e-9) & (replay.t <= t[-1] + 1e-9)
+    return keep
+
+
+def offline_floor(robot, torque_model, instances) -> float:
+    """RMS |pinv(J_v^T) e| [N] over ``instances``, e the torque model's residual [Nm] (``torque_residual``)."""
+    from ..estimator.calibrate import torque_residual
+
+    cat_q = np.concatenate([np.asarray(i["q"], float) for i in instances])
+    e, _, _ = torque_residual(robot, torque_model, instances)
+    jv = robot._tip_jacobians(cat_q)[:, :3, :]
+    f = np.linalg.solve(jv @ jv.transpose(0, 2, 1), np.einsum("nij,nj->ni", jv, e)[..., None])[..., 0]
+    return float(np.sqrt(np.mean(np.sum(f * f, axis=1))))
+
+
+def score(replay, keep) -> dict:
+    """The columns of a row from the replayed test calls."""
+    f = replay.force[keep]
+    size = np.linalg.norm(f, axis=1)
+    status = np.array(replay.status)[keep]
+    ok = status == "ok"
+    sigma = replay.sigma[keep] if replay.sigma is not None else np.full_like(f, np.inf)
+    within = size[ok] <= 2.0 * np.linalg.norm(sigma[ok], axis=1)
+    return {"phantom_rms_N": float(np.sqrt(np.mean(size ** 2))), "phantom_p95_N": float(np.percentile(size, 95)),
+            "share_ok": float(ok.mean()), "ok_within_2sigma": float(within.mean()) if ok.any() else float("nan"),
+            "test_calls": int(keep.sum())}
+
+
+def free_motion_rows(work: Path, logs=LOGS, methods=METHODS, progress=print) -> list[FreeMotionRow]:
+    """The table for ``logs`` x TORQUE_MODELS x ``methods``; ``work``: a folder for the imported logs, the
+    identified files and calibrations (each made once: a rerun reuses them, a partial file is never read)."""
+    from ..analytic.robot import load_robot
+    from ..data import load_dataset
+    from ..data.logs.importer import import_log, read_spec
+    from ..data.logs.real_logs import real_spec_path
+    from ..estimator.calibrate import calibrate
+    from ..estimator.calibration import Calibration
+    from ..estimator.replay import replay_log
+    from ..estimator.torque_model import JointTorqueModel
+    from ..identify.identified_model import identify
+
+    work = Path(work)
+    rows = []
+    for log in logs:
+        spec = read_spec(real_spec_path(log))
+        data = work / log
+        if not (data / "manifest.json").exists():
+            progress(f"{log}: importing")
+            import_log(spec, data)
+        ds = load_dataset(data)
+        nominal = load_robot(ds.meta["robot"], num_threads=1)
+        identified = work / f"{log}-identified.json"
+        if not identified.exists():
+            progress(f"{log}: identifying on the training part")
+            identify(ds, "consistent", nominal, splits=("train",)).save(identified)
+        val, test = ds.split("val"), ds.split("test")
+        rate = 1.0 / float(np.median(np.concatenate([np.diff(np.asarray(i["t"], float)) for i in val])))
+        for model_name in TORQUE_MODELS:
+            params = None if model_name == "nominal" else identified
+            robot = load_robot(ds.meta["robot"], params=params, num_threads=1)
+            full = None if params is None else JointTorqueModel.from_params(params, robot)
+            torque_model = full if model_name == "identified + friction" else None
+            if model_name == "identified":  # the inertials alone: the friction and springs stay in tau_J
+                torque_model = JointTorqueModel("identified", tuple(robot.joint_names), digest=f"{full.digest}/rigid")
+            floor = offline_floor(robot, torque_model, test)
+            label = model_name if torque_model is None else torque_model.name
+            cal_file = work / f"{log}-{label.replace(' ', '_').replace('+', 'and')}-calibration.json"
+            if cal_file.exists():
+                cal = Calibration.load(cal_file)
+            else:
+                progress(f"{log}, {label}: calibrating on the validation part")
+                cal = calibrate(robot, methods, val, rate, torque_model=torque_model, encoder_resolution=0.0,
+                                before=ds.split("train"),
+                                source={"log": log, "split": "val", "params": None if params is None else str(params)})
+                cal.save(cal_file)
+            for method in methods:
+                if method not in cal.methods:
+                    progress(f"{log}, {label}, {method}: {cal.source['not_calibrated'][method]}")
+                    continue
+                replay, _ = replay_log(spec, method, params=params, calibration=cal, torque_model=torque_model)
+                row = FreeMotionRow(log.removeprefix("real-"), label, method, cal.methods[method].bandwidth,
+                                    offline_floor_N=floor, **score(replay, test_rows(replay, test)))
+                progress(f"{row.robot}, {row.torque_model}, {row.method}: phantom {row.phantom_rms_N:.2f} N RMS "
+                         f"(floor {floor:.2f}), ok {100 * row.share_ok:.0f} %, within 2 sigma "
+                         f"{100 * row.ok_within_2sigma:.0f} %")
+                rows.append(row)
+    return rows
+
+
+def write_table(rows, out: Path) -> tuple[Path, Path]:
+    """``free_motion.csv`` and ``free_motion.md`` in ``out`` (the section's table)."""
+    import csv
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    csv_path, md_path = out / "free_motion.csv", out / "free_motion.md"
+    fields = list(FreeMotionRow.__dataclass_fields__)
+    with open(csv_path, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=fields)
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: (f"{v:.4g}" if isinstance(v, float) else v) for k, v in asdict(r).items()})
+    lines = ["| robot | torque model | method | bandwidth | phantom RMS [N] | p95 [N] | ok | ok within 2 sigma "
+             "| offline floor [N] |", "|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r.robot} | {r.torque_model} | {r.method} | {r.bandwidth:.3g} | {r.phantom_rms_N:.2f} | "
+                     f"{r.phantom_p95_N:.2f} | {100 * r.share_ok:.0f} % | {100 * r.ok_within_2sigma:.0f} % | "
+                     f"{r.offline_floor_N:.2f} |")
+    md_path.write_text("\n".join(lines) + "\n")
+    return csv_path, md_path
+
+
+__all__ = ["FreeMotionRow", "LOGS", "METHODS", "TORQUE_MODELS", "free_motion_rows", "offline_floor", "score",
+           "test_rows", "write_table"]

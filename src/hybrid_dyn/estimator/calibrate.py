@@ -1,0 +1,203 @@
+"""Calibrating the estimator on a free-motion log (``hybrid-dyn calibrate``): the steps of
+``estimator/calibration.py``'s docstring, run on a log's validation part through the estimator itself.
+
+    cal = calibrate(robot, ["momentum-observer"], dataset.split("val"), rate_hz, torque_model=model)
+    cal.save("calibration.json")     # TipForceEstimator.analytic(..., params=..., calibration=that file)
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import UsageError
+from .calibration import (Calibration, CalibrationError, MethodCalibration, fit_torque_error)
+from .config import EstimatorConfig
+from .tip_force_estimator import TipForceEstimator
+
+COVERAGE = 0.99       # the share of the calibration part's calls whose phantom |F| lies within 2 |sigma|
+MAX_SIGMA_QUANTILE = 0.99  # max_sigma: MAX_SIGMA_MARGIN times this quantile of the part's largest per-axis sigma
+MAX_SIGMA_MARGIN = 1.5  # a call whose error bar lies well beyond this arm's usual is "uncertain", not its usual
+MIN_SETTLED = 0.9  # a bandwidth must leave at least this share of the calibration part's calls settled
+UNSETTLED = ("warming up", "contact at start-up", "input rejected")  # the statuses of no settled estimate
+
+
+def stream_instances(est, instances, tau_key: str = "tau_m", model_sigma: bool = False, lead_in=()):
+    """Every sample of ``instances`` (a dataset split, with t) through estimator ``est``, in order: one stream
+    while an instance starts where the last one ended (a log cut into blocks), a new one (``reset``) when
+    its time starts anew. ``lead_in``: instances streamed first and not returned (the part of the log before
+    ``instances``: the estimator there is as it will be in use, long settled). Returns (forces (N, 3) [N],
+    sigma (N, 3) [N], statuses (N,) str), and with ``model_sigma`` the error bar's model term (N, 3) [N] (inf
+    where there is none)."""
+    forces, sigmas, statuses, models = [], [], [], []
+    end = None
+    gap = est.config.bridge_seconds + 1.5 / est.config.call_hz
+    skip = {id(i) for i in lead_in}
+    for inst in list(lead_in) + list(instances):
+        q, qd, t = (np.asarray(inst[k], float) for k in ("q", "qd", "t"))
+        tau = np.asarray(inst[tau_key], float)
+        if end is None or not (0 < t[0] - end <= gap):
+            est.reset()
+        end = t[-1]
+        if id(inst) in skip:
+            for k in range(len(t)):
+                est.estimate_tip_force(q[k], qd[k], tau_J=tau[k], t=t[k])
+            continue
+        for k in range(len(t)):
+            forces.append(est.estimate_tip_force(q[k], qd[k], tau_J=tau[k], t=t[k]))
+            sigmas.append(est.last_sigma.copy())
+            statuses.append(est.last_status.value)
+            if model_sigma:
+                m = est._model_sigma
+                models.append(np.full(3, np.inf) if m is None else m.copy())
+    out = np.array(forces), np.array(sigmas), np.array(statuses)
+    return out + (np.array(models),) if model_sigma else out
+
+
+def lead_in(candidates, part, gap_seconds: float = 0.05) -> list:
+    """The instances of ``candidates`` (a log's earlier split) that run straight into ``part``'s first one (each
+    ending within ``gap_seconds`` [s] before the next begins), in time order: a log cut into time blocks."""
+    chain, start = [], min(float(np.asarray(i["t"], float)[0]) for i in part) if part else None
+    pool = sorted(candidates, key=lambda i: -float(np.asarray(i["t"], float)[-1]))
+    for inst in pool:
+        t = np.asarray(inst["t"], float)
+        if start is not None and 0 < start - t[-1] <= gap_seconds:
+            chain.insert(0, inst)
+            start = float(t[0])
+    return chain
+
+
+def torque_residual(robot, torque_model, instances, tau_key: str = "tau_m", lowpass: float | None = None) -> tuple:
+    """(residual, qd, qdd) (N, nv) of the torque model on ``instances`` (their logged qdd: the import's
+    zero-phase derivative): tau - ID(q, qd, qdd) - the terms beyond the rigid body [Nm]. lowpass [1/s]: the
+    residual as an observer of that gain sees it (a first-order low-pass per instance), else as it is."""
+    parts = []
+    for inst in instances:
+        q, qd, qdd, tau = (np.asarray(inst[k], float) for k in ("q", "qd", "qdd", tau_key))
+        e = tau - robot.inverse_dynamics(q, qd, qdd)
+        if torque_model is not None:
+            e = e - np.array([torque_model.extra_torque(*x) for x in zip(q, qd, qdd)])
+        if lowpass is not None:
+            e = first_order_lowpass(e, lowpass, np.diff(np.asarray(inst["t"], float)))
+        parts.append((e, qd, qdd))
+    return tuple(np.concatenate([p[i] for p in parts]) for i in range(3))
+
+
+def first_order_lowpass(x, gain: float, steps) -> np.ndarray:
+    """y' = gain (x - y) from y(0) = 0, by the exact step of each interval ``steps`` [s]: what a momentum
+    observer of that gain [1/s] makes of a torque error x (N, nv) (it starts from 0, as the observer)."""
+    y, out = np.zeros(x.shape[1]), np.empty_like(x)
+    out[0] = y
+    for k in range(1, len(x)):
+        a = 1.0 - np.exp(-gain * steps[k - 1])
+        y = y + a * (x[k] - y)
+        out[k] = y
+    return out
+
+
+def bandwidth_grid(method, rate_hz: float) -> tuple:
+    """The values of ``method``'s bandwidth parameter a calibration chooses from at rate_hz [Hz]: its
+    ``-val`` grid, or the qdd-filter designs where it has none."""
+    grid = method.val_grid(rate_hz)
+    if not grid:
+        from ..analytic.acceleration import cutoff_grid
+
+        designs = cutoff_grid(float(rate_hz))[0]
+        grid = tuple(float(x) for x in designs[::6]) + (float(designs[-1]),)  # eight of its 48 designs
+    return tuple(grid)
+
+
+def phantom(forces, statuses=None) -> np.ndarray:
+    """|F| (N,) [N] of free-motion estimates: every newton is a phantom."""
+    return np.linalg.norm(np.asarray(forces, float), axis=1)
+
+
+def calibrate(robot, methods, instances, rate_hz: float, torque_model=None, tau_key: str = "tau_m",
+              source: dict | None = None, progress=None, before=(), **config) -> Calibration:
+    """The :class:`Calibration` of ``methods`` (joint-torque method names) on ``robot`` with ``torque_model``
+    (None: the rigid body alone) from free-motion ``instances`` (a log's validation part, with q, qd, qdd, t
+    and the joint torques ``tau_key``); the steps of the module docstring. config: other estimator settings
+    (``encoder_resolution`` as the log's). progress(text): told each step. before: the log's instances
+    before ``instances`` (its training part): those that run straight into it are streamed first, unscored
+    (``lead_in``), so that the estimator meets the calibration part as it will in use, long settled."""
+    from ..analytic.methods import TIP_FORCE_METHODS
+
+    say = progress or (lambda text: None)
+    residual, qd, qdd = torque_residual(robot, torque_model, instances, tau_key)
+    sig, corr = fit_torque_error(residual, qd, qdd)
+    digest = None if torque_model is None else torque_model.digest
+    name = "rigid body" if torque_model is None else torque_model.name
+    cal = Calibration(robot.name, name, digest, sig, corr, {}, dict(source or {}, samples=int(len(residual)),
+                                                                      rate_hz=float(rate_hz)))
+    per_method = {}
+    warm = lead_in(before, instances)
+    for m in methods:
+        spec = TIP_FORCE_METHODS.lookup(m)
+        if "tau_J" not in spec.reads:
+            raise UsageError(f"calibrate: {spec.name!r} reads no joint torques; a calibration is for the "
+                             "joint-torque methods")
+        settings = dict(config, call_hz=rate_hz, on_bad_input="hold")
+
+        def run(calibration=None, **extra):
+            est = TipForceEstimator(robot, spec.name, _config(settings, extra), torque_model=torque_model,
+                                    calibration=calibration)
+            return stream_instances(est, instances, tau_key, lead_in=warm)
+
+        def law_at(value):  # an observer sees the model's error through its low-pass: the law of what it sees
+            if spec.parameter == "momentum_gain":
+                return fit_torque_error(*torque_residual(robot, torque_model, instances, tau_key, value))
+            return sig, corr
+
+        best = None
+        for value in bandwidth_grid(spec, rate_hz):  # the model's error in motion decides, not the sensors' noise
+            # The model term at scale 1 rides along: the start-up window then knows the model's error is no contact.
+            cal.methods[spec.name] = MethodCalibration(value, *law_at(value), 1.0, np.inf, np.nan)
+            f, _, status = run(calibration=cal)
+            settled = ~np.isin(status, UNSETTLED)
+            rms = float(np.sqrt(np.mean(phantom(f[settled]) ** 2))) if settled.any() else np.inf
+            say(f"{spec.name}: {spec.parameter} = {value:g}: phantom {rms:.3f} N RMS on {100 * settled.mean():.0f} % "
+                "of the calls (the others warming up)")
+            # A bandwidth so slow that its warm-up takes half the part is no answer: it would say nothing.
+            if settled.mean() >= MIN_SETTLED and (best is None or rms < best[1]):
+                best = (value, rms)
+        del cal.methods[spec.name]
+        if best is None:
+            reason = (f"no bandwidth of {bandwidth_grid(spec, rate_hz)} settled on {100 * MIN_SETTLED:.0f} % of the "
+                      "calibration part's calls: give a longer log")
+            cal.source.setdefault("not_calibrated", {})[spec.name] = reason
+            say(f"{spec.name}: not calibrated: {reason}")
+            continue
+        value, rms = best
+        per_method[spec.name] = law_at(value)
+        law = per_method[spec.name]
+        # One run with the model term at scale 1 splits each call's sigma into the sensors' part and the
+        # model's; the scale is then the least s whose error bar covers the phantom on COVERAGE of the calls.
+        cal.methods[spec.name] = MethodCalibration(value, *law, 1.0, np.inf, rms)
+        est = TipForceEstimator(robot, spec.name, _config(settings, {}), torque_model=torque_model, calibration=cal)
+        f, sigma, status, model = stream_instances(est, instances, tau_key, model_sigma=True, lead_in=warm)
+        keep = np.isfinite(sigma).all(axis=1) & np.isfinite(model).all(axis=1)
+        if keep.sum() < 10:
+            raise CalibrationError(f"calibrate {spec.name}: fewer than 10 settled calls with an error bar")
+        size = phantom(f[keep])
+        sensors2 = np.clip((sigma[keep] ** 2 - model[keep] ** 2).sum(axis=1), 0.0, None)
+        model2 = (model[keep] ** 2).sum(axis=1)
+
+        def covered(scale):
+            return np.mean(size <= 2.0 * np.sqrt(sensors2 + scale * scale * model2))
+
+        lo, hi = 1e-3, 1e3
+        while hi / lo > 1.01:
+            mid = np.sqrt(lo * hi)
+            lo, hi = (lo, mid) if covered(mid) >= COVERAGE else (mid, hi)
+        per_axis = np.sqrt(np.clip(sigma[keep] ** 2 - model[keep] ** 2, 0.0, None) + hi * hi * model[keep] ** 2)
+        max_sigma = MAX_SIGMA_MARGIN * float(np.quantile(per_axis.max(axis=1), MAX_SIGMA_QUANTILE))
+        cal.methods[spec.name] = MethodCalibration(value, *law, hi, max_sigma, rms)
+        say(f"{spec.name}: {spec.parameter} = {value:g}, sigma scale {hi:.3g}, max_sigma {max_sigma:.3g} N")
+    return cal
+
+
+def _config(settings: dict, extra: dict):
+    return EstimatorConfig.from_settings(**dict(settings, **extra))
+
+
+
+
+__all__ = ["COVERAGE", "calibrate", "first_order_lowpass", "lead_in", "stream_instances", "torque_residual"]
