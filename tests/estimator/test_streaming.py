@@ -275,9 +275,9 @@ def test_kalman_fusion_needs_one_sensor_at_least(panda):
 
 
 def test_a_short_gap_is_bridged_and_a_long_one_warms_up_anew(recorded):
-    """Two lost ticks: the sample after them is refused (a gap, or a stray stamp?), the next one confirms the
-    gap, which is bridged: no warm-up, and the estimate goes on within a hair of the stream that lost nothing.
-    A gap beyond bridge_seconds restarts the method: the resumed stream equals a new one started there."""
+    """Two lost ticks: a short gap, bridged: no refusal, no warm-up, and the estimate goes on within a hair of
+    the stream that lost nothing. A gap beyond bridge_seconds: the sample after it is refused (a gap, or a stray
+    stamp?), the next confirms it and restarts the method: the resumed stream equals a new one started there."""
     def make():
         return TipForceEstimator.analytic("panda", "momentum-observer", call_hz=RATE, momentum_gain=50.0,
                                           on_bad_input="hold", encoder_resolution=0.0, max_sigma=1e3,
@@ -288,9 +288,7 @@ def test_a_short_gap_is_bridged_and_a_long_one_warms_up_anew(recorded):
     for k in range(40):
         est.estimate_tip_force(recorded.q[k], recorded.qd[k], tau_J=tau[k], t=recorded.t[k])
     assert est.last_status is EstimatorStatus.OK
-    est.estimate_tip_force(recorded.q[42], recorded.qd[42], tau_J=tau[42], t=recorded.t[42])  # ticks 40, 41 lost
-    assert est.last_status is EstimatorStatus.INPUT_REJECTED
-    for k in range(43, 80):  # the interpolated ticks' error decays at the observer's rate, 50 /s
+    for k in range(42, 80):  # ticks 40, 41 lost  # the interpolated ticks' error decays at the observer's rate, 50 /s
         f = est.estimate_tip_force(recorded.q[k], recorded.qd[k], tau_J=tau[k], t=recorded.t[k])
         assert est.last_status is EstimatorStatus.OK
         if k >= 70:

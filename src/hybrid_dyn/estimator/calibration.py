@@ -213,7 +213,13 @@ def fit_torque_error(residual, qd, qdd) -> tuple[np.ndarray, np.ndarray]:
     for j in range(nv):
         basis = np.stack([np.ones(len(qd)), qd[:, j] ** 2, qdd[:, j] ** 2], axis=1)
         scale = np.sqrt((basis ** 2).mean(axis=0)) + 1e-12  # columns of one size: a well-posed NNLS
-        coef, _ = nnls(basis / scale, residual[:, j] ** 2)
+        e2, w = residual[:, j] ** 2, np.ones(len(qd))
+        # e^2 scatters about its variance by its variance (a chi-square of one degree): least squares weighted by
+        # 1 / the predicted variance, iterated, is the variance regression's efficient fit.
+        for _ in range(4):
+            coef, _ = nnls((basis / scale) * w[:, None], e2 * w)
+            var = (basis / scale) @ coef
+            w = 1.0 / np.maximum(var, 1e-3 * max(float(e2.mean()), 1e-12))
         sig[j] = np.sqrt(coef / scale)
     d = np.sqrt(np.clip((np.stack([np.ones_like(qd[:, 0])] * nv, 1) * sig[:, 0] ** 2
                          + (qd * sig[:, 1]) ** 2 + (qdd * sig[:, 2]) ** 2), 1e-12, None))

@@ -15,6 +15,7 @@ from numba import njit
 from ..analytic.robot import InputError, Robot
 
 G = 9.81  # m/s^2, for the base-wrench bound
+RATE_STEPS = 50  # the steps over which a timed stream's share of gaps is averaged (a wrong rate: most are gaps)
 
 
 class EstimatorInputError(InputError):
@@ -69,6 +70,7 @@ class InputGate:
         self._calls_since = 0  # calls since the last accepted sample, this one included (each a tick)
         self._stamps = 0  # accepted stamps
         self._clock = None  # the robot's clock as the stamps show it: the stamp of the last accepted tick [s]
+        self._gap_share = 0.0  # the running share of short gaps among the recent steps (a wrong rate: most are)
         self.lost_ticks = 0  # ticks lost before the latest accepted sample
 
     def model_changed(self) -> None:
@@ -143,6 +145,7 @@ class InputGate:
         # A step this far from the period is the stamps' jitter (a PC's), never a lost tick.
         self._period_tol = min(max(c.rate_tolerance * self._period, 1.5 * c.stamp_jitter), 0.9 * self._period)
         self._jitter = c.stamp_jitter
+        self._bridge_ticks = int(c.bridge_seconds * c.call_hz)  # the longest gap accepted at once [ticks]
         self._max_force_sq = c.max_tip_force ** 2
 
     def accept(self, q, qd, base_wrench, tau_J, t):
@@ -206,17 +209,22 @@ class InputGate:
         A longer step spans round(step / period) ticks. It is accepted when what came
         between explains it: the stamp of the call before lies one period before it (that call was refused
         for its values, or was a gap's end), or no call between brought a stamp ahead and there were as many
-        calls as ticks (a sample refused for a stamp of its own). One bad sample costs one sample. Else it is
-        refused: a stray stamp, a gap's end (the next call confirms it), or a stream at another rate than
-        call_hz, whose every step spans several ticks and which so never goes on. A stamp before the last
+        calls as ticks (a sample refused for a stamp of its own): one bad sample costs one sample. It is
+        accepted at once as a short gap (its lost ticks within ``bridge_seconds``) while such gaps are a
+        minority of the recent steps (over ``RATE_STEPS``): a PC-stamped log streams with no refusal. Else it
+        is refused: a longer gap's end (the next call confirms it), a stray stamp, or a stream at another
+        rate than call_hz, whose every step spans several ticks and which so never goes on. (A stray stamp
+        ahead within a short gap is taken for one: the samples after it that lie before it are then
+        refused, until the stream passes it.) A stamp before the last
         accepted one, or too early for the next tick, is refused. The estimator bridges the ticks lost in a
         short gap (``bridge_seconds``) and restarts after a long one."""
         if self.last_t is None:
-            self._stamps, self._clock, self._seen_t = 1, t, t
+            self._stamps, self._clock, self._seen_t, self._gap_share = 1, t, t, 0.0
             return 0
         T, tol = self._period, self._period_tol
         step = t - self.last_t
         off = t - (self._clock + T)  # from the clock's next tick
+        gap = False  # a short gap accepted at once (not explained by refused calls): counted in the gap share
         if abs(step - T) <= tol or abs(off) <= tol:
             ticks = 1
         elif step <= -2.0 * self._jitter or (self._jitter == 0 and step <= 0):
@@ -229,12 +237,17 @@ class InputGate:
             ticks = max(2, round(step / T))  # by the step: a PC's stamps wander off any slow clock
             seen, self._seen_t = self._seen_t, t
             between = (0 < t - seen <= T + tol) if seen != self.last_t else ticks <= self._calls_since
-            if not between:
+            share = self._gap_share + (1.0 - self._gap_share) / min(self._stamps, RATE_STEPS)
+            short = ticks - 1 <= self._bridge_ticks and share <= 0.5
+            if not (between or short):
                 raise EstimatorInputError(
                     f"t={t} s steps {step:.6g} s from the last accepted sample, and call_hz={self.config.call_hz:g} "
                     f"expects {T:.6g} s (stamps within +-{tol:.3g} s): a wrong call_hz, a stray stamp, or a gap "
                     "(the stream goes on when the next stamp lies one period after this one)")
+            if not between:
+                gap = True
         self._seen_t = t
+        self._gap_share += (float(gap) - self._gap_share) / min(self._stamps, RATE_STEPS)
         self._stamps += 1
         self._clock += ticks * T
         self._clock += max(1.0 / self._stamps, 0.01) * min(max(t - self._clock, -tol), tol)
