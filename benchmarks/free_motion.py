@@ -1,5 +1,5 @@
 """Tip force in free motion on the real arms (``bench/free_motion.py``): writes ``free_motion.csv`` and
-``free_motion.md`` into ``reports/real`` (or --out), the section "Tip force in free motion" of its README.
+``free_motion.md`` into ``reports/real`` (or --out), and the section "Tip force in free motion" into its README.
 
     python benchmarks/free_motion.py [--work runs/free-motion] [--out reports/real]
 
@@ -11,7 +11,7 @@ import argparse
 import time
 from pathlib import Path
 
-from hybrid_dyn.bench.free_motion import free_motion_rows, write_table
+from hybrid_dyn.bench.free_motion import free_motion_rows, insert_section, section_lines, write_table
 
 
 def main() -> None:
@@ -23,6 +23,10 @@ def main() -> None:
     rows = free_motion_rows(Path(args.work))
     for path in write_table(rows, Path(args.out)):
         print(f"written: {path}")
+    readme = Path(args.out) / "README.md"
+    if readme.exists():  # the report's section, as `hybrid-dyn report` draws it
+        insert_section(readme, section_lines(Path(args.out)))
+        print(f"section written: {readme}")
     print(f"wall time {time.perf_counter() - t0:.0f} s")
 
 

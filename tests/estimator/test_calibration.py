@@ -46,7 +46,7 @@ def test_the_torque_model_takes_from_tau_J_what_the_identification_added(panda, 
     path, _ = identified_file(panda, tmp_path / "id.json", springs)
     model = IdentifiedModel.load(path, panda)
     terms = JointTorqueModel.from_params(path, panda)
-    assert terms.name == "identified + friction and springs"
+    assert terms.name == "identified+friction+springs"
     _, q, qd, qdd = trajectory(panda, 50)
     extra = np.array([terms.extra_torque(*x) for x in zip(q, qd, qdd)])
     np.testing.assert_allclose(extra, model.predict_torque(q, qd, qdd) - panda.inverse_dynamics(q, qd, qdd),

@@ -13,7 +13,9 @@ zero and every newton the estimator reads is a phantom. For each log and each to
    log's zero-phase qdd), the phantom a joint-torque estimate cannot beat with that model.
 
 Torque models: ``nominal`` (the description's parameters), ``identified`` (the identified inertials alone),
-``identified + friction`` (and the declared springs, Baxter's shoulder). :func:`free_motion_rows` returns
+``identified+friction`` (and the declared springs: Baxter's shoulder), ``hybrid`` (that model plus the residual GP of
+the bench's ``gp-residual-identified``, fitted on the training part, its hyperparameters chosen on the validation
+part, which also calibrates it). :func:`free_motion_rows` returns
 the table; ``benchmarks/free_motion.py`` writes it into ``reports/real``.
 """
 from __future__ import annotations
@@ -26,7 +28,8 @@ import numpy as np
 # The logs (import specs shipped in resources/real) and the joint-torque methods scored on each.
 LOGS = ("real-panda", "real-kuka", "real-baxter")
 METHODS = ("torques-pinv", "momentum-observer", "kalman-fusion")
-TORQUE_MODELS = ("nominal", "identified", "identified + friction")
+# (+springs where the robot declares them; "hybrid": that model plus a residual GP fitted on the training part)
+TORQUE_MODELS = ("nominal", "identified", "identified+friction", "hybrid")
 
 
 @dataclass
@@ -45,7 +48,7 @@ class FreeMotionRow:
     test_calls: int
 
 
-def test_rows(replay, test_instances) -> np.ndarray:
+def rows_in_split(replay, test_instances) -> np.ndarray:
     """Which rows of ``replay`` (``replay_log``'s) lie in the test part: a row of recording r at time t belongs
     to a test instance named r (a trajectory) or r_... (a block of it) whose time span holds t."""
     keep = np.zeros(len(replay.t), bool)
@@ -92,6 +95,7 @@ def free_motion_rows(work: Path, logs=LOGS, methods=METHODS, progress=print) -> 
     from ..estimator.replay import replay_log
     from ..estimator.torque_model import JointTorqueModel
     from ..identify.identified_model import identify
+    from ..learn.gp_residual import train_gp_residual
 
     work = Path(work)
     rows = []
@@ -113,12 +117,18 @@ def free_motion_rows(work: Path, logs=LOGS, methods=METHODS, progress=print) -> 
             params = None if model_name == "nominal" else identified
             robot = load_robot(ds.meta["robot"], params=params, num_threads=1)
             full = None if params is None else JointTorqueModel.from_params(params, robot)
-            torque_model = full if model_name == "identified + friction" else None
+            torque_model, residual = (full if model_name == "identified+friction" else None), None
             if model_name == "identified":  # the inertials alone: the friction and springs stay in tau_J
                 torque_model = JointTorqueModel("identified", tuple(robot.joint_names), digest=f"{full.digest}/rigid")
+            if model_name == "hybrid":  # the residual GP of the bench's gp-residual-identified, on the same file
+                residual = work / f"{log}-gp-residual"
+                if not (residual / "config.json").exists():
+                    progress(f"{log}: fitting the residual GP on the training part (chosen on validation)")
+                train_gp_residual(ds, identified, residual, robot=robot)
+                torque_model = full.with_residual_gp(residual, robot)
             floor = offline_floor(robot, torque_model, test)
             label = model_name if torque_model is None else torque_model.name
-            cal_file = work / f"{log}-{label.replace(' ', '_').replace('+', 'and')}-calibration.json"
+            cal_file = work / f"{log}-{label}-calibration.json"
             if cal_file.exists():
                 cal = Calibration.load(cal_file)
             else:
@@ -131,9 +141,11 @@ def free_motion_rows(work: Path, logs=LOGS, methods=METHODS, progress=print) -> 
                 if method not in cal.methods:
                     progress(f"{log}, {label}, {method}: {cal.source['not_calibrated'][method]}")
                     continue
-                replay, _ = replay_log(spec, method, params=params, calibration=cal, torque_model=torque_model)
+                replay, _ = replay_log(spec, method, params=params, calibration=cal,
+                                       torque_model="params" if residual is not None else torque_model,
+                                       residual=residual)
                 row = FreeMotionRow(log.removeprefix("real-"), label, method, cal.methods[method].bandwidth,
-                                    offline_floor_N=floor, **score(replay, test_rows(replay, test)))
+                                    offline_floor_N=floor, **score(replay, rows_in_split(replay, test)))
                 progress(f"{row.robot}, {row.torque_model}, {row.method}: phantom {row.phantom_rms_N:.2f} N RMS "
                          f"(floor {floor:.2f}), ok {100 * row.share_ok:.0f} %, within 2 sigma "
                          f"{100 * row.ok_within_2sigma:.0f} %")
@@ -164,5 +176,38 @@ def write_table(rows, out: Path) -> tuple[Path, Path]:
     return csv_path, md_path
 
 
-__all__ = ["FreeMotionRow", "LOGS", "METHODS", "TORQUE_MODELS", "free_motion_rows", "offline_floor", "score",
-           "test_rows", "write_table"]
+SECTION = "## Tip force in free motion"
+
+
+def section_lines(out: Path) -> list[str]:
+    """The README section of ``out`` (a report folder) from its ``free_motion.md``, or [] without one."""
+    table = Path(out) / "free_motion.md"
+    if not table.exists():
+        return []
+    return ["", SECTION, "",
+            "The streaming estimator (`hybrid-dyn estimate`'s own path: the log's stamps, its encoders) on each real "
+            "log's test part, for each torque model and joint-torque method. Nothing touches the tool, so every "
+            "newton is a phantom. Each model is identified on the log's training part and the estimator calibrated "
+            "on its validation part (`hybrid-dyn calibrate`: error bars, bandwidth, max_sigma); the offline floor is "
+            "RMS |pinv(J_v^T) e| of the model's torque residual e on the test part, the phantom of a method that "
+            "reads each sample alone (an observer's low-pass goes below it). `ok within 2 sigma`: the share of `ok` "
+            "calls whose |F| lies within 2 |sigma|. Written by `python benchmarks/free_motion.py` "
+            "(`free_motion.csv`, `free_motion.md`).", ""] + table.read_text().rstrip("\n").split("\n")
+
+
+def insert_section(readme: Path, lines: list[str]) -> None:
+    """Put ``lines`` (a section) into ``readme`` in place of its earlier version, else before "## Files"."""
+    text = Path(readme).read_text().split("\n")
+    body = lines[1:] if lines and lines[0] == "" else lines
+    if SECTION in text:
+        start = text.index(SECTION)
+        end = next((k for k in range(start + 1, len(text)) if text[k].startswith("## ")), len(text))
+        text[start:end] = body + [""]
+    else:
+        at = text.index("## Files") if "## Files" in text else len(text)
+        text[at:at] = body + [""]
+    Path(readme).write_text("\n".join(text))
+
+
+__all__ = ["SECTION", "insert_section", "section_lines", "FreeMotionRow", "LOGS", "METHODS", "TORQUE_MODELS", "free_motion_rows", "offline_floor", "score",
+           "rows_in_split", "write_table"]

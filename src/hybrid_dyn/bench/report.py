@@ -21,6 +21,7 @@ from ..data import package_versions
 from .catalog import reference_label
 from .predictions import PREDICTIONS_FILE, Predictions, PredictionsError
 from .hybrids import hybrid_lines
+from .free_motion import section_lines as free_motion_section
 from .sensor_control import sensor_control_lines
 from .report_figures import _figures, learning_curve_figures
 from .report_tables import (CAP_MARK, IMPLAUSIBLE_MARK, LOW_ANSWER_MARK, _cap_mark, _contenders, _is_capped, _ok,
@@ -186,6 +187,7 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
         lines += ["", "## The seed's tables", "", f"`{REFERENCE_COMPARISON_FILE}`: the seed's Tables 2 and 3 (Kruzic "
                   "et al. 2021, another simulator) row by row beside this report's seed nets, the architecture "
                   "ordering in both, and each net's training and validation loss at the kept round."]
+    lines += free_motion_section(out_dir)  # written beside the bench by benchmarks/free_motion.py, kept on a redraw
     lines += _left_out_lines(meta, notes_out, failed)
     lines += _files_lines(out_dir, preds, reference_text, curve_figures, figures)
     (out_dir / "README.md").write_text("\n".join(lines))

@@ -67,7 +67,10 @@ class NoiseWindow:
                         f"would (fitted: {seen:.2f} N, limit {held_limit:g} N): a contact, or a tool load the model lacks")
         has = self.has[:, 1]
         limit = limit if torque_limit is None else max(limit, torque_limit)
-        seen = window_force(self.force[has], limit) if self.check_torques and has.sum() >= 8 else None
+        # A force the torques see through the window matters where a base sensor is tared on it: with none in
+        # the window (kalman-fusion given joint torques alone) nothing is tared, and nothing is checked.
+        tares = self.has[:, 0].sum() >= 8
+        seen = window_force(self.force[has], limit) if self.check_torques and tares and has.sum() >= 8 else None
         if seen is not None:
             return (f"the joint torques saw {seen:.2f} N at the tool during the noise window "
                     f"(limit {limit:.3g} N): a contact, or a tool load other than the model's (payload= missing, "

@@ -68,7 +68,7 @@ class Replay:
 
 
 def replay_log(spec, method: str = DEFAULT_METHOD, model=None, encoder_resolution=None,
-               keep_partial: bool = False, params=None, calibration=None, torque_model="params") -> tuple[Replay, object]:
+               keep_partial: bool = False, params=None, calibration=None, torque_model="params", residual=None) -> tuple[Replay, object]:
     """Replay the log of ``spec`` (a ``LogSpec``) through a ``TipForceEstimator`` (the analytic ``method``,
     or the trained model in folder ``model``); returns the :class:`Replay` in memory and the import report.
     encoder_resolution [rad]: the log's encoders (None: the spec's ``[encoders]``; "auto": the robot
@@ -78,12 +78,13 @@ def replay_log(spec, method: str = DEFAULT_METHOD, model=None, encoder_resolutio
     A long log is better replayed by :func:`estimate_to`, which writes as it goes."""
     keep = _Collect()
     summary, report, info = _replay(spec, [keep], method, model, encoder_resolution, keep_partial,
-                                    params=params, calibration=calibration, torque_model=torque_model)
+                                    params=params, calibration=calibration, torque_model=torque_model,
+                                    residual=residual)
     return keep.replay(summary, info), report
 
 
 def estimate_to(spec, out, method: str = DEFAULT_METHOD, model=None, encoder_resolution=None,
-                keep_partial: bool = False, progress: bool = True, params=None, calibration=None):
+                keep_partial: bool = False, progress: bool = True, params=None, calibration=None, residual=None):
     """Replay the log of ``spec`` and write the estimate to ``out`` (.mcap or .csv) as it is made, and the
     figure ``out`` .png where the log has a tip sensor: memory is bounded by a chunk of the log (a bag's
     rows, ``data/logs/bag_checks.py``), not by its length. Returns (:class:`Summary`, the import report,
@@ -96,7 +97,7 @@ def estimate_to(spec, out, method: str = DEFAULT_METHOD, model=None, encoder_res
         info_frame = _frame(spec)
         sink = McapSink(tmp, info_frame) if out.suffix == ".mcap" else CsvSink(tmp)
         summary, report, info = _replay(spec, [sink], method, model, encoder_resolution, keep_partial, progress,
-                                        params=params, calibration=calibration)
+                                        params=params, calibration=calibration, residual=residual)
         sink.close()
         sink = None
         _link_new(tmp / f"{tmp.name}.mcap" if out.suffix == ".mcap" else tmp, out)
@@ -127,7 +128,7 @@ def _frame(spec) -> str:
 
 
 def _replay(spec, sinks, method, model, encoder_resolution, keep_partial, progress=False, params=None,
-            calibration=None, torque_model="params"):
+            calibration=None, torque_model="params", residual=None):
     """Every kept row of the log through one estimator, block by block, into ``sinks``."""
     from ..analytic.robot import load_robot
     from ..data.logs.import_report import ImportReport
@@ -149,7 +150,7 @@ def _replay(spec, sinks, method, model, encoder_resolution, keep_partial, progre
                 opts = dict(call_hz=hz, on_bad_input="hold", encoder_resolution=res)
                 est = (TipForceEstimator.load(model, robot=spec.robot, **opts) if model is not None
                        else TipForceEstimator.analytic(robot, method, params=params, calibration=calibration,
-                                                       torque_model=torque_model, **opts))
+                                                       torque_model=torque_model, residual=residual, **opts))
                 _check_sensors(est, f, spec.name)
                 info = {"method": est.method if model is None else f"learned model {Path(model).name}",
                         "call_hz": hz, "frame": _frame(spec)}

@@ -25,6 +25,8 @@ def register(sub) -> None:
     p.add_argument("--params", default=None,
                    help="the torque model: a parameter set or an identified file (hybrid-dyn identify): its inertials, "
                         "friction and declared springs")
+    p.add_argument("--residual", default=None,
+                   help="a hybrid: a residual GP folder fitted on the --params file (the bench's gp-residual-identified)")
     p.add_argument("--calibration", default=None,
                    help="error bars, bandwidth and max_sigma calibrated on this arm for that model "
                         "(hybrid-dyn calibrate; docs/estimator.md)")
@@ -40,6 +42,7 @@ def register(sub) -> None:
     p.add_argument("--params", default=None, help="the torque model to calibrate: an identified file (hybrid-dyn "
                                                   "identify, fitted on other splits) or a parameter set; default the "
                                                   "description's own")
+    p.add_argument("--residual", default=None, help="a hybrid: a residual GP folder fitted on the --params file")
     p.add_argument("--methods", default="torques-pinv,momentum-observer,kalman-fusion",
                    help="the joint-torque methods to calibrate, comma-separated")
     p.add_argument("--split", default="val", help="the dataset's split to calibrate on (default val)")
@@ -57,7 +60,7 @@ def cmd_estimate(args) -> int:
     summary, report, written, info = estimate_to(read_spec(args.spec), args.out, method=args.method,
                                                  model=args.model, encoder_resolution=args.encoder_resolution,
                                                  keep_partial=args.keep_partial, params=args.params,
-                                                 calibration=args.calibration)
+                                                 calibration=args.calibration, residual=args.residual)
     print(report.text(max_per_kind=5))
     print(f"{info['method']}: {summary.n} samples estimated at {info['call_hz']:.6g} Hz; status {summary.statuses}")
     rms = summary.rms()
@@ -87,6 +90,10 @@ def cmd_calibrate(args) -> int:
         raise CalibrationError(f"{args.data} has no {args.split!r} split to calibrate on")
     robot = load_robot(ds.meta.get("robot", "panda"), params=args.params, num_threads=1)
     model = None if args.params is None else JointTorqueModel.from_params(args.params, robot)
+    if args.residual is not None:
+        if model is None:
+            raise CalibrationError("--residual corrects an identified model: give its file as --params")
+        model = model.with_residual_gp(args.residual, robot)
     rate = 1.0 / float(np.median(np.concatenate([np.diff(np.asarray(i["t"], float)) for i in parts])))
     methods = [m for m in args.methods.split(",") if m]
     before = [i for s in ("train", "val", "test") if s != args.split for i in ds.split(s)]

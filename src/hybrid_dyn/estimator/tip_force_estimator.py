@@ -16,6 +16,7 @@ from ..analytic.joint_state import joint_filter_for, with_joint_state_noise
 from ..analytic.method_declaration import spec_noise
 from ..analytic.methods import DEFAULT_METHOD, TIP_FORCE_METHODS
 from ..analytic.robot import Robot, load_robot, with_payload
+from ..analytic.tip_force import MAX_DAMPING, SINGULAR_REGION, damped_solve3
 from ..analytic.tare import StreamingTare, tare_samples
 from ..description.spec import resolve_encoder_resolution
 from ..errors import UsageError
@@ -106,12 +107,13 @@ class TipForceEstimator(CallStatus, StreamStarts):
         drift = c.base_drift_rate / c.call_hz  # the follower's largest step per call [N], and [Nm] at 0.2 m
         self._follow_step = np.r_[np.full(3, drift), np.full(3, 0.2 * drift)]
         within(self._follow_step, 1.0)  # compiled (or loaded from numba's cache) now, not in a control cycle
+        damped_solve3(np.eye(3), np.zeros(3), SINGULAR_REGION, MAX_DAMPING)  # the first estimate's solve, likewise
         self.reset()
 
     # ------------------------------------------------------------ factories
     @classmethod
     def analytic(cls, robot: str | Robot = "panda", method: str = DEFAULT_METHOD, params=None, payload=None,
-                 calibration=None, torque_model="params", **config) -> "TipForceEstimator":
+                 calibration=None, torque_model="params", residual=None, **config) -> "TipForceEstimator":
         """A model-free estimator: ``method`` is a name of ``analytic.methods.TIP_FORCE_METHODS`` (what each reads:
         its declaration's ``reads``), or an older spelling of one (the registry's ``aliases``, with a warning).
         payload: the tool's load, ``(mass_kg, (x, y, z))`` with its centre of mass [m] in the tool frame (as
@@ -121,7 +123,9 @@ class TipForceEstimator(CallStatus, StreamStarts):
         calibration: a :class:`Calibration` or its file (``hybrid-dyn calibrate``): the error bar's model term,
         the bandwidth and max_sigma calibrated on the user's own log for this torque model.
         torque_model: what tau_J holds beyond the rigid body, where not the params file's: a
-        :class:`JointTorqueModel` (a hybrid's learned residual, say), or None for nothing.
+        :class:`JointTorqueModel`, or None for nothing.
+        residual: a hybrid: the folder of a residual GP fitted on the params file (``gp-residual-identified``),
+        its correction added to the torque model.
         config: ``EstimatorConfig`` settings, a method's bandwidth parameter by its name (``momentum_gain=50.0``)."""
         method = TIP_FORCE_METHODS.lookup(method).name
         config = EstimatorConfig.from_settings(**config)
@@ -129,6 +133,10 @@ class TipForceEstimator(CallStatus, StreamStarts):
             robot = load_robot(robot, params=params, num_threads=1)
         if isinstance(torque_model, str) and torque_model == "params":
             torque_model = None if params is None else JointTorqueModel.from_params(params, robot)
+        if residual is not None:
+            if torque_model is None:
+                raise UsageError("residual= corrects an identified model: give its file as params=")
+            torque_model = torque_model.with_residual_gp(residual, robot)
         if payload is not None:
             robot = with_payload(robot, checked_payload(payload, rated_payload(robot.spec, config), robot.base_name))
         if calibration is not None and not isinstance(calibration, Calibration):

@@ -25,7 +25,7 @@ from ..description import RobotDescriptionError
 class JointTorqueModel:
     """The torque model's terms beyond the rigid body, for one robot.
 
-    name: what it is, as the reports name it ("identified + friction and springs", ...).
+    name: what it is, as the reports name it ("identified+friction+springs", ...; one word, as a csv key).
     friction: qd [rad/s] (nv,) -> friction torque [Nm] (nv,), or None.
     springs: joint name -> [k_lin, k_sin, k_cos] (``identify/extra_terms.py``).
     correction: a learned residual (q, qd, qdd) -> [Nm] (nv,), or None; reads qdd [rad/s^2].
@@ -71,9 +71,32 @@ class JointTorqueModel:
             raise RobotDescriptionError(f"{params} was identified for robot {doc.get('robot')!r}, not "
                                         f"{robot.name!r}: pass the file identified on this arm")
         springs = springs_from_dict(doc, robot.joint_names, str(params))
-        name = "identified + friction" + (" and springs" if springs else "")
+        name = "identified+friction" + ("+springs" if springs else "")
         return cls(name, tuple(robot.joint_names), friction_from_dict(doc["friction"], str(params)), springs,
                    digest=digest)
+
+
+    def with_residual_gp(self, model_dir, robot) -> "JointTorqueModel":
+        """This model plus a residual GP (``hybrid-dyn bench``'s ``gp-residual-identified``, ``learn/gp_residual.py``)
+        fitted on the same identified file: its correction is added to the terms beyond the rigid body. A GP
+        fitted on another parameter file is refused."""
+        from ..learn.gp_residual import load_gp_residual
+
+        gp = load_gp_residual(model_dir, robot=robot)
+        if gp.config["prior"]["params_sha256"] != self.digest:
+            raise RobotDescriptionError(f"the residual GP in {model_dir} was fitted on another parameter file "
+                                        f"({gp.config['prior']['params']}): pass the file it corrects")
+        residual = gp.residual
+        nv = len(self.joint_names)
+        x = np.empty((1, 3 * nv))
+
+        def correction(q, qd, qdd):
+            x[0, :nv], x[0, nv:2 * nv], x[0, 2 * nv:] = q, qd, (0.0 if qdd is None else qdd)
+            return residual.predict_rows(x)[0]
+
+        fingerprint = str(gp.config.get("fingerprint", ""))[:16]
+        return JointTorqueModel(self.name + "+gp", self.joint_names, self.friction, self.springs, correction,
+                                digest=f"{self.digest}+gp:{fingerprint}")
 
 
 __all__ = ["JointTorqueModel"]
