@@ -6,6 +6,8 @@
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..errors import UsageError
@@ -127,71 +129,90 @@ def calibrate(robot, methods, instances, rate_hz: float, torque_model=None, tau_
     name = "rigid body" if torque_model is None else torque_model.name
     cal = Calibration(robot.name, name, digest, sig, corr, {}, dict(source or {}, samples=int(len(residual)),
                                                                       rate_hz=float(rate_hz)))
-    per_method = {}
     warm = lead_in(before, instances)
     for m in methods:
         spec = TIP_FORCE_METHODS.lookup(m)
         if "tau_J" not in spec.reads:
             raise UsageError(f"calibrate: {spec.name!r} reads no joint torques; a calibration is for the "
                              "joint-torque methods")
-        settings = dict(config, call_hz=rate_hz, on_bad_input="hold")
-
-        def run(calibration=None, **extra):
-            est = TipForceEstimator(robot, spec.name, _config(settings, extra), torque_model=torque_model,
-                                    calibration=calibration)
-            return stream_instances(est, instances, tau_key, lead_in=warm)
-
-        def law_at(value):  # an observer sees the model's error through its low-pass: the law of what it sees
-            if spec.parameter == "momentum_gain":
-                return fit_torque_error(*torque_residual(robot, torque_model, instances, tau_key, value))
-            return sig, corr
-
-        best = None
-        for value in bandwidth_grid(spec, rate_hz):  # the model's error in motion decides, not the sensors' noise
-            # The model term at scale 1 rides along: the start-up window then knows the model's error is no contact.
-            cal.methods[spec.name] = MethodCalibration(value, *law_at(value), 1.0, np.inf, np.nan)
-            f, _, status = run(calibration=cal)
-            settled = ~np.isin(status, UNSETTLED)
-            rms = float(np.sqrt(np.mean(phantom(f[settled]) ** 2))) if settled.any() else np.inf
-            say(f"{spec.name}: {spec.parameter} = {value:g}: phantom {rms:.3f} N RMS on {100 * settled.mean():.0f} % "
-                "of the calls (the others warming up)")
-            # A bandwidth so slow that its warm-up takes half the part is no answer: it would say nothing.
-            if settled.mean() >= MIN_SETTLED and (best is None or rms < best[1]):
-                best = (value, rms)
-        del cal.methods[spec.name]
+        job = _MethodRun(robot, spec, instances, warm, torque_model, tau_key,
+                         dict(config, call_hz=rate_hz, on_bad_input="hold"), (sig, corr))
+        best = job.choose_bandwidth(cal, say)
         if best is None:
             reason = (f"no bandwidth of {bandwidth_grid(spec, rate_hz)} settled on {100 * MIN_SETTLED:.0f} % of the "
                       "calibration part's calls: give a longer log")
             cal.source.setdefault("not_calibrated", {})[spec.name] = reason
             say(f"{spec.name}: not calibrated: {reason}")
             continue
-        value, rms = best
-        per_method[spec.name] = law_at(value)
-        law = per_method[spec.name]
-        # One run with the model term at scale 1 splits each call's sigma into the sensors' part and the
-        # model's; the scale is then the least s whose error bar covers the phantom on COVERAGE of the calls.
-        cal.methods[spec.name] = MethodCalibration(value, *law, 1.0, np.inf, rms)
-        est = TipForceEstimator(robot, spec.name, _config(settings, {}), torque_model=torque_model, calibration=cal)
-        f, sigma, status, model = stream_instances(est, instances, tau_key, model_sigma=True, lead_in=warm)
+        cal.methods[spec.name] = job.scaled(cal, *best)
+        mc = cal.methods[spec.name]
+        say(f"{spec.name}: {spec.parameter} = {mc.bandwidth:g}, sigma scale {mc.sigma_scale:.3g}, "
+            f"max_sigma {mc.max_sigma:.3g} N")
+    return cal
+
+
+@dataclass
+class _MethodRun:
+    """One method's calibration runs on the part (``calibrate``'s steps 3 and 4)."""
+
+    robot: object
+    spec: object
+    instances: list
+    warm: list
+    torque_model: object
+    tau_key: str
+    settings: dict
+    raw_law: tuple
+
+    def run(self, calibration, model_sigma: bool = False):
+        est = TipForceEstimator(self.robot, self.spec.name, _config(self.settings, {}), torque_model=self.torque_model,
+                                calibration=calibration)
+        return stream_instances(est, self.instances, self.tau_key, model_sigma=model_sigma, lead_in=self.warm)
+
+    def law_at(self, value) -> tuple:
+        """The torque error law the method sees: through an observer's low-pass at its gain, else as it is."""
+        if self.spec.parameter == "momentum_gain":
+            return fit_torque_error(*torque_residual(self.robot, self.torque_model, self.instances, self.tau_key,
+                                                     value))
+        return self.raw_law
+
+    def choose_bandwidth(self, cal: Calibration, say) -> tuple | None:
+        """(value, phantom RMS [N]) of the bandwidth with the least phantom among those that settle on
+        MIN_SETTLED of the calls, or None."""
+        name, best = self.spec.name, None
+        for value in bandwidth_grid(self.spec, self.settings["call_hz"]):  # the model's error in motion decides
+            # The model term at scale 1 rides along: the start-up window then knows the model's error is no contact.
+            cal.methods[name] = MethodCalibration(value, *self.law_at(value), 1.0, np.inf, np.nan)
+            f, _, status = self.run(cal)
+            settled = ~np.isin(status, UNSETTLED)
+            rms = float(np.sqrt(np.mean(phantom(f[settled]) ** 2))) if settled.any() else np.inf
+            say(f"{name}: {self.spec.parameter} = {value:g}: phantom {rms:.3f} N RMS on {100 * settled.mean():.0f} % "
+                "of the calls (the others warming up)")
+            # A bandwidth so slow that its warm-up takes much of the part is no answer: it would say nothing.
+            if settled.mean() >= MIN_SETTLED and (best is None or rms < best[1]):
+                best = (value, rms)
+        del cal.methods[name]
+        return best
+
+    def scaled(self, cal: Calibration, value: float, rms: float) -> MethodCalibration:
+        """The method's calibration at ``value``: one run with the model term at scale 1 splits each call's sigma
+        into the sensors' part and the model's; the scale is the least s whose model term alone covers the
+        phantom on COVERAGE of the calls (the sensor terms covered a calibration part by chance and then missed
+        the test part by a factor of four), max_sigma from the sigma at that scale."""
+        law = self.law_at(value)
+        cal.methods[self.spec.name] = MethodCalibration(value, *law, 1.0, np.inf, rms)
+        f, sigma, _, model = self.run(cal, model_sigma=True)
         keep = np.isfinite(sigma).all(axis=1) & np.isfinite(model).all(axis=1)
         if keep.sum() < 10:
-            raise CalibrationError(f"calibrate {spec.name}: fewer than 10 settled calls with an error bar")
-        size = phantom(f[keep])
-        sensors2 = np.clip((sigma[keep] ** 2 - model[keep] ** 2).sum(axis=1), 0.0, None)
-        model2 = (model[keep] ** 2).sum(axis=1)
-
-        def covered(scale):
-            return np.mean(size <= 2.0 * np.sqrt(sensors2 + scale * scale * model2))
-
+            raise CalibrationError(f"calibrate {self.spec.name}: fewer than 10 settled calls with an error bar")
+        size, model2 = phantom(f[keep]), (model[keep] ** 2).sum(axis=1)
         lo, hi = 1e-3, 1e3
         while hi / lo > 1.01:
             mid = np.sqrt(lo * hi)
-            lo, hi = (lo, mid) if covered(mid) >= COVERAGE else (mid, hi)
+            lo, hi = (lo, mid) if np.mean(size <= 2.0 * mid * np.sqrt(model2)) >= COVERAGE else (mid, hi)
         per_axis = np.sqrt(np.clip(sigma[keep] ** 2 - model[keep] ** 2, 0.0, None) + hi * hi * model[keep] ** 2)
         max_sigma = MAX_SIGMA_MARGIN * float(np.quantile(per_axis.max(axis=1), MAX_SIGMA_QUANTILE))
-        cal.methods[spec.name] = MethodCalibration(value, *law, hi, max_sigma, rms)
-        say(f"{spec.name}: {spec.parameter} = {value:g}, sigma scale {hi:.3g}, max_sigma {max_sigma:.3g} N")
-    return cal
+        return MethodCalibration(value, *law, hi, max_sigma, rms)
 
 
 def _config(settings: dict, extra: dict):

@@ -16,7 +16,7 @@ how large that error is on this arm. :func:`calibrate` measures it on a log's va
 3. **Each method's bandwidth** (observer gain, qdd cutoff, Kalman force rate) is chosen on the same log:
    the value of its ``-val`` grid with the least phantom force over the part, the model's error in motion,
    not the sensors' noise at rest.
-4. **The scale s** makes the error bar cover the phantom force on 99 % of the part's calls (|F| <= 2 |sigma|),
+4. **The scale s** makes the model term alone cover the phantom force on 99 % of the part's calls (|F| <= 2 |sigma|),
    and ``max_sigma`` (the bound above which a call is ``uncertain``) is 1.5 times the part's 99th percentile of
    sigma: a call whose error bar lies well beyond what this arm's model usually gives (a pose, a speed or a
    singularity the log did not show) is uncertain.
