@@ -24,7 +24,7 @@ def write_free_motion_log(folder, n=8000):
     robot = hd.load_robot("panda[tool=none]")
     rng = np.random.default_rng(0)
     steps = rng.choice([0.8e-3, 0.9e-3, 1.0e-3, 1.1e-3, 1.3e-3, 1.6e-3], size=n, p=[0.2, 0.25, 0.25, 0.15, 0.1, 0.05])
-    steps[[2000, 6000]] = 8.5e-3
+    steps[[n // 4, 3 * n // 4]] = 8.5e-3
     t = np.cumsum(steps) - steps[0]
     w = np.linspace(0.8, 2.0, 7)
     q = np.array(robot.spec.home) + 0.4 * np.sin(w * t[:, None])
@@ -62,3 +62,32 @@ def test_identify_calibrate_estimate_through_the_cli(tmp_path, monkeypatch, caps
     force = np.array([[float(r[k]) for k in ("fx", "fy", "fz")] for r in rows])
     np.testing.assert_array_equal(force[keep], replay.force[keep])
     assert lib["share_ok"] > 0.8 and lib["phantom_rms_N"] < 1.0, lib  # the friction is in the model, not read as force
+
+
+def test_estimate_starts_a_new_stream_where_a_segments_time_starts_anew():
+    """A block of three segments (as the import splits a file's trajectories), each with its time from 0: the
+    replay restarts per segment instead of refusing every sample of the second and third; a short gap between
+    segments goes on in the same stream."""
+    from hybrid_dyn.estimator import TipForceEstimator
+    from hybrid_dyn.estimator.replay import _run
+
+    robot = hd.load_robot("panda")
+    n = 1500
+    t = np.arange(n) / 1000.0
+    w = np.linspace(0.8, 2.0, 7)
+    q = np.array(robot.spec.home) + 0.3 * np.sin(w * t[:, None])
+    qd, qdd = 0.3 * w * np.cos(w * t[:, None]), -0.3 * w * w * np.sin(w * t[:, None])
+    tau = robot.inverse_dynamics(q, qd, qdd)
+    f = {"t": np.r_[t, t, t, t[-1] + 8.5e-3 + t], "q": np.tile(q, (4, 1)), "qd": np.tile(qd, (4, 1)),
+         "tau_J": np.tile(tau, (4, 1))}
+    starts = np.zeros(4 * n, bool)
+    starts[::n] = True
+    est = TipForceEstimator.analytic(robot, "momentum-observer", call_hz=1000.0, on_bad_input="hold",
+                                     encoder_resolution=0.0)
+    _, status, _ = _run(est, f, starts)
+    status = np.array(status)
+    assert not any(s.startswith("input rejected") for s in status)
+    for part in np.split(status, 4)[:3]:  # each trajectory warms up at its own start, and only there
+        warm = np.flatnonzero(part == "warming up")
+        assert len(warm) and warm[0] == 0 and np.all(np.diff(warm) == 1)
+    assert "warming up" not in set(np.split(status, 4)[3])  # after a short gap: the same stream, bridged

@@ -221,3 +221,26 @@ def test_hd_load_robot_and_estimate_from_a_params_file_of_another_robot_is_refus
     path, _ = identified_file(panda, tmp_path / "id.json")
     with pytest.raises(hd.description.RobotDescriptionError, match="identified for robot"):
         JointTorqueModel.from_params(path, ur5)
+
+
+@pytest.mark.parametrize("method", ["torques-pinv", "momentum-observer"])
+def test_a_pose_in_the_damped_region_is_no_promise(panda, method):
+    """At a pose where J_v's least singular value lies inside the damped solve's region, a 10 N push along the
+    weak direction is read shrunk: the status says so (never ``ok``), while a pose outside it is ``ok``."""
+    from hybrid_dyn.analytic.tip_force import SINGULAR_REGION
+
+    near = np.array([0.0, -0.7, 0.0, -0.52, 0.0, 3.0, 0.785])
+    u, s, vt = np.linalg.svd(panda.tip_jacobian(near)[:3])
+    assert s[-1] < SINGULAR_REGION  # the weak direction: u[:, -1]
+    for q0, expect in ((near, EstimatorStatus.NEAR_SINGULARITY), (np.array(panda.spec.home), EstimatorStatus.OK)):
+        push = 10.0 * np.linalg.svd(panda.tip_jacobian(q0)[:3])[0][:, -1]
+        tau = panda.inverse_dynamics(q0, np.zeros(7), np.zeros(7)) - panda.tip_jacobian(q0)[:3].T @ push
+        est = TipForceEstimator.analytic(panda, method, call_hz=HZ, encoder_resolution=0.0, max_sigma=1e3)
+        noise = np.random.default_rng(5).normal(0, 1e-3, (1500, 7))  # a live sensor: never frozen
+        for k in range(1500):
+            f = est.estimate_tip_force(q0, np.zeros(7), tau_J=tau + noise[k], t=k / HZ)
+        assert est.last_status is expect, (method, est.last_status)
+        if expect is EstimatorStatus.OK:
+            np.testing.assert_allclose(f, push, atol=0.05)
+        else:
+            assert np.linalg.norm(f) < 9.0  # the damped solve's shrunk reading, which no "ok" may carry

@@ -62,3 +62,22 @@ def test_a_push_on_the_elbow_is_contact_off_the_tool_not_ok(panda, method):
     assert not any(x is EstimatorStatus.OFF_TOOL for x in status)
     ok = np.array([x is EstimatorStatus.OK for x in status])
     assert ok[late & (t > 1.0)].mean() > 0.8 and e[ok & late].max() < 2.0
+
+
+def test_a_drift_followed_for_an_hour_is_no_implausible_tare(panda):
+    """The tare offset the window found decides "tare offset implausible" (a flipped sign shows there); the drift the
+    follower tracks since (at the stated 0.025 N/s, 90 N in an hour) does not. A given offset beyond the bound does."""
+    rng = np.random.default_rng(0)
+    q, qd = np.array(panda.spec.home), np.zeros(7)
+    w = panda.base_wrench(q, qd, qd)
+    est = TipForceEstimator.analytic(panda, "base-wrench", call_hz=1000.0, encoder_resolution=0.0)
+    for k in range(800):
+        est.estimate_tip_force(q, qd, base_wrench=w + rng.normal(0, 0.05, 6), t=k * 1e-3)
+    assert est.last_status is EstimatorStatus.OK
+    est._tare.offset[:3] += [60.0, 60.0, 0.0]  # what an hour of followed drift leaves in the offset
+    for k in range(800, 900):
+        est.estimate_tip_force(q, qd, base_wrench=w + est._tare.offset + rng.normal(0, 0.05, 6), t=k * 1e-3)
+    assert est.last_status is not EstimatorStatus.IMPLAUSIBLE_TARE
+    est.set_tare_offset(np.r_[30.0, 0, 0, 0, 0, 0])
+    est.estimate_tip_force(q, qd, base_wrench=w + rng.normal(0, 0.05, 6), t=0.9)
+    assert est.last_status is EstimatorStatus.IMPLAUSIBLE_TARE

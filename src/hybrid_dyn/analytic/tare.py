@@ -57,6 +57,7 @@ class StreamingTare:
     def reset(self) -> None:
         self.count = 0
         self.offset = np.zeros(6)
+        self.found = None  # the offset the window found (or was given), before any drift was followed
 
     @property
     def done(self) -> bool:
@@ -72,6 +73,8 @@ class StreamingTare:
             self.positions[self.count] = self.robot.tip_position_single(q)
             self.count += 1
             self.offset += (residual - self.offset) / self.count
+            if self.done:
+                self.found = self.offset.copy()
         return base_wrench - self.offset
 
     def follow(self, q, base_wrench, rate: float, max_step: np.ndarray) -> None:
@@ -110,6 +113,7 @@ class StreamingTare:
         if offset.shape != (6,) or not math.isfinite(offset.dot(offset)):
             raise ValueError(f"a base-sensor offset is 6 finite values [N, Nm], got {offset!r}")
         self.offset = offset.copy()
+        self.found = offset.copy()
         self.count = self.n_calls
 
 

@@ -16,8 +16,9 @@ from .config import EstimatorStatus
 _OK, _WARMING_UP, _OUT_OF_RANGE, _FORCE_OUT_OF_RANGE, _WRONG_RATE, _NO_SENSOR, _UNCERTAIN, _CONTACT_AT_START = (
     EstimatorStatus.OK, EstimatorStatus.WARMING_UP, EstimatorStatus.OUT_OF_RANGE, EstimatorStatus.FORCE_OUT_OF_RANGE,
     EstimatorStatus.WRONG_RATE, EstimatorStatus.NO_SENSOR, EstimatorStatus.UNCERTAIN, EstimatorStatus.CONTACT_AT_START)
-_IMPLAUSIBLE_TARE, _FROZEN_SENSOR, _OFF_TOOL = (
-    EstimatorStatus.IMPLAUSIBLE_TARE, EstimatorStatus.FROZEN_SENSOR, EstimatorStatus.OFF_TOOL)
+_IMPLAUSIBLE_TARE, _FROZEN_SENSOR, _OFF_TOOL, _NEAR_SINGULARITY = (
+    EstimatorStatus.IMPLAUSIBLE_TARE, EstimatorStatus.FROZEN_SENSOR, EstimatorStatus.OFF_TOOL,
+    EstimatorStatus.NEAR_SINGULARITY)
 NO_SIGMA = np.full(3, np.inf)  # no estimate yet (the noise window): an unbounded error bar
 # kalman-fusion's sensors in use, by (base sensor in use, joint torques in use)
 _ACTIVE = {(False, False): (), (True, False): ("base_wrench",), (False, True): ("tau_J",),
@@ -41,14 +42,18 @@ class CallStatus:
         a frozen sensor (on the sensor's own reading ``tau_raw``), a contact off the tool (on tau_J less the
         torque model's terms beyond the rigid body)."""
         check, fault = self._check, None
-        if w_in is not None and self._tare is not None:
-            o = self._tare.offset
+        if w_in is not None and self._tare is not None and self._tare.found is not None:
+            # The offset the window found: a flipped sign or a wrong frame shows there. The drift followed since
+            # is bounded by the sensor's stated rate, and over an hour is no implausible tare.
+            o = self._tare.found
             if o[0] * o[0] + o[1] * o[1] + o[2] * o[2] > self.config.max_tare_offset ** 2:
                 fault = _IMPLAUSIBLE_TARE
         if check.frozen(base_wrench, tau_J if tau_raw is None else tau_raw) and fault is None:
             fault = _FROZEN_SENSOR
         if check.check_off_tool(q, qd, qdd, w_in, tau_J) and fault is None:
             fault = _OFF_TOOL
+        if check.singular and fault is None:
+            fault = _NEAR_SINGULARITY
         self._fault = fault
 
     def _follow_drift(self, q, qd, base_wrench, f) -> None:

@@ -36,6 +36,8 @@ class EstimatorStatus(str, Enum):
     IMPLAUSIBLE_TARE = "tare offset implausible"  # the base sensor's offset beyond its plausible bias (a flipped sign)
     FROZEN_SENSOR = "frozen sensor"      # a sensor repeats its reading exactly, call after call
     OFF_TOOL = "contact off the tool"    # the sensors see a load no force at the tool explains
+    # The joint-torque methods' damped solve shrinks a force along the weak direction of J_v: no promise there.
+    NEAR_SINGULARITY = "near a singularity"
 
 
 def _auto_or_positive(name: str, value, unit: str) -> None:

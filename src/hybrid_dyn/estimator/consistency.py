@@ -27,6 +27,7 @@ import pinocchio as pin
 from numba import njit
 
 from ..analytic.base_momentum import momentum_and_weight
+from ..analytic.tip_force import SINGULAR_REGION
 
 
 CHECK_EVERY = 8  # calls between two off-tool checks (one Jacobian or model wrench each)
@@ -69,6 +70,7 @@ class Consistency:
         self._over = 0
         self._k = CHECK_EVERY - 1  # the first call checks
         self.off_tool = False
+        self.singular = False  # the latest check's pose lies in the damped solve's region (joint torques only)
         self.unexplained = 0.0  # the latest check's unexplained part [Nm]
         self.restart_observer()
 
@@ -141,10 +143,13 @@ class Consistency:
         return bound
 
     def _torque_part(self, q, residual) -> float:
-        """|r - J_v^T pinv(J_v^T) r| [Nm]: the external joint torques no tool force explains."""
+        """|r - J_v^T pinv(J_v^T) r| [Nm]: the external joint torques no tool force explains. Sets ``singular``:
+        whether J_v's least singular value lies inside the damped solve's region (``tip_force.SINGULAR_REGION``),
+        where a force along the weak direction is read shrunk."""
         r = self.robot
         jv = pin.computeFrameJacobian(r.model, self._data, q, r.tool_frame_id, pin.LOCAL_WORLD_ALIGNED)[:3]
-        f = np.linalg.lstsq(jv.T, residual, rcond=None)[0]
+        f, _, _, sv = np.linalg.lstsq(jv.T, residual, rcond=None)
+        self.singular = bool(sv[-1] < SINGULAR_REGION)
         return float(np.linalg.norm(residual - jv.T @ f))
 
 

@@ -158,7 +158,7 @@ def _replay(spec, sinks, method, model, encoder_resolution, keep_partial, progre
                 source, carry = src, None
                 est.reset()
             carry = _fill_qd(f, starts, carry)
-            force, status, sigma = _run(est, f)
+            force, status, sigma = _run(est, f, starts)
             for sink in sinks:
                 if isinstance(sink, _Collect):
                     sink.recording.append(np.full(len(stamps), src[-1] if isinstance(src, tuple) else str(src)))
@@ -253,14 +253,22 @@ def _fill_qd(f: dict, starts: np.ndarray, carry):
     return q[-1:], t[-1]
 
 
-def _run(est, f: dict):
-    """The estimator on every row of a block: (force (n, 3) [N], statuses, sigma (n, k) or None)."""
+def _run(est, f: dict, starts=None):
+    """The estimator on every row of a block: (force (n, 3) [N], statuses, sigma (n, k) or None).
+
+    A segment that starts (``starts``, as the import splits a trajectory) where the time starts anew, or after a
+    gap longer than the estimator bridges, is a new stream (``reset``), as the import makes it a new instance; a
+    short gap goes on in the same stream (bridged)."""
     n = len(f["t"])
     force, status, sig = np.zeros((n, 3)), [], []
     tau_key = "tau_J" if "tau_J" in f else "tau_m"
     wrench, tau = f.get("base_wrench"), f.get(tau_key)
     q, qd, t = f["q"], f["qd"], f["t"]
+    longest = est.config.bridge_seconds + 1.5 / est.config.call_hz
     for k in range(n):
+        last = est.last_t
+        if starts is not None and starts[k] and last is not None and not (0 < t[k] - last <= longest):
+            est.reset()
         force[k] = est.estimate_tip_force(q[k], qd[k], base_wrench=None if wrench is None else wrench[k],
                                           tau_J=None if tau is None else tau[k], t=t[k])
         s = est.last_status.value

@@ -231,6 +231,11 @@ class TipForceEstimator(CallStatus, StreamStarts):
         self.last_rejection = None  # why the latest rejected sample was refused (hold mode)
 
     @property
+    def last_t(self) -> float | None:
+        """The stamp of the last accepted sample [s] (None: none yet, or an untimed stream)."""
+        return self._gate.last_t
+
+    @property
     def _active_tare(self):
         """The tare of the analytic base-wrench method, or of a learned model's base-wrench prior."""
         return self._tare if self._tare is not None else getattr(self.model, "_tare", None)
