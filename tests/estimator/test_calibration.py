@@ -244,3 +244,33 @@ def test_a_pose_in_the_damped_region_is_no_promise(panda, method):
             np.testing.assert_allclose(f, push, atol=0.05)
         else:
             assert np.linalg.norm(f) < 9.0  # the damped solve's shrunk reading, which no "ok" may carry
+
+
+@pytest.mark.parametrize("method", ["momentum-observer", "base-momentum"])
+def test_a_q_off_the_declared_encoder_grid_is_told_and_read_as_given(panda, method):
+    """The Panda's description declares 1e-5 rad encoders; a log of the arm's own q and qd (off that grid) is
+    warned of once and read as given: the estimates agree with an estimator told encoder_resolution=0. A q on the grid
+    (the simulator's hardware read) is filtered, with no warning."""
+    from hybrid_dyn.estimator.tip_force_estimator import EncoderModelWarning
+
+    t, q, qd, qdd = trajectory(panda, 1200)
+    tau, w = panda.inverse_dynamics(q, qd, qdd), panda.base_wrench(q, qd, qdd)
+    kw = lambda k: {"tau_J": tau[k]} if method == "momentum-observer" else {"base_wrench": w[k]}  # noqa: E731
+    default = TipForceEstimator.analytic(panda, method, call_hz=HZ)
+    exact = TipForceEstimator.analytic(panda, method, call_hz=HZ, encoder_resolution=0.0)
+    with pytest.warns(EncoderModelWarning, match="off the grid of the declared encoder resolution 1e-05 rad"):
+        a = np.array([default.estimate_tip_force(q[k], qd[k], t=t[k], **kw(k)) for k in range(len(t))])
+    b = np.array([exact.estimate_tip_force(q[k], qd[k], t=t[k], **kw(k)) for k in range(len(t))])
+    # (the grid is left at the call whose q first falls off it: a tared method's window then starts a few calls
+    # later than the exact estimator's, so the two agree once both settle)
+    np.testing.assert_allclose(a[1100:], b[1100:], atol=0.02)
+    assert default.encoder_mismatch is not None and default.encoder_resolution == 0.0
+    on_grid = np.round(q / 1e-5) * 1e-5
+    quantized = TipForceEstimator.analytic(panda, method, call_hz=HZ)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", EncoderModelWarning)
+        for k in range(len(t)):
+            quantized.estimate_tip_force(on_grid[k], qd[k], t=t[k], **kw(k))
+    assert quantized.encoder_mismatch is None and quantized.encoder_resolution == 1e-5

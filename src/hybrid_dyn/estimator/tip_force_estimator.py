@@ -5,6 +5,7 @@ docs/estimator.md. The per-call status and error bar: ``call_status.py``; the (r
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import replace
 from pathlib import Path
 
@@ -28,6 +29,13 @@ from .input import EstimatorInputError, InputGate, RateCheck
 from .noise_window import NoiseWindow
 from .stream_starts import StreamStarts
 from .torque_model import JointTorqueModel
+
+
+GRID_CHECK_SECONDS = 10.0  # [s]: how long q is checked against the declared encoders' grid
+
+
+class EncoderModelWarning(UserWarning):
+    """The stream's q does not fit the declared encoder model (``TipForceEstimator.encoder_mismatch``)."""
 
 
 class TipForceEstimator(CallStatus, StreamStarts):
@@ -76,6 +84,10 @@ class TipForceEstimator(CallStatus, StreamStarts):
         self.encoder_resolution = resolve_encoder_resolution(c.encoder_resolution, robot.spec)
         self._joint = None if model is not None else joint_filter_for(
             robot, c.call_hz, self.encoder_resolution, c.joint_filter_bandwidth)
+        # Quantized encoders put q on a grid of the resolution; a q off it is the arm's own (unquantized q, its own
+        # qd): checked over the first GRID_CHECK_SECONDS, then told and read as given (``_check_encoder_grid``).
+        self._grid_checks = 0 if self._joint is None else int(GRID_CHECK_SECONDS * c.call_hz)
+        self.encoder_mismatch = None
         # The motion term stands in for the model's error; a calibrated model term replaces it.
         self._error_bar = ErrorBar(c.call_hz, 0.0 if calibrated else c.motion_sigma_gain, c.base_drift_rate)
         # The bandwidth: a number in the config (or the calibration's), or None for the rule at the window's end.
@@ -298,6 +310,25 @@ class TipForceEstimator(CallStatus, StreamStarts):
                        None if t is None else t0 + a * (t - t0))
         self.last_status = status
 
+    def _check_encoder_grid(self, q) -> None:
+        """A q off the declared encoders' grid (by more than a thousandth of a count) is no quantized encoder's:
+        the arm reports q and qd of its own, which the joint-state filter would only blur (a real Panda's log
+        read nine times the phantom through it). Warned once (``EncoderModelWarning``, ``encoder_mismatch``),
+        and q and qd are read as given from this call on."""
+        self._grid_checks -= 1
+        u = q / self.encoder_resolution
+        off = np.abs(u - np.round(u))
+        j = int(np.argmax(off))
+        if off[j] <= 1e-3:
+            return
+        self.encoder_mismatch = (
+            f"q[{j}] = {q[j]!r} rad lies {off[j]:.3f} counts off the grid of the declared encoder resolution "
+            f"{self.encoder_resolution:g} rad: the arm reports q and qd of its own (libfranka's dq, KUKA's FRI, "
+            "Baxter's joint_states); they are read as given from here on (encoder_resolution=0 says so from the start)")
+        warnings.warn(self.encoder_mismatch, EncoderModelWarning, stacklevel=4)
+        self._joint, self._grid_checks, self._joint_wait, self._motion = None, 0, 0, 0.0
+        self.encoder_resolution = 0.0
+
     def _step(self, q, qd, base_wrench, tau_J, t) -> np.ndarray:
         """One accepted sample through the joint filter, the window and the method: the estimate, its status."""
         wrong_rate = False
@@ -305,6 +336,8 @@ class TipForceEstimator(CallStatus, StreamStarts):
             self._gate.last_t = t
         else:
             wrong_rate = self._rate.update(q, qd)
+        if self._grid_checks:
+            self._check_encoder_grid(q)
         if self._joint is not None:
             q, qd, qdd_joint = self._joint.step(q)
             self._motion = qdd_norm(qdd_joint)
