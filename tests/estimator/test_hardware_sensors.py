@@ -146,8 +146,8 @@ def test_jittered_stamps_are_used_not_refused_and_change_nothing(panda):
     assert status[1499] is EstimatorStatus.OK and est._gate._stamps == n - 1
     assert all(status[k] is EstimatorStatus.OK for k in range(1501, n))
     after = np.array([f[k] - outs[0][k] for k in range(1501, 1600)])
-    # the interpolated samples stand in for two with 0.2 N of noise each: the difference, then its decay
-    assert np.abs(after).max() < 0.1 and np.abs(after[-1]).max() < 1e-3, np.abs(after).max(axis=1)
+    # the interpolated sample stands in for one with 0.2 N of noise: at most that much difference, then its decay
+    assert np.abs(after).max() < 0.2 and np.abs(after[-1]).max() < 1e-3, np.abs(after).max(axis=1)
 
 
 def test_a_drifting_base_sensor_is_followed_at_standstill(panda):

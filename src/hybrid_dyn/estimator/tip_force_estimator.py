@@ -301,14 +301,15 @@ class TipForceEstimator(CallStatus, StreamStarts):
         through every step a sample takes (their estimates unseen): the filters and observers run on as
         though nothing were lost, with no new warm-up. A sensor absent at either end stays absent."""
         q0, qd0, w0, tau0, t0 = self._prev
-        status = self.last_status
+        status, checks = self.last_status, self._grid_checks
+        self._grid_checks = 0  # an interpolated q lies off the encoders' grid by construction: not checked
         for i in range(1, lost + 1):
             a = i / (lost + 1)
             self._step(q0 + a * (q - q0), qd0 + a * (qd - qd0),
                        None if w0 is None or base_wrench is None else w0 + a * (base_wrench - w0),
                        None if tau0 is None or tau_J is None else tau0 + a * (tau_J - tau0),
                        None if t is None else t0 + a * (t - t0))
-        self.last_status = status
+        self.last_status, self._grid_checks = status, checks
 
     def _check_encoder_grid(self, q) -> None:
         """A q off the declared encoders' grid (by more than a thousandth of a count) is no quantized encoder's:
