@@ -84,28 +84,6 @@ class Registry(dict):
             _load_plugins()
         return [n for n in names if n not in self]
 
-    # A listing shows the installed plugins' declarations too: every way of reading the whole registry loads
-    # them first (once per process), so that --help, choices and contract tests see what a lookup would find.
-    def __iter__(self):
-        _load_plugins()
-        return super().__iter__()
-
-    def keys(self):
-        _load_plugins()
-        return super().keys()
-
-    def values(self):
-        _load_plugins()
-        return super().values()
-
-    def items(self):
-        _load_plugins()
-        return super().items()
-
-    def __len__(self):
-        _load_plugins()
-        return super().__len__()
-
     def listen(self, on_register: Callable, on_unregister: Callable | None = None) -> None:
         """Call ``on_register(item)`` for every declaration from now on (and ``on_unregister`` on removal).
         The declarations made before are the listener's to read from the registry itself."""
@@ -151,3 +129,18 @@ def help_listing(**sources: Callable[[], Iterable[str]]) -> type[argparse.HelpFo
             return (action.help or "").format_map(Names())
 
     return HelpWithNames
+
+
+def _listing(name: str):
+    """Registry's ``name`` (a way of reading the whole registry): the installed plugins' declarations loaded first
+    (once per process), so that --help, choices and contract tests see what a lookup would find."""
+    def read(self):
+        _load_plugins()
+        return getattr(dict, name)(self)
+
+    read.__name__ = read.__qualname__ = name
+    return read
+
+
+for _name in ("__iter__", "keys", "values", "items", "__len__"):
+    setattr(Registry, _name, _listing(_name))
