@@ -18,7 +18,12 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--work", default="runs/free-motion", help="imported logs, identified files, calibrations")
     ap.add_argument("--out", default="reports/real", help="where free_motion.csv and free_motion.md go")
+    ap.add_argument("--section-only", action="store_true",
+                    help="only redraw the README section from the free_motion.md already in --out")
     args = ap.parse_args()
+    if args.section_only:
+        insert_section(Path(args.out) / "README.md", section_lines(Path(args.out)))
+        return
     t0 = time.perf_counter()
     rows = free_motion_rows(Path(args.work))
     for path in write_table(rows, Path(args.out)):

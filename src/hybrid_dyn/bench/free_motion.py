@@ -192,7 +192,10 @@ def section_lines(out: Path) -> list[str]:
             "RMS |pinv(J_v^T) e| of the model's torque residual e on the test part, the phantom of a method that "
             "reads each sample alone (an observer's low-pass goes below it). `ok within 2 sigma`: the share of `ok` "
             "calls whose |F| lies within 2 |sigma|. Written by `python benchmarks/free_motion.py` "
-            "(`free_motion.csv`, `free_motion.md`).", ""] + table.read_text().rstrip("\n").split("\n")
+            "(`free_motion.csv`, `free_motion.md`).", "",
+            "No row sets a seed tip net trained in simulation on these logs (sim to real): every seed tip net reads "
+            "the base force/torque sensor (its inputs are the base wrench, q, qd, qdd and, for some, tau_J), and none "
+            "of the three logs has one.", ""] + table.read_text().rstrip("\n").split("\n")
 
 
 def insert_section(readme: Path, lines: list[str]) -> None:
