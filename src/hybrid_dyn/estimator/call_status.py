@@ -70,7 +70,9 @@ class CallStatus:
             self._still_calls = 0
         if self._still_calls >= c.standstill_seconds * c.call_hz and f.dot(f) < c.tare_contact_force ** 2:
             self._tare.follow(q, base_wrench, 1.0 / (c.retare_seconds * c.call_hz), self._follow_step)
-            self._tared_at = self._calls
+            # A follower of time constant tau lags a drift at the stated rate r by r tau: the error bar's drift term
+            # restarts from there, not from 0 (it said 1 % of a ten-minute standstill's calls within 2 sigma).
+            self._tared_at = self._calls - c.retare_seconds * c.call_hz
 
     def _finish(self, f, in_range, wrong_rate, usable, estimated=True) -> np.ndarray:
         """The status of this call's estimate f, and f (a copy); a force within the bound is kept.

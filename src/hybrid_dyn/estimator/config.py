@@ -94,8 +94,9 @@ class EstimatorConfig:
     standstill_speed [rad/s], standstill_seconds [s], retare_seconds [s]: after the window, while every
     joint is slower than standstill_speed for standstill_seconds and the estimate is below
     tare_contact_force, the base sensor's tare follows its drift with time constant retare_seconds
-    (math.inf: it does not), never faster than base_drift_rate: a contact that builds faster than the
-    sensor drifts is not tared away. Such a call verifies the tare (the drift term starts again from 0).
+    (math.inf: it does not), never faster than twice base_drift_rate (so that it catches up with a drift at that
+    rate): a contact that builds faster is not tared away. Such a call verifies the tare (the drift term starts
+    again from the follower's lag, base_drift_rate x retare_seconds).
 
     max_tare_offset [N]: the largest base-sensor offset (force norm) a tare may find; beyond it the sensor
     is not what the model says (a flipped sign, a wrong frame): status "tare offset implausible".

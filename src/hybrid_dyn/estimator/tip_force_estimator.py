@@ -31,6 +31,7 @@ from .stream_starts import StreamStarts
 from .torque_model import JointTorqueModel
 
 
+FOLLOW_RATE_FACTOR = 2.0  # the drift follower's fastest pace, in multiples of the sensor's stated drift rate
 GRID_CHECK_SECONDS = 10.0  # [s]: how long q is checked against the declared encoders' grid
 
 
@@ -62,19 +63,7 @@ class TipForceEstimator(CallStatus, StreamStarts):
             sensors, self._needs_qdd = self.spec.reads, self.spec.needs_qdd
             self._optional = frozenset(sensors) if self.spec.any_of else frozenset()
         self.method = method
-        # The torque model beyond the rigid body (friction, springs, a learned residual), taken from tau_J, and
-        # the error bar's model term calibrated on the user's log (``estimator/calibration.py``).
-        self.torque_model = torque_model
-        self.calibration = calibration
-        self._model_error, max_sigma, calibrated = None, c.max_sigma, None
-        if calibration is not None:
-            if self.spec is None or "tau_J" not in self.spec.reads:
-                raise UsageError(f"a calibration applies to the joint-torque methods, not {method!r}")
-            calibrated = calibration.check_for(robot, None if torque_model is None else torque_model.digest, method)
-            self._model_error = ModelError(robot, calibrated)
-            max_sigma = calibrated.max_sigma if max_sigma == "auto" else max_sigma
-        self.max_sigma = MAX_SIGMA if max_sigma == "auto" else float(max_sigma)
-        self._model_qdd = self._model_error is not None or (torque_model is not None and torque_model.needs_qdd)
+        calibrated = self._use_model(torque_model, calibration)
         self._gate = InputGate(robot, c, "base_wrench" in sensors, "tau_J" in sensors, self._optional)
         self._rate = RateCheck(nv, float(c.call_hz), c.rate_tolerance)
         self._bridge_ticks = int(c.bridge_seconds * c.call_hz)  # the longest gap bridged [ticks]
@@ -116,11 +105,31 @@ class TipForceEstimator(CallStatus, StreamStarts):
         self._window = NoiseWindow(robot, n_window, check_torques)
         self._check = None if self.spec is None else Consistency(
             robot, c, self._stream, method, "base_wrench" in sensors, "tau_J" in sensors, self._model_error)
-        drift = c.base_drift_rate / c.call_hz  # the follower's largest step per call [N], and [Nm] at 0.2 m
+        # The follower's largest step per call [N], and [Nm] at 0.2 m: twice the stated drift, so that it catches up
+        # with a drift at that rate (at once the rate, it stayed behind by what it lost before it locked on: 0.24-0.6 N
+        # over ten minutes), while a contact that builds faster is still not tared away.
+        drift = FOLLOW_RATE_FACTOR * c.base_drift_rate / c.call_hz
         self._follow_step = np.r_[np.full(3, drift), np.full(3, 0.2 * drift)]
         within(self._follow_step, 1.0)  # compiled (or loaded from numba's cache) now, not in a control cycle
         damped_solve3(np.eye(3), np.zeros(3), SINGULAR_REGION, MAX_DAMPING)  # the first estimate's solve, likewise
         self.reset()
+
+    def _use_model(self, torque_model, calibration):
+        """The torque model beyond the rigid body (friction, springs, a learned residual), taken from tau_J, and
+        the error bar's model term calibrated on the user's log (``estimator/calibration.py``); returns this
+        method's calibrated settings (None without a calibration)."""
+        self.torque_model, self.calibration = torque_model, calibration
+        self._model_error, max_sigma, calibrated = None, self.config.max_sigma, None
+        if calibration is not None:
+            if self.spec is None or "tau_J" not in self.spec.reads:
+                raise UsageError(f"a calibration applies to the joint-torque methods, not {self.method!r}")
+            digest = None if torque_model is None else torque_model.digest
+            calibrated = calibration.check_for(self.robot, digest, self.method)
+            self._model_error = ModelError(self.robot, calibrated)
+            max_sigma = calibrated.max_sigma if max_sigma == "auto" else max_sigma
+        self.max_sigma = MAX_SIGMA if max_sigma == "auto" else float(max_sigma)
+        self._model_qdd = self._model_error is not None or (torque_model is not None and torque_model.needs_qdd)
+        return calibrated
 
     # ------------------------------------------------------------ factories
     @classmethod

@@ -81,6 +81,9 @@ CASES = {
     "press-moving": TrustCase(12.0, ((0.0, 10.0), (3.0, 10.0), (3.001, 0.0), (12.0, 0.0)), moving=((0.0, 12.0),)),
     "drift-fast": TrustCase(60.0, _steps((10.0, 30.0, 50.0), 8.0, 2.0, 60.0), moving=((0.0, 60.0),),
                             sensors=replace(HARDWARE, base=ForceTorqueModel(force_drift=0.05, torque_drift=0.0))),
+    # 8. ten minutes at a standstill, nothing touching the tool, the base sensor drifting at its stated 0.025 N/s:
+    # the drift follower's tare, and its error bar, over a long wait.
+    "standstill-drift": TrustCase(600.0),
     # 7. exact q, moving from t = 0, the estimator's defaults (it assumes 1e-5 rad encoders).
     "start-moving": TrustCase(10.0, _steps((4.0,), 10.0, 2.0, 10.0), moving=((0.0, 10.0),),
                               sensors=replace(HARDWARE, encoder=EncoderModel(0.0, "exact"))),
