@@ -275,3 +275,57 @@ def test_a_q_off_the_declared_encoder_grid_is_told_and_read_as_given(panda, meth
             if k not in (600, 601):  # a short gap: its bridged samples lie off the grid by construction, unchecked
                 quantized.estimate_tip_force(on_grid[k], qd[k], t=t[k], **kw(k))
     assert quantized.encoder_mismatch is None and quantized.encoder_resolution == 1e-5
+
+
+def test_a_timed_stream_at_another_rate_is_said_to_be_one(panda):
+    """Steps of 0.5 ms (a 2 kHz stream) or 1.6 ms each lie within the stamp tolerance of a 1 kHz period, one by one;
+    their running mean does not: the status says "wrong rate", never ok. A PC's 0.8-1.3 ms steps are no wrong rate."""
+    rng = np.random.default_rng(8)
+    for steps, wrong in ((np.full(1500, 0.5e-3), True), (np.full(1500, 1.6e-3), True),
+                         (rng.choice([0.8e-3, 0.9e-3, 1.0e-3, 1.1e-3, 1.3e-3], 1500), False)):
+        t = np.cumsum(steps)
+        est = TipForceEstimator.analytic(panda, "momentum-observer", call_hz=HZ, encoder_resolution=0.0,
+                                         on_bad_input="hold")
+        q, tau = np.array(panda.spec.home), panda.inverse_dynamics(np.array(panda.spec.home), np.zeros(7), np.zeros(7))
+        noise = rng.normal(0, 1e-3, (len(t), 7))
+        status = [est.estimate_tip_force(q, np.zeros(7), tau_J=tau + noise[k], t=t[k]) is not None and est.last_status
+                  for k in range(len(t))]
+        assert (EstimatorStatus.WRONG_RATE in status[100:]) is wrong
+        assert EstimatorStatus.OK not in status[100:] or not wrong
+
+
+@pytest.mark.parametrize("t", [10 ** 400, "0.061", b"1"])
+def test_a_stamp_that_is_no_float_is_refused_by_name(panda, t):
+    est = TipForceEstimator.analytic(panda, "momentum-observer", call_hz=HZ, encoder_resolution=0.0)
+    with pytest.raises(hd.estimator.EstimatorInputError, match="t must be a number"):
+        est.estimate_tip_force(np.array(panda.spec.home), np.zeros(7), tau_J=np.zeros(7), t=t)
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda d: d.update(methods=[]), "must be tables"),
+    (lambda d: d.update(version=99), "version 99"),
+    (lambda d: d.pop("robot"), r"needs \['robot'\]"),
+    (lambda d: d["methods"]["momentum-observer"].update(bandwidth=0.0), "bandwidth = 0.0"),
+    (lambda d: d["methods"]["momentum-observer"].update(sigma_scale=float("nan")), "sigma_scale = nan"),
+    (lambda d: d["methods"]["momentum-observer"].update(max_sigma=-1.0), "max_sigma = -1.0"),
+    (lambda d: d["methods"]["momentum-observer"]["correlation"][0].__setitem__(1, 50.0), "correlation matrix"),
+    (lambda d: d["source"].update(not_calibrated=["x"]), "must be tables"),
+])
+def test_a_calibration_file_with_bad_contents_is_refused_by_name(panda, tmp_path, edit, message):
+    path = _calibration(panda).save(tmp_path / "cal.json")
+    doc = json.loads(path.read_text())
+    edit(doc)
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(doc))
+    with pytest.raises(CalibrationError, match=message):
+        Calibration.load(bad)
+
+
+def test_an_identified_file_of_another_tool_is_refused(tmp_path):
+    """A file identified on the bare flange (panda[tool=none]) holds no hand in its last body: the Panda with its
+    hand is another robot for it."""
+    bare = hd.load_robot("panda[tool=none]")
+    path, _ = identified_file(bare, tmp_path / "id.json")
+    assert JointTorqueModel.from_params(path, bare) is not None
+    with pytest.raises(hd.description.RobotDescriptionError, match="with this tool"):
+        JointTorqueModel.from_params(path, hd.load_robot("panda"))

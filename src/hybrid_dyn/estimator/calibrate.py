@@ -135,6 +135,10 @@ def calibrate(robot, methods, instances, rate_hz: float, torque_model=None, tau_
     from ..analytic.methods import TIP_FORCE_METHODS
 
     say = progress or (lambda text: None)
+    specs = [TIP_FORCE_METHODS.lookup(m) for m in methods]
+    not_torque = [s.name for s in specs if "tau_J" not in s.reads]
+    if not_torque:  # before any work
+        raise UsageError(f"calibrate: {not_torque} read no joint torques; a calibration is for the joint-torque methods")
     residual, qd, qdd = torque_residual(robot, torque_model, instances, tau_key)
     sig, corr = fit_torque_error(residual, qd, qdd)
     digest = None if torque_model is None else torque_model.digest
@@ -142,11 +146,7 @@ def calibrate(robot, methods, instances, rate_hz: float, torque_model=None, tau_
     cal = Calibration(robot.name, name, digest, sig, corr, {}, dict(source or {}, samples=int(len(residual)),
                                                                       rate_hz=float(rate_hz)))
     warm = lead_in(before, instances)
-    for m in methods:
-        spec = TIP_FORCE_METHODS.lookup(m)
-        if "tau_J" not in spec.reads:
-            raise UsageError(f"calibrate: {spec.name!r} reads no joint torques; a calibration is for the "
-                             "joint-torque methods")
+    for spec in specs:
         job = _MethodRun(robot, spec, instances, warm, torque_model, tau_key,
                          dict(config, call_hz=rate_hz, on_bad_input="hold"), (sig, corr))
         best = job.choose_bandwidth(cal, say)

@@ -28,6 +28,7 @@ bar is the sensors' alone, as before (the fallback; the simulator's trust bench 
 from __future__ import annotations
 
 import json
+import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -73,12 +74,32 @@ class MethodCalibration:
 
     @classmethod
     def from_dict(cls, d: dict, nv: int) -> "MethodCalibration":
+        """From a file's method section; ValueError naming what is wrong (the bandwidth's own range is its
+        parameter's, checked where the estimator knows its rate)."""
+        if not isinstance(d, dict):
+            raise ValueError(f"a method's section must be a table, got {type(d).__name__}")
+        missing = [k for k in ("bandwidth", "torque_sigma", "correlation", "sigma_scale", "max_sigma", "phantom_rms")
+                   if k not in d]
+        if missing:
+            raise ValueError(f"a method's section lacks {missing}")
         sig, corr = np.array(d["torque_sigma"], float), np.array(d["correlation"], float)
-        if sig.shape != (nv, 3) or corr.shape != (nv, nv) or not (np.isfinite(sig).all() and np.isfinite(corr).all()) \
-                or (sig < 0).any():
-            raise ValueError("torque_sigma must be (nv, 3) non-negative and correlation (nv, nv), finite")
-        return cls(float(d["bandwidth"]), sig, corr, float(d["sigma_scale"]), float(d["max_sigma"]),
-                   float(d["phantom_rms"]))
+        check_law(sig, corr, nv)
+        values = {k: float(d[k]) for k in ("bandwidth", "sigma_scale", "max_sigma")}
+        bad = [f"{k} = {v!r}" for k, v in values.items() if not (math.isfinite(v) and v > 0)]
+        if bad:
+            raise ValueError(f"{', '.join(bad)}: each must be a finite number > 0")
+        return cls(values["bandwidth"], sig, corr, values["sigma_scale"], values["max_sigma"], float(d["phantom_rms"]))
+
+
+def check_law(sig: np.ndarray, corr: np.ndarray, nv: int) -> None:
+    """ValueError unless sig is (nv, 3) finite and non-negative and corr a correlation matrix (nv, nv): finite,
+    symmetric, a unit diagonal, entries within [-1, 1]."""
+    if sig.shape != (nv, 3) or not np.isfinite(sig).all() or (sig < 0).any():
+        raise ValueError(f"torque_sigma must be ({nv}, 3) finite and non-negative, got shape {sig.shape}")
+    if corr.shape != (nv, nv) or not np.isfinite(corr).all() or not np.allclose(corr, corr.T, atol=1e-9) \
+            or not np.allclose(np.diag(corr), 1.0, atol=1e-9) or (np.abs(corr) > 1.0 + 1e-9).any():
+        raise ValueError(f"correlation must be a ({nv}, {nv}) correlation matrix: symmetric, unit diagonal, "
+                         "entries within [-1, 1]")
 
 
 def joint_sigma(torque_sigma, qd, qdd) -> np.ndarray:
@@ -136,18 +157,28 @@ class Calibration:
             raise CalibrationError(f"cannot read calibration file {path}: {err}") from None
         if not isinstance(doc, dict) or doc.get("format") != FILE_FORMAT:
             raise CalibrationError(f"{path} is not an estimator calibration (format {FILE_FORMAT!r})")
+        if doc.get("version") != 1:
+            raise CalibrationError(f"{path}: calibration file version {doc.get('version')!r}; this toolkit reads version 1")
+        missing = [k for k in ("robot", "model", "torque_sigma", "correlation", "methods") if k not in doc]
+        if missing:
+            raise CalibrationError(f"{path}: a calibration needs {missing}")
+        if not isinstance(doc["methods"], dict) or not isinstance(doc.get("source", {}), dict) \
+                or not isinstance(doc.get("source", {}).get("not_calibrated", {}), dict):
+            raise CalibrationError(f"{path}: methods, source and source.not_calibrated must be tables")
         try:
             sig = np.array(doc["torque_sigma"], float)
             corr = np.array(doc["correlation"], float)
-            methods = {k: MethodCalibration.from_dict(v, len(sig)) for k, v in doc["methods"].items()}
+            check_law(sig, corr, len(sig))
+            methods = {}
+            for k, v in doc["methods"].items():
+                try:
+                    methods[k] = MethodCalibration.from_dict(v, len(sig))
+                except (TypeError, ValueError) as err:
+                    raise ValueError(f"method {k!r}: {err}") from None
             out = cls(str(doc["robot"]), str(doc["model"]), doc.get("params_digest"), sig, corr, methods,
                       dict(doc.get("source", {})))
-        except (KeyError, TypeError, ValueError) as err:
-            raise CalibrationError(f"{path}: a calibration needs torque_sigma, correlation and methods ({err})") from None
-        nv = len(sig)
-        if sig.shape != (nv, 3) or corr.shape != (nv, nv) or not (np.isfinite(sig).all() and np.isfinite(corr).all()) \
-                or (sig < 0).any():
-            raise CalibrationError(f"{path}: torque_sigma must be (nv, 3) non-negative and correlation (nv, nv), finite")
+        except (TypeError, ValueError) as err:
+            raise CalibrationError(f"{path}: {err}") from None
         return out
 
     def check_for(self, robot, params_digest: str | None, method: str) -> MethodCalibration:
@@ -158,10 +189,11 @@ class Calibration:
         if len(self.torque_sigma) != robot.nv:
             raise CalibrationError(f"the calibration holds {len(self.torque_sigma)} joints, {robot.name!r} has {robot.nv}")
         if self.params_digest != params_digest:
+            def named(digest):
+                return "the description's own parameters" if digest is None else f"parameter file digest {digest[:12]}"
             raise CalibrationError(
-                f"the calibration was made for another torque model ({self.model}, parameter file digest "
-                f"{str(self.params_digest)[:12]}), not the one given (digest {str(params_digest)[:12]}): calibrate "
-                "the model you run")
+                f"the calibration was made for another torque model ({self.model}, {named(self.params_digest)}), not "
+                f"the one given ({named(params_digest)}): calibrate the model you run")
         if method not in self.methods:
             why = self.source.get("not_calibrated", {}).get(method)
             raise CalibrationError(f"the calibration has no settings for method {method!r} "

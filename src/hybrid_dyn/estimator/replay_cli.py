@@ -13,7 +13,7 @@ def register(sub) -> None:
 
     p = sub.add_parser("estimate")
     p.add_argument("spec", help="the log's import spec (TOML; a ROS bag's names its topics in [ros]: "
-                                "docs/from_a_ros_bag.md)")
+                                "docs/from_a_ros_bag.md), or the name of a shipped real set (real-panda, ...)")
     p.add_argument("--method", default=DEFAULT_METHOD,
                    help=f"the analytic estimator ({', '.join(TIP_FORCE_METHODS)}); default {DEFAULT_METHOD} (joint "
                         "torques; a log with a base sensor only: base-momentum)")
@@ -56,8 +56,13 @@ def cmd_estimate(args) -> int:
     from ..data.logs.importer import read_spec
     from .replay import check_outputs, estimate_to
 
+    from pathlib import Path
+
+    from ..data.logs.real_logs import REAL_SETS, real_spec_path
+
     check_outputs(args.out)  # before the log is read: a taken name costs nothing
-    summary, report, written, info = estimate_to(read_spec(args.spec), args.out, method=args.method,
+    spec = real_spec_path(args.spec) if args.spec in REAL_SETS and not Path(args.spec).exists() else args.spec
+    summary, report, written, info = estimate_to(read_spec(spec), args.out, method=args.method,
                                                  model=args.model, encoder_resolution=args.encoder_resolution,
                                                  keep_partial=args.keep_partial, params=args.params,
                                                  calibration=args.calibration, residual=args.residual)
@@ -100,6 +105,9 @@ def cmd_calibrate(args) -> int:
     cal = calibrate(robot, methods, parts, rate, torque_model=model, progress=print, before=before,
                     source={"data": str(args.data), "split": args.split, "params": args.params},
                     encoder_resolution=args.encoder_resolution)
+    if not cal.methods:
+        raise CalibrationError(f"nothing was calibrated ({cal.source.get('not_calibrated') or 'no methods given'}); "
+                               f"{args.out} not written")
     cal.save(args.out)
     print(f"wrote {args.out}")
     return 0

@@ -83,6 +83,7 @@ class TipForceEstimator(CallStatus, StreamStarts):
         value = "auto" if self.spec is None else c.bandwidth(self.spec.parameter)  # by its declaration's name
         if value == "auto" and calibrated is not None:
             value = calibrated.bandwidth
+            self.spec.bandwidth.check(value, float(c.call_hz))  # a file's number, as a config's would be
         self._fixed = None if value == "auto" else float(value)
         if model is not None and c.qdd_cutoff_hz == "auto":
             # The network saw qdd through its training filter: the stream runs it too, a fixed number the
@@ -344,6 +345,7 @@ class TipForceEstimator(CallStatus, StreamStarts):
         wrong_rate = False
         if t is not None:
             self._gate.last_t = t
+            wrong_rate = self._gate.wrong_rate
         else:
             wrong_rate = self._rate.update(q, qd)
         if self._grid_checks:

@@ -66,10 +66,9 @@ class JointTorqueModel:
         if found is None:
             return None
         doc, digest = found
-        base = str(doc.get("robot", "")).split("[")[0]
-        if base != robot.base_name:
+        if str(doc.get("robot", "")) != robot.name:  # the variant too: a tool's inertials are in the file's last body
             raise RobotDescriptionError(f"{params} was identified for robot {doc.get('robot')!r}, not "
-                                        f"{robot.name!r}: pass the file identified on this arm")
+                                        f"{robot.name!r}: pass the file identified on this arm (with this tool)")
         springs = springs_from_dict(doc, robot.joint_names, str(params))
         name = "identified+friction" + ("+springs" if springs else "")
         return cls(name, tuple(robot.joint_names), friction_from_dict(doc["friction"], str(params)), springs,
