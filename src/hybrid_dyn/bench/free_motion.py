@@ -61,12 +61,10 @@ def rows_in_split(replay, test_instances) -> np.ndarray:
 
 def offline_floor(robot, torque_model, instances) -> float:
     """RMS |pinv(J_v^T) e| [N] over ``instances``, e the torque model's residual [Nm] (``torque_residual``)."""
-    from ..estimator.calibrate import torque_residual
+    from ..estimator.calibrate import pinv_jt, torque_residual
 
-    cat_q = np.concatenate([np.asarray(i["q"], float) for i in instances])
     e, _, _ = torque_residual(robot, torque_model, instances)
-    jv = robot._tip_jacobians(cat_q)[:, :3, :]
-    f = np.linalg.solve(jv @ jv.transpose(0, 2, 1), np.einsum("nij,nj->ni", jv, e)[..., None])[..., 0]
+    f = np.einsum("nij,nj->ni", pinv_jt(robot, instances), e)
     return float(np.sqrt(np.mean(np.sum(f * f, axis=1))))
 
 

@@ -119,9 +119,17 @@ def bandwidth_grid(method, rate_hz: float) -> tuple:
     return tuple(grid)
 
 
-def phantom(forces, statuses=None) -> np.ndarray:
+def phantom(forces) -> np.ndarray:
     """|F| (N,) [N] of free-motion estimates: every newton is a phantom."""
     return np.linalg.norm(np.asarray(forces, float), axis=1)
+
+
+def pinv_jt(robot, instances) -> np.ndarray:
+    """pinv(J_v^T) = (J_v J_v^T)^-1 J_v (N, 3, nv) at every sample of ``instances``: a torque [Nm] to the tip force
+    [N] that explains it (undamped)."""
+    q = np.concatenate([np.asarray(i["q"], float) for i in instances])
+    jv = robot._tip_jacobians(q)[:, :3, :]
+    return np.linalg.solve(jv @ jv.transpose(0, 2, 1), jv)
 
 
 def calibrate(robot, methods, instances, rate_hz: float, torque_model=None, tau_key: str = "tau_m",
@@ -139,8 +147,10 @@ def calibrate(robot, methods, instances, rate_hz: float, torque_model=None, tau_
     not_torque = [s.name for s in specs if "tau_J" not in s.reads]
     if not_torque:  # before any work
         raise UsageError(f"calibrate: {not_torque} read no joint torques; a calibration is for the joint-torque methods")
-    residual, qd, qdd = torque_residual(robot, torque_model, instances, tau_key)
+    parts = residual_parts(robot, torque_model, instances, tau_key)  # once: every method's law reads them
+    residual, qd, qdd = filtered(parts, None)
     sig, corr = fit_torque_error(residual, qd, qdd)
+    pinv = pinv_jt(robot, instances)
     digest = None if torque_model is None else torque_model.digest
     name = "rigid body" if torque_model is None else torque_model.name
     cal = Calibration(robot.name, name, digest, sig, corr, {}, dict(source or {}, samples=int(len(residual)),
@@ -148,7 +158,7 @@ def calibrate(robot, methods, instances, rate_hz: float, torque_model=None, tau_
     warm = lead_in(before, instances)
     for spec in specs:
         job = _MethodRun(robot, spec, instances, warm, torque_model, tau_key,
-                         dict(config, call_hz=rate_hz, on_bad_input="hold"), (sig, corr))
+                         dict(config, call_hz=rate_hz, on_bad_input="hold"), (sig, corr), parts, pinv)
         best = job.choose_bandwidth(cal, say)
         if best is None:
             reason = (f"no bandwidth of {bandwidth_grid(spec, rate_hz)} settled on {100 * MIN_SETTLED:.0f} % of the "
@@ -175,23 +185,20 @@ class _MethodRun:
     tau_key: str
     settings: dict
     raw_law: tuple
+    parts: list  # residual_parts of the instances
+    pinv: np.ndarray  # pinv_jt of the instances (N, 3, nv)
 
     def run(self, calibration, model_sigma: bool = False):
         est = TipForceEstimator(self.robot, self.spec.name, _config(self.settings, {}), torque_model=self.torque_model,
                                 calibration=calibration)
         return stream_instances(est, self.instances, self.tau_key, model_sigma=model_sigma, lead_in=self.warm)
 
-    def __post_init__(self):
-        self.parts = residual_parts(self.robot, self.torque_model, self.instances, self.tau_key)
-        q = np.concatenate([np.asarray(i["q"], float) for i in self.instances])
-        jv = self.robot._tip_jacobians(q)[:, :3, :]
-        self.pinv = np.linalg.solve(jv @ jv.transpose(0, 2, 1), jv)  # pinv(J_v^T) per sample (N, 3, nv)
-
     def law_at(self, value, forces=None) -> tuple:
         """The torque error law the method sees: through an observer's low-pass at its gain; for another method,
         through the first-order low-pass (of EFFECTIVE_GAINS, or none) under which the law best explains the
-        method's own phantom ``forces`` (N, 3) [N] on the part (NaN: unsettled; the least Gaussian negative log-likelihood of
-        F ~ N(0, P Sigma_tau P^T)): a Kalman filter or a qdd filter passes the slow part of the model's error."""
+        method's own phantom ``forces`` (N, 3) [N] on the part (NaN: unsettled; the least Gaussian negative
+        log-likelihood of F ~ N(0, P Sigma_tau P^T)): a Kalman filter or a qdd filter passes the slow part of the
+        model's error."""
         if self.spec.parameter == "momentum_gain":
             return fit_torque_error(*filtered(self.parts, value))
         if forces is None:
@@ -295,4 +302,4 @@ def _config(settings: dict, extra: dict):
 
 
 
-__all__ = ["COVERAGE", "calibrate", "first_order_lowpass", "lead_in", "stream_instances", "torque_residual"]
+__all__ = ["COVERAGE", "calibrate", "pinv_jt", "first_order_lowpass", "lead_in", "stream_instances", "torque_residual"]

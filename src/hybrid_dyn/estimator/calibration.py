@@ -38,11 +38,11 @@ import pinocchio as pin
 from scipy.optimize import nnls
 
 from ..errors import UsageError
+from .consistency import CHECK_EVERY  # the model term's Jacobian as often as the off-tool check's
 from ..outputs import unique_temp
 
 FILE_FORMAT = "hybrid_dyn.estimator_calibration"
 OFF_TOOL_SIGMAS = 4.0  # the off-tool bound: this many sigmas of the model error outside range(J_v^T)
-CHECK_EVERY = 8       # calls between two Jacobians of the model term (as the off-tool check)
 
 
 class CalibrationError(UsageError):
@@ -253,9 +253,7 @@ def fit_torque_error(residual, qd, qdd) -> tuple[np.ndarray, np.ndarray]:
             var = (basis / scale) @ coef
             w = 1.0 / np.maximum(var, 1e-3 * max(float(e2.mean()), 1e-12))
         sig[j] = np.sqrt(coef / scale)
-    d = np.sqrt(np.clip((np.stack([np.ones_like(qd[:, 0])] * nv, 1) * sig[:, 0] ** 2
-                         + (qd * sig[:, 1]) ** 2 + (qdd * sig[:, 2]) ** 2), 1e-12, None))
-    z = residual / d
+    z = residual / np.maximum(joint_sigma(sig, qd, qdd), 1e-6)
     corr = np.corrcoef(z, rowvar=False) if len(z) > 2 else np.eye(nv)
     corr = np.where(np.isfinite(corr), corr, 0.0)
     np.fill_diagonal(corr, 1.0)

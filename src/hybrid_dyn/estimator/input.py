@@ -148,7 +148,7 @@ class InputGate:
         # A step this far from the period is the stamps' jitter (a PC's), never a lost tick.
         self._period_tol = min(max(c.rate_tolerance * self._period, 1.5 * c.stamp_jitter), 0.9 * self._period)
         self._jitter = c.stamp_jitter
-        self._bridge_ticks = int(c.bridge_seconds * c.call_hz)  # the longest gap accepted at once [ticks]
+        self.bridge_ticks = int(c.bridge_seconds * c.call_hz)  # the longest gap accepted at once, and bridged [ticks]
         self._max_force_sq = c.max_tip_force ** 2
 
     def accept(self, q, qd, base_wrench, tau_J, t):
@@ -211,21 +211,20 @@ class InputGate:
         0.7-1.8 ms that wander by milliseconds about any fixed clock, where the step from the last accepted
         stamp lies within ``_period_tol`` of the period. Either makes the stamp the next tick.
 
-        A longer step spans round(step / period) ticks. It is accepted when what came
-        between explains it: the stamp of the call before lies one period before it (that call was refused
-        for its values, or was a gap's end), or no call between brought a stamp ahead and there were as many
-        calls as ticks (a sample refused for a stamp of its own): one bad sample costs one sample. It is
-        accepted at once as a short gap (its lost ticks within ``bridge_seconds``) while such gaps are a
-        minority of the recent steps (over ``RATE_STEPS``): a PC-stamped log streams with no refusal. A stream whose
-        steps average another period than call_hz's (by over ``rate_tolerance``, over ``PERIOD_STEPS``: a 2 kHz or
-        a 600 Hz stream, each of whose steps lies within the tolerance of one period) is ``wrong_rate``, which the
-        estimator's status says. Else it
-        is refused: a longer gap's end (the next call confirms it), a stray stamp, or a stream at another
-        rate than call_hz, whose every step spans several ticks and which so never goes on. (A stray stamp
-        ahead within a short gap is taken for one: the samples after it that lie before it are then
-        refused, until the stream passes it.) A stamp before the last
-        accepted one, or too early for the next tick, is refused. The estimator bridges the ticks lost in a
-        short gap (``bridge_seconds``) and restarts after a long one."""
+        A longer step spans round(step / period) ticks. It is accepted when what came between explains it: the
+        stamp of the call before lies one period before it (that call was refused for its values, or was a gap's
+        end), or no call between brought a stamp ahead and there were as many calls as ticks (a sample refused
+        for a stamp of its own): one bad sample costs one sample. It is accepted at once as a short gap (its lost
+        ticks within ``bridge_seconds``; the estimator bridges them) while such gaps are a minority of the recent
+        steps (over ``RATE_STEPS``): a PC-stamped log streams with no refusal. Else it is refused: a longer gap's
+        end (the next call confirms it and the estimator restarts), a stray stamp, or a stream at another rate,
+        whose every step spans several ticks and which so never goes on. A stray stamp ahead within a short gap is
+        taken for one: the samples after it that lie before it are then refused until the stream passes it. A
+        stamp before the last accepted one, or too early for the next tick, is refused.
+
+        A stream whose steps average another period than call_hz's (by over ``rate_tolerance``, over
+        ``PERIOD_STEPS``: a 2 kHz or a 600 Hz stream, each of whose steps lies within the tolerance of one period)
+        is ``wrong_rate``, which the estimator's status says."""
         if self.last_t is None:
             self._stamps, self._clock, self._seen_t, self._gap_share = 1, t, t, 0.0
             self._mean_step = self._period
@@ -247,7 +246,7 @@ class InputGate:
             seen, self._seen_t = self._seen_t, t
             between = (0 < t - seen <= T + tol) if seen != self.last_t else ticks <= self._calls_since
             share = self._gap_share + (1.0 - self._gap_share) / min(self._stamps, RATE_STEPS)
-            short = ticks - 1 <= self._bridge_ticks and share <= 0.5
+            short = ticks - 1 <= self.bridge_ticks and share <= 0.5
             if not (between or short):
                 raise EstimatorInputError(
                     f"t={t} s steps {step:.6g} s from the last accepted sample, and call_hz={self.config.call_hz:g} "

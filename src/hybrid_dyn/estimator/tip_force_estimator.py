@@ -66,7 +66,6 @@ class TipForceEstimator(CallStatus, StreamStarts):
         calibrated = self._use_model(torque_model, calibration)
         self._gate = InputGate(robot, c, "base_wrench" in sensors, "tau_J" in sensors, self._optional)
         self._rate = RateCheck(nv, float(c.call_hz), c.rate_tolerance)
-        self._bridge_ticks = int(c.bridge_seconds * c.call_hz)  # the longest gap bridged [ticks]
         self._prev_arrays = (np.zeros(nv), np.zeros(nv), np.zeros(6), np.zeros(nv))
         # Quantized encoders: q becomes q, qd (and qdd) through one Kalman filter every method reads
         # (analytic methods only: a learned model reads what its training data recorded).
@@ -288,7 +287,7 @@ class TipForceEstimator(CallStatus, StreamStarts):
             self.last_rejection = str(err)
             return self._last_good.copy()
         if lost:  # a gap: bridged when short (its samples interpolated), else the dynamics restart
-            if lost <= self._bridge_ticks and self._prev is not None:
+            if lost <= self._gate.bridge_ticks and self._prev is not None:
                 self._bridge(lost, q, qd, base_wrench, tau_J, t)
             else:
                 self._restart_dynamics((lost + 1) / self.config.call_hz)
@@ -342,7 +341,6 @@ class TipForceEstimator(CallStatus, StreamStarts):
 
     def _step(self, q, qd, base_wrench, tau_J, t) -> np.ndarray:
         """One accepted sample through the joint filter, the window and the method: the estimate, its status."""
-        wrong_rate = False
         if t is not None:
             self._gate.last_t = t
             wrong_rate = self._gate.wrong_rate
