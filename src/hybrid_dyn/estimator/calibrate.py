@@ -33,15 +33,12 @@ def stream_instances(est, instances, tau_key: str = "tau_m", model_sigma: bool =
     sigma (N, 3) [N], statuses (N,) str), and with ``model_sigma`` the error bar's model term (N, 3) [N] (inf
     where there is none)."""
     forces, sigmas, statuses, models = [], [], [], []
-    end = None
-    gap = est.config.bridge_seconds + 1.5 / est.config.call_hz
     skip = {id(i) for i in lead_in}
     for inst in list(lead_in) + list(instances):
         q, qd, t = (np.asarray(inst[k], float) for k in ("q", "qd", "t"))
         tau = np.asarray(inst[tau_key], float)
-        if end is None or not (0 < t[0] - end <= gap):
+        if not est.continues(t[0]):
             est.reset()
-        end = t[-1]
         if id(inst) in skip:
             for k in range(len(t)):
                 est.estimate_tip_force(q[k], qd[k], tau_J=tau[k], t=t[k])

@@ -264,10 +264,8 @@ def _run(est, f: dict, starts=None):
     tau_key = "tau_J" if "tau_J" in f else "tau_m"
     wrench, tau = f.get("base_wrench"), f.get(tau_key)
     q, qd, t = f["q"], f["qd"], f["t"]
-    longest = est.config.bridge_seconds + 1.5 / est.config.call_hz
     for k in range(n):
-        last = est.last_t
-        if starts is not None and starts[k] and last is not None and not (0 < t[k] - last <= longest):
+        if starts is not None and starts[k] and est.last_t is not None and not est.continues(t[k]):
             est.reset()
         force[k] = est.estimate_tip_force(q[k], qd[k], base_wrench=None if wrench is None else wrench[k],
                                           tau_J=None if tau is None else tau[k], t=t[k])

@@ -256,6 +256,12 @@ class TipForceEstimator(CallStatus, StreamStarts):
         """The stamp of the last accepted sample [s] (None: none yet, or an untimed stream)."""
         return self._gate.last_t
 
+    def continues(self, t: float) -> bool:
+        """Whether a sample stamped t [s] goes on this stream: after its last accepted stamp, within a gap it
+        bridges. A replay that starts a recording's next piece calls ``reset`` where it does not."""
+        last = self._gate.last_t
+        return last is not None and 0 < t - last <= self.config.bridge_seconds + 1.5 / self.config.call_hz
+
     @property
     def _active_tare(self):
         """The tare of the analytic base-wrench method, or of a learned model's base-wrench prior."""
