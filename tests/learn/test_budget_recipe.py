@@ -96,3 +96,30 @@ def test_resume_mid_budget_is_bit_identical(tiny, tmp_path, monkeypatch):
     assert_same_weights(tmp_path / "a", tmp_path / "b")
     assert resumed.config["history"] == straight.config["history"]
     assert resumed.config["stopped_by"] == "budget"
+
+
+def test_budget_patience_ends_the_run_on_the_whole_runs_rounds(tiny, tmp_path):
+    """A budgeted run with budget_patience P is the whole run cut after P idle rounds: the rounds it ran
+    equal the whole run's first rounds (the schedule stays the whole budget's), and it keeps the whole
+    run's best weights when the best round came before the cut."""
+    whole_cfg = TrainConfig.recipe("budget", budget_steps=60, budget_evals=12, **QUICK)
+    whole = train_model(tiny, "seed-tip-7", tmp_path / "whole", whole_cfg)
+    h = whole.config["history"]
+    best, idle, cut = whole.config["initial_val_loss"], 0, None
+    for i, e in enumerate(h):  # where patience 2 must stop, read off the whole run's validation curve
+        if e["val_loss"] < best - 1e-4 * abs(best):
+            best, idle = e["val_loss"], 0
+        else:
+            idle += 1
+            if idle >= 2 and cut is None:
+                cut = i
+    assert cut is not None and cut + 1 < len(h), "the tiny run must plateau for this test to say anything"
+    short = train_model(tiny, "seed-tip-7", tmp_path / "short",
+                        TrainConfig.recipe("budget", budget_steps=60, budget_evals=12, budget_patience=2, **QUICK))
+    assert short.config["stopped_by"] == "patience"
+    assert short.config["history"] == h[:cut + 1]
+    if whole.config["best_epoch"] <= cut:
+        assert_same_weights(tmp_path / "whole", tmp_path / "short")
+    assert "budget_patience" not in whole_cfg.fingerprint_fields()  # older runs keep their models
+    with pytest.raises(UsageError, match="budget-patience"):
+        TrainConfig.recipe("budget", budget_patience=0)

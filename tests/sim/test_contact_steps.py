@@ -66,15 +66,15 @@ def test_generated_instance_records_the_drawn_contacts_at_1khz(tmp_path):
     assert np.max(np.linalg.norm(inst.truth["tip_force"], axis=1)) > 3.0
 
 
-def test_default_profile_runs_only_the_analytic_rows_on_contact_steps():
+def test_default_profile_runs_only_the_analytic_rows_on_its_contact_step_scenario():
     from types import SimpleNamespace
 
     from hybrid_dyn.bench.profiles import PROFILES
 
     prof = PROFILES.lookup("default")
-    cfg = scenario_config("contact-steps", "default")
+    cfg = scenario_config("contact-steps-hardware", "default")
     ds = SimpleNamespace(fields=["t", "q", "qd", "qdd", "tau_m", "tau_J", "base_wrench", "tip_force"],
-                         meta={"scenario": "contact-steps", "robot": "panda", "config": cfg.to_dict(),
+                         meta={"scenario": "contact-steps-hardware", "robot": "panda", "config": cfg.to_dict(),
                                "generator_version": 1})
     applied = {s.family for s in BenchPlan(prof).selected_rows() if BenchPlan(prof).applies(s, ds)}
     assert applied == {"analytic"}

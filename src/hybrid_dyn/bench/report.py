@@ -14,6 +14,7 @@ whole report from its folder.
 from __future__ import annotations
 
 import json
+import math
 import platform
 from pathlib import Path
 
@@ -249,6 +250,7 @@ def _what_was_run(meta: dict, prof: dict, rows=()) -> list[str]:
         f"- wall time of this invocation: {_minutes(meta.get('wall_seconds'))} min (datasets and trained "
         "models found in the caches are reused; each row's `train_seconds` is its own training time)"
         + _invocation_times(meta.get("invocations", [])),
+        *_time_profile(meta.get("invocations", []), rows),
         (f"- machine: {machine['machine']}, {machine['processor']}, Python {machine['python']}; packages: "
          + ", ".join(f"{k} {v}" for k, v in machine["packages"].items())) if machine else
         f"- machine: not recorded in run.json ({no_machine})",
@@ -277,6 +279,39 @@ def _invocation_times(invocations: list) -> str:
     known = [float(i["wall_seconds"]) for i in invocations if i.get("wall_seconds") is not None]
     total = f"; in all {_minutes(sum(known))} min" if len(known) == len(invocations) else ""
     return "; all invocations [min]: " + ", ".join(parts) + total
+
+
+def _time_profile(invocations: list, rows) -> list[str]:
+    """Where the last invocation's time went: its wall and CPU seconds by phase (run.json), and the training
+    and scoring CPU by family (results.csv's train_cpu_seconds, score_cpu_seconds: each row's own, in whichever
+    invocation it ran)."""
+    if not invocations or not invocations[-1].get("phases"):
+        return []
+    last = invocations[-1]
+    cores = (f", {last['cpu_seconds'] / last['wall_seconds']:.2f} cores on average"
+             if last.get("cpu_seconds") and last.get("wall_seconds") else "")
+    phases = ", ".join(f"{k} {v['wall_seconds']:.0f} s wall / {v['cpu_seconds']:.0f} CPU-s"
+                       for k, v in last["phases"].items())
+    by_family: dict = {}
+    for r in rows:
+        f = by_family.setdefault(r.get("family") or "?", [0.0, 0.0])
+        for i, key in enumerate(("train_cpu_seconds", "score_cpu_seconds")):
+            f[i] += _finite_or_zero(r.get(key))
+    families = ", ".join(f"{k} {v[0]:.0f} / {v[1]:.0f}" for k, v in sorted(by_family.items(), key=lambda kv: -kv[1][0]))
+    return [f"- where this invocation's time went: {_minutes(last.get('wall_seconds'))} min wall, "
+            f"{last.get('cpu_seconds', float('nan')):.0f} CPU-s{cores}; by phase: {phases} (training: every learned "
+            "row of every scenario in one queue, while this process fits the identified models and residual GPs; "
+            "scoring: each scenario's rows, and the residual nets on the identified model trained beside them)",
+            f"- CPU-s by family, training / scoring: {families}"]
+
+
+def _finite_or_zero(value) -> float:
+    """A results.csv number, or 0 where the row has none (an analytic row trains nothing)."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        return 0.0
+    return x if math.isfinite(x) else 0.0
 
 
 def _left_out_lines(meta: dict, notes_out: list[str], failed: list[dict]) -> list[str]:

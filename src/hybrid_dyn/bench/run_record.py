@@ -114,6 +114,8 @@ class InvocationClock:
     started: str = dataclasses.field(default_factory=_utc_now)
     t0: float = dataclasses.field(default_factory=time.perf_counter)
     cpu0: float = dataclasses.field(default_factory=cpu_seconds)
+    # Where this invocation's time went: phase name -> wall and CPU seconds (:meth:`phase`).
+    phases: dict = dataclasses.field(default_factory=dict)
     _lock: object = dataclasses.field(default_factory=threading.Lock, repr=False)
 
     def seconds(self) -> float:
@@ -128,7 +130,21 @@ class InvocationClock:
         return self.previous + [{"started": self.started, "finished": _utc_now() if finished else None,
                                  "wall_seconds": self.seconds(), "cpu_seconds": self.cpu_used(),
                                  "cold_start": self.cold_start,
-                                 "rows": len(rows), "rows_ok": sum(r.get("status") == "ok" for r in rows)}]
+                                 "rows": len(rows), "rows_ok": sum(r.get("status") == "ok" for r in rows),
+                                 "phases": {k: dict(v) for k, v in self.phases.items()}}]
+
+    @contextlib.contextmanager
+    def phase(self, name: str):
+        """Add the body's wall and CPU seconds (this process and the workers that ended in it) to phase
+        ``name``: the profile of the invocation (generation, training, scoring) that the report prints."""
+        t0, c0 = time.perf_counter(), cpu_seconds()
+        try:
+            yield
+        finally:
+            with self._lock:
+                p = self.phases.setdefault(name, {"wall_seconds": 0.0, "cpu_seconds": 0.0})
+                p["wall_seconds"] += time.perf_counter() - t0
+                p["cpu_seconds"] += cpu_seconds() - c0
 
     def record(self, out_dir: Path, rows: list, rows_written: bool = True) -> None:
         """run.json with this invocation's time so far. ``rows_written``: results.csv now holds ``rows``

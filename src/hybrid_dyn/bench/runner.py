@@ -17,6 +17,7 @@ import dataclasses
 import hashlib
 import json
 import os
+import threading
 import time
 import traceback
 from pathlib import Path
@@ -147,17 +148,21 @@ def _run_bench_locked(plan: BenchPlan, out_dir, clock: InvocationClock, data_roo
     dataset_seconds = {}
     predictions = PredictionWriter(out_dir / PREDICTIONS_FILE, resume=bool(clock.previous))
     with clock.heartbeat(out_dir, rows):  # hours of generation or training are on record as they pass
+        # Every dataset first, then every scenario's learned rows in one training queue, then the scoring:
+        # one queue has one tail, where a queue per scenario left a core idle at each scenario's end.
+        scenarios = []  # (context, robot ref, rows that apply)
         for entry, scenario, ds, ref in opened:
             log(f"[bench] scenario {scenario}: dataset")
-            t_data = time.perf_counter()
-            if ds is None:
-                try:
-                    ds = provider(entry, profile)
-                except RealLogMissingError as err:  # a real set whose log is not here: skipped, saying where to get it
-                    log(f"[bench] skipping scenario {scenario}: {err}")
-                    skipped.append({"scenario": scenario, "task": "", "model": "", "reason": str(err)})
-                    continue
-                ref = plan.robot_ref(ds)
+            with clock.phase("generation"):
+                t_data = time.perf_counter()
+                if ds is None:
+                    try:
+                        ds = provider(entry, profile)
+                    except RealLogMissingError as err:  # a real set whose log is not here: skipped, saying where
+                        log(f"[bench] skipping scenario {scenario}: {err}")
+                        skipped.append({"scenario": scenario, "task": "", "model": "", "reason": str(err)})
+                        continue
+                    ref = plan.robot_ref(ds)
             labels[scenario] = entry
             # Making (or finding) the dataset in this invocation: a generation that ran here is part of the wall time.
             dataset_seconds[scenario] = time.perf_counter() - t_data
@@ -171,7 +176,14 @@ def _run_bench_locked(plan: BenchPlan, out_dir, clock: InvocationClock, data_roo
             datasets[scenario] = ds
             ctx = BenchContext(profile, scenario, ds, robot, work_dir(plan, scenario, ds, work_root),
                                data_root, log=log, source=entry)
-            _bench_scenario(plan, out_dir, ctx, ref, predictions, rows, skipped, log, clock, executor, device)
+            scenarios.append((ctx, ref, _applicable_rows(plan, scenario, ds, skipped, log)))
+        tcfg = _train_config(plan, executor, device)
+        with clock.phase("training"):
+            _train_learned_rows(plan, scenarios, tcfg, log, executor)
+        clock.record(out_dir, rows)
+        for ctx, ref, specs in scenarios:
+            with clock.phase("scoring"):
+                _bench_scenario(out_dir, ctx, ref, specs, tcfg, predictions, rows, log, clock, executor)
     meta = run_meta(profile, clock, rows, labels, skipped, datasets, dataset_seconds, machine_info())
     finish_record(out_dir, rows, meta)
     # The report is drawn from the files just written, exactly as ``hybrid-dyn report`` redraws it.
@@ -179,27 +191,64 @@ def _run_bench_locked(plan: BenchPlan, out_dir, clock: InvocationClock, data_roo
     return rows
 
 
-def _bench_scenario(plan: BenchPlan, out_dir, ctx: BenchContext, ref, predictions, rows, skipped, log,
-                    clock: InvocationClock, executor=None, device=None) -> None:
-    """One scenario's rows: those that apply are trained (the learned ones, in parallel) and scored, each
-    written to results.csv, predictions.h5 and curves.json as it finishes; ``rows`` and ``skipped`` grow."""
-    profile, scenario, ds = plan.profile, ctx.scenario, ctx.dataset
-    norm = train_split_stats(ds)
-    specs = _applicable_rows(plan, scenario, ds, skipped, log)
-    test = ds.split("test")
-    predictions.test_data(scenario, test, [t for t in dict.fromkeys(TASK_TARGET.values()) if t in ds.fields])
-    # Parallel workers train quietly (one progress bar over the models, not one per process).
+def _train_config(plan: BenchPlan, executor=None, device=None):
+    """The profile's training config as this run's workers use it: parallel workers train quietly (one
+    progress bar over the models, not one per process), on ``device`` if given."""
     tcfg = plan.train_config()
-    if profile.workers > 1 or executor is not None:
+    if plan.profile.workers > 1 or executor is not None:
         tcfg = dataclasses.replace(tcfg, progress=False)
     if device is not None:
         tcfg = dataclasses.replace(tcfg, device=device)
-    # The presets' rows train in parallel first (the identified residuals need their fit first).
-    jobs = [(str(ds.path), ref.name, plan.preset(s.name), str(ctx.work_dir / "models" / s.name), tcfg,
-             profile.torch_threads) for s in specs if s.name in PRESETS]
-    log(f"[bench] {scenario}: training {len(jobs)} learned models on {profile.workers} workers")
-    pretrain(jobs, profile.workers, log=log, executor=executor)
-    clock.record(out_dir, rows)
+    return tcfg
+
+
+def _train_learned_rows(plan: BenchPlan, scenarios: list, tcfg, log, executor=None) -> None:
+    """Every scenario's preset rows trained in one queue on the profile's workers, dearest first
+    (``training_queue.pretrain``). On local workers this process meanwhile fits the rows it fits itself
+    (``FIT_WHILE_WAITING``: the identification and the residual GP, hours of one core otherwise idle at
+    each scenario's end); their builds at scoring then read the fitted files. A fit that fails here
+    is fitted again, and its error raised with its row, when the row is scored."""
+    from .identified_rows import FIT_WHILE_WAITING
+
+    profile = plan.profile
+    jobs = [(str(ctx.dataset.path), ref.name, plan.preset(s.name), str(ctx.work_dir / "models" / s.name), tcfg,
+             profile.torch_threads) for ctx, ref, specs in scenarios for s in specs if s.name in PRESETS]
+    log(f"[bench] training {len(jobs)} learned models of {len(scenarios)} scenarios on {profile.workers} workers")
+    fits = [(ctx, s) for ctx, _, specs in scenarios for s in specs if s.name in FIT_WHILE_WAITING]
+    if not jobs or not fits or profile.workers < 2 or executor is not None:
+        pretrain(jobs, profile.workers, log=log, executor=executor)
+        return
+    failed = []
+
+    def train():  # the pool lives and dies in this thread (sim/executors.process_pool)
+        try:
+            pretrain(jobs, profile.workers, log=log)
+        except BaseException as err:  # noqa: BLE001  (raised again below, in the bench's thread)
+            failed.append(err)
+
+    # A daemon: an interrupt of this thread ends the process, and the workers die with it.
+    queue = threading.Thread(target=train, name="training-queue", daemon=True)
+    queue.start()
+    for ctx, spec in fits:
+        try:
+            spec.build(ctx.dataset, ctx)
+        except Exception:  # noqa: BLE001  (raised again, with its row, when it is scored)
+            pass
+    while queue.is_alive():
+        queue.join(timeout=1.0)  # a timed join: Ctrl-C reaches this thread
+    if failed:
+        raise failed[0]
+
+
+def _bench_scenario(out_dir, ctx: BenchContext, ref, specs: list, tcfg, predictions, rows, log,
+                    clock: InvocationClock, executor=None) -> None:
+    """One scenario's rows, their learned ones trained: the residual nets on the identified model are trained
+    now (they need the identified fit), the rows scored, each written to results.csv, predictions.h5 and
+    curves.json as it finishes; ``rows`` grows."""
+    ds = ctx.dataset
+    norm = train_split_stats(ds)
+    test = ds.split("test")
+    predictions.test_data(ctx.scenario, test, [t for t in dict.fromkeys(TASK_TARGET.values()) if t in ds.fields])
     with background_training(ctx, specs, tcfg, ref.name, executor) as pending:
         _score_rows(out_dir, ctx, specs, norm, test, predictions, rows, log, clock, pending)
 

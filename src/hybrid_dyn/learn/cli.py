@@ -70,6 +70,8 @@ def _train_options(p) -> None:
     p.add_argument("--lr-schedule", default=None, choices=["plateau", "none", "cosine"])
     p.add_argument("--budget-steps", type=int, default=None,
                    help="optimizer steps of a budgeted run (recipe budget; default: by network kind)")
+    p.add_argument("--budget-patience", type=int, default=None,
+                   help="validation rounds without improvement that end a budgeted run early (default: none)")
     p.add_argument("--weight-decay", type=float, default=None,
                    help="decoupled weight decay of the weight matrices (AdamW; default 0: plain Adam)")
     p.add_argument("--max-batches-per-epoch", type=int, default=None)
@@ -87,7 +89,7 @@ def _config(args):
 
     given = {"max_epochs": args.max_epochs, "patience": args.patience, "batch_size": args.batch_size, "lr": args.lr,
              "lr_schedule": args.lr_schedule, "weight_decay": args.weight_decay, "budget_steps": args.budget_steps,
-             "train_instances": args.train_instances}
+             "budget_patience": args.budget_patience, "train_instances": args.train_instances}
     return TrainConfig.recipe(args.recipe, seed=args.seed, max_batches_per_epoch=args.max_batches_per_epoch,
                               analytic_params=args.params, device=args.device, num_threads=args.threads,
                               progress=not args.quiet, **{k: v for k, v in given.items() if v is not None})

@@ -82,10 +82,6 @@ class GPResidualConfig:
 
 # --------------------------------------------------------------------------- fitting (arrays)
 
-def _kernel(a: np.ndarray, b: np.ndarray, constant: float, length_scale: np.ndarray) -> np.ndarray:
-    """c exp(-|(a - b) / l|^2 / 2) on standardized inputs (the GP family's kernel, noise term aside)."""
-    return constant * np.exp(-0.5 * cdist(a / length_scale, b / length_scale, metric="sqeuclidean"))
-
 
 def _solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a^-1 b for a symmetric positive (semi)definite a, with growing jitter if Cholesky fails."""
@@ -98,14 +94,39 @@ def _solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     raise ModelError("the sparse GP's system is not positive definite even with jitter 1e-4")
 
 
-def _val_mse(zv, z_m, c, ls, w: np.ndarray, y_std: float, y_mean: float, r_val: np.ndarray) -> np.ndarray:
-    """Validation MSE [Nm^2] of each column of w (M, K) (one per noise candidate), K(Zv, Z) built in blocks
-    of CHUNK rows: a paper-size validation split (6e5 rows x 2000 inducing) would need 10 GB at once."""
-    sq = np.zeros(w.shape[1])
+def _scaled_sq_distances(a: np.ndarray, b: np.ndarray, length_scale: np.ndarray) -> np.ndarray:
+    """|(a - b) / l|^2 for every pair of rows: the kernel's distance at length scale l. A candidate l x f
+    has distance d / f^2, so one matrix serves every length-scale factor of a joint."""
+    return cdist(a / length_scale, b / length_scale, metric="sqeuclidean")
+
+
+def _gram_terms(z, z_m, ys, c, ls, factors) -> tuple[list, list]:
+    """Per length-scale factor f: K(Z, X) K(X, Z) and K(Z, X) y at length scale ls x f, accumulated over blocks
+    of CHUNK training rows (K(X, Z) is never held whole); the distances of a block are computed once for all f.
+    (A symmetric rank-k update, BLAS syrk, measured slower than the full product here: 0.47 s against 0.33 s
+    for a 4096 x 2000 block on one thread.)"""
+    m = len(z_m)
+    grams, k_y = [np.zeros((m, m)) for _ in factors], [np.zeros(m) for _ in factors]
+    for s in range(0, len(z), CHUNK):
+        d = _scaled_sq_distances(z[s:s + CHUNK], z_m, ls)
+        for i, f in enumerate(factors):
+            k_nm = c * np.exp(d * (-0.5 / f**2))
+            grams[i] += k_nm.T @ k_nm
+            k_y[i] += k_nm.T @ ys[s:s + CHUNK]
+    return grams, k_y
+
+
+def _val_mse(zv, z_m, c, ls, factors, ws: list, y_std: float, y_mean: float, r_val: np.ndarray) -> list:
+    """Validation MSE [Nm^2] per length-scale factor f of ``factors`` and per column of ws[i] (M, K) (one per
+    noise candidate), K(Zv, Z) built in blocks of CHUNK rows: a paper-size validation split (6e5 rows x 2000
+    inducing) would need 10 GB at once."""
+    sq = [np.zeros(w.shape[1]) for w in ws]
     for s in range(0, len(zv), CHUNK):
-        pred = y_std * (_kernel(zv[s:s + CHUNK], z_m, c, ls) @ w) + y_mean
-        sq += np.sum((pred - r_val[s:s + CHUNK, None]) ** 2, axis=0)
-    return sq / len(zv)
+        d = _scaled_sq_distances(zv[s:s + CHUNK], z_m, ls)
+        for i, f in enumerate(factors):
+            pred = y_std * ((c * np.exp(d * (-0.5 / f**2))) @ ws[i]) + y_mean
+            sq[i] += np.sum((pred - r_val[s:s + CHUNK, None]) ** 2, axis=0)
+    return [v / len(zv) for v in sq]
 
 
 def fit_sparse_residual(x: np.ndarray, r: np.ndarray, x_val: np.ndarray, r_val: np.ndarray,
@@ -121,28 +142,26 @@ def fit_sparse_residual(x: np.ndarray, r: np.ndarray, x_val: np.ndarray, r_val: 
     z, zv = (x - mx) / sx, (x_val - mx) / sx
     z_m = z[_rows(len(z), config.inducing, config.seed + 1)]
     y_mean, y_std = r.mean(0), r.std(0) + STD_EPS
-    nv = r.shape[1]
+    nv, factors = r.shape[1], config.length_scale_factors
     alpha, length_scale, noise = np.zeros((nv, len(z_m))), hyper.length_scale.copy(), hyper.noise_level.copy()
     out_mean, choice = np.zeros(nv), []
     for j in range(nv):
         ys = (r[:, j] - y_mean[j]) / y_std[j]
-        c = float(hyper.constant[j])
+        c, ls = float(hyper.constant[j]), hyper.length_scale[j]
         prior_mse = float(np.mean(r_val[:, j] ** 2))  # the prior alone: a zero residual
         best = {"val_mse": prior_mse, "kept_prior": True, "val_mse_prior": prior_mse}
-        for lf in config.length_scale_factors:
-            ls = hyper.length_scale[j] * lf
-            k_mm = _kernel(z_m, z_m, c, ls)
-            k_mn_k_nm, k_mn_y = np.zeros_like(k_mm), np.zeros(len(z_m))
-            for s in range(0, len(z), CHUNK):  # K(Z, X) K(X, Z) without holding K(X, Z) whole
-                k_nm = _kernel(z[s:s + CHUNK], z_m, c, ls)
-                k_mn_k_nm += k_nm.T @ k_nm
-                k_mn_y += k_nm.T @ ys[s:s + CHUNK]
-            ws = [_solve(float(hyper.noise_level[j]) * nf * k_mm + k_mn_k_nm, k_mn_y) for nf in config.noise_factors]
-            mses = _val_mse(zv, z_m, c, ls, np.stack(ws, axis=1), y_std[j], y_mean[j], r_val[:, j])
-            for nf, w, mse in zip(config.noise_factors, ws, mses):
+        grams, k_y = _gram_terms(z, z_m, ys, c, ls, factors)
+        ws = []
+        for f, gram, ky in zip(factors, grams, k_y):
+            k_mm = c * np.exp(_scaled_sq_distances(z_m, z_m, ls) * (-0.5 / f**2))
+            ws.append(np.stack([_solve(float(hyper.noise_level[j]) * nf * k_mm + gram, ky)
+                                for nf in config.noise_factors], axis=1))
+        mses = _val_mse(zv, z_m, c, ls, factors, ws, y_std[j], y_mean[j], r_val[:, j])
+        for lf, w_lf, mse_lf in zip(factors, ws, mses):  # candidates in the order they always were tried
+            for k, (nf, mse) in enumerate(zip(config.noise_factors, mse_lf)):
                 if mse < best["val_mse"]:
                     best = {"val_mse": float(mse), "kept_prior": False, "val_mse_prior": prior_mse,
-                            "length_scale_factor": lf, "noise_factor": nf, "w": w}
+                            "length_scale_factor": lf, "noise_factor": nf, "w": w_lf[:, k]}
         if not best["kept_prior"]:
             alpha[j], out_mean[j] = best.pop("w"), y_mean[j]
             length_scale[j] = hyper.length_scale[j] * best["length_scale_factor"]

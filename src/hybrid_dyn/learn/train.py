@@ -192,8 +192,10 @@ def _next_stop(config: TrainConfig, epoch: int, n_rounds: int, bad_epochs: int, 
                lr: float) -> str | None:
     """Why training stops after round ``epoch`` of ``n_rounds`` (None: it goes on)."""
     last = epoch + 1 == n_rounds
-    if config.budgeted:  # a budget is spent, never cut short: its schedule assumes every step
-        return "budget" if last else None
+    if config.budgeted:  # the schedule is the whole budget's; budget_patience only ends it early
+        if last:
+            return "budget"
+        return "patience" if config.budget_patience is not None and bad_epochs >= config.budget_patience else None
     if bad_epochs >= config.patience:
         return "patience"
     if config.lr_schedule == "plateau" and lr <= config.min_lr and lr_bad_epochs >= config.lr_patience:
