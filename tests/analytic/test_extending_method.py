@@ -13,8 +13,7 @@ import scipy.signal
 from hybrid_dyn.analytic.bandwidth import BANDWIDTHS, BandwidthParameter
 from hybrid_dyn.analytic.batch_run import run_batch
 from hybrid_dyn.analytic.method_declaration import Method, MethodStream
-from hybrid_dyn.analytic.method_names import residual_prior_names
-from hybrid_dyn.analytic.methods import TIP_FORCE_METHODS
+from hybrid_dyn.analytic.methods import TIP_FORCE_METHODS, residual_prior_names
 from hybrid_dyn.errors import UsageError
 from hybrid_dyn.estimator import EstimatorConfig, EstimatorStatus, TipForceEstimator
 from hybrid_dyn.sim.sensors import causal_acceleration

@@ -19,8 +19,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
 
-from ..analytic import methods  # noqa: F401  (registers the tip-force methods: their names are read below)
-from ..analytic.method_names import estimator_name, residual_prior_names
+from ..analytic.methods import estimator_name, residual_prior_names  # (registers the tip-force methods: their names are read below)
 from ..errors import UsageError
 from ..plugins import load_plugins
 from ..registry import Registry
