@@ -130,7 +130,7 @@ def _build(preset: str):
         from ..learn import train_model
 
         t0 = time.perf_counter()
-        # the profile's preset_overrides (a study's capacity control) change the preset, not the row's name
+        # the profile's preset_overrides (a study's capacity arm) change the preset, not the row's name
         model = train_model(ds, ctx.plan.preset(preset), ctx.work_dir / "models" / preset,
                             config=ctx.plan.train_config(), wait=True)  # another bench sharing runs/: wait, reuse
         return learned_predictor(model, getattr(model, "train_seconds", None) or (time.perf_counter() - t0))
