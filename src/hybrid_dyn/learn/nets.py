@@ -1,4 +1,4 @@
-"""The seed's network families in PyTorch: MLP, 1D-conv and LSTM, and their three network kinds.
+"""The reference study's network families in PyTorch: MLP, 1D-conv and LSTM, and their three network kinds.
 
 Every network maps a standardized window x (B, L, F) to a standardized output
 (B, n_out); the caller (``model.HybridModel``) owns the standardization and any
@@ -110,7 +110,7 @@ def glorot_init(module: nn.Module) -> None:
 
 # ------------------------------------------------------------ the three kinds
 def single_net(make: Callable) -> Callable:
-    """A net kind's builder from ``make(preset, n_in, n_out) -> module``: Glorot-initialized (the seed's
+    """A net kind's builder from ``make(preset, n_in, n_out) -> module``: Glorot-initialized (the reference study's
     init, :func:`glorot_init`) and stamped with its kind (what FastNet looks up)."""
     def build(preset, n_in, n_out, widths):
         net = make(preset, n_in, n_out)

@@ -1,11 +1,11 @@
-"""Named model presets: the seed's networks, the residual (hybrid) nets and DeLaN.
+"""Named model presets: the reference study's networks, the residual (hybrid) nets and DeLaN.
 
 A :class:`Preset` is the complete description of a model family member: which
 fields go in and come out, the window length, the network's layers and which
 analytic part (if any) it corrects. Trained models store their preset in full,
 so a model tuned by Optuna (a preset no registry names) loads like any other.
 
-The seed (Kruzic et al. 2021) fixes, in Table 1: the architecture type, whether
+The reference study (Kruzic et al. 2021) fixes, in Table 1: the architecture type, whether
 joint torques are inputs, the number and width of the fully connected layers
 and the sequence length; conv and LSTM nets start with one 16-unit layer; the
 optimized #10/#11 have two 32-unit LSTM layers. Its Table 3 torque nets give
@@ -185,7 +185,7 @@ for _preset in (
            fc_units=8, activation="tanh", family="seed-net",
            description="seed Table 3 #10: optimized LSTM, 2 x 32, FC 2 x 8, tanh"),
     # Not from the seed: for small real-robot sets (a handful of trajectories), width plus dropout
-    # generalise to unseen trajectories better than the seed's 2 x 32 (a search on the validation
+    # generalise to unseen trajectories better than the reference study's 2 x 32 (a search on the validation
     # split of the three real sets; docs/models.md).
     Preset("tau-mlp-wide", "mlp", tuple(STATE), ("tau_m",), fc_units=128, dropout=0.2,
            family="learned",
