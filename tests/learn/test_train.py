@@ -14,7 +14,7 @@ from hybrid_dyn.analytic.tare import TARE_SECONDS, tare_samples
 from hybrid_dyn.analytic.tip_force import tip_force_from_base_wrench
 from hybrid_dyn.data import load_dataset
 from hybrid_dyn.data.synthetic import make_synthetic_dataset
-from hybrid_dyn.data.windows import concat_fields
+from hybrid_dyn.data.input_windows import concat_fields
 from hybrid_dyn.learn import PRESETS, ModelError, TrainConfig, load_model, train_model
 from hybrid_dyn.learn import train as train_mod
 from hybrid_dyn.learn.priors import AnalyticPrior

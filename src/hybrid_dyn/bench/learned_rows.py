@@ -105,7 +105,7 @@ def _streaming_call(model):
 def _window_call(model):
     """``TrainedModel.predict_window`` on the run's edge-padded window ending at sample k, with the
     prior from ``AnalyticPrior.single`` (on the base wrench tared on the run's start, where it tares)."""
-    from ..data.windows import concat_fields, window_index
+    from ..data.input_windows import concat_fields, window_index
 
     windows, tared = {}, {}
 

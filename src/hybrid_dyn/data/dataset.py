@@ -233,7 +233,7 @@ class Dataset:
 
     def windows(self, split: str, length: int, inputs: list[str], targets: list[str], extra: dict | None = None):
         """Sliding windows over one split; see :class:`WindowedSplit`."""
-        from .windows import WindowedSplit
+        from .input_windows import WindowedSplit
 
         return WindowedSplit(self.split(split), length, inputs, targets, extra=extra)
 

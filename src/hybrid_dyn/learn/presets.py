@@ -1,7 +1,7 @@
 """Named model presets: the reference study's networks, the residual (hybrid) nets and DeLaN.
 
 A :class:`Preset` is the complete description of a model family member: which
-fields go in and come out, the window length, the network's layers and which
+fields go in and come out, the input window's length, the network's layers and which
 analytic part (if any) it corrects. Trained models store their preset in full,
 so a model tuned by Optuna (a preset no registry names) loads like any other.
 
@@ -62,7 +62,7 @@ class Preset:
     every analytic row does (``learn/train.py``).
     delan_*: DeLaN's hidden layers for L(q) and V(q); friction: learn a Gaz
     sigmoid friction per joint; residual: add a residual network of the other
-    fields (kind of the residual net: residual_kind, with its own window).
+    fields (kind of the residual net: residual_kind, with its own input window).
     family: the bench family of its row (a name in ``bench.families.FAMILIES``; ``bench/learned_rows.py``),
     metadata of a declared preset, not of the model: files and fingerprints leave it out, equality ignores it.
     """

@@ -12,7 +12,7 @@ import torch
 from safetensors.torch import save_file
 from torch import nn
 
-from ..data.windows import concat_fields, window_index
+from ..data.input_windows import concat_fields, window_index
 from .kinds import NETWORK_KINDS, build_parts
 from .model_file import (METADATA_KEY, TIMING_FORMAT, ModelError, ModelFiles, SavedModel, canonical_json,  # noqa: F401
                          config_digest, partial, read_file_metadata, read_model_config, read_timing,
@@ -117,7 +117,7 @@ class TrainedModel(SavedModel):
     """A trained model with the uniform API the bench harness and the streaming estimator use.
 
     ``predict(instances)``: one (T, n_out) array per instance, physical units, every
-    sample (sequence models edge-padded, see ``hybrid_dyn.data.windows``).
+    sample (sequence models edge-padded, see ``hybrid_dyn.data.input_windows``).
     ``predict_window(x, prior=None)``: one raw window (L, n_in) -> (n_out,).
     ``config``: the dict stored in config.json. ``n_params``, ``train_seconds``,
     ``history`` (per-epoch train/val loss), ``val_loss`` (standardized MSE): see :class:`SavedModel`.
