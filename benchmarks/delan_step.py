@@ -22,7 +22,7 @@ PRESETS = ("delan-friction", "delan-residual", "delan")
 
 def steps_of(ds, names, batch: int):
     """{preset: (step, batch)}: one training step of a freshly initialised model of each preset."""
-    from hybrid_dyn.data.windows import WindowedSplit
+    from hybrid_dyn.data.input_windows import WindowedSplit
     from hybrid_dyn.learn.trained_model import HybridModel
     from hybrid_dyn.learn.presets import PRESETS
     from hybrid_dyn.learn.training_data import _batches, _stats, field_widths

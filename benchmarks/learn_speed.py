@@ -35,7 +35,7 @@ import torch
 import hybrid_dyn as hd
 from hybrid_dyn.data import load_dataset
 from hybrid_dyn.data.synthetic import make_synthetic_dataset
-from hybrid_dyn.data.windows import concat_fields
+from hybrid_dyn.data.input_windows import concat_fields
 from hybrid_dyn.learn import TrainConfig, train_model
 from hybrid_dyn.learn import presets as declared
 from hybrid_dyn.learn.speed import bare_step, training_windows

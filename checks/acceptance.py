@@ -45,19 +45,19 @@ def floor_checks(rows) -> list[tuple[str, bool | str | None, str]]:
     out = []
     s = "mismatch-ext"
     hyb = best_row(rows, "tip_force", s, lambda r: r["family"] == "residual")
-    seed = best_row(rows, "tip_force", s, lambda r: r["family"] == "seed-net")
+    study_net_tip = best_row(rows, "tip_force", s, lambda r: r["family"] == "seed-net")
     bw = best_row(rows, "tip_force", s, lambda r: r["model"] == "base-wrench")
     bwt = best_row(rows, "tip_force", s, lambda r: r["model"] == "base-wrench-tared")
-    _ratio_check(out, "issue 5: tip force, mismatch-ext: best residual <= 0.5 x best seed net", 0.5, hyb, seed, unit=" N")
+    _ratio_check(out, "issue 5: tip force, mismatch-ext: best residual <= 0.5 x best seed net", 0.5, hyb, study_net_tip, unit=" N")
     _ratio_check(out, "issue 5: tip force, mismatch-ext: best residual <= 0.5 x base-wrench method", 0.5, hyb, bw,
                  unit=" N")
     # Not a floor: the stronger baseline a user who tares the sensor has.
     _ratio_check(out, "(no floor) tip force, mismatch-ext: best residual vs the tared base-wrench method", None,
                  hyb, bwt, unit=" N")
     phys = best_row(rows, "joint_torque", "paper-ext", lambda r: r["family"] in FAMILIES.names(physics_informed=True))
-    seedt = best_row(rows, "joint_torque", "paper-ext", lambda r: r["family"] == "seed-net")
+    study_net_tau = best_row(rows, "joint_torque", "paper-ext", lambda r: r["family"] == "seed-net")
     _ratio_check(out, "issue 5: joint torque, paper-ext: best physics-informed <= 0.5 x best seed net", 0.5,
-                 phys, seedt, unit=" Nm")
+                 phys, study_net_tau, unit=" Nm")
     best = best_row(rows, "joint_torque", s, lambda r: r["model"] != "rnea")
     rnea = best_row(rows, "joint_torque", s, lambda r: r["model"] == "rnea")
     _ratio_check(out, "issue 5: joint torque, mismatch-ext: best model <= 0.3 x nominal RNEA", 0.3, best, rnea,
@@ -80,8 +80,8 @@ def floor_checks(rows) -> list[tuple[str, bool | str | None, str]]:
         _ratio_check(out, "issue 16: tip force, mismatch-ext: best physics-informed row <= 1.25 x the base sensor's "
                           "noise RMS", 1.25, phys_tip, noise, unit=" N")
         _ratio_check(out, "(no floor) tip force, mismatch-ext: best physics-informed row vs the best seed net", None,
-                     phys_tip, seed, unit=" N")
-    # Issue 14: learned rows trained to convergence, and the seed's own figures within 2x.
+                     phys_tip, study_net_tip, unit=" N")
+    # Issue 14: learned rows trained to convergence, and the reference study's own figures within 2x.
     # A budgeted row stops at its step budget whether or not it converged: the floor says nothing of it,
     # and the convergence study (2x the budget, read on validation) answers for those rows instead.
     learned = [r for r in _ok(rows) if r.get("stopped_by") and r["stopped_by"] != "budget"]
@@ -107,10 +107,10 @@ def floor_checks(rows) -> list[tuple[str, bool | str | None, str]]:
         if r:
             out.append((f"issue 14: {scenario}: {text}", float(r["rmse"]) <= floor,
                         f"{r['model']} {float(r['rmse']):.4f}"))
-    # Issue 31: seed-sim at the seed's size (its test split's samples; the wall time is in the report).
-    seed_rows = [r for r in _ok(rows) if r["scenario"] == "seed-sim" and r.get("n_test_samples")]
-    if seed_rows:
-        n = max(int(float(r["n_test_samples"])) for r in seed_rows)
+    # Issue 31: seed-sim at the reference study's size (its test split's samples; the wall time is in the report).
+    seed_sim_rows = [r for r in _ok(rows) if r["scenario"] == "seed-sim" and r.get("n_test_samples")]
+    if seed_sim_rows:
+        n = max(int(float(r["n_test_samples"])) for r in seed_sim_rows)
         out.append(("issue 31: seed-sim at the seed's size, >= 700,000 test samples", n >= 700_000, f"{n:,} samples"))
     # Issue 29: the real Panda on its time-ordered split: the best hybrid, every hybrid against its own prior.
     p = "real-panda"

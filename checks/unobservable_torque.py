@@ -1,7 +1,7 @@
 """How much of a joint-torque target no model of (q, qd, qdd) can know: the tip force's torque J^T F.
 
 On a scenario with external forces (seed-sim, paper-ext) the measured torque is the rigid-body torque
-plus friction plus J(q)^T F_tip. A torque model that reads only the joint states (the seed's torque
+plus friction plus J(q)^T F_tip. A torque model that reads only the joint states (the reference study's torque
 nets, DeLaN, RNEA, the identified model) cannot see F_tip, which is drawn independently of the motion,
 so the RMS of J^T F_tip over the test split is a floor on its RMSE (issue 31: why the seed-sim torque
 floor of 1.03 Nm is not met). The rows that read the base sensor see it and go below.

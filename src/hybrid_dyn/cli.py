@@ -48,7 +48,7 @@ COMMANDS = {
     "presets": ("hybrid_dyn.learn.cli", "list the learned-model presets"),
     "train": ("hybrid_dyn.learn.cli", "train a learned model on a dataset"),
     "predict": ("hybrid_dyn.learn.cli", "evaluate a trained model on a dataset split"),
-    "tune": ("hybrid_dyn.learn.cli", "hyperparameter search with Optuna (the seed's search space)"),
+    "tune": ("hybrid_dyn.learn.cli", "hyperparameter search with Optuna (the reference study's search space)"),
 }
 
 

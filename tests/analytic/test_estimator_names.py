@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 
 from hybrid_dyn import TipForceEstimator
-from hybrid_dyn.analytic.method_names import residual_prior_names
-from hybrid_dyn.analytic.methods import TIP_FORCE_METHODS
+from hybrid_dyn.analytic.methods import TIP_FORCE_METHODS, residual_prior_names
 from hybrid_dyn.analytic.torque_models import TORQUE_MODELS
 from hybrid_dyn.bench.catalog import ROWS
 from hybrid_dyn.deprecation import DeprecatedNameWarning

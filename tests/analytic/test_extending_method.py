@@ -13,8 +13,8 @@ import scipy.signal
 from hybrid_dyn.analytic.bandwidth import BANDWIDTHS, BandwidthParameter
 from hybrid_dyn.analytic.batch_run import run_batch
 from hybrid_dyn.analytic.method_declaration import Method, MethodStream
-from hybrid_dyn.analytic.method_names import residual_prior_names
-from hybrid_dyn.analytic.methods import TIP_FORCE_METHODS
+from hybrid_dyn.analytic.methods import TIP_FORCE_METHODS, residual_prior_names
+from hybrid_dyn.analytic.observer_methods import BaseMomentumMethod
 from hybrid_dyn.errors import UsageError
 from hybrid_dyn.estimator import EstimatorConfig, EstimatorStatus, TipForceEstimator
 from hybrid_dyn.sim.sensors import causal_acceleration
@@ -217,3 +217,51 @@ def test_a_new_methods_module_can_import_the_declaration_without_an_import_circl
     assert "qdd_methods" in registering and "method_declaration" not in registering
     assert not (imported(method_declaration) & (registering | {"methods", "batch_run"}))
     assert registering <= imported(methods)
+
+
+class _SlowRule(BaseMomentumMethod):
+    """A derived method that differs only in its rule: a fifth of the base momentum observer's gain."""
+
+    def choose(self, noise):
+        super().choose(noise)
+        self.value *= 0.2
+        return self.value
+
+
+class _Clipped(BaseMomentumMethod):
+    """A derived method whose stream differs at any gain: the parent's force clipped to 2 N per axis."""
+
+    def step(self, q, qd, qdd, w, tau):
+        return np.clip(super().step(q, qd, qdd, w, tau), -2.0, 2.0)
+
+    def batch(self, q, qd, qdd, w, tau):
+        return np.clip(super().batch(q, qd, qdd, w, tau), -2.0, 2.0)
+
+
+@pytest.mark.parametrize("stream, own_val", [(_Clipped, True), (_SlowRule, False)])
+def test_a_derived_methods_val_row_is_chosen_on_its_own_stream(panda, tmp_path, stream, own_val):
+    """``name-val`` is chosen and run on the method's own stream (its class, not its parent's): a derived
+    method that behaves otherwise at a given gain gets a -val row of its own. The row fixes the gain to a
+    grid value, which bypasses the rule (``MethodStream.close_window``), so one that differs only in its
+    rule (docs/extending.md's half-gain) gets its parent's -val numbers while its own row differs."""
+    from hybrid_dyn.bench.catalog import ROWS
+
+    parent = TIP_FORCE_METHODS["base-momentum"]
+    TIP_FORCE_METHODS.register(Method("derived-momentum", "a test's", parent.reads, parent.any_of, parent.needs_qdd,
+                                      parent.tares, parent.parameter, stream))
+    try:
+        ctx = _bench_ctx(panda, tmp_path)
+        test = ctx.dataset.split("test")
+        got = {r: np.concatenate(ROWS[r].build(ctx.dataset, ctx).predict(test))
+               for r in ("base-momentum", "derived-momentum", "base-momentum-val", "derived-momentum-val")}
+        calls = {r: ROWS[r].build(ctx.dataset, ctx).single_call for r in ("base-momentum-val", "derived-momentum-val")}
+        last = len(test[0]["q"]) - 1
+        for k in range(last + 1):  # the user's call, stepped through one run
+            single = {r: call(test[0], k) for r, call in calls.items()}
+    finally:
+        TIP_FORCE_METHODS.unregister("derived-momentum")
+    assert ("chosen-on-val", "derived-momentum momentum_gain") in ctx.cache  # chosen for the method itself
+    assert not np.allclose(got["derived-momentum"], got["base-momentum"], equal_nan=True)
+    same_val = np.allclose(got["derived-momentum-val"], got["base-momentum-val"], equal_nan=True)
+    assert same_val != own_val
+    assert np.allclose(single["derived-momentum-val"], single["base-momentum-val"]) != own_val

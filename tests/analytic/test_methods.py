@@ -28,7 +28,7 @@ def noisy_stream(robot, n, seed=0, hz=HZ):
 
 
 @pytest.mark.parametrize("method", list(TIP_FORCE_METHODS))
-# A control loop's 1 kHz, and the seed's 20 Hz logs: there Nyquist (10 Hz) is below the 20 Hz filter the
+# A control loop's 1 kHz, and the reference study's 20 Hz logs: there Nyquist (10 Hz) is below the 20 Hz filter the
 # noise window runs at 1 kHz, so the window's filter is at 0.45 x the rate. settled: contact at 0.8 s, plus 0.3 s
 # (1 kHz) or 1.2 s (20 Hz: the slowest filters and observers settle in tens of samples).
 @pytest.mark.parametrize("hz, n, settled", [(HZ, 1400, 1100), (20.0, 200, 40)])

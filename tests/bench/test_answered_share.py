@@ -5,7 +5,7 @@ import numpy as np
 from hybrid_dyn.bench.analytic_rows import refusals_as_nan
 from hybrid_dyn.bench.report import findings
 from hybrid_dyn.bench.report_tables import LOW_ANSWER_MARK, best_row, task_tables
-from hybrid_dyn.bench.sensor_control import sensor_control_lines
+from hybrid_dyn.bench.hardware_vs_ideal import hardware_vs_ideal_lines
 
 
 def _row(model, rmse, share, scenario="paper-ext", family="analytic", **kw):
@@ -41,12 +41,12 @@ def test_the_hardware_against_ideal_section_gives_each_rows_ratio():
             _row("delan", 0.50, 1.0, family="delan"), _row("delan", 0.40, 1.0, scenario="paper-ext-ideal",
                                                              family="delan"),
             _row("only-here", 0.1, 1.0)]
-    text = "\n".join(sensor_control_lines(rows))
+    text = "\n".join(hardware_vs_ideal_lines(rows))
     assert "## Hardware sensors against ideal sensors" in text
     lines = [x for x in text.splitlines() if x.startswith("| rnea") or x.startswith("| delan")]
     assert lines[0].startswith("| rnea |") and "| 2.50 |" in lines[0]  # 0.30 / 0.12, the dearest first
     assert "| 1.25 |" in lines[1] and "only-here" not in text
-    assert sensor_control_lines([_row("rnea", 0.3, 1.0)]) == []  # no control scenario: no section
+    assert hardware_vs_ideal_lines([_row("rnea", 0.3, 1.0)]) == []  # no reference scenario: no section
 
 
 def test_run_batchs_leading_zero_forces_are_refusals():

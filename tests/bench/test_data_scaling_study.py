@@ -37,7 +37,7 @@ def test_rows_are_chosen_on_validation_not_test():
 
 
 def test_a_learned_row_is_also_set_against_the_physics_row_on_its_own_inputs():
-    """seed-sim: the best torque physics row reads the base wrench, the seed's torque nets do not. Their fair
+    """seed-sim: the best torque physics row reads the base wrench, the reference study's torque nets do not. Their fair
     comparator is the best physics row on q, qd, qdd (chosen on validation too); a row that reads the base
     wrench keeps the overall best."""
     def row(model, family, val, n_params=""):

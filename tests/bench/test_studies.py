@@ -9,7 +9,7 @@ from hybrid_dyn.bench import profiles as profiles_mod
 from hybrid_dyn.bench.profiles import PROFILES
 from hybrid_dyn.bench.runner import run_bench
 from hybrid_dyn.bench.studies import BASE, STUDIES, Overrides, Study, StudyRun, run_study
-from hybrid_dyn.bench.study_summaries import controls
+from hybrid_dyn.bench.study_summaries import control_arms
 from hybrid_dyn.errors import UsageError
 
 
@@ -89,7 +89,7 @@ def test_the_controls_summary_reads_each_variant_against_the_reference_on_valida
     reference = [row("seed-tau-mlp", 0.200, 1.0), row("delan", 0.100, 2.0), row("rnea", 0.5, 3.0)]
     variant = [row("seed-tau-mlp", 0.198, 1.1), row("delan", 0.090, 1.9)]  # -1 % (converged), -10 % (not)
     run = StudyRun(study, tmp_path / "report", reference, ("seed-tau-mlp", "delan"), {}, points={"x2": variant})
-    summary = controls(run, tmp_path / "out")
+    summary = control_arms(run, tmp_path / "out")
     (panel,) = summary["panels"]
     entries = {line["model"]: line["entries"] for line in panel["rows"]}
     assert set(entries) == {"seed-tau-mlp", "delan"}  # rows the study did not rerun are not summarised

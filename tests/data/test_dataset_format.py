@@ -7,7 +7,7 @@ import pytest
 
 from hybrid_dyn.data import DatasetError, load_dataset, split_by_instance
 from hybrid_dyn.data.synthetic import make_synthetic_dataset
-from hybrid_dyn.data.windows import window_index
+from hybrid_dyn.data.input_windows import window_index
 
 
 @pytest.fixture(scope="module")

@@ -79,7 +79,7 @@ def test_nominal_parameter_sets_give_a_rigid_body_prior(panda, identified_log):
 @pytest.mark.slow  # training and numba compilation: ~8 s
 def test_untrained_residual_on_an_identified_file_is_the_identified_model(identified_log, tmp_path):
     """Through training, the model file and a fresh load: the prior is rebuilt from the config alone."""
-    from hybrid_dyn.data.windows import window_index
+    from hybrid_dyn.data.input_windows import window_index
     from hybrid_dyn.learn import TrainConfig, load_model, train_model
     from hybrid_dyn.learn.trained_model import ModelError
 

@@ -10,7 +10,7 @@ from torch import nn
 from hybrid_dyn.bench.training_queue import epoch_cost_rank
 from hybrid_dyn.data import load_dataset
 from hybrid_dyn.data.synthetic import make_synthetic_dataset
-from hybrid_dyn.data.windows import concat_fields
+from hybrid_dyn.data.input_windows import concat_fields
 from hybrid_dyn.learn import TrainConfig, load_model, train_model
 from hybrid_dyn.learn import kinds
 from hybrid_dyn.learn import train as train_mod

@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import pytest
 
-from hybrid_dyn.analytic.method_names import estimator_name, residual_prior_names
+from hybrid_dyn.analytic.methods import estimator_name, residual_prior_names
 from hybrid_dyn.deprecation import DeprecatedNameWarning
 from hybrid_dyn.learn.presets import PRESETS, PRIOR_FINGERPRINT_SPELLING, Preset, prior_fingerprint_spelling
 from hybrid_dyn.learn.priors import PRIOR_FIELDS, AnalyticPrior

@@ -14,7 +14,7 @@ from hybrid_dyn.analytic.tare import TARE_SECONDS, tare_samples
 from hybrid_dyn.analytic.tip_force import tip_force_from_base_wrench
 from hybrid_dyn.data import load_dataset
 from hybrid_dyn.data.synthetic import make_synthetic_dataset
-from hybrid_dyn.data.windows import concat_fields
+from hybrid_dyn.data.input_windows import concat_fields
 from hybrid_dyn.learn import PRESETS, ModelError, TrainConfig, load_model, train_model
 from hybrid_dyn.learn import train as train_mod
 from hybrid_dyn.learn.priors import AnalyticPrior
@@ -78,7 +78,7 @@ def test_every_preset_trains_and_its_loss_falls(name, friction_set, tmp_path):
 
 
 def test_presets_match_seed_table_1():
-    # (architecture, joint torques, FC layers, neurons, sequence length) from the seed's Table 1
+    # (architecture, joint torques, FC layers, neurons, sequence length) from the reference study's Table 1
     table = {1: ("mlp", False, 2, 32, 1), 2: ("mlp", True, 2, 32, 1), 3: ("mlp", True, 2, 16, 1),
              4: ("conv", False, 2, 16, 10), 5: ("conv", False, 2, 16, 5), 6: ("conv", True, 2, 16, 5),
              7: ("lstm", False, 2, 16, 10), 8: ("lstm", True, 2, 16, 10), 9: ("lstm", True, 2, 16, 5),

@@ -122,7 +122,7 @@ def test_recurrent_gradients_are_clipped(clean_and_biased, tmp_path, monkeypatch
     seed = TrainConfig.recipe("seed-study", max_epochs=1, max_batches_per_epoch=2, **QUICK)
     assert (seed.lr_schedule, seed.patience, seed.grad_clip) == ("none", 5, None)
     train_model(clean, "seed-tip-7", tmp_path / "seed", seed)
-    assert norms == [1.0, 1.0]  # the seed's recipe clips nothing
+    assert norms == [1.0, 1.0]  # the reference study's recipe clips nothing
 
 
 def test_weight_decay_is_decoupled_and_spares_biases_and_physical_parameters():

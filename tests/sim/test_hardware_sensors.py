@@ -169,7 +169,7 @@ def test_the_simulated_scenarios_are_read_by_hardware_sensors_at_the_robots_reso
         assert not {scenario_config(name, s).config_hash() for s in SIZES} & pinned, name
     quiet = scenario_config("contact-steps-quiet").sensors.base
     assert (quiet.force_noise, quiet.torque_noise) == (0.05, 0.0025)
-    # The ideal control: paper-ext's runs (the same seed and size fields) under the legacy sensors.
+    # The ideal-sensor reference: paper-ext's runs (the same seed and size fields) under the legacy sensors.
     ideal, ext = scenario_config("paper-ext-ideal", "default"), scenario_config("paper-ext", "default")
     assert ideal.sensors is None and ideal.noise == NoiseConfig() and ideal.encoder_resolution == 0.0
     same = {k: v for k, v in ext.to_dict().items() if k not in ("scenario", "noise", "sensors")}

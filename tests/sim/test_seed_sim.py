@@ -1,4 +1,4 @@
-"""The seed-sim scenario: the seed's own data conditions (its 3.1).
+"""The seed-sim scenario: the reference study's own data conditions (its 3.1).
 
 A 50 ms recording step over the 1 kHz simulation, q, qd and qdd exactly the
 simulator's (no noise, no filter), no sensor noise or bias. Checked against the
@@ -31,12 +31,12 @@ def seed_sim(tmp_path_factory):
     return cfg, ds, next(iter(ds.instances.values()))
 
 
-def test_seed_sim_config_is_the_seeds_data_conditions():
+def test_seed_sim_config_is_the_reference_studys_data_conditions():
     for profile in ("quick", "default", "paper"):
         cfg = scenario_config("seed-sim", profile)
         assert cfg.dt == 1e-3 and cfg.record_hz == 20.0 and cfg.decimation == 50  # 1 kHz sim, 50 ms record
         assert cfg.qdd_source == "exact" and cfg.noise == NoiseConfig.off()
-        assert cfg.pulses == PulseConfig() and cfg.contact_steps is None  # the seed's bells
+        assert cfg.pulses == PulseConfig() and cfg.contact_steps is None  # the reference study's bells
         assert GeneratorConfig.from_dict(json.loads(json.dumps(cfg.to_dict()))) == cfg
     assert scenario_config("seed-sim", "default").trajectories == (5, 50)
     assert scenario_config("seed-sim", "paper").n_instances == 1000

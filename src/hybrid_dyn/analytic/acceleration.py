@@ -30,7 +30,7 @@ TOP_CUTOFF_FRACTION = 0.45  # the highest cutoff any filter here is designed at,
 def default_qdd_cutoff(rate_hz: float) -> float:
     """The acceleration filter's cutoff [Hz] before a method's bandwidth is chosen (the noise window):
     DEFAULT_QDD_CUTOFF_HZ, or 0.45 x the rate where that is not below the Nyquist frequency (a 20 Hz
-    log, as the seed's, has no 20 Hz filter)."""
+    log, as the reference study's, has no 20 Hz filter)."""
     return min(DEFAULT_QDD_CUTOFF_HZ, TOP_CUTOFF_FRACTION * float(rate_hz))
 
 

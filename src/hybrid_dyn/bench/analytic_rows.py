@@ -57,7 +57,9 @@ def _analytic(name: str, task: str, needs: tuple, inputs, batch_fn, single_fn=No
 # with its defaults: the noise window (the tare, the bandwidth by the rule of analytic/bandwidth.py),
 # then the method; its single call is the user's call itself. ``name-val`` takes the bandwidth from
 # the method's grid with the least validation RMSE, once per scenario (a labelled reference: the
-# cost of choosing the bandwidth without the data's answers).
+# cost of choosing the bandwidth without the data's answers). Both run the method's own stream (its
+# ``make``, a derived class included), each chosen and cached by the method's name; a fixed value replaces
+# the rule, so a method that differs from its parent only in its rule shares its parent's ``name-val``.
 VAL_LABEL = "bandwidth chosen on validation"
 
 

@@ -233,7 +233,7 @@ def _residual_row(name: str, preset: str) -> Row:
 
         config, out = residual_training(ctx, name, ctx.plan.train_config())
         t0 = time.perf_counter()
-        # the profile's preset_overrides (a study's capacity control) apply here as to every trained preset row
+        # the profile's preset_overrides (a study's capacity arm) apply here as to every trained preset row
         model = train_model(ds, ctx.plan.preset(preset), out, config=config, wait=True)  # shared runs/: wait
         train_seconds = getattr(model, "train_seconds", None) or (time.perf_counter() - t0)
         # A learned row: its curve is reported, its single call is the user's (learned_rows.py).

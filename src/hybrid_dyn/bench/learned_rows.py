@@ -105,7 +105,7 @@ def _streaming_call(model):
 def _window_call(model):
     """``TrainedModel.predict_window`` on the run's edge-padded window ending at sample k, with the
     prior from ``AnalyticPrior.single`` (on the base wrench tared on the run's start, where it tares)."""
-    from ..data.windows import concat_fields, window_index
+    from ..data.input_windows import concat_fields, window_index
 
     windows, tared = {}, {}
 
@@ -130,7 +130,7 @@ def _build(preset: str):
         from ..learn import train_model
 
         t0 = time.perf_counter()
-        # the profile's preset_overrides (a study's capacity control) change the preset, not the row's name
+        # the profile's preset_overrides (a study's capacity arm) change the preset, not the row's name
         model = train_model(ds, ctx.plan.preset(preset), ctx.work_dir / "models" / preset,
                             config=ctx.plan.train_config(), wait=True)  # another bench sharing runs/: wait, reuse
         return learned_predictor(model, getattr(model, "train_seconds", None) or (time.perf_counter() - t0))

@@ -1,7 +1,7 @@
 """Error metrics of the benchmark (PROTOCOL 4), one definition for every model.
 
 All take predictions and targets of shape (N, C) in physical units over the
-same test samples. "All samples and components" is the seed's RMSE:
+same test samples. "All samples and components" is the reference study's RMSE:
 sqrt(mean over N and C of e^2).
 
 A refused sample is a prediction row of NaN on every component (an estimator that declines to answer, e.g.
@@ -74,7 +74,7 @@ def nmse(pred: np.ndarray, target: np.ndarray) -> float:
 def standardized_mse(pred: np.ndarray, target: np.ndarray, mean: np.ndarray, std: np.ndarray) -> float:
     """MSE on targets standardised with the training split's statistics: the benchmark's "loss".
 
-    Comparable across analytic and learned rows (the seed's losses add a
+    Comparable across analytic and learned rows (the reference study's losses add a
     regularisation term; ours are the plain data term). Undefined (NaN) when a component's training std
     is 0 (a constant training target: divided by a floor it gave losses of 5e13).
     """

@@ -50,7 +50,7 @@ class BenchProfile:
     robot: str | None = None  # a robot name for every dataset (description.ROBOT_NAME_HELP)
     params: str | None = None  # nominal parameter set (a name or a JSON path): analytic rows and residual priors
     tool: str | None = None  # the tool of every dataset's robot ("none": the bare flange)
-    # Preset fields changed in every trained preset row (e.g. {"fc_units": 256}: a study's capacity control);
+    # Preset fields changed in every trained preset row (e.g. {"fc_units": 256}: a study's capacity arm);
     # run.json records it only when set, so that reports written before it existed are of the same profile.
     preset_overrides: dict = field(default_factory=dict)
 

@@ -23,7 +23,7 @@ from .catalog import reference_label
 from .predictions import PREDICTIONS_FILE, Predictions, PredictionsError
 from .hybrids import hybrid_lines
 from .free_motion import section_lines as free_motion_section
-from .sensor_control import sensor_control_lines
+from .hardware_vs_ideal import hardware_vs_ideal_lines
 from .report_figures import _figures, learning_curve_figures
 from .report_tables import (CAP_MARK, IMPLAUSIBLE_MARK, LOW_ANSWER_MARK, _cap_mark, _contenders, _is_capped, _ok,
                             answered_share, low_answer, notes_by_text, task_tables)
@@ -179,7 +179,7 @@ def write_report(out_dir, rows, meta: dict, log=print) -> list[str]:
         lines += ["", f"{CAP_MARK}: stopped by the epoch cap while still improving; it may not have converged "
                       "(see the learning curves)."]
     lines += hybrid_lines(rows)
-    lines += sensor_control_lines(rows)
+    lines += hardware_vs_ideal_lines(rows)
     lines += convergence_lines(rows, curve_figures)
     reference_text = reference_comparison_text(rows, read_curves(out_dir / CURVES_FILE))
     if reference_text is not None:  # the reference study's nets are in this report: its tables beside ours

@@ -29,7 +29,7 @@ def _ok(rows):
     return [r for r in rows if r.get("status") == "ok"]
 
 
-# Reference rows show the cost of a choice (a seed net on the raw, untared base sensor: its per-run
+# Reference rows show the cost of a choice (a seed-net row on the raw, untared base sensor: its per-run
 # bias cannot be learned from a window), not a contender: labelled in the tables, never a family's best.
 # Which rows they are, and their labels, is declared with the row (``rows.Row.reference``).
 def _contenders(rows):
@@ -238,7 +238,7 @@ def task_tables(rows, task: str) -> tuple[str, str]:
         if capped:
             md += [CAP_FOOTNOTE.replace("<scenario>", scenario) + f" Here: {', '.join(f'`{m}`' for m in capped)}.", ""]
             caption += f"; {CAP_MARK} stopped by the epoch cap while still improving: may not have converged"
-        keep = 7  # model, family, inputs, losses, RMSE, answered; then epochs (stop) and the seed's figures
+        keep = 7  # model, family, inputs, losses, RMSE, answered; then epochs (stop) and the reference study's figures
         tail = N_REFERENCE_COLUMNS + (1 if with_stop else 0)
         tex.append(_latex(header[:keep] + header[-tail:], [b[:keep] + b[-tail:] for b in body], caption))
     if task == "tip_force":

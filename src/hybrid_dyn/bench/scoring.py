@@ -4,7 +4,7 @@ and score every row with the same metrics (``metrics.py``) against the same logg
 Targets: tip force -> the logged ``tip_force``; joint torque -> the logged commanded motor torque ``tau_m``
 (friction included), as PROTOCOL 4 says. Losses are MSE on targets standardised with the train split's
 statistics, for analytic and learned rows alike. Sequence models are scored on every sample: their first L-1
-windows of each instance are edge-padded (``data/windows.py``), exactly as a streaming estimator starts up.
+windows of each instance are edge-padded (``data/input_windows.py``), exactly as a streaming estimator starts up.
 """
 from __future__ import annotations
 

@@ -179,7 +179,7 @@ def choose_rows(full: list[dict]) -> dict:
     study must not pick its rows on the figures it reports.
 
     The best physics row may read a sensor a learned row does not (on seed-sim the best torque physics
-    row reads the base wrench; the seed's torque nets read q, qd, qdd). Each learned row is also set
+    row reads the base wrench; the reference study's torque nets read q, qd, qdd). Each learned row is also set
     against the best physics row on no more than its own inputs, under the key
     (scenario, task, "physics on <inputs>"), where that row is another."""
     best = {}

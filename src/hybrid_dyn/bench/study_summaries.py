@@ -3,7 +3,7 @@
 - ``data-scaling``: per scenario and task, the test RMSE of each family's best learned row against the
   number of training instances, beside the best physics row (flat: it trains on nothing); README.md,
   data_scaling.json and a log-log figure, data_scaling.png.
-- ``controls``: per scenario, task and row, each variant's validation loss against the reference point's
+- ``controls`` (each variant a control arm): per scenario, task and row, each variant's validation loss against the reference point's
   (what every choice is read on), its change, and the test RMSE and nMSE for reference only; with a
   tolerance, whether the variant's gain stays under it (a longer budget that gains less: converged).
   README.md and ``<study>.json``.
@@ -125,7 +125,7 @@ def _figures(r: dict) -> dict:
             "epochs": r.get("epochs") or None, "stopped_by": r.get("stopped_by") or None}
 
 
-def controls(run, out: Path) -> dict:
+def control_arms(run, out: Path) -> dict:
     """Each variant's validation loss against the reference point's, per scenario, task and row."""
     study = run.study
     key = lambda r: (r["scenario"], r["task"], r["model"])  # noqa: E731
@@ -214,4 +214,4 @@ def compare(run, out: Path) -> dict:
     return summary
 
 
-SUMMARY_KINDS = {"data-scaling": data_scaling, "controls": controls, "compare": compare}
+SUMMARY_KINDS = {"data-scaling": data_scaling, "controls": control_arms, "compare": compare}

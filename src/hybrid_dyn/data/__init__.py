@@ -5,7 +5,7 @@ from .dataset import (
 )
 from .logs.importer import ImportReport, LogImportError, LogSpec, RowIssue, import_log, read_spec
 from .logs.real_logs import REAL_SETS, real_dataset
-from .windows import WindowedSplit
+from .input_windows import WindowedSplit
 
 __all__ = [
     "FIELD_UNITS", "REAL_SETS", "SPLITS", "Dataset", "DatasetError", "ImportReport", "Instance", "LogImportError",

@@ -233,7 +233,7 @@ class Dataset:
 
     def windows(self, split: str, length: int, inputs: list[str], targets: list[str], extra: dict | None = None):
         """Sliding windows over one split; see :class:`WindowedSplit`."""
-        from .windows import WindowedSplit
+        from .input_windows import WindowedSplit
 
         return WindowedSplit(self.split(split), length, inputs, targets, extra=extra)
 
@@ -350,7 +350,7 @@ def load_dataset(path, verify: bool = True) -> Dataset:
 
 
 def split_by_instance(names: list[str], seed: int, test_frac: float = 0.2, val_frac: float = 0.2) -> dict:
-    """The seed's split (PROTOCOL 3): 20 % test, then 20 % of the rest validation.
+    """The reference study's split (PROTOCOL 3): 20 % test, then 20 % of the rest validation.
 
     Seeded, and independent of instance order or worker count. Every split gets
     at least one instance when there are three or more.

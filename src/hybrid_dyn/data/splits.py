@@ -2,7 +2,7 @@
 
 Three ways, named by ``by``:
 
-- ``"random"`` (the default, for logs of many trajectories): the seed's split
+- ``"random"`` (the default, for logs of many trajectories): the reference study's split
   (:func:`~hybrid_dyn.data.dataset.split_by_instance`): ``test_frac`` of the
   trajectories to test, then ``val_frac`` of the rest to validation, at random by ``seed``.
 - ``"time"`` (one long log, or several that a model must forecast): the same counts,

@@ -1,4 +1,4 @@
-"""Learned models: the seed's networks, residual nets on physics, DeLaN, tuning, and
+"""Learned models: the reference study's networks, residual nets on physics, DeLaN, tuning, and
 Gaussian-process regression (scikit-learn; the one family that is not PyTorch).
 
 Entry points: :func:`train_model`, :func:`load_model`, the preset registry

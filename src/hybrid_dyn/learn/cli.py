@@ -117,7 +117,7 @@ def cmd_predict(args) -> int:
     import numpy as np
 
     from ..data import load_dataset
-    from ..data.windows import concat_fields
+    from ..data.input_windows import concat_fields
     from .trained_model import ModelError, load_model
 
     if args.save:

@@ -1,12 +1,12 @@
-"""Single-window inference without PyTorch's per-call overhead.
+"""Single-input-window inference without PyTorch's per-call overhead.
 
-A streaming estimator calls a model once per control cycle with one window.
+A streaming estimator calls a model once per control cycle with one input window.
 PyTorch spends most of such a call in dispatch (about 250 us for a 2-layer LSTM
 on one core here); the arithmetic is a few thousand multiply-adds. This module
 copies a trained network's weights into float64 arrays once and evaluates them
 with small numba-compiled kernels (MLP, conv, LSTM; each kind names its front
 here in its declaration, ``learn/nets.py`` and ``learn/delan.py``): a few microseconds for an
-MLP, ~25-40 us here for residual-base-momentum's 10-step, 32-unit LSTM window,
+MLP, ~25-40 us here for residual-base-momentum's 10-step, 32-unit LSTM input window,
 whose exp calls and ~75 k multiply-adds are most of it. Results agree with the
 PyTorch path in float64 to 1e-13 (tests/learn/test_fastpath.py).
 """
@@ -24,7 +24,7 @@ _ACT = {nn.ReLU: 1, nn.Tanh: 2}
 @njit(cache=True, inline="always")
 def _tanh(x):
     """tanh(x) = 2 sigmoid(2x) - 1 through one exp: within 4e-16 of np.tanh (absolute), and about
-    3.5x faster than libm's tanh, which set the cost of an LSTM window (two per unit and step)."""
+    3.5x faster than libm's tanh, which set the cost of an LSTM input window (two per unit and step)."""
     return 2.0 / (1.0 + np.exp(-2.0 * x)) - 1.0
 
 
@@ -115,7 +115,7 @@ def _f64(t) -> np.ndarray:
 
 
 def mlp_front(parts):
-    """The MLP's front: the window's last row (the head reads the current sample)."""
+    """The MLP's front: the input window's last row (the head reads the current sample)."""
     return lambda x: x[-1]
 
 
@@ -127,7 +127,7 @@ def conv_front(parts):
 
 
 def lstm_front(parts):
-    """The LSTM's front: the stacked layers over the window (numba), the last step's state."""
+    """The LSTM's front: the stacked layers over the input window (numba), the last step's state."""
     layers = [(_f64(m.weight_ih_l0.T), _f64(m.weight_hh_l0.T), _f64(m.bias_ih_l0 + m.bias_hh_l0))
               for m in parts["net"].lstms]  # transposed: see _lstm_layer
 
@@ -146,7 +146,7 @@ def delan_fast(parts):
 
 
 class FastNet:
-    """A float64 copy of a net kind's network for single windows (L, F) -> (n_out,): its front as the
+    """A float64 copy of a net kind's network for single input windows (L, F) -> (n_out,): its front as the
     kind declares it (``learn/kind_registry.py``: ``fast``), then the shared FC head (:func:`_dense_stack`)."""
 
     def __init__(self, net: nn.Module):
@@ -170,7 +170,7 @@ class FastNet:
         self.acts = np.array(acts, dtype=np.int64)
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
-        """x: standardized window (L, F) float64; returns the network output (n_out,)."""
+        """x: standardized input window (L, F) float64; returns the network output (n_out,)."""
         return _dense_stack(np.ascontiguousarray(self._front(x)), self.head, self.layout, self.acts)
 
 

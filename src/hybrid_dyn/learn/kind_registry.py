@@ -138,7 +138,7 @@ def preset_problems(preset) -> list[str]:
 
 
 # ------------------------------------------------------------ the search space
-# The seed's search space (its 3.3, with Keras Tuner): per kind, the front, then the FC layers. One table,
+# The reference study's search space (its 3.3, with Keras Tuner): per kind, the front, then the FC layers. One table,
 # as the seed gives it; each kind's ``search`` draws its part (a new kind may keep its values beside it).
 SPACE = {
     "lstm_layers": (1, 2, 3),

@@ -1,6 +1,6 @@
-"""The seed's network families in PyTorch: MLP, 1D-conv and LSTM, and their three network kinds.
+"""The reference study's network families in PyTorch: MLP, 1D-conv and LSTM, and their three network kinds.
 
-Every network maps a standardized window x (B, L, F) to a standardized output
+Every network maps a standardized input window x (B, L, F) to a standardized output
 (B, n_out); the caller (``model.HybridModel``) owns the standardization and any
 analytic part. Initialization follows the seed (Glorot uniform), with the
 Keras defaults that "Glorot uniform" implied there for recurrent layers:
@@ -38,7 +38,7 @@ def fc_head(n_in: int, n_layers: int, n_units: int, n_out: int, activation: str,
 
 
 class MLPNet(nn.Module):
-    """Fully connected net on the current sample (the window's last row)."""
+    """Fully connected net on the current sample (the input window's last row)."""
 
     kind = "mlp"
 
@@ -55,11 +55,11 @@ class ConvNet(nn.Module):
 
     kind = "conv"
 
-    def __init__(self, n_in: int, n_out: int, window: int, channels: int, kernel: int,
+    def __init__(self, n_in: int, n_out: int, input_window: int, channels: int, kernel: int,
                  fc_layers: int, fc_units: int, activation: str, dropout: float = 0.0):
         super().__init__()
         self.conv = nn.Conv1d(n_in, channels, kernel)
-        self.head = fc_head(channels * (window - kernel + 1), fc_layers, fc_units, n_out, activation, dropout)
+        self.head = fc_head(channels * (input_window - kernel + 1), fc_layers, fc_units, n_out, activation, dropout)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         h = torch.relu(self.conv(x.transpose(1, 2)))  # (B, C, L - k + 1)
@@ -110,7 +110,7 @@ def glorot_init(module: nn.Module) -> None:
 
 # ------------------------------------------------------------ the three kinds
 def single_net(make: Callable) -> Callable:
-    """A net kind's builder from ``make(preset, n_in, n_out) -> module``: Glorot-initialized (the seed's
+    """A net kind's builder from ``make(preset, n_in, n_out) -> module``: Glorot-initialized (the reference study's
     init, :func:`glorot_init`) and stamped with its kind (what FastNet looks up)."""
     def build(preset, n_in, n_out, widths):
         net = make(preset, n_in, n_out)
@@ -157,7 +157,7 @@ def _search_conv(trial, base) -> dict:
 
 def _conv_window(preset) -> str | None:
     if preset.window < preset.conv_kernel:
-        return f"window {preset.window} is shorter than the conv kernel"
+        return f"input window {preset.window} is shorter than the conv kernel"
     return None
 
 
@@ -166,7 +166,7 @@ def _conv_window(preset) -> str | None:
 # 3 % on validation) on both; the others had knees on seed-sim (LSTM 2000, DeLaN 4000) but still gained
 # 8-25 % per doubling on paper-noext, so they are set where the cost allows (conv 3-4 min a row, LSTM
 # 4-7, DeLaN 6 on a loaded core: ``delan.py``) and are known not to have converged there. Cost ranks:
-# measured on one thread on a default-profile scenario (144 k training windows, s per epoch): DeLaN 6.4
+# measured on one thread on a default-profile scenario (144 k training input windows, s per epoch): DeLaN 6.4
 # (with an LSTM residual 10.7), LSTMs 1.4-5.9, conv 1.1-1.6, MLPs 0.45-1.05; conv and MLP share a rank
 # (the runner orders them by their front's width, conv first).
 NETWORK_KINDS.register(NetworkKind("mlp", "fully connected layers on the current sample", build=single_net(_mlp),

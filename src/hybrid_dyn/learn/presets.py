@@ -1,11 +1,11 @@
-"""Named model presets: the seed's networks, the residual (hybrid) nets and DeLaN.
+"""Named model presets: the reference study's networks, the residual (hybrid) nets and DeLaN.
 
 A :class:`Preset` is the complete description of a model family member: which
-fields go in and come out, the window length, the network's layers and which
+fields go in and come out, the input window's length, the network's layers and which
 analytic part (if any) it corrects. Trained models store their preset in full,
 so a model tuned by Optuna (a preset no registry names) loads like any other.
 
-The seed (Kruzic et al. 2021) fixes, in Table 1: the architecture type, whether
+The reference study (Kruzic et al. 2021) fixes, in Table 1: the architecture type, whether
 joint torques are inputs, the number and width of the fully connected layers
 and the sequence length; conv and LSTM nets start with one 16-unit layer; the
 optimized #10/#11 have two 32-unit LSTM layers. Its Table 3 torque nets give
@@ -19,8 +19,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
 
-from ..analytic import methods  # noqa: F401  (registers the tip-force methods: their names are read below)
-from ..analytic.method_names import estimator_name, residual_prior_names
+from ..analytic.methods import estimator_name, residual_prior_names  # (registers the tip-force methods: their names are read below)
 from ..errors import UsageError
 from ..plugins import load_plugins
 from ..registry import Registry
@@ -63,7 +62,7 @@ class Preset:
     every analytic row does (``learn/train.py``).
     delan_*: DeLaN's hidden layers for L(q) and V(q); friction: learn a Gaz
     sigmoid friction per joint; residual: add a residual network of the other
-    fields (kind of the residual net: residual_kind, with its own window).
+    fields (kind of the residual net: residual_kind, with its own input window).
     family: the bench family of its row (a name in ``bench.families.FAMILIES``; ``bench/learned_rows.py``),
     metadata of a declared preset, not of the model: files and fingerprints leave it out, equality ignores it.
     """
@@ -186,7 +185,7 @@ for _preset in (
            fc_units=8, activation="tanh", family="seed-net",
            description="seed Table 3 #10: optimized LSTM, 2 x 32, FC 2 x 8, tanh"),
     # Not from the seed: for small real-robot sets (a handful of trajectories), width plus dropout
-    # generalise to unseen trajectories better than the seed's 2 x 32 (a search on the validation
+    # generalise to unseen trajectories better than the reference study's 2 x 32 (a search on the validation
     # split of the three real sets; docs/models.md).
     Preset("tau-mlp-wide", "mlp", tuple(STATE), ("tau_m",), fc_units=128, dropout=0.2,
            family="learned",

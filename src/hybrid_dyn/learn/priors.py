@@ -13,8 +13,7 @@ import h5py
 import numpy as np
 import pinocchio as pin
 
-from ..analytic.method_names import estimator_name
-from ..analytic.methods import TIP_FORCE_METHODS
+from ..analytic.methods import TIP_FORCE_METHODS, estimator_name
 from ..analytic.tare import tare_samples, tared_base_wrench
 from ..analytic.tip_force import base_wrench_force_core, contact_joint_torques, tip_force_from_base_wrench
 from ..analytic.torque_models import TORQUE_MODELS

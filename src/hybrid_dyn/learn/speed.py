@@ -39,7 +39,7 @@ def bare_step(model, ws, batch: int, oracle: bool = False):
 
 def training_windows(model, ds):
     """``ds``'s training split windowed as ``model``'s training loop sees it (tared sensor, prior)."""
-    from ..data.windows import WindowedSplit
+    from ..data.input_windows import WindowedSplit
 
     train = ds.split("train")
     extra = {"prior": model.prior.compute_instances(train)} if model.prior else None

@@ -1,9 +1,9 @@
 """A trained tip-force model driven one sample at a time (for ``TipForceEstimator``).
 
-The model was trained on windows of L samples recorded at ``record_hz``. A
+The model was trained on input windows of L samples recorded at ``record_hz``. A
 control loop calls faster (``call_hz``, e.g. 1 kHz). We keep a ring of the last
 (L-1)*k + 1 calls, k = call_hz / record_hz, and hand the model every k-th of
-them ending at the newest: each call gets a fresh estimate from a window with
+them ending at the newest: each call gets a fresh estimate from an input window with
 the training spacing. At start-up the ring is filled with the first sample, as
 training edge-padded every instance.
 
@@ -29,7 +29,7 @@ import torch
 from ..analytic.acceleration import default_qdd_cutoff
 from ..analytic.methods import TIP_FORCE_METHODS
 from ..analytic.tare import StreamingTare, tare_samples, tared_runs
-from ..data.windows import window_index
+from ..data.input_windows import window_index
 from ..errors import UsageError
 from ..timing import median_call_us
 from .trained_model import ModelError, TrainedModel, load_model
@@ -56,17 +56,17 @@ class _ArrayInstance:
 class _OnnxNet:
     """The network part exported to ONNX, run by onnxruntime on one thread (float32).
 
-    For one window onnxruntime's compiled LSTM is about twice as fast as the
+    For one input window onnxruntime's compiled LSTM is about twice as fast as the
     numba kernels (benchmarks/export_speed.py); it computes in float32.
     """
 
-    def __init__(self, net, window: int, n_in: int):
+    def __init__(self, net, input_window: int, n_in: int):
         import io
 
         import onnxruntime as ort
 
         buf = io.BytesIO()
-        x = torch.zeros(1, window, n_in)
+        x = torch.zeros(1, input_window, n_in)
         with warnings.catch_warnings():  # the TorchScript-based exporter warns about its own future
             warnings.simplefilter("ignore")
             torch.onnx.export(net.eval(), (x,), buf, input_names=["x"], output_names=["y"], dynamo=False)
@@ -74,7 +74,7 @@ class _OnnxNet:
         opts.intra_op_num_threads = 1
         opts.inter_op_num_threads = 1
         self._session = ort.InferenceSession(buf.getvalue(), opts, providers=["CPUExecutionProvider"])
-        self._x = np.empty((1, window, n_in), np.float32)
+        self._x = np.empty((1, input_window, n_in), np.float32)
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         self._x[0] = x

@@ -17,7 +17,7 @@ from tqdm.auto import tqdm
 from ..analytic.tare import tared_runs
 from ..data import Dataset, load_dataset
 from ..data.splits import first_instances
-from ..data.windows import WindowedSplit
+from ..data.input_windows import WindowedSplit
 from ..errors import UsageError
 from ..outputs import output_lock
 from .checkpoints import _load_checkpoint, _restore_optimizer, _save_checkpoint

@@ -12,7 +12,7 @@ import torch
 from safetensors.torch import save_file
 from torch import nn
 
-from ..data.windows import concat_fields, window_index
+from ..data.input_windows import concat_fields, window_index
 from .kinds import NETWORK_KINDS, build_parts
 from .model_file import (METADATA_KEY, TIMING_FORMAT, ModelError, ModelFiles, SavedModel, canonical_json,  # noqa: F401
                          config_digest, partial, read_file_metadata, read_model_config, read_timing,
@@ -75,7 +75,7 @@ class HybridModel(nn.Module):
         if self.net is not None and (preset.prior is not None or self.delan is not None):
             # A residual branch starts at exactly zero: the hybrid model begins as its
             # physics part and moves away only where the data say so (hidden layers
-            # keep the seed's Glorot init, so the gradients are not degenerate).
+            # keep the reference study's Glorot init, so the gradients are not degenerate).
             out_layer = self.net.head[-1]
             nn.init.zeros_(out_layer.weight)
             nn.init.zeros_(out_layer.bias)
@@ -109,7 +109,7 @@ class HybridModel(nn.Module):
         return self.y_mean + self.y_std * self.net(xs)
 
     def standardized_loss(self, y_pred: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
-        """MSE on standardized targets (the seed's loss; comparable across presets)."""
+        """MSE on standardized targets (the reference study's loss; comparable across presets)."""
         return torch.mean(((y_pred - y) / self.y_std) ** 2)
 
 
@@ -117,7 +117,7 @@ class TrainedModel(SavedModel):
     """A trained model with the uniform API the bench harness and the streaming estimator use.
 
     ``predict(instances)``: one (T, n_out) array per instance, physical units, every
-    sample (sequence models edge-padded, see ``hybrid_dyn.data.windows``).
+    sample (sequence models edge-padded, see ``hybrid_dyn.data.input_windows``).
     ``predict_window(x, prior=None)``: one raw window (L, n_in) -> (n_out,).
     ``config``: the dict stored in config.json. ``n_params``, ``train_seconds``,
     ``history`` (per-epoch train/val loss), ``val_loss`` (standardized MSE): see :class:`SavedModel`.
@@ -222,7 +222,7 @@ class TrainedModel(SavedModel):
         return np.split(out, np.cumsum(lengths)[:-1])
 
     def evaluate(self, instances, **kw) -> dict:
-        """Losses and errors on instances: standardized MSE (the seed's loss) and RMSE [physical units]."""
+        """Losses and errors on instances: standardized MSE (the reference study's loss) and RMSE [physical units]."""
         instances = list(instances)
         pred = np.concatenate(self.predict(instances, **kw))
         y = concat_fields(instances, self.targets).astype(np.float64)

@@ -10,7 +10,7 @@ import numpy as np
 import torch
 
 from ..data import Dataset
-from ..data.windows import WindowedSplit
+from ..data.input_windows import WindowedSplit
 from .trained_model import HybridModel, ModelError
 
 STD_FLOOR = 1e-6  # a (nearly) constant column is scaled by 1, not blown up

@@ -1,4 +1,4 @@
-"""Hyperparameter search with Optuna (standing in for the seed's Keras Tuner).
+"""Hyperparameter search with Optuna (standing in for the reference study's Keras Tuner).
 
 The design in full: ``docs/design/learn.md`` (tune.py).
 """

@@ -1,4 +1,5 @@
-"""Sliding windows of length L over a split, for the sequence models.
+"""Sliding input windows of length L over a split, for the sequence models: the history a network reads
+per sample (its input window; the estimator's noise window is another thing, ``analytic/bandwidth.py``).
 
 One window per sample: the window of sample k of an instance is samples
 k-L+1 .. k of that instance. At the start of an instance (k < L-1) the missing

@@ -1,6 +1,6 @@
 """The report's section "hardware sensors against ideal sensors": each row's RMSE on a scenario read by the
 hardware sensor model (``sim/sensors.py``) over its RMSE on the same runs read by the legacy ideal sensors
-(the control scenario, named ``<scenario>-ideal``: ``paper-ext-ideal``), row by row, drawn from results.csv
+(its reference scenario, named ``<scenario>-ideal``: ``paper-ext-ideal``), row by row, drawn from results.csv
 alone. A ratio above 1 is what the hardware read costs that row."""
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import math
 
 from .report_tables import answered_share, low_answer
 
-IDEAL_SUFFIX = "-ideal"  # a control scenario's name: the scenario it controls, read by ideal sensors
+IDEAL_SUFFIX = "-ideal"  # a reference scenario's name: the scenario it is the reference of, read by ideal sensors
 
 
 def _rmse(r) -> float:
@@ -18,17 +18,17 @@ def _rmse(r) -> float:
         return math.nan
 
 
-def sensor_control_pairs(rows) -> list[tuple[str, str]]:
-    """(hardware scenario, its ideal control) for every control scenario whose scenario is in ``rows`` too."""
+def hardware_vs_ideal_pairs(rows) -> list[tuple[str, str]]:
+    """(hardware scenario, its ideal-sensor reference) for every reference scenario whose scenario is in ``rows`` too."""
     scenarios = list(dict.fromkeys(r["scenario"] for r in rows))
     return [(s[: -len(IDEAL_SUFFIX)], s) for s in scenarios
             if s.endswith(IDEAL_SUFFIX) and s[: -len(IDEAL_SUFFIX)] in scenarios]
 
 
-def sensor_control_lines(rows) -> list[str]:
+def hardware_vs_ideal_lines(rows) -> list[str]:
     """The README's section: per pair and task, each row's RMSE on both and their ratio, the dearest first."""
     lines = []
-    for hard, ideal in sensor_control_pairs(rows):
+    for hard, ideal in hardware_vs_ideal_pairs(rows):
         for task, unit in (("tip_force", "N"), ("joint_torque", "Nm")):
             both = {}
             for r in rows:
