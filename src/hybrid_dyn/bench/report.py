@@ -299,9 +299,9 @@ def _time_profile(invocations: list, rows) -> list[str]:
             f[i] += _finite_or_zero(r.get(key))
     families = ", ".join(f"{k} {v[0]:.0f} / {v[1]:.0f}" for k, v in sorted(by_family.items(), key=lambda kv: -kv[1][0]))
     return [f"- where this invocation's time went: {_minutes(last.get('wall_seconds'))} min wall, "
-            f"{last.get('cpu_seconds', float('nan')):.0f} CPU-s{cores}; by phase: {phases} (training: every learned "
-            "row of every scenario in one queue, while this process fits the identified models and residual GPs; "
-            "scoring: each scenario's rows, and the residual nets on the identified model trained beside them)",
+            f"{last.get('cpu_seconds', float('nan')):.0f} CPU-s{cores}; by phase: {phases} (the learned rows of every "
+            "scenario train in one queue on the workers while this process fits the identified models and residual "
+            "GPs and scores the rows that train nothing; the rest is reading data and drawing the report)",
             f"- CPU-s by family, training / scoring: {families}"]
 
 

@@ -178,12 +178,19 @@ def _run_bench_locked(plan: BenchPlan, out_dir, clock: InvocationClock, data_roo
                                data_root, log=log, source=entry)
             scenarios.append((ctx, ref, _applicable_rows(plan, scenario, ds, skipped, log)))
         tcfg = _train_config(plan, executor, device)
-        with clock.phase("training"):
-            _train_learned_rows(plan, scenarios, tcfg, log, executor)
+
+        def score_untrained():  # while the queue trains: the rows that train nothing, scenario by scenario
+            for ctx, ref, specs in scenarios:
+                _bench_scenario(out_dir, ctx, ref, [s for s in specs if not s.trains], tcfg, predictions, rows,
+                                log, clock, executor, test_data=True)
+
+        with clock.phase("training, and scoring the rows that train nothing"):
+            _train_learned_rows(plan, scenarios, tcfg, log, executor, meanwhile=score_untrained)
         clock.record(out_dir, rows)
-        for ctx, ref, specs in scenarios:
-            with clock.phase("scoring"):
-                _bench_scenario(out_dir, ctx, ref, specs, tcfg, predictions, rows, log, clock, executor)
+        with clock.phase("scoring the trained rows"):
+            for ctx, ref, specs in scenarios:
+                _bench_scenario(out_dir, ctx, ref, [s for s in specs if s.trains], tcfg, predictions, rows, log,
+                                clock, executor, test_data=False)
     meta = run_meta(profile, clock, rows, labels, skipped, datasets, dataset_seconds, machine_info())
     finish_record(out_dir, rows, meta)
     # The report is drawn from the files just written, exactly as ``hybrid-dyn report`` redraws it.
@@ -202,53 +209,76 @@ def _train_config(plan: BenchPlan, executor=None, device=None):
     return tcfg
 
 
-def _train_learned_rows(plan: BenchPlan, scenarios: list, tcfg, log, executor=None) -> None:
-    """Every scenario's preset rows trained in one queue on the profile's workers, dearest first
-    (``training_queue.pretrain``). On local workers this process meanwhile fits the rows it fits itself
-    (``FIT_WHILE_WAITING``: the identification and the residual GP, hours of one core otherwise idle at
-    each scenario's end); their builds at scoring then read the fitted files. A fit that fails here
-    is fitted again, and its error raised with its row, when the row is scored."""
-    from .identified_rows import FIT_WHILE_WAITING
+def _train_learned_rows(plan: BenchPlan, scenarios: list, tcfg, log, executor=None, meanwhile=None) -> None:
+    """Every scenario's learned rows trained in one queue on the profile's workers, dearest first
+    (``training_queue.pretrain``). On local workers this process meanwhile fits what it fits itself (each
+    scenario's identified model, whose residual nets then join the queue, and ``FIT_WHILE_WAITING``, the
+    residual GP), then runs ``meanwhile()`` (the bench scores the rows that train nothing): both cores stay
+    busy to the queue's end. A fit that fails here is fitted again, and its error raised with its row, when
+    the row is scored."""
+    import queue as queues
+
+    from .identified_rows import FIT_WHILE_WAITING, RESIDUAL_ROWS, residual_training
 
     profile = plan.profile
     jobs = [(str(ctx.dataset.path), ref.name, plan.preset(s.name), str(ctx.work_dir / "models" / s.name), tcfg,
              profile.torch_threads) for ctx, ref, specs in scenarios for s in specs if s.name in PRESETS]
     log(f"[bench] training {len(jobs)} learned models of {len(scenarios)} scenarios on {profile.workers} workers")
-    fits = [(ctx, s) for ctx, _, specs in scenarios for s in specs if s.name in FIT_WHILE_WAITING]
-    if not jobs or not fits or profile.workers < 2 or executor is not None:
+    if profile.workers < 2 or executor is not None:  # serial, or a cluster's queue: the rows then score in turn
         pretrain(jobs, profile.workers, log=log, executor=executor)
+        if meanwhile is not None:
+            meanwhile()
         return
-    failed = []
+    later, failed = queues.Queue(), []
+
+    def queued_later():  # the residual nets on the identified model, as their identification is fitted
+        while (job := later.get()) is not None:
+            yield job
 
     def train():  # the pool lives and dies in this thread (sim/executors.process_pool)
         try:
-            pretrain(jobs, profile.workers, log=log)
+            pretrain(jobs, profile.workers, log=log, more=queued_later())
         except BaseException as err:  # noqa: BLE001  (raised again below, in the bench's thread)
             failed.append(err)
 
     # A daemon: an interrupt of this thread ends the process, and the workers die with it.
-    queue = threading.Thread(target=train, name="training-queue", daemon=True)
-    queue.start()
-    for ctx, spec in fits:
-        try:
-            spec.build(ctx.dataset, ctx)
-        except Exception:  # noqa: BLE001  (raised again, with its row, when it is scored)
-            pass
-    while queue.is_alive():
-        queue.join(timeout=1.0)  # a timed join: Ctrl-C reaches this thread
+    worker_queue = threading.Thread(target=train, name="training-queue", daemon=True)
+    worker_queue.start()
+    try:
+        for ctx, ref, specs in scenarios:
+            for spec in specs:
+                try:
+                    if spec.name in RESIDUAL_ROWS:
+                        config, out = residual_training(ctx, spec.name, tcfg)  # fits the identified model
+                        later.put((str(ctx.dataset.path), ref.name, plan.preset(RESIDUAL_ROWS[spec.name]), str(out),
+                                   config, profile.torch_threads))
+                    elif spec.name in FIT_WHILE_WAITING:
+                        spec.build(ctx.dataset, ctx)
+                except Exception:  # noqa: BLE001  (raised again, with its row, when it is scored)
+                    pass
+    finally:
+        later.put(None)  # the queue ends with the jobs it has
+    if meanwhile is not None:
+        meanwhile()
+    while worker_queue.is_alive():
+        worker_queue.join(timeout=1.0)  # a timed join: Ctrl-C reaches this thread
     if failed:
         raise failed[0]
 
 
 def _bench_scenario(out_dir, ctx: BenchContext, ref, specs: list, tcfg, predictions, rows, log,
-                    clock: InvocationClock, executor=None) -> None:
-    """One scenario's rows, their learned ones trained: the residual nets on the identified model are trained
-    now (they need the identified fit), the rows scored, each written to results.csv, predictions.h5 and
-    curves.json as it finishes; ``rows`` grows."""
+                    clock: InvocationClock, executor=None, test_data: bool = True) -> None:
+    """Rows ``specs`` of one scenario: those not yet trained (the residual nets on the identified model, when
+    the queue did not train them) trained now, each scored and written to results.csv, predictions.h5 and
+    curves.json as it finishes; ``rows`` grows. ``test_data``: write the scenario's test data to predictions.h5
+    first (once per scenario, before its first row)."""
     ds = ctx.dataset
-    norm = train_split_stats(ds)
     test = ds.split("test")
-    predictions.test_data(ctx.scenario, test, [t for t in dict.fromkeys(TASK_TARGET.values()) if t in ds.fields])
+    if test_data:
+        predictions.test_data(ctx.scenario, test, [t for t in dict.fromkeys(TASK_TARGET.values()) if t in ds.fields])
+    if not specs:
+        return
+    norm = train_split_stats(ds)
     with background_training(ctx, specs, tcfg, ref.name, executor) as pending:
         _score_rows(out_dir, ctx, specs, norm, test, predictions, rows, log, clock, pending)
 

@@ -49,7 +49,7 @@ def epoch_cost_rank(preset) -> tuple:
     return (-kind, -sum(p.front_units), -p.window, -p.fc_units)
 
 
-def pretrain(jobs: list, workers: int, log=print, executor=None) -> None:
+def pretrain(jobs: list, workers: int, log=print, executor=None, more=None) -> None:
     """Train the learned rows in parallel, one single-threaded model per job.
 
     ``executor``: where the jobs run (``sim/executors.py``, as for generation): local
@@ -60,16 +60,20 @@ def pretrain(jobs: list, workers: int, log=print, executor=None) -> None:
     node sees: docs/cluster.md). The dearest models are queued first
     (:func:`epoch_cost_rank`): queued in declaration order, the DeLaN rows came last and
     one core idled while the other finished them. Local workers die with this process, and
-    an interrupt stops them instead of waiting for every queued model.
+    an interrupt stops them instead of waiting for every queued model. ``more``: an iterator of
+    further jobs queued after these, as it yields them (it may block until a job is ready).
     """
-    if not jobs:
+    if not jobs and more is None:
         return
+    import itertools
+
     from ..sim.executors import make_executor
 
     jobs = sorted(jobs, key=lambda job: epoch_cost_rank(job[2]))  # stable: declaration order within a rank
     executor = executor or make_executor(workers)
-    results = executor.map_unordered(_train_job, [(job,) for job in jobs])
-    for preset, err in tqdm(results, total=len(jobs), desc="training", unit="model"):
+    queued = ((job,) for job in itertools.chain(jobs, more or ()))
+    results = executor.map_unordered(_train_job, queued)
+    for preset, err in tqdm(results, total=None if more is not None else len(jobs), desc="training", unit="model"):
         if err:
             log(f"[bench] training {preset} failed: {err}")
 
