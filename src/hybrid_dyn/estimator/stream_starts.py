@@ -20,6 +20,8 @@ class StreamStarts:
         self.window_problem = problem
         if self._tare is not None:
             self._tare.reset()
+        if self._tau_tare is not None:
+            self._tau_tare.reset()
         self._stream.reset()
         self._window.clear()
         self._calls = 0

@@ -29,6 +29,7 @@ from .input import EstimatorInputError, InputGate, RateCheck
 from .noise_window import NoiseWindow
 from .stream_starts import StreamStarts
 from .torque_model import JointTorqueModel
+from .torque_tare import TorqueTare
 
 
 FOLLOW_RATE_FACTOR = 2.0  # the drift follower's fastest pace, in multiples of the sensor's stated drift rate
@@ -97,6 +98,11 @@ class TipForceEstimator(CallStatus, StreamStarts):
         # The noise window: where the method tares, or chooses its bandwidth by the rule.
         n_window = tare_samples(c.call_hz, c.tare_seconds) if self.spec is not None and (
             self.spec.tares or self._fixed is None) else 0
+        # A method on the joint torques alone tares their offsets in its window (``torque_tare.py``; a fixed
+        # bandwidth has none, and starts at once); kalman-fusion checks its torques on the base sensor's window.
+        torques_alone = self.spec is not None and "tau_J" in self.spec.reads and "base_wrench" not in self.spec.reads
+        self._tau_tare = TorqueTare(robot, c.max_torque_offset, c.torque_drift_rate, c.standstill_speed, c.call_hz) \
+            if torques_alone and n_window else None
         if self.spec is not None and self.spec.tares and n_window:
             self._tare = StreamingTare(robot, n_window)
         self._window_calls = n_window
@@ -213,6 +219,9 @@ class TipForceEstimator(CallStatus, StreamStarts):
         self._joint_wait = 0 if self._joint is None or self._tare is None else self._joint.settle_calls()
         self._error_bar.reset()
         self._model_sigma = None  # the error bar's model term at this call [N], where calibrated
+        self._tau_sigma = None  # the error bar's torque-offset drift term at this call [N] (``torque_tare.py``)
+        if self._tau_tare is not None:
+            self._tau_tare.reset()
         if self._model_error is not None:
             self._model_error.reset()
         self.last_sigma = NO_SIGMA.copy()
@@ -365,10 +374,18 @@ class TipForceEstimator(CallStatus, StreamStarts):
         tare = self._tare
         taring = tare is not None and not tare.done
         # qdd only where the method (the window's tare, the model term) needs it: the observers need none.
+        tau_tare = self._tau_tare
         qdd = self._qdd_filter.step(qd) if (self._needs_qdd or taring or self._model_qdd) else None
         tau_raw = tau_J
         if tau_J is not None and self.torque_model is not None:  # what the rigid body and a force explain
             tau_J = tau_J - self.torque_model.extra_torque(q, qd, qdd)
+        tau_untared = tau_J
+        if tau_tare is not None and tau_J is not None:
+            if in_window:
+                tau_tare.record(q, qd, tau_J)
+            else:
+                tau_J = tau_J - tau_tare.offset
+                self._tau_sigma = tau_tare.drift_sigma(q, self._calls)
         if self._model_error is not None:
             self._model_sigma = self._model_error.update(q, qd, qdd)
         self._calls += 1
@@ -386,6 +403,8 @@ class TipForceEstimator(CallStatus, StreamStarts):
                 model = None if self._model_sigma is None else 2.0 * float(np.linalg.norm(self._model_sigma))
                 problem = self._window.contact(self._tare, c.tare_contact_force, c.off_tool_moment, c.tare_held_force,
                                                torque_limit=model)
+                if problem is None and tau_tare is not None:
+                    problem = tau_tare.close(self._calls)
                 if problem is not None:
                     self._restart_window(problem)
                 else:
@@ -408,5 +427,7 @@ class TipForceEstimator(CallStatus, StreamStarts):
         f = self._stream.step(q, qd, qdd, w_in, tau_J)
         if w_in is not None:
             self._follow_drift(q, qd, base_wrench, f)
+        elif tau_tare is not None and tau_J is not None:
+            self._follow_torque_offset(q, qd, tau_untared, f)
         self._judge(q, qd, qdd, w_in, base_wrench, tau_J, tau_raw)
         return self._finish(f, True, wrong_rate, usable)

@@ -6,7 +6,7 @@ joint torques tau = ID(q, qd, qdd) - J_v^T F, the base wrench ``Robot.base_wrenc
 (a force away from the tool: its own Jacobian and moment arm), read through ``sensors.read_sensors``
 (q quantized to the description's resolution, qd its difference, F/T and torque noise, bias, drift,
 stamp jitter). Faults are applied to the readings after that: a flipped sign, a frozen sensor, lost
-samples. :data:`CASES` names them; ``benchmarks/estimator_trust.py`` scores every method on each, the
+samples, joint-torque sensor offsets and their drift. :data:`CASES` names them; ``benchmarks/estimator_trust.py`` scores every method on each, the
 tests run short versions.
 """
 from __future__ import annotations
@@ -17,6 +17,8 @@ import numpy as np
 
 from .sensors import ClockModel, EncoderModel, ForceTorqueModel, HardwareSensors, read_sensors
 
+TAU_OFFSET = (0.3, 1.5)  # [Nm]: the per-joint torque-sensor offset's magnitude, drawn uniformly, random sign
+TAU_DRIFT = 0.005  # [Nm/s]: the per-joint torque-sensor offset's drift rate, random sign
 HARDWARE = HardwareSensors(EncoderModel("auto", "difference"), ForceTorqueModel(force_drift=0.025, torque_drift=0.0))
 
 
@@ -25,7 +27,9 @@ class TrustCase:
     """seconds [s] at 1 kHz. force: ((t [s], |F| [N]), ...) breakpoints of the contact's magnitude, linear
     between them (a step: two points 1 ms apart) along ``direction``; moving: ((start, stop) [s], ...) when
     the arm moves (0.2 s smooth ramps). fault: None, "flip-base", "freeze-base" (from fault_at [s]),
-    "flip-tau", "elbow" (the force acts on the elbow, not the tool), "gap" (5 samples lost at fault_at).
+    "flip-tau", "elbow" (the force acts on the elbow, not the tool), "gap" (5 samples lost at fault_at),
+    "tau-offset" (a per-joint torque-sensor offset, TAU_OFFSET), "tau-drift" (a per-joint offset drifting at
+    TAU_DRIFT from 0).
     declared_resolution: what the estimator is told [rad] ("auto": the description's)."""
 
     seconds: float
@@ -85,6 +89,11 @@ CASES = {
     # the drift follower's tare, and its error bar, over a long wait.
     "standstill-drift": TrustCase(600.0),
     # 7. exact q, moving from t = 0, the estimator's defaults (it assumes 1e-5 rad encoders).
+    # 9. joint-torque sensor offsets: random ones (at rest in the window, moving from 1 s), and ones drifting for
+    # 120 s (20 s at a standstill in between, a contact held there).
+    "tau-offset": TrustCase(10.0, _steps((4.0,), 10.0, 4.0, 10.0), moving=((1.0, 10.0),), fault="tau-offset"),
+    "tau-drift": TrustCase(120.0, _steps((20.0, 60.0, 100.0), 8.0, 4.0, 120.0), moving=((0.6, 50.0), (70.0, 120.0)),
+                           fault="tau-drift"),
     "start-moving": TrustCase(10.0, _steps((4.0,), 10.0, 2.0, 10.0), moving=((0.0, 10.0),),
                               sensors=replace(HARDWARE, encoder=EncoderModel(0.0, "exact"))),
 }
@@ -171,6 +180,10 @@ def build(robot, case: TrustCase | str, seed: int = 0) -> TrustStream:
         bw = -bw
     elif c.fault == "flip-tau":
         tj = -tj
+    elif c.fault == "tau-offset":
+        tj = tj + rng.choice([-1.0, 1.0], robot.nv) * rng.uniform(*TAU_OFFSET, robot.nv)
+    elif c.fault == "tau-drift":
+        tj = tj + t[:, None] * (TAU_DRIFT * rng.choice([-1.0, 1.0], robot.nv))
     elif c.fault == "freeze-base":
         k0 = int(c.fault_at * 1000)
         bw = bw.copy()
@@ -185,4 +198,4 @@ def build(robot, case: TrustCase | str, seed: int = 0) -> TrustStream:
     return TrustStream(r.t, r.q, r.qd, bw, tj, truth, np.sort(changes), arrives, c.declared_resolution)
 
 
-__all__ = ["CASES", "HARDWARE", "TrustCase", "TrustStream", "build", "kinematics"]
+__all__ = ["CASES", "HARDWARE", "TAU_DRIFT", "TAU_OFFSET", "TrustCase", "TrustStream", "build", "kinematics"]
