@@ -81,3 +81,23 @@ def test_a_drift_followed_for_an_hour_is_no_implausible_tare(panda):
     est.set_tare_offset(np.r_[30.0, 0, 0, 0, 0, 0])
     est.estimate_tip_force(q, qd, base_wrench=w + rng.normal(0, 0.05, 6), t=0.9)
     assert est.last_status is EstimatorStatus.IMPLAUSIBLE_TARE
+
+
+@pytest.mark.parametrize("method", ["base-wrench", "kalman-fusion"])
+def test_a_clipped_channel_is_named_and_an_unclipped_stream_never_is(panda, method):
+    """The base sensor's Fz clipped at a range the contact exceeds (the trust case clip-base): the calls whose
+    reading the clip changed (the stream's own record, not the estimator's) say "F/T channel clipped" once the
+    channel has sat there frozen_calls calls, and no ok call later than 100 ms after a change errs by over 2 N; the same stream unclipped never says it."""
+    from hybrid_dyn.sim.trust_streams import CASES, build as build_case
+
+    clipped = build_case(panda, "clip-base", seed=8)
+    free = build_case(panda, TrustCase(10.0, CASES["clip-base"].force), seed=8)
+    cut = np.flatnonzero(clipped.base_wrench[:, 2] != free.base_wrench[:, 2])
+    e, status = _run(panda, method, clipped)
+    named = np.array([x is EstimatorStatus.CLIPPED_CHANNEL for x in status])
+    assert named[cut[30:]].mean() > 0.95 and named.sum() <= len(cut)
+    ok = np.array([x is EstimatorStatus.OK for x in status])
+    late = np.min(np.abs(clipped.t[:, None] - clipped.changes[None]), axis=1) > 0.1
+    assert not np.any(ok & late & (clipped.t > 0.5) & (e > 2.0))
+    _, status = _run(panda, method, free)
+    assert not any(x is EstimatorStatus.CLIPPED_CHANNEL for x in status)

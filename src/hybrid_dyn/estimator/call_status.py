@@ -16,9 +16,9 @@ from .config import EstimatorStatus
 _OK, _WARMING_UP, _OUT_OF_RANGE, _FORCE_OUT_OF_RANGE, _WRONG_RATE, _NO_SENSOR, _UNCERTAIN, _CONTACT_AT_START = (
     EstimatorStatus.OK, EstimatorStatus.WARMING_UP, EstimatorStatus.OUT_OF_RANGE, EstimatorStatus.FORCE_OUT_OF_RANGE,
     EstimatorStatus.WRONG_RATE, EstimatorStatus.NO_SENSOR, EstimatorStatus.UNCERTAIN, EstimatorStatus.CONTACT_AT_START)
-_IMPLAUSIBLE_TARE, _FROZEN_SENSOR, _OFF_TOOL, _NEAR_SINGULARITY, _TORQUE_OFFSET = (
+_IMPLAUSIBLE_TARE, _FROZEN_SENSOR, _OFF_TOOL, _NEAR_SINGULARITY, _TORQUE_OFFSET, _CLIPPED = (
     EstimatorStatus.IMPLAUSIBLE_TARE, EstimatorStatus.FROZEN_SENSOR, EstimatorStatus.OFF_TOOL,
-    EstimatorStatus.NEAR_SINGULARITY, EstimatorStatus.TORQUE_OFFSET)
+    EstimatorStatus.NEAR_SINGULARITY, EstimatorStatus.TORQUE_OFFSET, EstimatorStatus.CLIPPED_CHANNEL)
 NO_SIGMA = np.full(3, np.inf)  # no estimate yet (the noise window): an unbounded error bar
 # kalman-fusion's sensors in use, by (base sensor in use, joint torques in use)
 _ACTIVE = {(False, False): (), (True, False): ("base_wrench",), (False, True): ("tau_J",),
@@ -39,7 +39,7 @@ class CallStatus:
 
     def _judge(self, q, qd, qdd, w_in, base_wrench, tau_J, tau_raw=None) -> None:
         """This call's consistency status (``estimator/consistency.py``), first match: an implausible tare,
-        a frozen sensor (on the sensor's own reading ``tau_raw``), a joint-torque offset beyond its bound
+        a frozen sensor (on the sensor's own reading ``tau_raw``), a clipped base-sensor channel, a joint-torque offset beyond its bound
         (``torque_tare.py``: it also shows as a contact off the tool),
         a contact off the tool (on tau_J less the torque model's terms beyond the rigid body)."""
         check, fault = self._check, None
@@ -51,6 +51,8 @@ class CallStatus:
                 fault = _IMPLAUSIBLE_TARE
         if check.frozen(base_wrench, tau_J if tau_raw is None else tau_raw) and fault is None:
             fault = _FROZEN_SENSOR
+        if check.clipped and fault is None:  # a clipped channel's lost force also shows as a contact off the tool
+            fault = _CLIPPED
         if self._tau_tare is not None and self._tau_tare.implausible and fault is None:
             fault = _TORQUE_OFFSET
         if check.check_off_tool(q, qd, qdd, w_in, tau_J) and fault is None:

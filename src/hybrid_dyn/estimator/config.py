@@ -35,6 +35,7 @@ class EstimatorStatus(str, Enum):
     # Consistency: the sensors contradict the model (``estimator/consistency.py``); no estimate to trust.
     IMPLAUSIBLE_TARE = "tare offset implausible"  # the base sensor's offset beyond its plausible bias (a flipped sign)
     FROZEN_SENSOR = "frozen sensor"      # a sensor repeats its reading exactly, call after call
+    CLIPPED_CHANNEL = "F/T channel clipped"  # a base-sensor channel sits at the largest value it read, unchanged
     OFF_TOOL = "contact off the tool"    # the sensors see a load no force at the tool explains
     # The joint-torque methods' damped solve shrinks a force along the weak direction of J_v: no promise there.
     NEAR_SINGULARITY = "near a singularity"
@@ -107,7 +108,8 @@ class EstimatorConfig:
     the largest per-joint offset the window may find (beyond it: status "torque sensor offset"), and their stated
     drift per joint after the tare (the robot descriptions state none: 0.005 Nm/s, a strain-gauge torque sensor's
     order), carried by the error bar through pinv(J_v^T) and followed at a standstill as the base sensor's.
-    frozen_calls: a sensor whose reading repeats exactly this many calls in a row is "frozen sensor".
+    frozen_calls: a sensor whose reading repeats exactly this many calls in a row is "frozen sensor"; a base-sensor
+    channel that does so at the largest magnitude it has read in the stream is "F/T channel clipped".
     off_tool_moment [Nm], off_tool_torque [Nm]: the part of the base moment (base-sensor methods) or of
     the joint torques (joint-torque methods) that no force at the tool explains, above which (held for
     off_tool_seconds [s]) the status is "contact off the tool" (``estimator/consistency.py``).
@@ -199,7 +201,8 @@ class EstimatorConfig:
         for name in ("standstill_speed", "standstill_seconds", "retare_seconds"):
             if not (isinstance(getattr(self, name), (int, float)) and getattr(self, name) > 0):
                 raise UsageError(f"{name} must be > 0, got {getattr(self, name)!r}")
-        for name in ("max_tare_offset", "max_torque_offset", "frozen_calls", "off_tool_moment", "off_tool_torque", "off_tool_seconds"):
+        for name in ("max_tare_offset", "max_torque_offset", "frozen_calls", "off_tool_moment", "off_tool_torque",
+                     "off_tool_seconds"):
             if not (isinstance(getattr(self, name), (int, float)) and getattr(self, name) > 0):
                 raise UsageError(f"{name} must be > 0, got {getattr(self, name)!r}")
         for name in ("motion_sigma_gain", "base_drift_rate", "torque_drift_rate"):

@@ -19,6 +19,7 @@ from .sensors import ClockModel, EncoderModel, ForceTorqueModel, HardwareSensors
 
 TAU_OFFSET = (0.3, 1.5)  # [Nm]: the per-joint torque-sensor offset's magnitude, drawn uniformly, random sign
 TAU_DRIFT = 0.005  # [Nm/s]: the per-joint torque-sensor offset's drift rate, random sign
+CLIP_MARGIN = 1.0  # [N]
 HARDWARE = HardwareSensors(EncoderModel("auto", "difference"), ForceTorqueModel(force_drift=0.025, torque_drift=0.0))
 
 
@@ -29,7 +30,8 @@ class TrustCase:
     the arm moves (0.2 s smooth ramps). fault: None, "flip-base", "freeze-base" (from fault_at [s]),
     "flip-tau", "elbow" (the force acts on the elbow, not the tool), "gap" (5 samples lost at fault_at),
     "tau-offset" (a per-joint torque-sensor offset, TAU_OFFSET), "tau-drift" (a per-joint offset drifting at
-    TAU_DRIFT from 0).
+    TAU_DRIFT from 0), "clip-base" (the base sensor's Fz channel clipped at CLIP_MARGIN beyond the largest
+    magnitude it reads without the contact: a range of +-that).
     declared_resolution: what the estimator is told [rad] ("auto": the description's)."""
 
     seconds: float
@@ -94,6 +96,8 @@ CASES = {
     "tau-offset": TrustCase(10.0, _steps((4.0,), 10.0, 4.0, 10.0), moving=((1.0, 10.0),), fault="tau-offset"),
     "tau-drift": TrustCase(120.0, _steps((20.0, 60.0, 100.0), 8.0, 4.0, 120.0), moving=((0.6, 50.0), (70.0, 120.0)),
                            fault="tau-drift"),
+    # 10. the base sensor's Fz channel clipped at its range while a contact pushes it beyond, at a standstill.
+    "clip-base": TrustCase(10.0, _steps((4.0,), 10.0, 4.0, 10.0), fault="clip-base"),
     "start-moving": TrustCase(10.0, _steps((4.0,), 10.0, 2.0, 10.0), moving=((0.0, 10.0),),
                               sensors=replace(HARDWARE, encoder=EncoderModel(0.0, "exact"))),
 }
@@ -180,6 +184,10 @@ def build(robot, case: TrustCase | str, seed: int = 0) -> TrustStream:
         bw = -bw
     elif c.fault == "flip-tau":
         tj = -tj
+    elif c.fault == "clip-base":
+        lim = np.abs(bw[mag == 0, 2]).max() + CLIP_MARGIN
+        bw = bw.copy()
+        bw[:, 2] = np.clip(bw[:, 2], -lim, lim)
     elif c.fault == "tau-offset":
         tj = tj + rng.choice([-1.0, 1.0], robot.nv) * rng.uniform(*TAU_OFFSET, robot.nv)
     elif c.fault == "tau-drift":
@@ -198,4 +206,4 @@ def build(robot, case: TrustCase | str, seed: int = 0) -> TrustStream:
     return TrustStream(r.t, r.q, r.qd, bw, tj, truth, np.sort(changes), arrives, c.declared_resolution)
 
 
-__all__ = ["CASES", "HARDWARE", "TAU_DRIFT", "TAU_OFFSET", "TrustCase", "TrustStream", "build", "kinematics"]
+__all__ = ["CASES", "CLIP_MARGIN", "HARDWARE", "TAU_DRIFT", "TAU_OFFSET", "TrustCase", "TrustStream", "build", "kinematics"]
