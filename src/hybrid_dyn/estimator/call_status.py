@@ -19,6 +19,10 @@ _OK, _WARMING_UP, _OUT_OF_RANGE, _FORCE_OUT_OF_RANGE, _WRONG_RATE, _NO_SENSOR, _
 _IMPLAUSIBLE_TARE, _FROZEN_SENSOR, _OFF_TOOL, _NEAR_SINGULARITY, _TORQUE_OFFSET, _CLIPPED = (
     EstimatorStatus.IMPLAUSIBLE_TARE, EstimatorStatus.FROZEN_SENSOR, EstimatorStatus.OFF_TOOL,
     EstimatorStatus.NEAR_SINGULARITY, EstimatorStatus.TORQUE_OFFSET, EstimatorStatus.CLIPPED_CHANNEL)
+# A follower's averaged lag [in drift rate x retare_seconds] within which it verifies its tare: one of time constant
+# retare_seconds lags a drift at the stated rate by 1 without noise; its per-call step clipped by the sensor's noise,
+# it lagged by 2.6 on the trust bench's standstill; one still catching up after a minute's motion, by 12 and more.
+LAG_FACTOR = 4.0
 NO_SIGMA = np.full(3, np.inf)  # no estimate yet (the noise window): an unbounded error bar
 # kalman-fusion's sensors in use, by (base sensor in use, joint torques in use)
 _ACTIVE = {(False, False): (), (True, False): ("base_wrench",), (False, True): ("tau_J",),
@@ -68,10 +72,26 @@ class CallStatus:
         contact held that still and that small is what it may absorb."""
         c = self.config
         if self._still_and_free(qd, f):
-            self._tare.follow(q, base_wrench, 1.0 / (c.retare_seconds * c.call_hz), self._follow_step)
-            # A follower of time constant tau lags a drift at the stated rate r by r tau: the error bar's drift term
-            # restarts from there, not from 0 (it said 1 % of a ten-minute standstill's calls within 2 sigma).
-            self._tared_at = self._calls - c.retare_seconds * c.call_hz
+            lag = self._tare.follow(q, base_wrench, 1.0 / (c.retare_seconds * c.call_hz), self._follow_step)
+            self._verify_base_tare(lag[:3])
+
+    def _verify_base_tare(self, lag) -> None:
+        """The follower's force lag [N] averaged over this standstill (time constant retare_seconds, from its
+        first call): once it has run that long, a lag within LAG_FACTOR x base_drift_rate x retare_seconds
+        verifies the tare: the error bar's drift term restarts from that lag, not from 0. A follower still catching up (after a long motion, or
+        a contact that builds as slowly as a drift) verifies nothing: its drift term goes on."""
+        c = self.config
+        n = c.retare_seconds * c.call_hz
+        avg = self._base_lag
+        if self._calls != self._base_followed[0] + 1:  # a new standstill: its average starts here
+            avg[:], self._base_followed[1] = lag, 0
+        avg += (lag - avg) / n
+        self._base_followed[:] = self._calls, self._base_followed[1] + 1
+        if self._base_followed[1] < n:
+            return
+        size = math.sqrt(float(avg.dot(avg)))
+        if size <= LAG_FACTOR * c.base_drift_rate * c.retare_seconds:
+            self._tared_at = self._calls - size / max(c.base_drift_rate, 1e-12) * c.call_hz
 
     def _follow_torque_offset(self, q, qd, tau, f) -> None:
         """The joint-torque offsets follow the sensors (tau [Nm], before their tare) as the base sensor's tare

@@ -99,8 +99,9 @@ class EstimatorConfig:
     joint is slower than standstill_speed for standstill_seconds and the estimate is below
     tare_contact_force, the base sensor's tare follows its drift with time constant retare_seconds
     (math.inf: it does not), never faster than twice base_drift_rate (so that it catches up with a drift at that
-    rate): a contact that builds faster is not tared away. Such a call verifies the tare (the drift term starts
-    again from the follower's lag, base_drift_rate x retare_seconds).
+    rate): a contact that builds faster is not tared away. The follower's lag, averaged over retare_seconds of a
+    standstill, verifies the tare once within twice base_drift_rate x retare_seconds (the drift term starts again
+    from there).
 
     max_tare_offset [N]: the largest base-sensor offset (force norm) a tare may find; beyond it the sensor
     is not what the model says (a flipped sign, a wrong frame): status "tare offset implausible".

@@ -229,6 +229,8 @@ class TipForceEstimator(CallStatus, StreamStarts):
         self._tared_at = None  # the call at which the base sensor's offset was last set
         self.window_problem = None  # why the last noise window was not trusted (a contact), until one is
         self._still_calls = 0  # consecutive calls at a standstill (the drift-following tare)
+        self._base_lag = np.zeros(3)  # the base follower's force lag [N], averaged over this standstill
+        self._base_followed = [-2, 0]  # the last call that followed, and how many in a row
         self._fault = None  # the consistency status of this call (``estimator/consistency.py``), or None
         if self._check is not None:
             self._check.reset()

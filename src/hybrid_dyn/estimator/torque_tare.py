@@ -22,10 +22,9 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from .call_status import within
+from .call_status import LAG_FACTOR, within
 from .consistency import CHECK_EVERY
 
-LAG_FACTOR = 2.0  # the follower's lag at which it verifies the offsets, in drift_rate x retare_seconds
 
 
 def pinv_jv_t(robot, data, q) -> tuple[np.ndarray, np.ndarray]:
@@ -110,7 +109,8 @@ class TorqueTare:
     def follow(self, q, tau, calls: int, retare_seconds: float) -> None:
         """A standstill call with no contact: the offset follows tau - g(q) [Nm] with time constant
         retare_seconds [s], at most twice the stated drift per call; verified once its averaged lag is within
-        LAG_FACTOR x what the stated drift leaves behind a follower of that time constant."""
+        LAG_FACTOR x what the stated drift leaves behind a follower of that time constant: the drift term restarts
+        from that lag."""
         if self._verified is None or self.implausible:
             return
         lag = tau - pin.computeGeneralizedGravity(self.robot.model, self._data_g, q) - self.offset
@@ -121,8 +121,9 @@ class TorqueTare:
             self._lag[:], self._followed = lag, 0
         self._lag += (lag - self._lag) / n
         self._last_follow, self._followed = calls, self._followed + 1
-        if self._followed >= n and np.abs(self._lag).max() <= LAG_FACTOR * self.drift_rate * retare_seconds:
-            self._verified = max(self._verified, calls - n)
+        size = float(np.abs(self._lag).max())
+        if self._followed >= n and size <= LAG_FACTOR * self.drift_rate * retare_seconds:
+            self._verified = max(self._verified, calls - size / max(self.drift_rate, 1e-12) * self.call_hz)
 
     def drift_sigma(self, q, calls: int) -> np.ndarray:
         """The drift term (3,) [N] at this call: drift_rate x seconds since verified through pinv(J_v^T) (a new
