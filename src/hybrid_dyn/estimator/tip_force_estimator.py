@@ -228,6 +228,8 @@ class TipForceEstimator(CallStatus, StreamStarts):
         self._motion = 0.0  # this call's joint-acceleration norm [rad/s^2], for the error bar
         self._tared_at = None  # the call at which the base sensor's offset was last set
         self.window_problem = None  # why the last noise window was not trusted (a contact), until one is
+        self._windows = 0  # noise windows ended since the reset
+        self._start_level = None  # the contact-free start's base residual [N], where a contact began in its window
         self._still_calls = 0  # consecutive calls at a standstill (the drift-following tare)
         self._base_lag = np.zeros(3)  # the base follower's force lag [N], averaged over this standstill
         self._base_followed = [-2, 0]  # the last call that followed, and how many in a row
@@ -400,18 +402,7 @@ class TipForceEstimator(CallStatus, StreamStarts):
             self._window.record(k, q, qd, qdd, base_wrench, tau_J)
             self._stream.window_step(q, qd, qdd, base_wrench, tau_J)
             if self._calls == self._window_calls:  # the window's last call checks it and measures its noise...
-                c = self.config
-                # The model's calibrated error is no contact: twice its sigma bounds what the torques may show.
-                model = None if self._model_sigma is None else 2.0 * float(np.linalg.norm(self._model_sigma))
-                problem = self._window.contact(self._tare, c.tare_contact_force, c.off_tool_moment, c.tare_held_force,
-                                               torque_limit=model)
-                if problem is None and tau_tare is not None:
-                    problem = tau_tare.close(self._calls)
-                if problem is not None:
-                    self._restart_window(problem)
-                else:
-                    self.window_problem = None
-                    self._window_noise = self._window.measure(self._joint)
+                self._end_window()
             return self._finish(self._last_good, True, wrong_rate, True, estimated=False)
         if self._window_noise is not None:  # ...and the next one applies the rule: no call does both
             self._close_window(self._window_noise)

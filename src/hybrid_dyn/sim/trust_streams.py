@@ -98,6 +98,10 @@ CASES = {
                            fault="tau-drift"),
     # 10. the base sensor's Fz channel clipped at its range while a contact pushes it beyond, at a standstill.
     "clip-base": TrustCase(10.0, _steps((4.0,), 10.0, 4.0, 10.0), fault="clip-base"),
+    # 11. moving from the first sample, nothing touching it in the documented first 0.5 s, a 3.9 N contact from
+    # 0.501 s (inside the start-up window, which waits for the joint-state filter) to 4 s.
+    "start-contact": TrustCase(8.0, ((0.0, 0.0), (0.501, 0.0), (0.502, 3.9), (4.0, 3.9), (4.001, 0.0), (8.0, 0.0)),
+                               moving=((0.0, 8.0),)),
     "start-moving": TrustCase(10.0, _steps((4.0,), 10.0, 2.0, 10.0), moving=((0.0, 10.0),),
                               sensors=replace(HARDWARE, encoder=EncoderModel(0.0, "exact"))),
 }
