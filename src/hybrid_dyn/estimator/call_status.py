@@ -134,8 +134,10 @@ class CallStatus:
         s0, s1, s2 = self.last_sigma.tolist()  # floats: a numpy max costs a microsecond; NaN still fails
         limit = self.max_sigma
         if status is _OK and not (s0 <= limit and s1 <= limit and s2 <= limit):
-            # Uncertain only by the joint-torque offsets' drift since verified: say so (a standstill re-verifies).
-            status = _TORQUE_OFFSET if self._tau_sigma is not None and estimated and sensors <= limit else _UNCERTAIN
+            # Uncertain by the joint-torque offsets' drift since verified (the others' within the bound, the drift's
+            # at least half of it): say so (a standstill re-verifies).
+            status = _TORQUE_OFFSET if self._tau_sigma is not None and estimated and sensors <= limit and float(
+                self._tau_sigma.max()) >= 0.5 * limit else _UNCERTAIN
         if self._calls < self._warmup_calls:
             status = _WARMING_UP if self.window_problem is None else _CONTACT_AT_START
         if self._fault is not None and estimated:

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..analytic.acceleration import CausalAccelerationFilter, cutoff_grid, default_qdd_cutoff
-from ..analytic.error_bar import ErrorBar, qdd_norm
+from ..analytic.error_bar import ErrorBar
 from ..analytic.joint_state import joint_filter_for, with_joint_state_noise
 from ..analytic.method_declaration import spec_noise
 from ..analytic.methods import DEFAULT_METHOD, TIP_FORCE_METHODS
@@ -369,7 +369,7 @@ class TipForceEstimator(CallStatus, StreamStarts):
             self._check_encoder_grid(q)
         if self._joint is not None:
             q, qd, qdd_joint = self._joint.step(q)
-            self._motion = qdd_norm(qdd_joint)
+            self._motion = self._error_bar.motion(qdd_joint, self._needs_qdd)
             if self._joint_wait:
                 self._joint_wait -= 1
                 return self._finish(self._last_good, True, wrong_rate, True, estimated=False)

@@ -32,7 +32,8 @@ class TrustCase:
     "tau-offset" (a per-joint torque-sensor offset, TAU_OFFSET), "tau-drift" (a per-joint offset drifting at
     TAU_DRIFT from 0), "clip-base" (the base sensor's Fz channel clipped at CLIP_MARGIN beyond the largest
     magnitude it reads without the contact: a range of +-that).
-    declared_resolution: what the estimator is told [rad] ("auto": the description's)."""
+    declared_resolution: what the estimator is told [rad] ("auto": the description's). amplitude: the range
+    [rad] the per-joint sines' amplitudes are drawn from (``kinematics``)."""
 
     seconds: float
     force: tuple = ()
@@ -42,6 +43,7 @@ class TrustCase:
     fault: str | None = None
     fault_at: float = 0.0
     declared_resolution: float | str = "auto"
+    amplitude: tuple = (0.05, 0.2)
 
 
 def _ramp(t0, t1, top, hold, seconds):
@@ -102,6 +104,9 @@ CASES = {
     # 0.501 s (inside the start-up window, which waits for the joint-state filter) to 4 s.
     "start-contact": TrustCase(8.0, ((0.0, 0.0), (0.501, 0.0), (0.502, 3.9), (4.0, 3.9), (4.001, 0.0), (8.0, 0.0)),
                                moving=((0.0, 8.0),)),
+    # 12. fast starts and stops: up to ~1 rad/s per joint, five times 1 s of motion, no contact.
+    "fast-starts": TrustCase(10.0, moving=((0.6, 1.6), (2.6, 3.6), (4.6, 5.6), (6.6, 7.6), (8.6, 9.6)),
+                             amplitude=(0.3, 0.5)),
     "start-moving": TrustCase(10.0, _steps((4.0,), 10.0, 2.0, 10.0), moving=((0.0, 10.0),),
                               sensors=replace(HARDWARE, encoder=EncoderModel(0.0, "exact"))),
 }
@@ -161,7 +166,7 @@ def build(robot, case: TrustCase | str, seed: int = 0) -> TrustStream:
     rng = np.random.default_rng(seed)
     n = int(round(c.seconds * 1000))
     t = np.arange(n) * 1e-3
-    q, qd, qdd = kinematics(robot, t, c.moving, rng)
+    q, qd, qdd = kinematics(robot, t, c.moving, rng, c.amplitude)
     bt, bf = np.array(c.force, float).reshape(-1, 2).T if c.force else (np.array([0.0]), np.array([0.0]))
     mag = np.interp(t, bt, bf)
     u = np.asarray(c.direction, float) / np.linalg.norm(c.direction)
