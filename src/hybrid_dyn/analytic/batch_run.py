@@ -7,7 +7,7 @@ import numpy as np
 from ..description.spec import resolve_encoder_resolution
 from .acceleration import causal_acceleration, default_qdd_cutoff
 from .bandwidth import measure_window
-from .error_bar import ErrorBar, qdd_norm
+from .error_bar import ErrorBar
 from .joint_state import joint_filter_for, with_joint_state_noise
 from .method_declaration import Method, MethodStream
 from .methods import TIP_FORCE_METHODS
@@ -116,7 +116,7 @@ def _batch_sigma(m: Method, stream: MethodStream, forces, start: int, rate_hz: f
     sigma = np.full_like(forces, np.inf)
     settle = 0 if m.needs_qdd else stream.settle_calls(m.reads)
     for k in range(start + settle, len(forces)):
-        motion = 0.0 if qdd_joint is None else qdd_norm(qdd_joint[k])
+        motion = 0.0 if qdd_joint is None else error_bar.motion(qdd_joint[k], m.needs_qdd)
         since = (k - start) / rate_hz if tared else None
         sigma[k] = error_bar.update(forces[k], motion, since)
     return sigma

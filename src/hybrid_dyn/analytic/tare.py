@@ -77,15 +77,17 @@ class StreamingTare:
                 self.found = self.offset.copy()
         return base_wrench - self.offset
 
-    def follow(self, q, base_wrench, rate: float, max_step: np.ndarray) -> None:
+    def follow(self, q, base_wrench, rate: float, max_step: np.ndarray) -> np.ndarray:
         """At a standstill with no contact: move the offset toward this sample's residual (measured minus
         the model's gravity wrench at q) by the fraction ``rate`` (dt / tau), but by no more than
         ``max_step`` (6,) [N, Nm] per axis: the sensor's stated drift in one call. A slow re-tare that tracks
         the bias drift and cannot absorb a contact that builds faster than the sensor drifts. The caller
-        decides that the arm stands still and that nothing is seen touching it."""
+        decides that the arm stands still and that nothing is seen touching it. Returns the lag (6,) [N, Nm]:
+        this residual less the offset before the step."""
         zero = np.zeros_like(q)
-        step = rate * (base_wrench - self.robot.base_wrench_single(q, zero, zero) - self.offset)
-        self.offset += np.clip(step, -max_step, max_step)
+        lag = base_wrench - self.robot.base_wrench_single(q, zero, zero) - self.offset
+        self.offset += np.clip(rate * lag, -max_step, max_step)
+        return lag
 
     def residual_change(self, threshold: float, segments: int = 5) -> float | None:
         """``residual_change`` on this window's residuals, once it is full (None before)."""

@@ -34,11 +34,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 from scipy.optimize import nnls
 
 from ..errors import UsageError
 from .consistency import CHECK_EVERY  # the model term's Jacobian as often as the off-tool check's
+from .torque_tare import pinv_jv_t
 from ..outputs import unique_temp
 
 FILE_FORMAT = "hybrid_dyn.estimator_calibration"
@@ -222,14 +222,12 @@ class ModelError:
             return self.sigma
         self._k = 0
         r = self.robot
-        jv = pin.computeFrameJacobian(r.model, self._data, q, r.tool_frame_id, pin.LOCAL_WORLD_ALIGNED)[:3]
-        d = self.cal.joint_sigma(qd, qdd) * self.scale
-        cov = self._R * np.outer(d, d)
-        try:
-            p = np.linalg.solve(jv @ jv.T, jv)  # pinv(J_v^T) (3, nv)
-        except np.linalg.LinAlgError:
+        jv, p = pinv_jv_t(r, self._data, q)
+        if not np.isfinite(p[0, 0]):  # J_v singular
             self.sigma = np.full(3, np.inf)
             return self.sigma
+        d = self.cal.joint_sigma(qd, qdd) * self.scale
+        cov = self._R * np.outer(d, d)
         self.sigma = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", p, cov, p), 0.0, None))
         n = np.eye(r.nv) - jv.T @ p
         self.off_tool_bound = OFF_TOOL_SIGMAS * float(np.sqrt(max(np.trace(n @ cov @ n.T), 0.0)))

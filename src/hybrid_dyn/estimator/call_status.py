@@ -16,9 +16,13 @@ from .config import EstimatorStatus
 _OK, _WARMING_UP, _OUT_OF_RANGE, _FORCE_OUT_OF_RANGE, _WRONG_RATE, _NO_SENSOR, _UNCERTAIN, _CONTACT_AT_START = (
     EstimatorStatus.OK, EstimatorStatus.WARMING_UP, EstimatorStatus.OUT_OF_RANGE, EstimatorStatus.FORCE_OUT_OF_RANGE,
     EstimatorStatus.WRONG_RATE, EstimatorStatus.NO_SENSOR, EstimatorStatus.UNCERTAIN, EstimatorStatus.CONTACT_AT_START)
-_IMPLAUSIBLE_TARE, _FROZEN_SENSOR, _OFF_TOOL, _NEAR_SINGULARITY = (
+_IMPLAUSIBLE_TARE, _FROZEN_SENSOR, _OFF_TOOL, _NEAR_SINGULARITY, _TORQUE_OFFSET, _CLIPPED = (
     EstimatorStatus.IMPLAUSIBLE_TARE, EstimatorStatus.FROZEN_SENSOR, EstimatorStatus.OFF_TOOL,
-    EstimatorStatus.NEAR_SINGULARITY)
+    EstimatorStatus.NEAR_SINGULARITY, EstimatorStatus.TORQUE_OFFSET, EstimatorStatus.CLIPPED_CHANNEL)
+# A follower's averaged lag [in drift rate x retare_seconds] within which it verifies its tare: one of time constant
+# retare_seconds lags a drift at the stated rate by 1 without noise; its per-call step clipped by the sensor's noise,
+# it lagged by 2.6 on the trust bench's standstill; one still catching up after a minute's motion, by 12 and more.
+LAG_FACTOR = 4.0
 NO_SIGMA = np.full(3, np.inf)  # no estimate yet (the noise window): an unbounded error bar
 # kalman-fusion's sensors in use, by (base sensor in use, joint torques in use)
 _ACTIVE = {(False, False): (), (True, False): ("base_wrench",), (False, True): ("tau_J",),
@@ -39,8 +43,9 @@ class CallStatus:
 
     def _judge(self, q, qd, qdd, w_in, base_wrench, tau_J, tau_raw=None) -> None:
         """This call's consistency status (``estimator/consistency.py``), first match: an implausible tare,
-        a frozen sensor (on the sensor's own reading ``tau_raw``), a contact off the tool (on tau_J less the
-        torque model's terms beyond the rigid body)."""
+        a frozen sensor (on the sensor's own reading ``tau_raw``), a clipped base-sensor channel, a joint-torque offset beyond its bound
+        (``torque_tare.py``: it also shows as a contact off the tool),
+        a contact off the tool (on tau_J less the torque model's terms beyond the rigid body)."""
         check, fault = self._check, None
         if w_in is not None and self._tare is not None and self._tare.found is not None:
             # The offset the window found: a flipped sign or a wrong frame shows there. The drift followed since
@@ -50,6 +55,10 @@ class CallStatus:
                 fault = _IMPLAUSIBLE_TARE
         if check.frozen(base_wrench, tau_J if tau_raw is None else tau_raw) and fault is None:
             fault = _FROZEN_SENSOR
+        if check.clipped and fault is None:  # a clipped channel's lost force also shows as a contact off the tool
+            fault = _CLIPPED
+        if self._tau_tare is not None and self._tau_tare.implausible and fault is None:
+            fault = _TORQUE_OFFSET
         if check.check_off_tool(q, qd, qdd, w_in, tau_J) and fault is None:
             fault = _OFF_TOOL
         if check.singular and fault is None:
@@ -62,17 +71,45 @@ class CallStatus:
         ``tare_contact_force``), the tare follows the sensor with time constant ``retare_seconds``: a
         contact held that still and that small is what it may absorb."""
         c = self.config
-        if c.retare_seconds == math.inf:  # told not to follow
+        if self._still_and_free(qd, f):
+            lag = self._tare.follow(q, base_wrench, 1.0 / (c.retare_seconds * c.call_hz), self._follow_step)
+            self._verify_base_tare(lag[:3])
+
+    def _verify_base_tare(self, lag) -> None:
+        """The follower's force lag [N] averaged over this standstill (time constant retare_seconds, from its
+        first call): once it has run that long, a lag within LAG_FACTOR x base_drift_rate x retare_seconds
+        verifies the tare: the error bar's drift term restarts from that lag, not from 0. A follower still catching up (after a long motion, or
+        a contact that builds as slowly as a drift) verifies nothing: its drift term goes on."""
+        c = self.config
+        n = c.retare_seconds * c.call_hz
+        avg = self._base_lag
+        if self._calls != self._base_followed[0] + 1:  # a new standstill: its average starts here
+            avg[:], self._base_followed[1] = lag, 0
+        avg += (lag - avg) / n
+        self._base_followed[:] = self._calls, self._base_followed[1] + 1
+        if self._base_followed[1] < n:
             return
+        size = math.sqrt(float(avg.dot(avg)))
+        if size <= LAG_FACTOR * c.base_drift_rate * c.retare_seconds:
+            self._tared_at = self._calls - size / max(c.base_drift_rate, 1e-12) * c.call_hz
+
+    def _follow_torque_offset(self, q, qd, tau, f) -> None:
+        """The joint-torque offsets follow the sensors (tau [Nm], before their tare) as the base sensor's tare
+        does, on the same standstill (``torque_tare.py``)."""
+        if self._still_and_free(qd, f):
+            self._tau_tare.follow(q, tau, self._calls, self.config.retare_seconds)
+
+    def _still_and_free(self, qd, f) -> bool:
+        """Whether a tare may follow its sensor at this call: following not switched off, every joint slower than
+        ``standstill_speed`` [rad/s] for ``standstill_seconds`` [s], the estimate f below ``tare_contact_force`` [N]."""
+        c = self.config
+        if c.retare_seconds == math.inf:  # told not to follow
+            return False
         if within(qd, c.standstill_speed):
             self._still_calls += 1
         else:
             self._still_calls = 0
-        if self._still_calls >= c.standstill_seconds * c.call_hz and f.dot(f) < c.tare_contact_force ** 2:
-            self._tare.follow(q, base_wrench, 1.0 / (c.retare_seconds * c.call_hz), self._follow_step)
-            # A follower of time constant tau lags a drift at the stated rate r by r tau: the error bar's drift term
-            # restarts from there, not from 0 (it said 1 % of a ten-minute standstill's calls within 2 sigma).
-            self._tared_at = self._calls - c.retare_seconds * c.call_hz
+        return self._still_calls >= c.standstill_seconds * c.call_hz and f.dot(f) < c.tare_contact_force ** 2
 
     def _finish(self, f, in_range, wrong_rate, usable, estimated=True) -> np.ndarray:
         """The status of this call's estimate f, and f (a copy); a force within the bound is kept.
@@ -80,6 +117,7 @@ class CallStatus:
         if self._calls < self._warmup_calls:  # the method's own transient: no error model of it
             estimated = False
             self._error_bar.reset()
+        sensors = 0.0  # the largest sigma before the joint-torque offsets' drift term [N]
         if estimated:
             since = None
             if self._tared_at is not None:
@@ -87,13 +125,19 @@ class CallStatus:
             self.last_sigma = self._error_bar.update(f, self._motion, since)
             if self._model_sigma is not None:  # the model's error, independent of the sensors'
                 self.last_sigma = np.sqrt(self.last_sigma * self.last_sigma + self._model_sigma * self._model_sigma)
+            if self._tau_sigma is not None:  # the joint-torque offsets' drift since verified, likewise independent
+                sensors = float(self.last_sigma.max())
+                self.last_sigma = np.sqrt(self.last_sigma * self.last_sigma + self._tau_sigma * self._tau_sigma)
         else:
             self.last_sigma = NO_SIGMA.copy()
         status = _OK if in_range else _OUT_OF_RANGE
         s0, s1, s2 = self.last_sigma.tolist()  # floats: a numpy max costs a microsecond; NaN still fails
         limit = self.max_sigma
         if status is _OK and not (s0 <= limit and s1 <= limit and s2 <= limit):
-            status = _UNCERTAIN
+            # Uncertain by the joint-torque offsets' drift since verified (the others' within the bound, the drift's
+            # at least half of it): say so (a standstill re-verifies).
+            status = _TORQUE_OFFSET if self._tau_sigma is not None and estimated and sensors <= limit and float(
+                self._tau_sigma.max()) >= 0.5 * limit else _UNCERTAIN
         if self._calls < self._warmup_calls:
             status = _WARMING_UP if self.window_problem is None else _CONTACT_AT_START
         if self._fault is not None and estimated:

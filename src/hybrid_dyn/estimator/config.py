@@ -35,9 +35,13 @@ class EstimatorStatus(str, Enum):
     # Consistency: the sensors contradict the model (``estimator/consistency.py``); no estimate to trust.
     IMPLAUSIBLE_TARE = "tare offset implausible"  # the base sensor's offset beyond its plausible bias (a flipped sign)
     FROZEN_SENSOR = "frozen sensor"      # a sensor repeats its reading exactly, call after call
+    CLIPPED_CHANNEL = "F/T channel clipped"  # a base-sensor channel sits at the largest value it read, unchanged
     OFF_TOOL = "contact off the tool"    # the sensors see a load no force at the tool explains
     # The joint-torque methods' damped solve shrinks a force along the weak direction of J_v: no promise there.
     NEAR_SINGULARITY = "near a singularity"
+    # The joint-torque sensors' offsets (``estimator/torque_tare.py``): found beyond max_torque_offset, or drifted
+    # since their last standstill beyond what the error bar may carry.
+    TORQUE_OFFSET = "torque sensor offset"
 
 
 def _auto_or_positive(name: str, value, unit: str) -> None:
@@ -95,12 +99,18 @@ class EstimatorConfig:
     joint is slower than standstill_speed for standstill_seconds and the estimate is below
     tare_contact_force, the base sensor's tare follows its drift with time constant retare_seconds
     (math.inf: it does not), never faster than twice base_drift_rate (so that it catches up with a drift at that
-    rate): a contact that builds faster is not tared away. Such a call verifies the tare (the drift term starts
-    again from the follower's lag, base_drift_rate x retare_seconds).
+    rate): a contact that builds faster is not tared away. The follower's lag, averaged over retare_seconds of a
+    standstill, verifies the tare once within twice base_drift_rate x retare_seconds (the drift term starts again
+    from there).
 
     max_tare_offset [N]: the largest base-sensor offset (force norm) a tare may find; beyond it the sensor
     is not what the model says (a flipped sign, a wrong frame): status "tare offset implausible".
-    frozen_calls: a sensor whose reading repeats exactly this many calls in a row is "frozen sensor".
+    max_torque_offset [Nm], torque_drift_rate [Nm/s]: the joint-torque sensors' offsets (``estimator/torque_tare.py``):
+    the largest per-joint offset the window may find (beyond it: status "torque sensor offset"), and their stated
+    drift per joint after the tare (the robot descriptions state none: 0.005 Nm/s, a strain-gauge torque sensor's
+    order), carried by the error bar through pinv(J_v^T) and followed at a standstill as the base sensor's.
+    frozen_calls: a sensor whose reading repeats exactly this many calls in a row is "frozen sensor"; a base-sensor
+    channel that does so at the largest magnitude it has read in the stream is "F/T channel clipped".
     off_tool_moment [Nm], off_tool_torque [Nm]: the part of the base moment (base-sensor methods) or of
     the joint torques (joint-torque methods) that no force at the tool explains, above which (held for
     off_tool_seconds [s]) the status is "contact off the tool" (``estimator/consistency.py``).
@@ -146,6 +156,8 @@ class EstimatorConfig:
     standstill_seconds: float = 0.2
     retare_seconds: float = 2.0
     max_tare_offset: float = 20.0
+    max_torque_offset: float = 3.0
+    torque_drift_rate: float = 0.005
     frozen_calls: int = 20
     off_tool_moment: float = 1.0
     off_tool_torque: float = 1.0
@@ -190,10 +202,11 @@ class EstimatorConfig:
         for name in ("standstill_speed", "standstill_seconds", "retare_seconds"):
             if not (isinstance(getattr(self, name), (int, float)) and getattr(self, name) > 0):
                 raise UsageError(f"{name} must be > 0, got {getattr(self, name)!r}")
-        for name in ("max_tare_offset", "frozen_calls", "off_tool_moment", "off_tool_torque", "off_tool_seconds"):
+        for name in ("max_tare_offset", "max_torque_offset", "frozen_calls", "off_tool_moment", "off_tool_torque",
+                     "off_tool_seconds"):
             if not (isinstance(getattr(self, name), (int, float)) and getattr(self, name) > 0):
                 raise UsageError(f"{name} must be > 0, got {getattr(self, name)!r}")
-        for name in ("motion_sigma_gain", "base_drift_rate"):
+        for name in ("motion_sigma_gain", "base_drift_rate", "torque_drift_rate"):
             if not (isinstance(getattr(self, name), (int, float)) and getattr(self, name) >= 0):
                 raise UsageError(f"{name} must be >= 0, got {getattr(self, name)!r}")
         for name in ("tare_contact_force", "tare_held_force"):

@@ -7,6 +7,8 @@ things it cannot explain that way, each a status of its own (``EstimatorStatus``
   with its sign flipped, or mounted in another frame, reads twice the arm's weight off (341 N on the Panda);
 - **frozen sensor**: a sensor repeats its reading exactly for ``frozen_calls`` calls; a live sensor's noise
   never does;
+- **F/T channel clipped**: one base-sensor channel does so at the largest magnitude it has read in the stream
+  (its range's end), while the others live: the force beyond the range is lost;
 - **contact off the tool**: a force at the tool point p loads the base with the moment p x F and the
   joints with J_v^T F. What the base sensor's external wrench (f, m) leaves in m - p x f, or what the
   joint torques' external part r leaves outside the range of J_v^T (r - J_v^T pinv(J_v^T) r), no tip
@@ -45,6 +47,22 @@ def _repeat(prev, x) -> bool:  # pragma: no cover (compiled)
     return same
 
 
+@njit(cache=True)
+def _clipped(prev, x, counts, peak, calls) -> bool:  # pragma: no cover (compiled)
+    """Per channel: count x's exact repeats (prev becomes x) and its largest magnitude so far (peak); whether a
+    channel has repeated ``calls`` times at its peak (a nonzero one)."""
+    out = False
+    for i in range(x.shape[0]):
+        a = abs(x[i])
+        if a > peak[i]:
+            peak[i] = a
+        counts[i] = counts[i] + 1 if x[i] == prev[i] else 0
+        prev[i] = x[i]
+        if counts[i] >= calls and a >= peak[i] and a > 0.0:
+            out = True
+    return out
+
+
 class Consistency:
     """Per-stream state of the checks; ``fault`` holds the status name of the current fault, or None."""
 
@@ -53,6 +71,7 @@ class Consistency:
         self._model_error = model_error  # a calibrated model term: its part outside range(J_v^T) widens the bound
         self._reads_base, self._reads_tau = reads_base, reads_tau
         self._prev_w, self._prev_tau = np.full(6, np.nan), np.full(robot.nv, np.nan)
+        self._channels = (np.full(6, np.nan), np.zeros(6, np.int64), np.zeros(6))  # last value, repeats, peak
         self._frozen_calls = config.frozen_calls
         self._data = robot.model.createData()
         self._hold = max(1, int(round(config.off_tool_seconds * config.call_hz / CHECK_EVERY)))
@@ -63,10 +82,14 @@ class Consistency:
             gain = min(CHECK_GAIN, 0.8 * config.call_hz / CHECK_EVERY)
             self._observer = SampledObserver(robot, gain, 1.0 / config.call_hz)
         _repeat(np.zeros(1), np.zeros(1))  # compile now
+        _clipped(np.zeros(1), np.zeros(1), np.zeros(1, np.int64), np.zeros(1), 1)
         self.reset()
 
     def reset(self) -> None:
         self._repeats_w = self._repeats_tau = 0
+        self.clipped = False  # a base-sensor channel clipped at this call
+        prev, counts, peak = self._channels
+        prev[:], counts[:], peak[:] = np.nan, 0, 0.0
         self._over = 0
         self._k = CHECK_EVERY - 1  # the first call checks
         self.off_tool = False
@@ -80,11 +103,13 @@ class Consistency:
             self._observer.reset()
 
     def frozen(self, base_wrench, tau_J) -> bool:
-        """Count this call's exact repeats per sensor; True while one has repeated ``frozen_calls`` times."""
+        """Count this call's exact repeats per sensor; True while one has repeated ``frozen_calls`` times. Sets
+        ``clipped``: a base-sensor channel repeats at its peak."""
         out = False  # written out per sensor: this runs every call
         if base_wrench is not None and self._reads_base:
             self._repeats_w = self._repeats_w + 1 if _repeat(self._prev_w, base_wrench) else 0
             out = self._repeats_w >= self._frozen_calls
+            self.clipped = _clipped(*self._channels[:1], base_wrench, *self._channels[1:], self._frozen_calls)
         if tau_J is not None and self._reads_tau:
             self._repeats_tau = self._repeats_tau + 1 if _repeat(self._prev_tau, tau_J) else 0
             out = out or self._repeats_tau >= self._frozen_calls

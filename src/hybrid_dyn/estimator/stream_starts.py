@@ -15,11 +15,45 @@ from ..analytic.bandwidth import QDD_CUTOFF
 class StreamStarts:
     """The estimator's start and restart steps (a mixin of ``TipForceEstimator``)."""
 
+    def _end_window(self) -> None:
+        """The window's last call: is it trusted (no contact in it), and its noise. A contact that began in the
+        first window (its residual steps) leaves that window's first fifth as the documented contact-free start's
+        level: a later window is trusted only at that level (to the stated drift since), so that one inside a
+        contact held on does not tare it in. A window at that level that its moments refuse (a force held at the
+        moving tool) shows the level was a contact's (a press from power-up): it is dropped."""
+        c = self.config
+        # The model's calibrated error is no contact: twice its sigma bounds what the torques may show.
+        model = None if self._model_sigma is None else 2.0 * float(np.linalg.norm(self._model_sigma))
+        tare, self._windows = self._tare, self._windows + 1
+        problem = self._window.contact(tare, c.tare_contact_force, c.off_tool_moment, c.tare_held_force,
+                                       torque_limit=model)
+        if tare is not None and tare.done and self._start_level is not None:
+            level = np.median(tare.residuals, axis=0) - self._start_level
+            allowed = c.tare_contact_force + c.base_drift_rate * self._windows * c.tare_seconds
+            off = float(np.sqrt(level.dot(level)))
+            if problem is None and off > allowed:
+                problem = (f"the base sensor's residual lies {off:.2f} N from the contact-free start's (limit "
+                           f"{allowed:.3g} N): the contact that began in the start-up window is still on")
+            elif problem is not None and off <= allowed and tare.residual_change(c.tare_contact_force) is None:
+                self._start_level = None
+        elif tare is not None and tare.done and problem is not None and self._windows == 1 and \
+                tare.residual_change(c.tare_contact_force):
+            self._start_level = np.median(tare.residuals[:len(tare.residuals) // 5], axis=0)
+        if problem is None and self._tau_tare is not None:
+            problem = self._tau_tare.close(self._calls)
+        if problem is not None:
+            self._restart_window(problem)
+        else:
+            self.window_problem = None
+            self._window_noise = self._window.measure(self._joint)
+
     def _restart_window(self, problem: str) -> None:
         """The window saw a contact: forget it (its tare and noise) and start a new one now."""
         self.window_problem = problem
         if self._tare is not None:
             self._tare.reset()
+        if self._tau_tare is not None:
+            self._tau_tare.reset()
         self._stream.reset()
         self._window.clear()
         self._calls = 0

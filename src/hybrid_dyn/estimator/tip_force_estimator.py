@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..analytic.acceleration import CausalAccelerationFilter, cutoff_grid, default_qdd_cutoff
-from ..analytic.error_bar import ErrorBar, qdd_norm
+from ..analytic.error_bar import ErrorBar
 from ..analytic.joint_state import joint_filter_for, with_joint_state_noise
 from ..analytic.method_declaration import spec_noise
 from ..analytic.methods import DEFAULT_METHOD, TIP_FORCE_METHODS
@@ -29,6 +29,7 @@ from .input import EstimatorInputError, InputGate, RateCheck
 from .noise_window import NoiseWindow
 from .stream_starts import StreamStarts
 from .torque_model import JointTorqueModel
+from .torque_tare import TorqueTare
 
 
 FOLLOW_RATE_FACTOR = 2.0  # the drift follower's fastest pace, in multiples of the sensor's stated drift rate
@@ -97,6 +98,11 @@ class TipForceEstimator(CallStatus, StreamStarts):
         # The noise window: where the method tares, or chooses its bandwidth by the rule.
         n_window = tare_samples(c.call_hz, c.tare_seconds) if self.spec is not None and (
             self.spec.tares or self._fixed is None) else 0
+        # A method on the joint torques alone tares their offsets in its window (``torque_tare.py``; a fixed
+        # bandwidth has none, and starts at once); kalman-fusion checks its torques on the base sensor's window.
+        torques_alone = self.spec is not None and "tau_J" in self.spec.reads and "base_wrench" not in self.spec.reads
+        self._tau_tare = TorqueTare(robot, c.max_torque_offset, c.torque_drift_rate, c.standstill_speed, c.call_hz) \
+            if torques_alone and n_window else None
         if self.spec is not None and self.spec.tares and n_window:
             self._tare = StreamingTare(robot, n_window)
         self._window_calls = n_window
@@ -213,13 +219,20 @@ class TipForceEstimator(CallStatus, StreamStarts):
         self._joint_wait = 0 if self._joint is None or self._tare is None else self._joint.settle_calls()
         self._error_bar.reset()
         self._model_sigma = None  # the error bar's model term at this call [N], where calibrated
+        self._tau_sigma = None  # the error bar's torque-offset drift term at this call [N] (``torque_tare.py``)
+        if self._tau_tare is not None:
+            self._tau_tare.reset()
         if self._model_error is not None:
             self._model_error.reset()
         self.last_sigma = NO_SIGMA.copy()
         self._motion = 0.0  # this call's joint-acceleration norm [rad/s^2], for the error bar
         self._tared_at = None  # the call at which the base sensor's offset was last set
         self.window_problem = None  # why the last noise window was not trusted (a contact), until one is
+        self._windows = 0  # noise windows ended since the reset
+        self._start_level = None  # the contact-free start's base residual [N], where a contact began in its window
         self._still_calls = 0  # consecutive calls at a standstill (the drift-following tare)
+        self._base_lag = np.zeros(3)  # the base follower's force lag [N], averaged over this standstill
+        self._base_followed = [-2, 0]  # the last call that followed, and how many in a row
         self._fault = None  # the consistency status of this call (``estimator/consistency.py``), or None
         if self._check is not None:
             self._check.reset()
@@ -356,7 +369,7 @@ class TipForceEstimator(CallStatus, StreamStarts):
             self._check_encoder_grid(q)
         if self._joint is not None:
             q, qd, qdd_joint = self._joint.step(q)
-            self._motion = qdd_norm(qdd_joint)
+            self._motion = self._error_bar.motion(qdd_joint, self._needs_qdd)
             if self._joint_wait:
                 self._joint_wait -= 1
                 return self._finish(self._last_good, True, wrong_rate, True, estimated=False)
@@ -365,10 +378,18 @@ class TipForceEstimator(CallStatus, StreamStarts):
         tare = self._tare
         taring = tare is not None and not tare.done
         # qdd only where the method (the window's tare, the model term) needs it: the observers need none.
+        tau_tare = self._tau_tare
         qdd = self._qdd_filter.step(qd) if (self._needs_qdd or taring or self._model_qdd) else None
         tau_raw = tau_J
         if tau_J is not None and self.torque_model is not None:  # what the rigid body and a force explain
             tau_J = tau_J - self.torque_model.extra_torque(q, qd, qdd)
+        tau_untared = tau_J
+        if tau_tare is not None and tau_J is not None:
+            if in_window:
+                tau_tare.record(q, qd, tau_J)
+            else:
+                tau_J = tau_J - tau_tare.offset
+                self._tau_sigma = tau_tare.drift_sigma(q, self._calls)
         if self._model_error is not None:
             self._model_sigma = self._model_error.update(q, qd, qdd)
         self._calls += 1
@@ -381,16 +402,7 @@ class TipForceEstimator(CallStatus, StreamStarts):
             self._window.record(k, q, qd, qdd, base_wrench, tau_J)
             self._stream.window_step(q, qd, qdd, base_wrench, tau_J)
             if self._calls == self._window_calls:  # the window's last call checks it and measures its noise...
-                c = self.config
-                # The model's calibrated error is no contact: twice its sigma bounds what the torques may show.
-                model = None if self._model_sigma is None else 2.0 * float(np.linalg.norm(self._model_sigma))
-                problem = self._window.contact(self._tare, c.tare_contact_force, c.off_tool_moment, c.tare_held_force,
-                                               torque_limit=model)
-                if problem is not None:
-                    self._restart_window(problem)
-                else:
-                    self.window_problem = None
-                    self._window_noise = self._window.measure(self._joint)
+                self._end_window()
             return self._finish(self._last_good, True, wrong_rate, True, estimated=False)
         if self._window_noise is not None:  # ...and the next one applies the rule: no call does both
             self._close_window(self._window_noise)
@@ -408,5 +420,7 @@ class TipForceEstimator(CallStatus, StreamStarts):
         f = self._stream.step(q, qd, qdd, w_in, tau_J)
         if w_in is not None:
             self._follow_drift(q, qd, base_wrench, f)
+        elif tau_tare is not None and tau_J is not None:
+            self._follow_torque_offset(q, qd, tau_untared, f)
         self._judge(q, qd, qdd, w_in, base_wrench, tau_J, tau_raw)
         return self._finish(f, True, wrong_rate, usable)

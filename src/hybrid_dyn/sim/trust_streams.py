@@ -6,7 +6,7 @@ joint torques tau = ID(q, qd, qdd) - J_v^T F, the base wrench ``Robot.base_wrenc
 (a force away from the tool: its own Jacobian and moment arm), read through ``sensors.read_sensors``
 (q quantized to the description's resolution, qd its difference, F/T and torque noise, bias, drift,
 stamp jitter). Faults are applied to the readings after that: a flipped sign, a frozen sensor, lost
-samples. :data:`CASES` names them; ``benchmarks/estimator_trust.py`` scores every method on each, the
+samples, joint-torque sensor offsets and their drift. :data:`CASES` names them; ``benchmarks/estimator_trust.py`` scores every method on each, the
 tests run short versions.
 """
 from __future__ import annotations
@@ -17,6 +17,9 @@ import numpy as np
 
 from .sensors import ClockModel, EncoderModel, ForceTorqueModel, HardwareSensors, read_sensors
 
+TAU_OFFSET = (0.3, 1.5)  # [Nm]: the per-joint torque-sensor offset's magnitude, drawn uniformly, random sign
+TAU_DRIFT = 0.005  # [Nm/s]: the per-joint torque-sensor offset's drift rate, random sign
+CLIP_MARGIN = 1.0  # [N]
 HARDWARE = HardwareSensors(EncoderModel("auto", "difference"), ForceTorqueModel(force_drift=0.025, torque_drift=0.0))
 
 
@@ -25,8 +28,12 @@ class TrustCase:
     """seconds [s] at 1 kHz. force: ((t [s], |F| [N]), ...) breakpoints of the contact's magnitude, linear
     between them (a step: two points 1 ms apart) along ``direction``; moving: ((start, stop) [s], ...) when
     the arm moves (0.2 s smooth ramps). fault: None, "flip-base", "freeze-base" (from fault_at [s]),
-    "flip-tau", "elbow" (the force acts on the elbow, not the tool), "gap" (5 samples lost at fault_at).
-    declared_resolution: what the estimator is told [rad] ("auto": the description's)."""
+    "flip-tau", "elbow" (the force acts on the elbow, not the tool), "gap" (5 samples lost at fault_at),
+    "tau-offset" (a per-joint torque-sensor offset, TAU_OFFSET), "tau-drift" (a per-joint offset drifting at
+    TAU_DRIFT from 0), "clip-base" (the base sensor's Fz channel clipped at CLIP_MARGIN beyond the largest
+    magnitude it reads without the contact: a range of +-that).
+    declared_resolution: what the estimator is told [rad] ("auto": the description's). amplitude: the range
+    [rad] the per-joint sines' amplitudes are drawn from (``kinematics``)."""
 
     seconds: float
     force: tuple = ()
@@ -36,6 +43,7 @@ class TrustCase:
     fault: str | None = None
     fault_at: float = 0.0
     declared_resolution: float | str = "auto"
+    amplitude: tuple = (0.05, 0.2)
 
 
 def _ramp(t0, t1, top, hold, seconds):
@@ -85,6 +93,20 @@ CASES = {
     # the drift follower's tare, and its error bar, over a long wait.
     "standstill-drift": TrustCase(600.0),
     # 7. exact q, moving from t = 0, the estimator's defaults (it assumes 1e-5 rad encoders).
+    # 9. joint-torque sensor offsets: random ones (at rest in the window, moving from 1 s), and ones drifting for
+    # 120 s (20 s at a standstill in between, a contact held there).
+    "tau-offset": TrustCase(10.0, _steps((4.0,), 10.0, 4.0, 10.0), moving=((1.0, 10.0),), fault="tau-offset"),
+    "tau-drift": TrustCase(120.0, _steps((20.0, 60.0, 100.0), 8.0, 4.0, 120.0), moving=((0.6, 50.0), (70.0, 120.0)),
+                           fault="tau-drift"),
+    # 10. the base sensor's Fz channel clipped at its range while a contact pushes it beyond, at a standstill.
+    "clip-base": TrustCase(10.0, _steps((4.0,), 10.0, 4.0, 10.0), fault="clip-base"),
+    # 11. moving from the first sample, nothing touching it in the documented first 0.5 s, a 3.9 N contact from
+    # 0.501 s (inside the start-up window, which waits for the joint-state filter) to 4 s.
+    "start-contact": TrustCase(8.0, ((0.0, 0.0), (0.501, 0.0), (0.502, 3.9), (4.0, 3.9), (4.001, 0.0), (8.0, 0.0)),
+                               moving=((0.0, 8.0),)),
+    # 12. fast starts and stops: up to ~1 rad/s per joint, five times 1 s of motion, no contact.
+    "fast-starts": TrustCase(10.0, moving=((0.6, 1.6), (2.6, 3.6), (4.6, 5.6), (6.6, 7.6), (8.6, 9.6)),
+                             amplitude=(0.3, 0.5)),
     "start-moving": TrustCase(10.0, _steps((4.0,), 10.0, 2.0, 10.0), moving=((0.0, 10.0),),
                               sensors=replace(HARDWARE, encoder=EncoderModel(0.0, "exact"))),
 }
@@ -144,7 +166,7 @@ def build(robot, case: TrustCase | str, seed: int = 0) -> TrustStream:
     rng = np.random.default_rng(seed)
     n = int(round(c.seconds * 1000))
     t = np.arange(n) * 1e-3
-    q, qd, qdd = kinematics(robot, t, c.moving, rng)
+    q, qd, qdd = kinematics(robot, t, c.moving, rng, c.amplitude)
     bt, bf = np.array(c.force, float).reshape(-1, 2).T if c.force else (np.array([0.0]), np.array([0.0]))
     mag = np.interp(t, bt, bf)
     u = np.asarray(c.direction, float) / np.linalg.norm(c.direction)
@@ -171,6 +193,14 @@ def build(robot, case: TrustCase | str, seed: int = 0) -> TrustStream:
         bw = -bw
     elif c.fault == "flip-tau":
         tj = -tj
+    elif c.fault == "clip-base":
+        lim = np.abs(bw[mag == 0, 2]).max() + CLIP_MARGIN
+        bw = bw.copy()
+        bw[:, 2] = np.clip(bw[:, 2], -lim, lim)
+    elif c.fault == "tau-offset":
+        tj = tj + rng.choice([-1.0, 1.0], robot.nv) * rng.uniform(*TAU_OFFSET, robot.nv)
+    elif c.fault == "tau-drift":
+        tj = tj + t[:, None] * (TAU_DRIFT * rng.choice([-1.0, 1.0], robot.nv))
     elif c.fault == "freeze-base":
         k0 = int(c.fault_at * 1000)
         bw = bw.copy()
@@ -185,4 +215,4 @@ def build(robot, case: TrustCase | str, seed: int = 0) -> TrustStream:
     return TrustStream(r.t, r.q, r.qd, bw, tj, truth, np.sort(changes), arrives, c.declared_resolution)
 
 
-__all__ = ["CASES", "HARDWARE", "TrustCase", "TrustStream", "build", "kinematics"]
+__all__ = ["CASES", "CLIP_MARGIN", "HARDWARE", "TAU_DRIFT", "TAU_OFFSET", "TrustCase", "TrustStream", "build", "kinematics"]
