@@ -13,6 +13,7 @@ alone (``report.write_report``), as ``hybrid-dyn report`` redraws it.
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import json
@@ -95,8 +96,23 @@ def run_bench(profile: BenchProfile, out_dir, data_root=None, work_root=None, da
                      for _, label, _, _ in opened for r in plan.selected_rows()]
         clock = InvocationClock(previous, cold_start=cold, requested=requested)
         clock.record(out_dir, [], rows_written=False)  # on record before any work: a kill -9 leaves it unfinished
-        return _run_bench_locked(plan, out_dir, clock, data_root, work_root, provider, opened, log,
-                                 train_executor, device)
+        # With workers, this process's BLAS on one thread: the workers hold the other cores, and BLAS threads
+        # beside them spin against each other (CPU-seconds spent on nothing).
+        with _blas_threads(1 if profile.workers > 1 else None):
+            return _run_bench_locked(plan, out_dir, clock, data_root, work_root, provider, opened, log,
+                                     train_executor, device)
+
+
+@contextlib.contextmanager
+def _blas_threads(n: int | None):
+    """Every BLAS library of this process on ``n`` threads for the duration (None: as they are)."""
+    if n is None:
+        yield
+        return
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=n, user_api="blas"):
+        yield
 
 
 def work_dir(plan: BenchPlan | BenchProfile, scenario: str, ds: Dataset, work_root: Path) -> Path:
