@@ -2,7 +2,7 @@
 wall and CPU time, and every row against an earlier report.
 
 Floors (this project's targets, so they live here and not in the report):
-- the report's first invocation began on empty caches and did all of it: at most 60 min of wall time and
+- the report's last invocation began on empty caches and did all of it: at most 60 min of wall time and
   6,500 CPU-seconds (the bench's process and its workers);
 - every row of the earlier report is present, and its test RMSE is <= 1.02 x the earlier value
   (a lower one is welcome) where its scenario's data are the same (the same config hash in both run.json);
@@ -70,8 +70,11 @@ def check(report: Path, before: str) -> tuple[list[str], bool]:
     if run is None:
         raise SystemExit(f"{report}: no run.json (not a bench report, or the bench has not started)")
     inv = run.get("invocations", [])
-    first = inv[0] if inv else {}
-    cold, one = bool(first.get("cold_start")), len(inv) == 1
+    # The last invocation that began on empty caches (an earlier one, stopped, worked on caches it then lost):
+    # the floors need it to be the last invocation too, one that did all of it.
+    colds = [k for k, i in enumerate(inv) if i.get("cold_start")]
+    first = inv[colds[-1]] if colds else {}
+    cold, one = bool(colds), bool(colds) and colds[-1] == len(inv) - 1 and first.get("finished") is not None
     wall_min, cpu = first.get("wall_seconds", math.nan) / 60, first.get("cpu_seconds", math.nan)
     wall_ok, cpu_ok = cold and one and wall_min <= WALL_FLOOR_MIN, cold and one and cpu <= CPU_FLOOR_SECONDS
     spans = ", ".join(f"{i['wall_seconds'] / 60:.1f} min / {i.get('cpu_seconds', math.nan):.0f} CPU-s"
@@ -80,7 +83,7 @@ def check(report: Path, before: str) -> tuple[list[str], bool]:
                        for k, v in (first.get("phases") or {}).items())
     lines = [f"# `{report}` regenerated: the floors against the report at {before}", "",
              "Printed by `python checks/default_regeneration.py` (floors: this project's targets, not findings).", "",
-             f"- invocations: {spans}" + ("" if one else " (the floors need one cold invocation that did it all)"),
+             f"- invocations: {spans}" + ("" if one else " (the floors need the last invocation to be a cold one that did it all)"),
              f"- wall time of the cold invocation {wall_min:.1f} min against {WALL_FLOOR_MIN:.0f}: "
              f"**{'met' if wall_ok else 'NOT met'}**",
              f"- its CPU {cpu:.0f} s against {CPU_FLOOR_SECONDS:.0f}: **{'met' if cpu_ok else 'NOT met'}**"
