@@ -218,7 +218,7 @@ def residual_training(ctx, name: str, base_config) -> tuple:
     """(TrainConfig, model folder) of the residual row ``name`` on this scenario's identified model (fitted
     here if not yet): ``base_config`` with the parameter file as the prior's, the folder named by the file's
     content, so that a refit never meets a model of the old one. The runner uses it to train these nets in a
-    worker while the bench's process fits the rest (``training_queue.background_training``)."""
+    worker while the bench's process fits the rest (``runner._train_learned_rows``)."""
     _, path = _identified(ctx, RESIDUAL_PRIOR_METHOD)
     config = dataclasses.replace(base_config, analytic_params=str(Path(path).resolve()))
     return config, Path(ctx.work_dir) / "models" / f"{name}-{hashlib.sha256(Path(path).read_bytes()).hexdigest()[:12]}"

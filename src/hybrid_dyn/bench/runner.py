@@ -42,7 +42,7 @@ from .rows import TASK_TARGET
 from .run_record import (InvocationClock, caches_empty, claim_report_dir, finish_record, import_warnings,
                          record_row, run_meta)
 from .scoring import score_row, train_split_stats
-from .training_queue import background_training, pretrain, set_torch_threads
+from .training_queue import pretrain, set_torch_threads
 
 
 def default_work_root(work_root=None) -> Path:
@@ -197,16 +197,16 @@ def _run_bench_locked(plan: BenchPlan, out_dir, clock: InvocationClock, data_roo
 
         def score_untrained():  # while the queue trains: the rows that train nothing, scenario by scenario
             for ctx, ref, specs in scenarios:
-                _bench_scenario(out_dir, ctx, ref, [s for s in specs if not s.trains], tcfg, predictions, rows,
-                                log, clock, executor, test_data=True)
+                _bench_scenario(out_dir, ctx, [s for s in specs if not s.trains], predictions, rows, log, clock,
+                                test_data=True)
 
         with clock.phase("training, and scoring the rows that train nothing"):
             _train_learned_rows(plan, scenarios, tcfg, log, executor, meanwhile=score_untrained)
         clock.record(out_dir, rows)
         with clock.phase("scoring the trained rows"):
             for ctx, ref, specs in scenarios:
-                _bench_scenario(out_dir, ctx, ref, [s for s in specs if s.trains], tcfg, predictions, rows, log,
-                                clock, executor, test_data=False)
+                _bench_scenario(out_dir, ctx, [s for s in specs if s.trains], predictions, rows, log, clock,
+                                test_data=False)
     meta = run_meta(profile, clock, rows, labels, skipped, datasets, dataset_seconds, machine_info())
     finish_record(out_dir, rows, meta)
     # The report is drawn from the files just written, exactly as ``hybrid-dyn report`` redraws it.
@@ -282,12 +282,11 @@ def _train_learned_rows(plan: BenchPlan, scenarios: list, tcfg, log, executor=No
         raise failed[0]
 
 
-def _bench_scenario(out_dir, ctx: BenchContext, ref, specs: list, tcfg, predictions, rows, log,
-                    clock: InvocationClock, executor=None, test_data: bool = True) -> None:
-    """Rows ``specs`` of one scenario: those not yet trained (the residual nets on the identified model, when
-    the queue did not train them) trained now, each scored and written to results.csv, predictions.h5 and
-    curves.json as it finishes; ``rows`` grows. ``test_data``: write the scenario's test data to predictions.h5
-    first (once per scenario, before its first row)."""
+def _bench_scenario(out_dir, ctx: BenchContext, specs: list, predictions, rows, log, clock: InvocationClock,
+                    test_data: bool = True) -> None:
+    """Rows ``specs`` of one scenario scored, each written to results.csv, predictions.h5 and curves.json as it
+    finishes; ``rows`` grows. ``test_data``: write the scenario's test data to predictions.h5 first (once per
+    scenario, before its first row)."""
     ds = ctx.dataset
     test = ds.split("test")
     if test_data:
@@ -295,26 +294,14 @@ def _bench_scenario(out_dir, ctx: BenchContext, ref, specs: list, tcfg, predicti
     if not specs:
         return
     norm = train_split_stats(ds)
-    with background_training(ctx, specs, tcfg, ref.name, executor) as pending:
-        _score_rows(out_dir, ctx, specs, norm, test, predictions, rows, log, clock, pending)
+    _score_rows(out_dir, ctx, specs, norm, test, predictions, rows, log, clock)
 
 
-def _score_rows(out_dir, ctx, specs, norm, test, predictions, rows, log, clock, pending: dict) -> None:
-    """Score ``specs`` in order, each written to results.csv, predictions.h5 and curves.json as it finishes;
-    ``pending``: row name -> the future of its training in a worker (waited for before the row is built)."""
-    from .identified_rows import FIT_WHILE_WAITING
-
+def _score_rows(out_dir, ctx, specs, norm, test, predictions, rows, log, clock) -> None:
+    """Score ``specs`` in order, each written to results.csv, predictions.h5 and curves.json as it finishes (a
+    learned row whose model the queue did not leave trained trains in its build)."""
     scenario = ctx.scenario
-    for i, spec in enumerate(tqdm(specs, desc=f"bench {scenario}", unit="model")):
-        if spec.name in pending:
-            if not pending[spec.name].done():  # fit a later row's model meanwhile: its build then reads it
-                for later in specs[i + 1:]:
-                    if later.name in FIT_WHILE_WAITING:
-                        try:
-                            later.build(ctx.dataset, ctx)
-                        except Exception:  # noqa: BLE001  (raised again, with its row, when it is scored)
-                            pass
-            pending[spec.name].result()
+    for spec in tqdm(specs, desc=f"bench {scenario}", unit="model"):
         t0 = time.perf_counter()
         try:
             row = score_row(spec, ctx, norm)

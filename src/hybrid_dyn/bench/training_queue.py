@@ -1,14 +1,11 @@
 """The training queue: the learned rows trained in parallel before they are scored, one single-threaded model per
-job (``pretrain``, dearest first), and the residual nets on the identified model trained in workers while the
-bench's process scores the other rows (``background_training``)."""
+job (``pretrain``, dearest first, then the jobs queued after them: the bench's residual nets on the identified
+model, as their identification is fitted)."""
 from __future__ import annotations
-
-import contextlib
 
 from tqdm.auto import tqdm
 
 from ..data import load_dataset
-from .plan import BenchContext
 
 
 def _train_job(args) -> tuple[str, str | None]:
@@ -84,33 +81,3 @@ def set_torch_threads(n: int) -> None:
     except ImportError:  # pragma: no cover
         return
     torch.set_num_threads(n)
-
-
-@contextlib.contextmanager
-def background_training(ctx: BenchContext, specs: list, tcfg, robot: str, executor):
-    """The residual nets on the identified model (which ``pretrain`` cannot train: they need the identified
-    fit first) trained in worker processes while this process fits and scores the other rows, on local
-    workers beyond this process (``profile.workers - 1``); yields {row name: future}. Their row waits for its
-    future before it is built, then finds the model trained (a worker's error is raised again by the build)."""
-    from .identified_rows import RESIDUAL_ROWS, residual_training
-
-    names = [s.name for s in specs if s.name in RESIDUAL_ROWS]
-    if not names or ctx.profile.workers < 2 or executor is not None:
-        yield {}
-        return
-    from ..sim.executors import process_pool
-
-    jobs = {}
-    try:
-        for name in names:
-            config, out = residual_training(ctx, name, tcfg)
-            jobs[name] = (str(ctx.dataset.path), robot, ctx.plan.preset(RESIDUAL_ROWS[name]), str(out), config,
-                          ctx.profile.torch_threads)
-    except Exception as err:  # the identification failed: each row that needs it fails with it, named, when scored
-        ctx.log(f"[bench] {ctx.scenario}: the residual nets on the identified model train when scored ({err})")
-        yield {}
-        return
-    ctx.log(f"[bench] {ctx.scenario}: training {', '.join(jobs)} in a worker while this process fits and scores "
-            "the other rows")
-    with process_pool(min(len(jobs), ctx.profile.workers - 1)) as pool:
-        yield {name: pool.submit(_train_job, job) for name, job in jobs.items()}

@@ -151,9 +151,9 @@ def fit_sparse_residual(x: np.ndarray, r: np.ndarray, x_val: np.ndarray, r_val: 
         prior_mse = float(np.mean(r_val[:, j] ** 2))  # the prior alone: a zero residual
         best = {"val_mse": prior_mse, "kept_prior": True, "val_mse_prior": prior_mse}
         grams, k_y = _gram_terms(z, z_m, ys, c, ls, factors)
-        ws = []
+        d_mm, ws = _scaled_sq_distances(z_m, z_m, ls), []
         for f, gram, ky in zip(factors, grams, k_y):
-            k_mm = c * np.exp(_scaled_sq_distances(z_m, z_m, ls) * (-0.5 / f**2))
+            k_mm = c * np.exp(d_mm * (-0.5 / f**2))
             ws.append(np.stack([_solve(float(hyper.noise_level[j]) * nf * k_mm + gram, ky)
                                 for nf in config.noise_factors], axis=1))
         mses = _val_mse(zv, z_m, c, ls, factors, ws, y_std[j], y_mean[j], r_val[:, j])
