@@ -23,6 +23,37 @@ _IMPLAUSIBLE_TARE, _FROZEN_SENSOR, _OFF_TOOL, _NEAR_SINGULARITY, _TORQUE_OFFSET,
 # retare_seconds lags a drift at the stated rate by 1 without noise; its per-call step clipped by the sensor's noise,
 # it lagged by 2.6 on the trust bench's standstill; one still catching up after a minute's motion, by 12 and more.
 LAG_FACTOR = 4.0
+
+
+class StandstillLag:
+    """A tare follower's lag averaged over one standstill, with time constant n calls from its first call: the
+    base sensor's (``_verify_base_tare``) and the joint-torque sensors' (``torque_tare.py``) verify their tare on
+    it (:meth:`verified_call`). A call that does not follow the last one starts a new standstill."""
+
+    def __init__(self, size: int):
+        self.avg = np.zeros(size)
+        self.reset()
+
+    def reset(self) -> None:
+        self.avg[:] = 0.0
+        self._last, self._count = -2, 0  # the last call that followed; calls followed in a row
+
+    def update(self, lag, calls: int, n: float):
+        """Add this call's lag; the average once the standstill has lasted n calls, else None."""
+        if calls != self._last + 1:  # a new standstill: its average starts here
+            self.avg[:], self._count = lag, 0
+        self.avg += (lag - self.avg) / n
+        self._last, self._count = calls, self._count + 1
+        return self.avg if self._count >= n else None
+
+    @staticmethod
+    def verified_call(size: float, calls: int, rate: float, retare_seconds: float, call_hz: float):
+        """The call from which a tare whose averaged lag is ``size`` counts as verified (the drift term restarts
+        from that lag: ``size`` / ``rate`` seconds back), or None when the lag exceeds LAG_FACTOR x ``rate`` x
+        ``retare_seconds`` (a follower still catching up verifies nothing)."""
+        if size > LAG_FACTOR * rate * retare_seconds:
+            return None
+        return calls - size / max(rate, 1e-12) * call_hz
 NO_SIGMA = np.full(3, np.inf)  # no estimate yet (the noise window): an unbounded error bar
 # kalman-fusion's sensors in use, by (base sensor in use, joint torques in use)
 _ACTIVE = {(False, False): (), (True, False): ("base_wrench",), (False, True): ("tau_J",),
@@ -78,20 +109,17 @@ class CallStatus:
     def _verify_base_tare(self, lag) -> None:
         """The follower's force lag [N] averaged over this standstill (time constant retare_seconds, from its
         first call): once it has run that long, a lag within LAG_FACTOR x base_drift_rate x retare_seconds
-        verifies the tare: the error bar's drift term restarts from that lag, not from 0. A follower still catching up (after a long motion, or
-        a contact that builds as slowly as a drift) verifies nothing: its drift term goes on."""
+        verifies the tare: the error bar's drift term restarts from that lag, not from 0. A follower still catching
+        up (after a long motion, or a contact that builds as slowly as a drift) verifies nothing: its drift term
+        goes on."""
         c = self.config
-        n = c.retare_seconds * c.call_hz
-        avg = self._base_lag
-        if self._calls != self._base_followed[0] + 1:  # a new standstill: its average starts here
-            avg[:], self._base_followed[1] = lag, 0
-        avg += (lag - avg) / n
-        self._base_followed[:] = self._calls, self._base_followed[1] + 1
-        if self._base_followed[1] < n:
+        avg = self._base_lag.update(lag, self._calls, c.retare_seconds * c.call_hz)
+        if avg is None:
             return
-        size = math.sqrt(float(avg.dot(avg)))
-        if size <= LAG_FACTOR * c.base_drift_rate * c.retare_seconds:
-            self._tared_at = self._calls - size / max(c.base_drift_rate, 1e-12) * c.call_hz
+        at = StandstillLag.verified_call(math.sqrt(float(avg.dot(avg))), self._calls, c.base_drift_rate,
+                                         c.retare_seconds, c.call_hz)
+        if at is not None:
+            self._tared_at = at
 
     def _follow_torque_offset(self, q, qd, tau, f) -> None:
         """The joint-torque offsets follow the sensors (tau [Nm], before their tare) as the base sensor's tare

@@ -100,8 +100,8 @@ class EstimatorConfig:
     tare_contact_force, the base sensor's tare follows its drift with time constant retare_seconds
     (math.inf: it does not), never faster than twice base_drift_rate (so that it catches up with a drift at that
     rate): a contact that builds faster is not tared away. The follower's lag, averaged over retare_seconds of a
-    standstill, verifies the tare once within twice base_drift_rate x retare_seconds (the drift term starts again
-    from there).
+    standstill, verifies the tare once within four times (``call_status.LAG_FACTOR``) base_drift_rate x
+    retare_seconds (the drift term starts again from there).
 
     max_tare_offset [N]: the largest base-sensor offset (force norm) a tare may find; beyond it the sensor
     is not what the model says (a flipped sign, a wrong frame): status "tare offset implausible".

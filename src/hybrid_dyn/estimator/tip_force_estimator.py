@@ -21,7 +21,7 @@ from ..analytic.tip_force import MAX_DAMPING, SINGULAR_REGION, damped_solve3
 from ..analytic.tare import StreamingTare, tare_samples
 from ..description.spec import resolve_encoder_resolution
 from ..errors import UsageError
-from .call_status import NO_SIGMA, CallStatus, within
+from .call_status import NO_SIGMA, CallStatus, StandstillLag, within
 from .config import MAX_SIGMA, EstimatorConfig, EstimatorStatus, check_rating, checked_payload, rated_payload
 from .calibration import Calibration, ModelError
 from .consistency import Consistency
@@ -231,8 +231,7 @@ class TipForceEstimator(CallStatus, StreamStarts):
         self._windows = 0  # noise windows ended since the reset
         self._start_level = None  # the contact-free start's base residual [N], where a contact began in its window
         self._still_calls = 0  # consecutive calls at a standstill (the drift-following tare)
-        self._base_lag = np.zeros(3)  # the base follower's force lag [N], averaged over this standstill
-        self._base_followed = [-2, 0]  # the last call that followed, and how many in a row
+        self._base_lag = StandstillLag(3)  # the base follower's force lag [N], averaged over this standstill
         self._fault = None  # the consistency status of this call (``estimator/consistency.py``), or None
         if self._check is not None:
             self._check.reset()

@@ -22,9 +22,8 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from .call_status import LAG_FACTOR, within
+from .call_status import StandstillLag, within
 from .consistency import CHECK_EVERY
-
 
 
 def pinv_jv_t(robot, data, q) -> tuple[np.ndarray, np.ndarray]:
@@ -38,7 +37,7 @@ def pinv_jv_t(robot, data, q) -> tuple[np.ndarray, np.ndarray]:
 
 class TorqueTare:
     """One stream's joint-torque offsets (module docstring). max_offset [Nm], drift_rate [Nm/s per joint],
-    held_force [N], call_hz [Hz]."""
+    standstill_speed [rad/s], call_hz [Hz]."""
 
     def __init__(self, robot, max_offset: float, drift_rate: float, standstill_speed: float, call_hz: float):
         self.robot, self.max_offset, self.drift_rate = robot, float(max_offset), float(drift_rate)
@@ -48,7 +47,7 @@ class TorqueTare:
         nv = robot.nv
         self._sums = (np.zeros(nv), np.zeros((3, nv)))  # the residuals b [Nm] and Jacobians J_v [m/rad] summed
         self.offset = np.zeros(nv)
-        self._lag = np.zeros(nv)  # the follower's lag [Nm], averaged over retare_seconds
+        self._lag = StandstillLag(nv)  # the follower's lag [Nm], averaged over retare_seconds
         self.sigma = np.zeros(3)  # the drift term [N] per axis, at the latest check
         self.reset()
 
@@ -58,8 +57,7 @@ class TorqueTare:
             s[:] = 0.0
         self._n = self._recorded = 0
         self._k = CHECK_EVERY - 1
-        self._lag[:] = 0.0
-        self._last_follow, self._followed = -2, 0  # the last call that followed; calls followed in a row
+        self._lag.reset()
         self.offset[:] = 0.0
         self.found = None  # the offset the window found [Nm], once it closed
         self.implausible = False  # found beyond max_offset on some joint
@@ -103,7 +101,6 @@ class TorqueTare:
         self.implausible = bool(np.abs(found).max() > self.max_offset)
         if not self.implausible:
             self.offset[:] = self.found
-        self._verified = calls
         return None
 
     def follow(self, q, tau, calls: int, retare_seconds: float) -> None:
@@ -117,13 +114,12 @@ class TorqueTare:
         n = retare_seconds * self.call_hz
         step = 2.0 * self.drift_rate / self.call_hz
         self.offset += np.clip(lag / n, -step, step)
-        if calls != self._last_follow + 1:  # a new standstill: its average starts here
-            self._lag[:], self._followed = lag, 0
-        self._lag += (lag - self._lag) / n
-        self._last_follow, self._followed = calls, self._followed + 1
-        size = float(np.abs(self._lag).max())
-        if self._followed >= n and size <= LAG_FACTOR * self.drift_rate * retare_seconds:
-            self._verified = max(self._verified, calls - size / max(self.drift_rate, 1e-12) * self.call_hz)
+        avg = self._lag.update(lag, calls, n)
+        if avg is None:
+            return
+        at = StandstillLag.verified_call(float(np.abs(avg).max()), calls, self.drift_rate, retare_seconds, self.call_hz)
+        if at is not None:
+            self._verified = max(self._verified, at)
 
     def drift_sigma(self, q, calls: int) -> np.ndarray:
         """The drift term (3,) [N] at this call: drift_rate x seconds since verified through pinv(J_v^T) (a new
