@@ -268,6 +268,8 @@ def _train_learned_rows(plan: BenchPlan, scenarios: list, tcfg, log, executor=No
                         config, out = residual_training(ctx, spec.name, tcfg)  # fits the identified model
                         later.put((str(ctx.dataset.path), ref.name, plan.preset(RESIDUAL_ROWS[spec.name]), str(out),
                                    config, profile.torch_threads))
+                        log(f"[bench] {ctx.scenario}: {spec.name} queued to train in a worker (its identification "
+                            "is fitted)")
                     elif spec.name in FIT_WHILE_WAITING:
                         spec.build(ctx.dataset, ctx)
                 except Exception:  # noqa: BLE001  (raised again, with its row, when it is scored)
