@@ -30,7 +30,7 @@ METHODS = ("base-wrench", "base-momentum", "kalman-fusion", "torques-pinv", "mom
 
 def run(robot, method, s):
     """Feed stream s to a fresh estimator: forces, sigmas, statuses ('refused' for a refused sample)."""
-    est = TipForceEstimator.analytic(robot, method, encoder_resolution=s.encoder_resolution)
+    est = TipForceEstimator.analytic(robot, method, payload=s.payload, encoder_resolution=s.encoder_resolution)
     reads = est.spec.reads
     n = len(s.t)
     f, sig = np.full((n, 3), np.nan), np.full((n, 3), np.inf)

@@ -78,8 +78,15 @@ def test_a_drift_followed_for_an_hour_is_no_implausible_tare(panda):
     for k in range(800, 900):
         est.estimate_tip_force(q, qd, base_wrench=w + est._tare.offset + rng.normal(0, 0.05, 6), t=k * 1e-3)
     assert est.last_status is not EstimatorStatus.IMPLAUSIBLE_TARE
-    est.set_tare_offset(np.r_[30.0, 0, 0, 0, 0, 0])
+    # The bound: max_tare_offset, and three sigma of the arm's weight as its description states it (the tare
+    # absorbs the model's weight error with the sensor's offset): 9.81 x 0.05 x the links' masses, common and own.
+    m = np.array([inertia.mass for inertia in panda.model.inertias[1:]])
+    bound = 20.0 + 3 * 9.81 * 0.05 * np.sqrt((m ** 2).sum() + m.sum() ** 2)
+    est.set_tare_offset(np.r_[0.95 * bound, 0, 0, 0, 0, 0])
     est.estimate_tip_force(q, qd, base_wrench=w + rng.normal(0, 0.05, 6), t=0.9)
+    assert est.last_status is not EstimatorStatus.IMPLAUSIBLE_TARE
+    est.set_tare_offset(np.r_[1.05 * bound, 0, 0, 0, 0, 0])
+    est.estimate_tip_force(q, qd, base_wrench=w + rng.normal(0, 0.05, 6), t=0.901)
     assert est.last_status is EstimatorStatus.IMPLAUSIBLE_TARE
 
 

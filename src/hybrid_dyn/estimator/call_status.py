@@ -16,9 +16,10 @@ from .config import EstimatorStatus
 _OK, _WARMING_UP, _OUT_OF_RANGE, _FORCE_OUT_OF_RANGE, _WRONG_RATE, _NO_SENSOR, _UNCERTAIN, _CONTACT_AT_START = (
     EstimatorStatus.OK, EstimatorStatus.WARMING_UP, EstimatorStatus.OUT_OF_RANGE, EstimatorStatus.FORCE_OUT_OF_RANGE,
     EstimatorStatus.WRONG_RATE, EstimatorStatus.NO_SENSOR, EstimatorStatus.UNCERTAIN, EstimatorStatus.CONTACT_AT_START)
-_IMPLAUSIBLE_TARE, _FROZEN_SENSOR, _OFF_TOOL, _NEAR_SINGULARITY, _TORQUE_OFFSET, _CLIPPED = (
+_IMPLAUSIBLE_TARE, _FROZEN_SENSOR, _OFF_TOOL, _NEAR_SINGULARITY, _TORQUE_OFFSET, _CLIPPED, _MODEL = (
     EstimatorStatus.IMPLAUSIBLE_TARE, EstimatorStatus.FROZEN_SENSOR, EstimatorStatus.OFF_TOOL,
-    EstimatorStatus.NEAR_SINGULARITY, EstimatorStatus.TORQUE_OFFSET, EstimatorStatus.CLIPPED_CHANNEL)
+    EstimatorStatus.NEAR_SINGULARITY, EstimatorStatus.TORQUE_OFFSET, EstimatorStatus.CLIPPED_CHANNEL,
+    EstimatorStatus.MODEL_UNCERTAIN)
 # A follower's averaged lag [in drift rate x retare_seconds] within which it verifies its tare: one of time constant
 # retare_seconds lags a drift at the stated rate by 1 without noise; its per-call step clipped by the sensor's noise,
 # it lagged by 2.6 on the trust bench's standstill; one still catching up after a minute's motion, by 12 and more.
@@ -81,8 +82,10 @@ class CallStatus:
         if w_in is not None and self._tare is not None and self._tare.found is not None:
             # The offset the window found: a flipped sign or a wrong frame shows there. The drift followed since
             # is bounded by the sensor's stated rate, and over an hour is no implausible tare.
-            o = self._tare.found
-            if o[0] * o[0] + o[1] * o[1] + o[2] * o[2] > self.config.max_tare_offset ** 2:
+            o, bound = self._tare.found, self.config.max_tare_offset
+            if hasattr(self._model_error, "weight_sigma"):  # and the model's weight, as far as it is stated
+                bound += 3.0 * self._model_error.weight_sigma()
+            if o[0] * o[0] + o[1] * o[1] + o[2] * o[2] > bound * bound:
                 fault = _IMPLAUSIBLE_TARE
         if check.frozen(base_wrench, tau_J if tau_raw is None else tau_raw) and fault is None:
             fault = _FROZEN_SENSOR
@@ -92,8 +95,8 @@ class CallStatus:
             fault = _TORQUE_OFFSET
         if check.check_off_tool(q, qd, qdd, w_in, tau_J) and fault is None:
             fault = _OFF_TOOL
-        if check.singular and fault is None:
-            fault = _NEAR_SINGULARITY
+        if (check.singular or (tau_J is not None and getattr(self._model_error, "weak", False))) and fault is None:
+            fault = _NEAR_SINGULARITY  # (the model term's check: kalman-fusion's torques shrink the weak direction too)
         self._fault = fault
 
     def _follow_drift(self, q, qd, base_wrench, f) -> None:
@@ -121,22 +124,22 @@ class CallStatus:
         if at is not None:
             self._tared_at = at
 
-    def _follow_torque_offset(self, q, qd, tau, f) -> None:
+    def _follow_torque_offset(self, q, qd, tau, f, counted: bool = False) -> None:
         """The joint-torque offsets follow the sensors (tau [Nm], before their tare) as the base sensor's tare
-        does, on the same standstill (``torque_tare.py``)."""
-        if self._still_and_free(qd, f):
+        does, on the same standstill (``torque_tare.py``); counted: the base follower counted this call's
+        standstill already."""
+        if self._still_and_free(qd, f, counted):
             self._tau_tare.follow(q, tau, self._calls, self.config.retare_seconds)
 
-    def _still_and_free(self, qd, f) -> bool:
+    def _still_and_free(self, qd, f, counted: bool = False) -> bool:
         """Whether a tare may follow its sensor at this call: following not switched off, every joint slower than
-        ``standstill_speed`` [rad/s] for ``standstill_seconds`` [s], the estimate f below ``tare_contact_force`` [N]."""
+        ``standstill_speed`` [rad/s] for ``standstill_seconds`` [s], the estimate f below ``tare_contact_force`` [N].
+        counted: this call's standstill was counted already (a second follower on the same call)."""
         c = self.config
         if c.retare_seconds == math.inf:  # told not to follow
             return False
-        if within(qd, c.standstill_speed):
-            self._still_calls += 1
-        else:
-            self._still_calls = 0
+        if not counted:
+            self._still_calls = self._still_calls + 1 if within(qd, c.standstill_speed) else 0
         return self._still_calls >= c.standstill_seconds * c.call_hz and f.dot(f) < c.tare_contact_force ** 2
 
     def _finish(self, f, in_range, wrong_rate, usable, estimated=True) -> np.ndarray:
@@ -146,12 +149,14 @@ class CallStatus:
             estimated = False
             self._error_bar.reset()
         sensors = 0.0  # the largest sigma before the joint-torque offsets' drift term [N]
+        measured = 0.0  # the largest sigma of the sensors' terms alone (noise, lag, motion, drift) [N]
         if estimated:
             since = None
             if self._tared_at is not None:
                 since = (self._calls - self._tared_at) / self.config.call_hz
             self.last_sigma = self._error_bar.update(f, self._motion, since)
             if self._model_sigma is not None:  # the model's error, independent of the sensors'
+                measured = float(self.last_sigma.max())
                 self.last_sigma = np.sqrt(self.last_sigma * self.last_sigma + self._model_sigma * self._model_sigma)
             if self._tau_sigma is not None:  # the joint-torque offsets' drift since verified, likewise independent
                 sensors = float(self.last_sigma.max())
@@ -166,6 +171,9 @@ class CallStatus:
             # at least half of it): say so (a standstill re-verifies).
             status = _TORQUE_OFFSET if self._tau_sigma is not None and estimated and sensors <= limit and float(
                 self._tau_sigma.max()) >= 0.5 * limit else _UNCERTAIN
+            if status is _UNCERTAIN and estimated and self._model_sigma is not None and measured <= limit and float(
+                    self._model_sigma.max()) >= 0.5 * limit:  # likewise by the model's stated (or calibrated) error
+                status = _NEAR_SINGULARITY if getattr(self._model_error, "weak", False) else _MODEL
         if self._calls < self._warmup_calls:
             status = _WARMING_UP if self.window_problem is None else _CONTACT_AT_START
         if self._fault is not None and estimated:

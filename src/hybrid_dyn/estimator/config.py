@@ -42,6 +42,9 @@ class EstimatorStatus(str, Enum):
     # The joint-torque sensors' offsets (``estimator/torque_tare.py``): found beyond max_torque_offset, or drifted
     # since their last standstill beyond what the error bar may carry.
     TORQUE_OFFSET = "torque sensor offset"
+    # The model's stated uncertainty (the error bar's model term: inertials, payload; ``estimator/model_term.py``)
+    # alone puts sigma beyond max_sigma at this pose and motion: a calibration on the arm's own log narrows it.
+    MODEL_UNCERTAIN = "model uncertain"
 
 
 def _auto_or_positive(name: str, value, unit: str) -> None:
@@ -127,6 +130,10 @@ class EstimatorConfig:
     base-wrench bound. Raise it for a stronger arm.
     rate_tolerance: the fraction by which a timed stream's step may differ
     from 1 / call_hz (and an untimed stream's measured rate, ``RateCheck``).
+    inertial_uncertainty, payload_uncertainty_kg: the error bar's model term where no calibration is given
+    (``estimator/model_term.py``): the relative 1-sigma of every link's inertials ("auto": the description's
+    ``inertial_uncertainty``), and the 1-sigma of a declared payload's mass [kg] (0.05 kg: a tool weighed; set
+    your scale's, or more for a guess: a load far from the declared one also shows in the start-up window).
     rated_payload_kg: the largest payload [kg] the arm may be declared to carry (``payload=``,
     ``set_payload``); "auto": the robot description's ``rated_payload_kg`` (none stated: no bound beyond
     50 kg); a number overrides it (a custom arm, a stronger variant), math.inf for none.
@@ -163,6 +170,8 @@ class EstimatorConfig:
     off_tool_torque: float = 1.0
     off_tool_seconds: float = 0.05
     rated_payload_kg: float | str = "auto"
+    inertial_uncertainty: float | str = "auto"
+    payload_uncertainty_kg: float = 0.05
     # The registered bandwidth parameters without a field of their own (a method registered later): name -> value.
     bandwidths: Mapping[str, float | str] = field(default_factory=dict, hash=False)
 
@@ -221,6 +230,14 @@ class EstimatorConfig:
         if not (isinstance(self.stamp_jitter, (int, float)) and 0 <= self.stamp_jitter < 1.0):
             raise UsageError(f"stamp_jitter must lie in [0, 1) [s], got {self.stamp_jitter!r}")
         _auto_or_positive("rated_payload_kg", self.rated_payload_kg, "kg")
+        if self.inertial_uncertainty != "auto" and not (
+                isinstance(self.inertial_uncertainty, (int, float)) and 0 <= self.inertial_uncertainty <= 1):
+            raise UsageError(f"inertial_uncertainty must be 'auto' or lie in [0, 1] (a relative 1-sigma), got "
+                             f"{self.inertial_uncertainty!r}")
+        if not (isinstance(self.payload_uncertainty_kg, (int, float)) and 0 <= self.payload_uncertainty_kg
+                <= MAX_PAYLOAD_KG):
+            raise UsageError(f"payload_uncertainty_kg must lie in [0, {MAX_PAYLOAD_KG:g}] [kg], got "
+                             f"{self.payload_uncertainty_kg!r}")
         if not 0 < self.rate_tolerance < 1:
             raise UsageError(f"rate_tolerance must lie in (0, 1), got {self.rate_tolerance!r}")
 

@@ -41,6 +41,8 @@ class StreamStarts:
             self._start_level = np.median(tare.residuals[:len(tare.residuals) // 5], axis=0)
         if problem is None and self._tau_tare is not None:
             problem = self._tau_tare.close(self._calls)
+            if problem is None and hasattr(self._model_error, "tare"):  # the model's error at its pose went with it
+                self._model_error.tare(self._tau_tare.pose)
         if problem is not None:
             self._restart_window(problem)
         else:
@@ -53,7 +55,7 @@ class StreamStarts:
         if self._tare is not None:
             self._tare.reset()
         if self._tau_tare is not None:
-            self._tau_tare.reset()
+            self._tau_tare.reset(keep_held=True)
         self._stream.reset()
         self._window.clear()
         self._calls = 0

@@ -25,6 +25,7 @@ from .call_status import NO_SIGMA, CallStatus, StandstillLag, within
 from .config import MAX_SIGMA, EstimatorConfig, EstimatorStatus, check_rating, checked_payload, rated_payload
 from .calibration import Calibration, ModelError
 from .consistency import Consistency
+from .model_term import StatedModelError
 from .input import EstimatorInputError, InputGate, RateCheck
 from .noise_window import NoiseWindow
 from .stream_starts import StreamStarts
@@ -98,11 +99,11 @@ class TipForceEstimator(CallStatus, StreamStarts):
         # The noise window: where the method tares, or chooses its bandwidth by the rule.
         n_window = tare_samples(c.call_hz, c.tare_seconds) if self.spec is not None and (
             self.spec.tares or self._fixed is None) else 0
-        # A method on the joint torques alone tares their offsets in its window (``torque_tare.py``; a fixed
-        # bandwidth has none, and starts at once); kalman-fusion checks its torques on the base sensor's window.
-        torques_alone = self.spec is not None and "tau_J" in self.spec.reads and "base_wrench" not in self.spec.reads
+        # A method on the joint torques tares their offsets in its window (``torque_tare.py``; a fixed bandwidth has
+        # none, and starts at once); kalman-fusion checks first that its torques see no force there (the window).
+        reads_torques = self.spec is not None and "tau_J" in self.spec.reads
         self._tau_tare = TorqueTare(robot, c.max_torque_offset, c.torque_drift_rate, c.standstill_speed, c.call_hz) \
-            if torques_alone and n_window else None
+            if reads_torques and n_window else None
         if self.spec is not None and self.spec.tares and n_window:
             self._tare = StreamingTare(robot, n_window)
         self._window_calls = n_window
@@ -133,9 +134,23 @@ class TipForceEstimator(CallStatus, StreamStarts):
             calibrated = calibration.check_for(self.robot, digest, self.method)
             self._model_error = ModelError(self.robot, calibrated)
             max_sigma = calibrated.max_sigma if max_sigma == "auto" else max_sigma
+        elif self.spec is not None:
+            self._model_error = self._stated_model_error()
         self.max_sigma = MAX_SIGMA if max_sigma == "auto" else float(max_sigma)
-        self._model_qdd = self._model_error is not None or (torque_model is not None and torque_model.needs_qdd)
+        self._model_qdd = (self._model_error is not None and calibrated is not None) or (
+            torque_model is not None and torque_model.needs_qdd)
         return calibrated
+
+    def _stated_model_error(self):
+        """The model term of what the description and the payload state (``model_term.py``), or None where they
+        state nothing (a payload's sigma counts only while one is declared, so it is kept for ``set_payload``)."""
+        c, reads = self.config, self.spec.reads
+        inertial = self.robot.spec.inertial_uncertainty if c.inertial_uncertainty == "auto" else c.inertial_uncertainty
+        if float(inertial) == 0.0 and c.payload_uncertainty_kg == 0.0:
+            return None
+        kind = "fusion" if "base_wrench" in reads and "tau_J" in reads else "base" if "base_wrench" in reads \
+            else "torques"
+        return StatedModelError(self.robot, kind, float(inertial), float(c.payload_uncertainty_kg))
 
     # ------------------------------------------------------------ factories
     @classmethod
@@ -366,8 +381,10 @@ class TipForceEstimator(CallStatus, StreamStarts):
             wrong_rate = self._rate.update(q, qd)
         if self._grid_checks:
             self._check_encoder_grid(q)
+        self._qdd_joint = None
         if self._joint is not None:
             q, qd, qdd_joint = self._joint.step(q)
+            self._qdd_joint = qdd_joint
             self._motion = self._error_bar.motion(qdd_joint, self._needs_qdd)
             if self._joint_wait:
                 self._joint_wait -= 1
@@ -389,8 +406,8 @@ class TipForceEstimator(CallStatus, StreamStarts):
             else:
                 tau_J = tau_J - tau_tare.offset
                 self._tau_sigma = tau_tare.drift_sigma(q, self._calls)
-        if self._model_error is not None:
-            self._model_sigma = self._model_error.update(q, qd, qdd)
+        if self._model_error is not None:  # the stated term reads the joint-state filter's qdd where no other is run
+            self._model_sigma = self._model_error.update(q, qd, qdd if qdd is not None else self._qdd_joint)
         self._calls += 1
         if self.spec is None:
             return self._finish(*self.model.step(q, qd, qdd, base_wrench, tau_J, t), wrong_rate, True)
@@ -419,7 +436,7 @@ class TipForceEstimator(CallStatus, StreamStarts):
         f = self._stream.step(q, qd, qdd, w_in, tau_J)
         if w_in is not None:
             self._follow_drift(q, qd, base_wrench, f)
-        elif tau_tare is not None and tau_J is not None:
-            self._follow_torque_offset(q, qd, tau_untared, f)
+        if tau_tare is not None and tau_J is not None:  # kalman-fusion follows both on one standstill
+            self._follow_torque_offset(q, qd, tau_untared, f, counted=w_in is not None)
         self._judge(q, qd, qdd, w_in, base_wrench, tau_J, tau_raw)
         return self._finish(f, True, wrong_rate, usable)

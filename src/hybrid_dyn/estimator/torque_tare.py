@@ -45,14 +45,20 @@ class TorqueTare:
         self._data = robot.model.createData()
         self._data_g = robot.model.createData()
         nv = robot.nv
-        self._sums = (np.zeros(nv), np.zeros((3, nv)))  # the residuals b [Nm] and Jacobians J_v [m/rad] summed
+        # the residuals b [Nm], Jacobians J_v [m/rad] and poses q [rad] summed
+        self._sums = (np.zeros(nv), np.zeros((3, nv)), np.zeros(nv))
+        self.held = None  # why an earlier window of this stream was not trusted (a force held at the tool)
         self.offset = np.zeros(nv)
         self._lag = StandstillLag(nv)  # the follower's lag [Nm], averaged over retare_seconds
         self.sigma = np.zeros(3)  # the drift term [N] per axis, at the latest check
         self.reset()
 
-    def reset(self) -> None:
-        """A new window: nothing summed, no offset."""
+    def reset(self, keep_held: bool = False) -> None:
+        """A new window: nothing summed, no offset. keep_held: the stream goes on after a window that saw a force
+        held at the tool (``held``): a later window must see it gone, not move through it."""
+        if not keep_held:
+            self.held = None
+        self.pose = None  # the window's mean still pose [rad], where the offsets were tared
         for s in self._sums:
             s[:] = 0.0
         self._n = self._recorded = 0
@@ -73,9 +79,10 @@ class TorqueTare:
         self._recorded += 1
         if not within(qd, self.standstill_speed):
             return
-        sb, sj = self._sums
+        sb, sj, sq = self._sums
         sb += tau - pin.computeGeneralizedGravity(self.robot.model, self._data_g, q)
         sj += pinv_jv_t(self.robot, self._data, q)[0]
+        sq += q
         self._n += 1
 
     def close(self, calls: int) -> str | None:
@@ -85,8 +92,9 @@ class TorqueTare:
         self._verified = calls
         n = self._n
         if n < 8 or 2 * n < self._recorded:
-            return None
-        sb, sj = self._sums
+            # Nothing measured here: after a window that saw a force held, this one does not show it gone.
+            return None if self.held is None else self.held + " (a later window moved: not seen to end)"
+        sb, sj, sq = self._sums
         found = sb / n
         if np.abs(found).max() > self.max_offset:
             # Beyond any sensor's offset: a force held at the tool through a still window, if a tool force at the
@@ -95,12 +103,16 @@ class TorqueTare:
             jt = sj.T / n
             held = np.linalg.lstsq(jt, found, rcond=None)[0]
             if np.abs(found - jt @ held).max() <= self.max_offset:
-                return (f"the joint torques saw {np.linalg.norm(held):.2f} N at the tool during the noise window, "
-                        f"beyond what a torque sensor's offset ({self.max_offset:g} Nm) explains: a contact")
+                self.held = (f"the joint torques saw {np.linalg.norm(held):.2f} N at the tool during the noise window, "
+                             f"beyond what a torque sensor's offset ({self.max_offset:g} Nm) explains: a contact, or a "
+                             "load the model lacks")
+                return self.held
+        self.held = None
         self.found = found
         self.implausible = bool(np.abs(found).max() > self.max_offset)
         if not self.implausible:
             self.offset[:] = self.found
+            self.pose = sq / n
         return None
 
     def follow(self, q, tau, calls: int, retare_seconds: float) -> None:

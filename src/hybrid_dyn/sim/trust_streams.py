@@ -20,6 +20,10 @@ from .sensors import ClockModel, EncoderModel, ForceTorqueModel, HardwareSensors
 TAU_OFFSET = (0.3, 1.5)  # [Nm]: the per-joint torque-sensor offset's magnitude, drawn uniformly, random sign
 TAU_DRIFT = 0.005  # [Nm/s]: the per-joint torque-sensor offset's drift rate, random sign
 CLIP_MARGIN = 1.0  # [N]
+PAYLOAD_COM = (0.0, 0.0, 0.05)  # [m] in the tool frame
+# Two poses near the stretched singularity of the Panda's J_v, on the line from home to a singular pose: its least
+# singular value there is 0.031 and 0.016 m/rad.
+NEAR_SINGULAR = ((-2.419, -0.13, -1.312, -0.447, 0.0, 2.728, 2.549), (-2.651, -0.067, -1.437, -0.264, 0.0, 2.839, 2.717))
 HARDWARE = HardwareSensors(EncoderModel("auto", "difference"), ForceTorqueModel(force_drift=0.025, torque_drift=0.0))
 
 
@@ -33,7 +37,11 @@ class TrustCase:
     TAU_DRIFT from 0), "clip-base" (the base sensor's Fz channel clipped at CLIP_MARGIN beyond the largest
     magnitude it reads without the contact: a range of +-that).
     declared_resolution: what the estimator is told [rad] ("auto": the description's). amplitude: the range
-    [rad] the per-joint sines' amplitudes are drawn from (``kinematics``)."""
+    [rad] the per-joint sines' amplitudes are drawn from (``kinematics``). pose: the q [rad] the sines run about
+    (() : the description's home); direction "weak": J_v's weakest direction there.
+    The arm that makes the readings may differ from the model the estimator is given (the model's error):
+    true_params (another parameter set of the description), true_scale (every link's inertials scaled),
+    payload ((declared, true) [kg], a point mass PAYLOAD_COM [m] from the tool frame)."""
 
     seconds: float
     force: tuple = ()
@@ -44,6 +52,10 @@ class TrustCase:
     fault_at: float = 0.0
     declared_resolution: float | str = "auto"
     amplitude: tuple = (0.05, 0.2)
+    pose: tuple = ()
+    true_params: str | None = None
+    true_scale: float = 1.0
+    payload: tuple | None = None
 
 
 def _ramp(t0, t1, top, hold, seconds):
@@ -107,6 +119,19 @@ CASES = {
     # 12. fast starts and stops: up to ~1 rad/s per joint, five times 1 s of motion, no contact.
     "fast-starts": TrustCase(10.0, moving=((0.6, 1.6), (2.6, 3.6), (4.6, 5.6), (6.6, 7.6), (8.6, 9.6)),
                              amplitude=(0.3, 0.5)),
+    # 13. the model's error: a payload declared 0.5 kg that is 1.2 kg (and the reverse), every link's inertials
+    # 10 % off, the description's other parameter set; a 10 N contact held 4-8 s, the arm moving from 1 s.
+    "payload-heavy": TrustCase(10.0, _steps((4.0,), 10.0, 4.0, 10.0), moving=((1.0, 10.0),), payload=(0.5, 1.2)),
+    "payload-light": TrustCase(10.0, _steps((4.0,), 10.0, 4.0, 10.0), moving=((1.0, 10.0),), payload=(1.2, 0.5)),
+    "masses-heavy": TrustCase(10.0, _steps((4.0,), 10.0, 4.0, 10.0), moving=((1.0, 10.0),), true_scale=1.1),
+    "masses-light": TrustCase(10.0, _steps((4.0,), 10.0, 4.0, 10.0), moving=((1.0, 10.0),), true_scale=0.9),
+    "other-params": TrustCase(10.0, _steps((4.0,), 10.0, 4.0, 10.0), moving=((1.0, 10.0),),
+                              true_params="franka_official"),
+    # 14. near the stretched singularity, a 10 N contact along J_v's weak direction, the arm swaying a little.
+    "singular-weak": TrustCase(10.0, _steps((4.0,), 10.0, 4.0, 10.0), direction="weak", moving=((1.0, 10.0),),
+                               pose=NEAR_SINGULAR[0], amplitude=(0.005, 0.02)),
+    "singular-weaker": TrustCase(10.0, _steps((4.0,), 10.0, 4.0, 10.0), direction="weak", moving=((1.0, 10.0),),
+                                 pose=NEAR_SINGULAR[1], amplitude=(0.005, 0.02)),
     "start-moving": TrustCase(10.0, _steps((4.0,), 10.0, 2.0, 10.0), moving=((0.0, 10.0),),
                               sensors=replace(HARDWARE, encoder=EncoderModel(0.0, "exact"))),
 }
@@ -126,6 +151,7 @@ class TrustStream:
     changes: np.ndarray
     arrives: np.ndarray
     encoder_resolution: float | str = "auto"
+    payload: tuple | None = None  # what the estimator is told the tool carries: (mass [kg], com [m])
 
 
 def _gate(t, windows, ramp=0.2):
@@ -141,13 +167,14 @@ def _gate(t, windows, ramp=0.2):
     return g, dg
 
 
-def kinematics(robot, t, moving, rng, amplitude=(0.05, 0.2)):
-    """Exact q, qd, qdd (n, nv): per-joint sines whose clock runs at the gate's rate (standing still outside)."""
+def kinematics(robot, t, moving, rng, amplitude=(0.05, 0.2), pose=()):
+    """Exact q, qd, qdd (n, nv): per-joint sines about pose (() : home) whose clock runs at the gate's rate
+    (standing still outside)."""
     amp, w = rng.uniform(*amplitude, robot.nv), rng.uniform(0.5, 2.0, robot.nv)
     g, dg = _gate(t, moving) if moving else (np.zeros_like(t), np.zeros_like(t))
     tau = np.concatenate([[0.0], np.cumsum(0.5 * (g[1:] + g[:-1]) * np.diff(t))])  # the motion's own time
     ph = w * tau[:, None]
-    q = np.array(robot.spec.home) + amp * np.sin(ph)
+    q = np.array(pose or robot.spec.home) + amp * np.sin(ph)
     qd = amp * w * np.cos(ph) * g[:, None]
     qdd = -amp * w ** 2 * np.sin(ph) * (g ** 2)[:, None] + amp * w * np.cos(ph) * dg[:, None]
     return q, qd, qdd
@@ -166,11 +193,15 @@ def build(robot, case: TrustCase | str, seed: int = 0) -> TrustStream:
     rng = np.random.default_rng(seed)
     n = int(round(c.seconds * 1000))
     t = np.arange(n) * 1e-3
-    q, qd, qdd = kinematics(robot, t, c.moving, rng, c.amplitude)
+    q, qd, qdd = kinematics(robot, t, c.moving, rng, c.amplitude, c.pose)
     bt, bf = np.array(c.force, float).reshape(-1, 2).T if c.force else (np.array([0.0]), np.array([0.0]))
     mag = np.interp(t, bt, bf)
-    u = np.asarray(c.direction, float) / np.linalg.norm(c.direction)
+    if isinstance(c.direction, str):  # "weak": the least singular direction of J_v at the first pose
+        u = np.linalg.svd(robot.tip_jacobian(q[0])[:3])[0][:, -1]
+    else:
+        u = np.asarray(c.direction, float) / np.linalg.norm(c.direction)
     f = mag[:, None] * u
+    robot = true_arm(robot, c)
     tau = robot.inverse_dynamics(q, qd, qdd)
     if c.fault == "elbow":  # the push acts on the elbow: its own Jacobian and moment arm, and no tip force
         data, fid = robot.model.createData(), _elbow(robot)
@@ -212,7 +243,29 @@ def build(robot, case: TrustCase | str, seed: int = 0) -> TrustStream:
     moving_f = np.linalg.norm(np.diff(truth if c.fault != "elbow" else f, axis=0), axis=1) > 1e-9
     edges = np.flatnonzero(np.diff(np.r_[0, moving_f.astype(int)]) != 0)
     changes = np.r_[edges * 1e-3, [c.fault_at] if c.fault == "gap" else []]
-    return TrustStream(r.t, r.q, r.qd, bw, tj, truth, np.sort(changes), arrives, c.declared_resolution)
+    declared = None if c.payload is None else (c.payload[0], PAYLOAD_COM)
+    return TrustStream(r.t, r.q, r.qd, bw, tj, truth, np.sort(changes), arrives, c.declared_resolution, declared)
 
 
-__all__ = ["CASES", "CLIP_MARGIN", "HARDWARE", "TAU_DRIFT", "TAU_OFFSET", "TrustCase", "TrustStream", "build", "kinematics"]
+def true_arm(robot, c: TrustCase):
+    """The arm that makes the readings: ``robot`` (the model the estimator is told) unless the case names its
+    error (another parameter set, scaled inertials, another payload)."""
+    import pinocchio as pin
+
+    from ..analytic.robot import load_robot
+
+    if c.true_params is None and c.true_scale == 1.0 and c.payload is None:
+        return robot
+    arm = load_robot(robot.name, params=c.true_params, num_threads=1) if c.true_params else robot.copy()
+    if c.true_scale != 1.0:
+        for model in (arm.model, arm.model_ff):
+            for i in range(1, model.njoints):
+                inertia = model.inertias[i]
+                model.inertias[i] = pin.Inertia(inertia.mass * c.true_scale, inertia.lever, inertia.inertia * c.true_scale)
+    if c.payload is not None:
+        arm.set_payload((c.payload[1], PAYLOAD_COM))
+    return arm
+
+
+__all__ = ["CASES", "CLIP_MARGIN", "HARDWARE", "NEAR_SINGULAR", "PAYLOAD_COM", "TAU_DRIFT", "TAU_OFFSET", "TrustCase",
+           "TrustStream", "build", "kinematics", "true_arm"]
