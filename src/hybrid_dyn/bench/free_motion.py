@@ -193,7 +193,22 @@ def section_lines(out: Path) -> list[str]:
             "(`free_motion.csv`, `free_motion.md`).", "",
             "No row sets a seed tip net trained in simulation on these logs (sim to real): every seed tip net reads "
             "the base force/torque sensor (its inputs are the base wrench, q, qd, qdd and, for some, tau_J), and none "
-            "of the three logs has one.", ""] + table.read_text().rstrip("\n").split("\n")
+            "of the three logs has one.", ""] + table.read_text().rstrip("\n").split("\n") + _uncalibrated_lines(out)
+
+
+UNCALIBRATED = "uncalibrated_free_motion.md"
+
+
+def _uncalibrated_lines(out: Path) -> list[str]:
+    """The section's part on the estimator without a calibration (``benchmarks/uncalibrated_free_motion.py``)."""
+    table = Path(out) / UNCALIBRATED
+    if not table.exists():
+        return []
+    return ["", "Without a calibration the error bar's model term is what the robot description states "
+            "(`estimator/model_term.py`: the Panda's 5 % on its inertials; 10 % where a description states none, as "
+            "the KUKA LWR's and Baxter's). On the same test parts (`ok within 2 sigma` as above; written by "
+            f"`python benchmarks/uncalibrated_free_motion.py`, `{UNCALIBRATED}`):", ""] + \
+        table.read_text().rstrip("\n").split("\n")
 
 
 def insert_section(readme: Path, lines: list[str]) -> None:
@@ -210,5 +225,5 @@ def insert_section(readme: Path, lines: list[str]) -> None:
     Path(readme).write_text("\n".join(text))
 
 
-__all__ = ["SECTION", "insert_section", "section_lines", "FreeMotionRow", "LOGS", "METHODS", "TORQUE_MODELS", "free_motion_rows", "offline_floor", "score",
-           "rows_in_split", "write_table"]
+__all__ = ["SECTION", "UNCALIBRATED", "FreeMotionRow", "LOGS", "METHODS", "TORQUE_MODELS", "free_motion_rows",
+           "insert_section", "offline_floor", "rows_in_split", "score", "section_lines", "write_table"]

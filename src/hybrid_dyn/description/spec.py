@@ -57,9 +57,9 @@ class RobotSpec:
     # The arm's rated payload [kg] (TOML ``rated_payload_kg``); None where the description states none.
     rated_payload_kg: float | None = None
     # The stated 1-sigma relative uncertainty of every link's inertial parameters (TOML ``inertial_uncertainty``),
-    # the streaming estimator's model term where no calibration is given (``estimator/model_term.py``); 0.0 where
-    # the description states none.
-    inertial_uncertainty: float = 0.0
+    # the streaming estimator's model term where no calibration is given (``estimator/model_term.py``); None where
+    # the description states none (the estimator then assumes an unidentified arm's).
+    inertial_uncertainty: float | None = None
 
     def friction(self, name: str = "gaz2019") -> GazFriction | None:
         """The named friction law, or None when this robot ships none."""
@@ -127,5 +127,5 @@ def load_spec(name_or_path: str | os.PathLike) -> RobotSpec:
         default_tool=str(doc.get("tool", "none")),
         springs=tuple(doc.get("identification", {}).get("springs", ())),
         rated_payload_kg=float(doc["rated_payload_kg"]) if "rated_payload_kg" in doc else None,
-        inertial_uncertainty=float(doc.get("inertial_uncertainty", 0.0)),
+        inertial_uncertainty=float(doc["inertial_uncertainty"]) if "inertial_uncertainty" in doc else None,
     )

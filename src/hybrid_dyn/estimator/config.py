@@ -132,7 +132,7 @@ class EstimatorConfig:
     from 1 / call_hz (and an untimed stream's measured rate, ``RateCheck``).
     inertial_uncertainty, payload_uncertainty_kg: the error bar's model term where no calibration is given
     (``estimator/model_term.py``): the relative 1-sigma of every link's inertials ("auto": the description's
-    ``inertial_uncertainty``), and the 1-sigma of a declared payload's mass [kg] (0.05 kg: a tool weighed; set
+    ``inertial_uncertainty``, 10 % where it states none), and the 1-sigma of a declared payload's mass [kg] (0.05 kg: a tool weighed; set
     your scale's, or more for a guess: a load far from the declared one also shows in the start-up window).
     rated_payload_kg: the largest payload [kg] the arm may be declared to carry (``payload=``,
     ``set_payload``); "auto": the robot description's ``rated_payload_kg`` (none stated: no bound beyond

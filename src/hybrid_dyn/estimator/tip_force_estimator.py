@@ -25,7 +25,7 @@ from .call_status import NO_SIGMA, CallStatus, StandstillLag, within
 from .config import MAX_SIGMA, EstimatorConfig, EstimatorStatus, check_rating, checked_payload, rated_payload
 from .calibration import Calibration, ModelError
 from .consistency import Consistency
-from .model_term import StatedModelError
+from .model_term import StatedModelError, inertial_uncertainty
 from .input import EstimatorInputError, InputGate, RateCheck
 from .noise_window import NoiseWindow
 from .stream_starts import StreamStarts
@@ -145,8 +145,8 @@ class TipForceEstimator(CallStatus, StreamStarts):
         """The model term of what the description and the payload state (``model_term.py``), or None where they
         state nothing (a payload's sigma counts only while one is declared, so it is kept for ``set_payload``)."""
         c, reads = self.config, self.spec.reads
-        inertial = self.robot.spec.inertial_uncertainty if c.inertial_uncertainty == "auto" else c.inertial_uncertainty
-        if float(inertial) == 0.0 and c.payload_uncertainty_kg == 0.0:
+        inertial = inertial_uncertainty(c.inertial_uncertainty, self.robot.spec)
+        if inertial == 0.0 and c.payload_uncertainty_kg == 0.0:
             return None
         kind = "fusion" if "base_wrench" in reads and "tau_J" in reads else "base" if "base_wrench" in reads \
             else "torques"
