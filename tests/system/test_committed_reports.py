@@ -12,10 +12,11 @@ pytestmark = pytest.mark.system
 REPORTS = REPO / "reports"
 NOT_COMMITTED = {"predictions.h5"}  # .gitignore: every report's predictions stay out of git
 # What hybrid-dyn bench and hybrid-dyn report write into a report folder (runner.py, report.py).
-# (free_motion.csv/.md: the real report's section "Tip force in free motion", by benchmarks/free_motion.py, which
-# the report's README draws: bench/free_motion.py)
+# (free_motion.csv/.md and uncalibrated_free_motion.md: the real report's section "Tip force in free motion", by
+# benchmarks/free_motion.py and benchmarks/uncalibrated_free_motion.py, which the report's README draws:
+# bench/free_motion.py)
 BENCH_FILES = re.compile(r"^(results\.csv|run\.json|curves\.json|README\.md|seed_comparison\.md|predictions\.h5"
-                         r"|(joint_torque|tip_force)\.(md|tex)|free_motion\.(csv|md)|[\w.+-]+\.png)$")
+                         r"|(joint_torque|tip_force)\.(md|tex)|(uncalibrated_)?free_motion\.(csv|md)|[\w.+-]+\.png)$")
 COMMAND = re.compile(r"`(hybrid-dyn (bench|study|report|compare)\b[^`]*|python (benchmarks|checks)/\w+\.py[^`]*)`")
 # Absolute paths of a machine's own folders (a user's example such as /path/arm.urdf is not one).
 MACHINE_PATH = re.compile(r"(?:^|(?<=[\s`'\"(\[=,:]))/(?:work|home|tmp|Users|root|mnt|scratch|private|var/folders)/")

@@ -205,7 +205,7 @@ def _uncalibrated_lines(out: Path) -> list[str]:
     if not table.exists():
         return []
     return ["", "Without a calibration the error bar's model term is what the robot description states "
-            "(`estimator/model_term.py`: the Panda's 5 % on its inertials; 10 % where a description states none, as "
+            "(`estimator/model_term.py`: the Panda's 10 % on its inertials, and 10 % where a description states none, as "
             "the KUKA LWR's and Baxter's). On the same test parts (`ok within 2 sigma` as above; written by "
             f"`python benchmarks/uncalibrated_free_motion.py`, `{UNCALIBRATED}`):", ""] + \
         table.read_text().rstrip("\n").split("\n")

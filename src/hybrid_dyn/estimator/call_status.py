@@ -83,9 +83,10 @@ class CallStatus:
             # The offset the window found: a flipped sign or a wrong frame shows there. The drift followed since
             # is bounded by the sensor's stated rate, and over an hour is no implausible tare.
             o, bound = self._tare.found, self.config.max_tare_offset
-            if hasattr(self._model_error, "weight_sigma"):  # and the model's weight, as far as it is stated
-                bound += 3.0 * self._model_error.weight_sigma()
-            if o[0] * o[0] + o[1] * o[1] + o[2] * o[2] > bound * bound:
+            size2 = o[0] * o[0] + o[1] * o[1] + o[2] * o[2]
+            if size2 > bound * bound and hasattr(self._model_error, "weight_sigma"):
+                bound += 3.0 * self._model_error.weight_sigma()  # and the model's weight, as far as it is stated
+            if size2 > bound * bound:
                 fault = _IMPLAUSIBLE_TARE
         if check.frozen(base_wrench, tau_J if tau_raw is None else tau_raw) and fault is None:
             fault = _FROZEN_SENSOR
@@ -155,12 +156,13 @@ class CallStatus:
             if self._tared_at is not None:
                 since = (self._calls - self._tared_at) / self.config.call_hz
             self.last_sigma = self._error_bar.update(f, self._motion, since)
+            # (np.hypot and max of a list: one ufunc call each, not four; this runs every control cycle)
             if self._model_sigma is not None:  # the model's error, independent of the sensors'
-                measured = float(self.last_sigma.max())
-                self.last_sigma = np.sqrt(self.last_sigma * self.last_sigma + self._model_sigma * self._model_sigma)
+                measured = max(self.last_sigma.tolist())
+                self.last_sigma = np.hypot(self.last_sigma, self._model_sigma)
             if self._tau_sigma is not None:  # the joint-torque offsets' drift since verified, likewise independent
-                sensors = float(self.last_sigma.max())
-                self.last_sigma = np.sqrt(self.last_sigma * self.last_sigma + self._tau_sigma * self._tau_sigma)
+                sensors = max(self.last_sigma.tolist())
+                self.last_sigma = np.hypot(self.last_sigma, self._tau_sigma)
         else:
             self.last_sigma = NO_SIGMA.copy()
         status = _OK if in_range else _OUT_OF_RANGE
@@ -171,8 +173,8 @@ class CallStatus:
             # at least half of it): say so (a standstill re-verifies).
             status = _TORQUE_OFFSET if self._tau_sigma is not None and estimated and sensors <= limit and float(
                 self._tau_sigma.max()) >= 0.5 * limit else _UNCERTAIN
-            if status is _UNCERTAIN and estimated and self._model_sigma is not None and measured <= limit and float(
-                    self._model_sigma.max()) >= 0.5 * limit:  # likewise by the model's stated (or calibrated) error
+            if status is _UNCERTAIN and estimated and self._model_sigma is not None and measured <= limit and max(
+                    self._model_sigma.tolist()) >= 0.5 * limit:  # likewise by the model's stated (or calibrated) error
                 status = _NEAR_SINGULARITY if getattr(self._model_error, "weak", False) else _MODEL
         if self._calls < self._warmup_calls:
             status = _WARMING_UP if self.window_problem is None else _CONTACT_AT_START

@@ -22,8 +22,10 @@ class StreamStarts:
         contact held on does not tare it in. A window at that level that its moments refuse (a force held at the
         moving tool) shows the level was a contact's (a press from power-up): it is dropped."""
         c = self.config
-        # The model's calibrated error is no contact: twice its sigma bounds what the torques may show.
-        model = None if self._model_sigma is None else 2.0 * float(np.linalg.norm(self._model_sigma))
+        # The model's calibrated error is no contact: twice its sigma bounds what the torques may show. Not the
+        # stated term's: on the Panda it allows ~10 N, and a press held that still would be tared in.
+        model = None if self._model_sigma is None or self.calibration is None else \
+            2.0 * float(np.linalg.norm(self._model_sigma))
         tare, self._windows = self._tare, self._windows + 1
         problem = self._window.contact(tare, c.tare_contact_force, c.off_tool_moment, c.tare_held_force,
                                        torque_limit=model)
