@@ -4,7 +4,7 @@ import pytest
 
 import hybrid_dyn as hd
 from hybrid_dyn.estimator import EstimatorStatus, TipForceEstimator
-from hybrid_dyn.sim.trust_streams import build
+from hybrid_dyn.sim.trust_streams import TrustCase, build
 
 
 # The stream is the model's own (no model error): the error bar's stated model term (estimator/model_term.py) has
@@ -64,3 +64,20 @@ def test_a_press_from_power_up_leaves_no_start_level_behind(panda):
     assert not any(x is EstimatorStatus.CONTACT_AT_START for x, a in zip(status, after) if a)
     ok = np.array([x is EstimatorStatus.OK for x in status])
     assert ok[after].any() and np.linalg.norm(f[after & ok], axis=1).max() < 2.0
+
+
+def test_a_vertical_force_held_through_the_window_is_named_a_load_mismatch(panda):
+    """A payload 0.7 kg heavier than declared: the joint torques see its weight, straight down, through the window:
+    ``load mismatch`` on every call after it, never ok. A press held as long at 20 degrees or more off the vertical
+    stays ``contact at start-up``."""
+    s = build(panda, TrustCase(3.0, moving=((2.0, 3.0),), payload=(0.5, 1.2)), seed=2)
+    est = TipForceEstimator.analytic(panda, "torques-pinv", payload=s.payload)
+    for k in range(len(s.t)):
+        est.estimate_tip_force(s.q[k], s.qd[k], tau_J=s.tau_J[k], t=s.t[k])
+        assert k < 500 or est.last_status is EstimatorStatus.LOAD_MISMATCH, (k, est.last_status)
+    assert "vertical" in est.window_problem
+    s = build(panda, TrustCase(3.0, ((0.0, 10.0), (3.0, 10.0)), direction=(0.4, 0.0, -1.0)), seed=2)
+    est = TipForceEstimator.analytic(panda, "torques-pinv")
+    for k in range(len(s.t)):
+        est.estimate_tip_force(s.q[k], s.qd[k], tau_J=s.tau_J[k], t=s.t[k])
+        assert k < 500 or est.last_status is EstimatorStatus.CONTACT_AT_START, (k, est.last_status)

@@ -149,19 +149,18 @@ class CallStatus:
         if self._calls < self._warmup_calls:  # the method's own transient: no error model of it
             estimated = False
             self._error_bar.reset()
-        sensors = 0.0  # the largest sigma before the joint-torque offsets' drift term [N]
-        measured = 0.0  # the largest sigma of the sensors' terms alone (noise, lag, motion, drift) [N]
+        measured = 0.0  # the largest sigma of the sensors' own terms (noise, lag, motion, the base sensor's drift) [N]
         if estimated:
             since = None
             if self._tared_at is not None:
                 since = (self._calls - self._tared_at) / self.config.call_hz
             self.last_sigma = self._error_bar.update(f, self._motion, since)
             # (np.hypot and max of a list: one ufunc call each, not four; this runs every control cycle)
-            if self._model_sigma is not None:  # the model's error, independent of the sensors'
+            if self._model_sigma is not None or self._tau_sigma is not None:
                 measured = max(self.last_sigma.tolist())
+            if self._model_sigma is not None:  # the model's error, independent of the sensors'
                 self.last_sigma = np.hypot(self.last_sigma, self._model_sigma)
             if self._tau_sigma is not None:  # the joint-torque offsets' drift since verified, likewise independent
-                sensors = max(self.last_sigma.tolist())
                 self.last_sigma = np.hypot(self.last_sigma, self._tau_sigma)
         else:
             self.last_sigma = NO_SIGMA.copy()
@@ -169,15 +168,9 @@ class CallStatus:
         s0, s1, s2 = self.last_sigma.tolist()  # floats: a numpy max costs a microsecond; NaN still fails
         limit = self.max_sigma
         if status is _OK and not (s0 <= limit and s1 <= limit and s2 <= limit):
-            # Uncertain by the joint-torque offsets' drift since verified (the others' within the bound, the drift's
-            # at least half of it): say so (a standstill re-verifies).
-            status = _TORQUE_OFFSET if self._tau_sigma is not None and estimated and sensors <= limit and float(
-                self._tau_sigma.max()) >= 0.5 * limit else _UNCERTAIN
-            if status is _UNCERTAIN and estimated and self._model_sigma is not None and measured <= limit and max(
-                    self._model_sigma.tolist()) >= 0.5 * limit:  # likewise by the model's stated (or calibrated) error
-                status = _NEAR_SINGULARITY if getattr(self._model_error, "weak", False) else _MODEL
+            status = self._uncertain_cause(measured, limit) if estimated else _UNCERTAIN
         if self._calls < self._warmup_calls:
-            status = _WARMING_UP if self.window_problem is None else _CONTACT_AT_START
+            status = _WARMING_UP if self.window_problem is None else self.window_status
         if self._fault is not None and estimated:
             status = self._fault
         if not usable:
@@ -190,6 +183,21 @@ class CallStatus:
             self._last_good = f
         self.last_status = status
         return f.copy()
+
+    def _uncertain_cause(self, measured: float, limit: float):
+        """Why a call's sigma exceeds ``limit`` [N]: the larger of the two terms beyond the sensors' own, where those
+        (``measured``) are within the bound and it is at least half of it: the joint-torque offsets' drift since
+        verified (``torque sensor offset``: a standstill re-verifies them) or the model's stated or calibrated error
+        (``model uncertain``; ``near a singularity`` where J_v's weak direction makes it); else ``uncertain``."""
+        if measured > limit:
+            return _UNCERTAIN
+        drift = 0.0 if self._tau_sigma is None else max(self._tau_sigma.tolist())
+        model = 0.0 if self._model_sigma is None else max(self._model_sigma.tolist())
+        if max(drift, model) < 0.5 * limit:
+            return _UNCERTAIN
+        if drift >= model:
+            return _TORQUE_OFFSET
+        return _NEAR_SINGULARITY if getattr(self._model_error, "weak", False) else _MODEL
 
     def _track_sensors(self, has_base: bool, has_joint: bool) -> bool:
         """kalman-fusion: which sensors the filter estimates from. A sensor back within

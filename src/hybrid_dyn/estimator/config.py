@@ -32,6 +32,9 @@ class EstimatorStatus(str, Enum):
     NO_SENSOR = "no usable sensor"       # this call brings nothing the method can estimate from
     UNCERTAIN = "uncertain"              # the predicted error (last_sigma) exceeds EstimatorConfig.max_sigma
     CONTACT_AT_START = "contact at start-up"  # the noise window saw a contact: a new window is under way
+    # The same, where the force the joint torques saw through the window was vertical: a tool load (or the arm's
+    # weight) other than the model's, or a vertical press; neither is tared (``estimator/stream_starts.py``).
+    LOAD_MISMATCH = "load mismatch"
     # Consistency: the sensors contradict the model (``estimator/consistency.py``); no estimate to trust.
     IMPLAUSIBLE_TARE = "tare offset implausible"  # the base sensor's offset beyond its plausible bias (a flipped sign)
     FROZEN_SENSOR = "frozen sensor"      # a sensor repeats its reading exactly, call after call

@@ -25,6 +25,7 @@ class NoiseWindow:
         self.w, self.tau = np.zeros((n, 6)), np.zeros((n, nv))
         self.has = np.zeros((n, 2), dtype=bool)  # per call: base sensor, joint torques present
         self.force = np.zeros((n, 3))  # the force [N] the joint torques see, per call
+        self.held_force = None  # the force [N] the joint torques saw held through the last window checked, if any
         if self.check_torques:  # its first call loads compiled code: now, not in a control cycle
             tip_force_from_torques(robot, np.array(robot.spec.home, float), np.zeros(nv), np.zeros(nv), np.zeros(nv))
 
@@ -71,6 +72,7 @@ class NoiseWindow:
         # the window (kalman-fusion given joint torques alone) nothing is tared, and nothing is checked.
         tares = self.has[:, 0].sum() >= 8
         seen = window_force(self.force[has], limit) if self.check_torques and tares and has.sum() >= 8 else None
+        self.held_force = None if seen is None else np.median(self.force[has], axis=0)
         if seen is not None:
             return (f"the joint torques saw {seen:.2f} N at the tool during the noise window "
                     f"(limit {limit:.3g} N): a contact, or a tool load other than the model's (payload= missing, "

@@ -8,8 +8,16 @@ from __future__ import annotations
 
 import numpy as np
 
+import math
+
 from ..analytic.acceleration import CausalAccelerationFilter, cutoff_grid
 from ..analytic.bandwidth import QDD_CUTOFF
+from .config import EstimatorStatus
+
+_CONTACT_AT_START, _LOAD_MISMATCH = EstimatorStatus.CONTACT_AT_START, EstimatorStatus.LOAD_MISMATCH
+# A force the joint torques saw held through the start-up window within this angle of the vertical is named a load
+# other than the model's: a payload error's force is its weight, straight down or up.
+VERTICAL_DEGREES = 10.0
 
 
 class StreamStarts:
@@ -46,13 +54,27 @@ class StreamStarts:
             if problem is None and hasattr(self._model_error, "tare"):  # the model's error at its pose went with it
                 self._model_error.tare(self._tau_tare.pose)
         if problem is not None:
-            self._restart_window(problem)
+            self._restart_window(problem, self._held_force())
         else:
             self.window_problem = None
             self._window_noise = self._window.measure(self._joint)
 
-    def _restart_window(self, problem: str) -> None:
-        """The window saw a contact: forget it (its tare and noise) and start a new one now."""
+    def _held_force(self):
+        """The force [N] the joint torques saw held through the window just refused, or None."""
+        for force in (getattr(self._tau_tare, "held_force", None), self._window.held_force):
+            if force is not None:
+                return force
+        return None
+
+    def _restart_window(self, problem: str, held=None) -> None:
+        """The window saw a contact: forget it (its tare and noise) and start a new one now. held: the force [N] the
+        joint torques saw held through it; a vertical one (within VERTICAL_DEGREES) names a load other than the
+        model's (``load mismatch``: a payload declared wrong, another arm's weight, or a vertical press)."""
+        vertical = held is not None and abs(held[2]) >= math.cos(math.radians(VERTICAL_DEGREES)) * np.linalg.norm(held)
+        if vertical:
+            problem += (f"; it was vertical ({held[2]:+.2f} N along z): a load {-held[2] / 9.81:+.2f} kg from the "
+                        "model's (payload= declared wrong, the arm's weight), or a vertical press")
+        self.window_status = _LOAD_MISMATCH if vertical else _CONTACT_AT_START
         self.window_problem = problem
         if self._tare is not None:
             self._tare.reset()

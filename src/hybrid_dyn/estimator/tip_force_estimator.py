@@ -243,6 +243,7 @@ class TipForceEstimator(CallStatus, StreamStarts):
         self._motion = 0.0  # this call's joint-acceleration norm [rad/s^2], for the error bar
         self._tared_at = None  # the call at which the base sensor's offset was last set
         self.window_problem = None  # why the last noise window was not trusted (a contact), until one is
+        self.window_status = EstimatorStatus.CONTACT_AT_START  # what the warm-up says while window_problem stands
         self._windows = 0  # noise windows ended since the reset
         self._start_level = None  # the contact-free start's base residual [N], where a contact began in its window
         self._still_calls = 0  # consecutive calls at a standstill (the drift-following tare)

@@ -47,7 +47,7 @@ class TorqueTare:
         nv = robot.nv
         # the residuals b [Nm], Jacobians J_v [m/rad] and poses q [rad] summed
         self._sums = (np.zeros(nv), np.zeros((3, nv)), np.zeros(nv))
-        self.held = None  # why an earlier window of this stream was not trusted (a force held at the tool)
+        self.held, self.held_force = None, None  # why an earlier window was not trusted (a force held at the tool)
         self.offset = np.zeros(nv)
         self._lag = StandstillLag(nv)  # the follower's lag [Nm], averaged over retare_seconds
         self.sigma = np.zeros(3)  # the drift term [N] per axis, at the latest check
@@ -57,7 +57,7 @@ class TorqueTare:
         """A new window: nothing summed, no offset. keep_held: the stream goes on after a window that saw a force
         held at the tool (``held``): a later window must see it gone, not move through it."""
         if not keep_held:
-            self.held = None
+            self.held, self.held_force = None, None  # (the force [N] behind ``held``)
         self.pose = None  # the window's mean still pose [rad], where the offsets were tared
         for s in self._sums:
             s[:] = 0.0
@@ -103,11 +103,12 @@ class TorqueTare:
             jt = sj.T / n
             held = np.linalg.lstsq(jt, found, rcond=None)[0]
             if np.abs(found - jt @ held).max() <= self.max_offset:
+                self.held_force = held
                 self.held = (f"the joint torques saw {np.linalg.norm(held):.2f} N at the tool during the noise window, "
                              f"beyond what a torque sensor's offset ({self.max_offset:g} Nm) explains: a contact, or a "
                              "load the model lacks")
                 return self.held
-        self.held = None
+        self.held, self.held_force = None, None
         self.found = found
         self.implausible = bool(np.abs(found).max() > self.max_offset)
         if not self.implausible:
