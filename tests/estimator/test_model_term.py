@@ -1,6 +1,8 @@
 """The error bar's stated model term (``estimator/model_term.py``): each part against an independent reference (a
 perturbed model's RNEA, the payload's weight, the centre of mass's acceleration), and the trust streams whose arm
 is not the model (``sim/trust_streams.py``)."""
+from dataclasses import replace
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -10,7 +12,7 @@ from hybrid_dyn.analytic.robot import with_payload
 from hybrid_dyn.errors import UsageError
 from hybrid_dyn.estimator import EstimatorStatus, TipForceEstimator
 from hybrid_dyn.estimator.model_term import StatedModelError
-from hybrid_dyn.sim.trust_streams import CASES, build
+from hybrid_dyn.sim.trust_streams import CASES, TrustCase, build
 
 
 @pytest.fixture(scope="module")
@@ -87,8 +89,8 @@ def test_the_torque_term_grows_near_a_singular_pose_and_its_status_says_so(panda
 def test_an_arm_unlike_its_model_is_not_ok_on_a_wrong_force(panda, case):
     """Another parameter set, a payload 0.7 kg heavier than declared: no late ok call errs by over 2 N, and the
     base sensor's tare takes the weight the description allows (no "tare offset implausible")."""
-    s = build(panda, CASES[case].__class__(**{**CASES[case].__dict__, "seconds": 6.0,
-                                             "force": ((0.0, 0.0), (4.0, 0.0), (4.001, 10.0), (6.0, 10.0))}), seed=300)
+    s = build(panda, replace(CASES[case], seconds=6.0, force=((0.0, 0.0), (4.0, 0.0), (4.001, 10.0), (6.0, 10.0))),
+              seed=300)
     for method in ("base-momentum", "torques-pinv", "kalman-fusion"):
         est = TipForceEstimator.analytic(panda, method, payload=s.payload)
         late_bad, statuses = 0, set()
@@ -111,7 +113,7 @@ def test_the_stated_term_does_not_let_a_press_held_through_the_window_be_tared_i
     """6 N held from power-up to 1.5 s at a standstill, kalman-fusion with the description's 10 %: the model's
     stated error (several newtons through the window's untared torques) must not widen the start-up check, or the
     press is tared in and read as -6 N after its release."""
-    s = build(panda, CASES["slow-ramp"].__class__(4.0, ((0.0, 6.0), (1.5, 6.0), (1.501, 0.0), (4.0, 0.0))), seed=5)
+    s = build(panda, TrustCase(4.0, ((0.0, 6.0), (1.5, 6.0), (1.501, 0.0), (4.0, 0.0))), seed=5)
     est = TipForceEstimator.analytic(panda, "kalman-fusion")
     bad = 0
     for k in range(len(s.t)):

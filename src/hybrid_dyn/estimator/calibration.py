@@ -202,7 +202,11 @@ class Calibration:
 
 
 class ModelError:
-    """The model term of one stream's error bar (module docstring, step 2): ``update`` at each call."""
+    """The model term of one stream's error bar (module docstring, step 2): ``update`` at each call. The interface
+    of ``model_term.StatedModelError``, whose parts a calibration does not state: no weight sigma, no pose the
+    torque tare took its error at, no weak-direction flag (its sigma grows there by itself)."""
+
+    weak = False
 
     def __init__(self, robot, calibrated: MethodCalibration):
         self.robot, self.cal, self.scale = robot, calibrated, float(calibrated.sigma_scale)
@@ -214,6 +218,13 @@ class ModelError:
 
     def reset(self) -> None:
         self._k = CHECK_EVERY - 1
+
+    def tare(self, q) -> None:
+        """The torque tare took the offsets at pose q: a calibrated error is of the untared torques, kept."""
+
+    def weight_sigma(self) -> float:
+        """The arm's weight's 1-sigma [N] a base tare may absorb: a calibration states none."""
+        return 0.0
 
     def update(self, q, qd, qdd) -> np.ndarray:
         """The model's 1-sigma error per axis (3,) [N] at this call (recomputed every CHECK_EVERY calls)."""

@@ -13,9 +13,9 @@ from ..analytic.kalman import MAX_BRIDGE_CALLS
 from .config import EstimatorStatus
 
 # The statuses as plain names for the per-call path: an Enum member looked up on its class costs ~0.3 us.
-_OK, _WARMING_UP, _OUT_OF_RANGE, _FORCE_OUT_OF_RANGE, _WRONG_RATE, _NO_SENSOR, _UNCERTAIN, _CONTACT_AT_START = (
+_OK, _WARMING_UP, _OUT_OF_RANGE, _FORCE_OUT_OF_RANGE, _WRONG_RATE, _NO_SENSOR, _UNCERTAIN = (
     EstimatorStatus.OK, EstimatorStatus.WARMING_UP, EstimatorStatus.OUT_OF_RANGE, EstimatorStatus.FORCE_OUT_OF_RANGE,
-    EstimatorStatus.WRONG_RATE, EstimatorStatus.NO_SENSOR, EstimatorStatus.UNCERTAIN, EstimatorStatus.CONTACT_AT_START)
+    EstimatorStatus.WRONG_RATE, EstimatorStatus.NO_SENSOR, EstimatorStatus.UNCERTAIN)
 _IMPLAUSIBLE_TARE, _FROZEN_SENSOR, _OFF_TOOL, _NEAR_SINGULARITY, _TORQUE_OFFSET, _CLIPPED, _MODEL = (
     EstimatorStatus.IMPLAUSIBLE_TARE, EstimatorStatus.FROZEN_SENSOR, EstimatorStatus.OFF_TOOL,
     EstimatorStatus.NEAR_SINGULARITY, EstimatorStatus.TORQUE_OFFSET, EstimatorStatus.CLIPPED_CHANNEL,
@@ -84,7 +84,7 @@ class CallStatus:
             # is bounded by the sensor's stated rate, and over an hour is no implausible tare.
             o, bound = self._tare.found, self.config.max_tare_offset
             size2 = o[0] * o[0] + o[1] * o[1] + o[2] * o[2]
-            if size2 > bound * bound and hasattr(self._model_error, "weight_sigma"):
+            if size2 > bound * bound and self._model_error is not None:
                 bound += 3.0 * self._model_error.weight_sigma()  # and the model's weight, as far as it is stated
             if size2 > bound * bound:
                 fault = _IMPLAUSIBLE_TARE
@@ -96,7 +96,8 @@ class CallStatus:
             fault = _TORQUE_OFFSET
         if check.check_off_tool(q, qd, qdd, w_in, tau_J) and fault is None:
             fault = _OFF_TOOL
-        if (check.singular or (tau_J is not None and getattr(self._model_error, "weak", False))) and fault is None:
+        weak = self._model_error is not None and self._model_error.weak
+        if (check.singular or (tau_J is not None and weak)) and fault is None:
             fault = _NEAR_SINGULARITY  # (the model term's check: kalman-fusion's torques shrink the weak direction too)
         self._fault = fault
 
@@ -197,7 +198,7 @@ class CallStatus:
             return _UNCERTAIN
         if drift >= model:
             return _TORQUE_OFFSET
-        return _NEAR_SINGULARITY if getattr(self._model_error, "weak", False) else _MODEL
+        return _NEAR_SINGULARITY if self._model_error is not None and self._model_error.weak else _MODEL
 
     def _track_sensors(self, has_base: bool, has_joint: bool) -> bool:
         """kalman-fusion: which sensors the filter estimates from. A sensor back within

@@ -23,7 +23,7 @@ sigma. The methods read that error differently:
 - **both** (``fusion``, kalman-fusion): the filter's weights do not know these errors, so its estimate may carry
   either's: the larger sigma per axis.
 
-Recomputed every ``CHECK_EVERY`` calls (a regressor and a Jacobian, ~10 us).
+Recomputed every ``CHECK_EVERY`` calls, in two halves on two calls (``StatedModelError.update``).
 """
 from __future__ import annotations
 
@@ -33,7 +33,7 @@ import numpy as np
 import pinocchio as pin
 from numba import njit
 
-from ..analytic.tip_force import SINGULAR_REGION, _min_eig_sym3
+from ..analytic.tip_force import SINGULAR_REGION, _min_eig_sym3, sym3_adjugate
 from .calibration import OFF_TOOL_SIGMAS
 from .consistency import CHECK_EVERY
 
@@ -108,8 +108,7 @@ class StatedModelError:
         if payload is not None and payload.mass != 0 and self.payload_sigma != 0:
             com = model.frames[model.getFrameId(robot.spec.tool_frame)].placement.act(np.asarray(payload.offset, float))
             self._unit = pin.Inertia(1.0, com, np.zeros((3, 3))).toDynamicParameters()
-        self._theta_for = robot.total_mass
-        self._weight = np.zeros((3, 1))  # (the recursion's guard)
+        self._theta_for = robot.total_mass  # (set first: _columns reads the parameters back through here)
         self._weight = self._columns(np.array(robot.spec.home, float), self._zero, self._zero)[:3].copy()
 
     def _columns(self, q, qd, qdd) -> np.ndarray:
@@ -129,7 +128,7 @@ class StatedModelError:
     def _torque_sigma(self, d) -> np.ndarray:
         """The joint-torque methods' sigma (3,) [N] (and the off-tool bound) from D's joint-torque rows d less the
         tare's, through pinv(J_v^T) (``_torque_map``, compiled: this runs in a control cycle)."""
-        robot = self.robot
+        robot = self.robot  # J_v at the pose the columns are of (``_columns`` left it in _qff)
         jv = pin.computeFrameJacobian(robot.model, self._data_j, self._qff[7:], robot.tool_frame_id,
                                       pin.LOCAL_WORLD_ALIGNED)[:3]
         tared = self._no_tare if self._tared is None else self._tared
@@ -178,6 +177,7 @@ class StatedModelError:
         else:
             self.sigma = np.maximum(self._base_sigma(d[:3]), self._torque_sigma(d[6:]))
 
+
 @njit(cache=True)
 def _torque_map(jv, d, tared, k, sigma):  # pragma: no cover (compiled)
     """sigma (3,) [N] = the row norms of P (d - tared) with P = pinv(J_v^T) = (J_v J_v^T)^-1 J_v, tared's first k
@@ -185,19 +185,16 @@ def _torque_map(jv, d, tared, k, sigma):  # pragma: no cover (compiled)
     sigma and bound where J_v J_v^T is singular."""
     nv, ncol = d.shape
     a = jv @ jv.T
-    least = _min_eig_sym3(a[0, 0], a[0, 1], a[0, 2], a[1, 1], a[1, 2], a[2, 2])
-    c00, c01, c02 = a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1], a[0, 2] * a[2, 1] - a[0, 1] * a[2, 2], \
-        a[0, 1] * a[1, 2] - a[0, 2] * a[1, 1]
-    det = a[0, 0] * c00 + a[1, 0] * c01 + a[2, 0] * c02
+    a00, a01, a02, a11, a12, a22 = a[0, 0], a[0, 1], a[0, 2], a[1, 1], a[1, 2], a[2, 2]
+    least = _min_eig_sym3(a00, a01, a02, a11, a12, a22)
+    c00, c01, c02, c11, c12, c22, det = sym3_adjugate(a00, a01, a02, a11, a12, a22)
     if not abs(det) > 1e-18:
         sigma[:] = np.inf
         return np.inf, least
-    inv = np.empty((3, 3))
+    inv = np.empty((3, 3))  # (a LAPACK solve here tripled the estimator's construction with an empty numba cache)
     inv[0, 0], inv[0, 1], inv[0, 2] = c00, c01, c02
-    inv[1, 0], inv[1, 1], inv[1, 2] = a[1, 2] * a[2, 0] - a[1, 0] * a[2, 2], a[0, 0] * a[2, 2] - a[0, 2] * a[2, 0], \
-        a[0, 2] * a[1, 0] - a[0, 0] * a[1, 2]
-    inv[2, 0], inv[2, 1], inv[2, 2] = a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0], a[0, 1] * a[2, 0] - a[0, 0] * a[2, 1], \
-        a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
+    inv[1, 0], inv[1, 1], inv[1, 2] = c01, c11, c12
+    inv[2, 0], inv[2, 1], inv[2, 2] = c02, c12, c22
     p = (inv / det) @ jv
     e = d.copy()
     for j in range(nv):

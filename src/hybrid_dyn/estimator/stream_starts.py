@@ -6,9 +6,9 @@ state; nothing here runs in a steady control cycle.
 """
 from __future__ import annotations
 
-import numpy as np
-
 import math
+
+import numpy as np
 
 from ..analytic.acceleration import CausalAccelerationFilter, cutoff_grid
 from ..analytic.bandwidth import QDD_CUTOFF
@@ -51,7 +51,7 @@ class StreamStarts:
             self._start_level = np.median(tare.residuals[:len(tare.residuals) // 5], axis=0)
         if problem is None and self._tau_tare is not None:
             problem = self._tau_tare.close(self._calls)
-            if problem is None and hasattr(self._model_error, "tare"):  # the model's error at its pose went with it
+            if problem is None and self._model_error is not None:  # the model's error at its pose went with it
                 self._model_error.tare(self._tau_tare.pose)
         if problem is not None:
             self._restart_window(problem, self._held_force())

@@ -137,8 +137,8 @@ class TipForceEstimator(CallStatus, StreamStarts):
         elif self.spec is not None:
             self._model_error = self._stated_model_error()
         self.max_sigma = MAX_SIGMA if max_sigma == "auto" else float(max_sigma)
-        self._model_qdd = (self._model_error is not None and calibrated is not None) or (
-            torque_model is not None and torque_model.needs_qdd)
+        # qdd filtered for the calibrated term's law (the stated term reads whichever qdd the call has)
+        self._model_qdd = calibrated is not None or (torque_model is not None and torque_model.needs_qdd)
         return calibrated
 
     def _stated_model_error(self):
